@@ -1,0 +1,31 @@
+# Two commands do everything on a fresh machine (Python >= 3.10, pip, make, gcc):
+#   make demo   set up .venv and run the default scenario (log under logs/)
+#   make test   set up .venv and run the whole test suite (slow tests included)
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed-stamp
+SCENARIO ?= lane-change
+
+.PHONY: demo test test-fast lint clean
+
+$(STAMP): pyproject.toml
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	touch $(STAMP)
+
+demo: $(STAMP)
+	MUJOCO_GL=$${MUJOCO_GL:-disable} $(BIN)/cosim run $(SCENARIO)
+
+test: $(STAMP)
+	MUJOCO_GL=$${MUJOCO_GL:-disable} $(BIN)/python -m pytest
+
+test-fast: $(STAMP)
+	MUJOCO_GL=$${MUJOCO_GL:-disable} $(BIN)/python -m pytest -m "not slow"
+
+lint: $(STAMP)
+	$(BIN)/ruff check .
+
+clean:
+	rm -rf $(VENV) build dist *.egg-info .pytest_cache

@@ -1,0 +1,43 @@
+"""Speed of a full run: wall time, realtime factor and MPC solve time (measures and prints).
+
+    .venv/bin/python bench/run_speed.py [--repeats 3] [--scenario lane-change]
+
+Prints the median over repeats of each figure measured in this one invocation, so figures
+are comparable with each other (same machine, same moment), not across machines.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import tempfile
+from pathlib import Path
+
+from cosim.runner import run
+from cosim.scenario_config import load_config
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--scenario", default="lane-change")
+    parser.add_argument("--set", action="append", default=[], dest="overrides")
+    args = parser.parse_args()
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for repeat in range(args.repeats):
+            config = load_config(args.scenario, overrides=args.overrides)
+            result = run(config, Path(tmp) / f"bench-{repeat}.mcap")
+            size_kib = (Path(tmp) / f"bench-{repeat}.mcap").stat().st_size / 1024
+            rows.append({**result.metrics, "log_kib": size_kib})
+    keys = ("wall_time_s", "realtime_factor", "solve_ms_p50", "solve_ms_p99", "solve_ms_max",
+            "cte_max_m", "log_kib")
+    print(f"{args.scenario}: median of {args.repeats} runs")
+    for key in keys:
+        values = [row[key] for row in rows]
+        print(f"  {key:<16} {statistics.median(values):10.3f}   "
+              f"(min {min(values):.3f}, max {max(values):.3f})")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,209 @@
+"""The ``cosim`` command line (a contract: outside tests depend on it).
+
+    cosim run SCENARIO [--config FILE.yaml] [--tracker NAME] [--estimator NAME]
+                       [--seed N] [--duration S] [--set key.path=value ...] [--out FILE.mcap]
+    cosim inspect FILE.mcap [--json] [--topic T [--head N]]
+    cosim scenarios
+
+Bad input: one line on stderr naming the bad value and what was expected, exit code 2.
+A run that aborts exits 1 (its log is complete up to the abort); an interrupt exits 130.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import math
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, NoReturn
+
+from cosim.exceptions import CosimError
+
+EXIT_USAGE = 2
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse, but a usage error is one line (not usage + error) and exit code 2."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message}\n")
+
+
+def _build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="cosim", description=__doc__.split("\n\n")[0])
+    commands = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    run = commands.add_parser("run", help="run a scenario and log it to MCAP")
+    run.add_argument("scenario", help="built-in scenario name (see `cosim scenarios`) or YAML")
+    run.add_argument("--config", metavar="FILE.yaml", help="YAML merged over the scenario")
+    run.add_argument("--tracker", metavar="NAME")
+    run.add_argument("--estimator", metavar="NAME")
+    run.add_argument("--seed", type=int, metavar="N")
+    run.add_argument("--duration", type=float, metavar="S", help="simulated seconds")
+    run.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                     dest="overrides", help="override a config key, e.g. tracker.horizon=30")
+    run.add_argument("--out", metavar="FILE.mcap",
+                     help="log file (default logs/<scenario>-<time>.mcap)")
+    run.add_argument("--json", action="store_true", help="print the metrics as JSON")
+
+    inspect = commands.add_parser("inspect", help="summarise an MCAP log")
+    inspect.add_argument("file", metavar="FILE.mcap")
+    inspect.add_argument("--json", action="store_true", help="print one JSON object")
+    inspect.add_argument("--topic", metavar="T", help="print this topic's messages (JSON lines)")
+    inspect.add_argument("--head", type=int, metavar="N", help="only the first N messages")
+
+    commands.add_parser("scenarios", help="list the built-in scenarios")
+    return parser
+
+
+def _format_value(value: Any) -> str:
+    if isinstance(value, bool) or value is None:
+        return {True: "true", False: "false", None: "n/a"}[value]
+    if isinstance(value, float):
+        return "n/a" if not math.isfinite(value) else f"{value:.4g}"
+    return str(value)
+
+
+def _print_table(title: str, rows: list[tuple[str, str]]) -> None:
+    if sys.stdout.isatty():
+        from rich.console import Console
+        from rich.table import Table
+
+        table = Table(title=title)
+        table.add_column("metric")
+        table.add_column("value", justify="right")
+        for key, value in rows:
+            table.add_row(key, value)
+        Console().print(table)
+        return
+    width = max(len(key) for key, _ in rows)
+    print(title)
+    for key, value in rows:
+        print(f"  {key:<{width}}  {value}")
+
+
+def _json_ready(values: dict[str, Any]) -> dict[str, Any]:
+    return {k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+            for k, v in values.items()}
+
+
+def _command_run(args: argparse.Namespace) -> int:
+    from cosim.runner import run
+    from cosim.scenario_config import load_config
+
+    if args.duration is not None and not (math.isfinite(args.duration) and args.duration >= 0):
+        raise CosimError(f"--duration {args.duration}: expected a number of seconds >= 0")
+    config = load_config(args.scenario, args.config, args.overrides, args.seed,
+                         args.duration, args.tracker, args.estimator)
+    if args.out is None:
+        stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+        out = Path("logs") / f"{config.name}-{stamp}.mcap"
+    else:
+        out = Path(args.out)
+    if sys.stderr.isatty():
+        from rich.progress import Progress
+
+        with Progress(transient=True) as bar:
+            task = bar.add_task(f"{config.name}", total=1.0)
+            result = run(config, out, lambda done: bar.update(task, completed=done))
+    else:
+        result = run(config, out)
+    if args.json:
+        print(json.dumps({"log": str(result.log_path), "metrics": _json_ready(result.metrics)}))
+    else:
+        _print_table(f"{config.name} (seed {config.seed}) -> {result.log_path}",
+                     [(k, _format_value(v)) for k, v in result.metrics.items()])
+    if result.abort_reason == "interrupted":
+        print(f"cosim: interrupted; log written up to the interrupt: {result.log_path}",
+              file=sys.stderr)
+        return 130
+    if not result.completed:
+        print(f"cosim: run aborted: {result.abort_reason}; log: {result.log_path}",
+              file=sys.stderr)
+        return 1
+    return 0
+
+
+def _command_inspect(args: argparse.Namespace) -> int:
+    from cosim.log_reader import iter_messages, read_summary
+
+    path = Path(args.file)
+    if not path.is_file():
+        raise CosimError(f"{args.file!r}: no such file (expected an MCAP log)")
+    summary = read_summary(path)
+    if args.topic is not None:
+        topics = [c.topic for c in summary.channels]
+        if args.topic not in topics:
+            raise CosimError(f"--topic {args.topic!r}: expected one of {', '.join(topics)}")
+        if args.head is not None and args.head < 0:
+            raise CosimError(f"--head {args.head}: expected a count >= 0")
+        for n, (log_time_ns, message) in enumerate(iter_messages(path, args.topic)):
+            if args.head is not None and n >= args.head:
+                break
+            print(json.dumps({"log_time_ns": log_time_ns, **message}))
+        return 0
+    document = {
+        "file": str(path),
+        "truncated": summary.truncated,
+        "duration_s": summary.duration_s,
+        "message_count": summary.message_count,
+        "channels": [
+            {"topic": c.topic, "schema": c.schema_name, "schema_encoding": c.schema_encoding,
+             "message_encoding": c.message_encoding, "count": c.message_count}
+            for c in sorted(summary.channels, key=lambda c: c.topic)
+        ],
+        "attachments": summary.attachments,
+        "versions": summary.versions,
+        "config": summary.config,
+        "metrics": summary.metrics or {},
+    }
+    if args.json:
+        print(json.dumps(document))
+        return 0
+    print(f"{path}  {summary.duration_s:.3f} s  {summary.message_count} messages"
+          + ("  (TRUNCATED: read up to the last complete record)" if summary.truncated else ""))
+    width = max(len(c["topic"]) for c in document["channels"])
+    for channel in document["channels"]:
+        print(f"  {channel['topic']:<{width}}  {channel['count']:>7}  {channel['schema']}")
+    config = summary.config
+    if config:
+        print(f"scenario {config.get('name')}  seed {config.get('seed')}  tracker "
+              f"{config.get('tracker', {}).get('name')}  estimator "
+              f"{config.get('estimator', {}).get('name')}")
+    if summary.versions:
+        print("versions " + "  ".join(f"{k} {v}" for k, v in summary.versions.items()))
+    if summary.metrics:
+        _print_table("metrics", [(k, _format_value(v)) for k, v in summary.metrics.items()])
+    else:
+        print("metrics: none (the run did not finish)")
+    return 0
+
+
+def _command_scenarios(args: argparse.Namespace) -> int:
+    from cosim.scenario_config import builtin_scenarios
+
+    del args
+    for name, description in builtin_scenarios().items():
+        print(f"{name:<20} {description}")
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``cosim`` console script."""
+    args = _build_parser().parse_args(argv)
+    handlers = {"run": _command_run, "inspect": _command_inspect,
+                "scenarios": _command_scenarios}
+    try:
+        return handlers[args.command](args)
+    except CosimError as error:
+        print(f"cosim: error: {error}", file=sys.stderr)
+        return EXIT_USAGE
+    except BrokenPipeError:
+        return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,31 @@
+"""Error types of cosim.
+
+Every error a user can cause (bad config, bad rate, bad file) derives from
+:class:`CosimError`; the command line turns it into one line on stderr and exit code 2.
+"""
+
+from __future__ import annotations
+
+
+class CosimError(Exception):
+    """Base class of every error cosim raises on purpose."""
+
+
+class ConfigError(CosimError):
+    """A configuration key is unknown or its value is out of range."""
+
+
+class RateError(ConfigError):
+    """A period is not a whole number of physics steps."""
+
+
+class PhysicsDivergenceError(CosimError):
+    """The MuJoCo simulation produced non-finite values or MuJoCo warnings."""
+
+
+class SolverError(CosimError):
+    """A tracker's optimiser failed and no fallback was possible."""
+
+
+class LogReadError(CosimError):
+    """An MCAP file cannot be read or lacks what cosim wrote into it."""

@@ -1,0 +1,143 @@
+"""Reading cosim's MCAP logs back: channels, counts, metadata, metrics and messages.
+
+The file is scanned record by record with the ``mcap`` package's stream reader, so a log
+whose writer was killed (no summary section, a cut-off last chunk) is read up to its last
+complete record and reported as truncated.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from mcap.exceptions import McapError
+from mcap.records import Attachment, Channel, Footer, Message, Metadata, Schema
+from mcap.stream_reader import StreamReader
+
+from cosim.exceptions import LogReadError
+
+
+@dataclass(frozen=True)
+class ChannelSummary:
+    topic: str
+    schema_name: str
+    schema_encoding: str
+    message_encoding: str
+    message_count: int
+
+
+@dataclass
+class LogSummary:
+    """What a log holds."""
+
+    path: Path
+    channels: list[ChannelSummary] = field(default_factory=list)
+    start_ns: int | None = None
+    end_ns: int | None = None
+    metadata: dict[str, dict[str, str]] = field(default_factory=dict)
+    attachments: list[str] = field(default_factory=list)
+    metrics: dict[str, Any] | None = None
+    truncated: bool = False
+
+    @property
+    def duration_s(self) -> float:
+        if self.start_ns is None or self.end_ns is None:
+            return 0.0
+        return (self.end_ns - self.start_ns) / 1e9
+
+    @property
+    def message_count(self) -> int:
+        return sum(c.message_count for c in self.channels)
+
+    @property
+    def config(self) -> dict[str, Any]:
+        text = self.metadata.get("run", {}).get("config_json")
+        return json.loads(text) if text else {}
+
+    @property
+    def versions(self) -> dict[str, str]:
+        text = self.metadata.get("run", {}).get("versions")
+        return json.loads(text) if text else {}
+
+
+def _records(path: Path) -> Iterator[Any]:
+    """Every record of the file; stops quietly at a truncation, which it reports by
+    yielding ``None`` last."""
+    try:
+        stream = open(path, "rb")  # noqa: SIM115 - closed in finally
+    except OSError as error:
+        raise LogReadError(f"{str(path)!r}: cannot open ({error.strerror})") from None
+    try:
+        reader = StreamReader(stream, skip_magic=False, emit_chunks=False)
+        saw_footer = False
+        try:
+            for record in reader.records:
+                if isinstance(record, Footer):
+                    saw_footer = True
+                yield record
+        except (McapError, EOFError, ValueError, OSError) as error:
+            if not saw_footer and stream.tell() <= 8:
+                raise LogReadError(
+                    f"{str(path)!r}: not an MCAP file ({error})"
+                ) from None
+            yield None
+            return
+        if not saw_footer:
+            yield None
+    finally:
+        stream.close()
+
+
+def read_summary(path: Path | str) -> LogSummary:
+    """Scan a log: channels with schema and count, time range, metadata, metrics."""
+    path = Path(path)
+    summary = LogSummary(path)
+    schemas: dict[int, Schema] = {}
+    channels: dict[int, Channel] = {}
+    counts: dict[int, int] = {}
+    for record in _records(path):
+        if record is None:
+            summary.truncated = True
+        elif isinstance(record, Schema):
+            schemas[record.id] = record
+        elif isinstance(record, Channel):
+            channels.setdefault(record.id, record)
+            counts.setdefault(record.id, 0)
+        elif isinstance(record, Message):
+            counts[record.channel_id] = counts.get(record.channel_id, 0) + 1
+            if summary.start_ns is None or record.log_time < summary.start_ns:
+                summary.start_ns = record.log_time
+            if summary.end_ns is None or record.log_time > summary.end_ns:
+                summary.end_ns = record.log_time
+            channel = channels.get(record.channel_id)
+            if channel is not None and channel.topic == "/metrics":
+                summary.metrics = json.loads(record.data)
+        elif isinstance(record, Metadata):
+            summary.metadata[record.name] = dict(record.metadata)
+        elif isinstance(record, Attachment):
+            summary.attachments.append(record.name)
+    for channel_id, channel in channels.items():
+        schema = schemas.get(channel.schema_id)
+        summary.channels.append(ChannelSummary(
+            topic=channel.topic,
+            schema_name=schema.name if schema else "",
+            schema_encoding=schema.encoding if schema else "",
+            message_encoding=channel.message_encoding,
+            message_count=counts.get(channel_id, 0),
+        ))
+    if not summary.channels and summary.truncated:
+        raise LogReadError(f"{str(path)!r}: no complete MCAP records")
+    return summary
+
+
+def iter_messages(path: Path | str, topic: str) -> Iterator[tuple[int, dict[str, Any]]]:
+    """``(log_time_ns, message)`` of one topic, in file order (JSON-decoded)."""
+    wanted: set[int] = set()
+    for record in _records(Path(path)):
+        if isinstance(record, Channel) and record.topic == topic:
+            wanted.add(record.id)
+        elif isinstance(record, Message) and record.channel_id in wanted:
+            yield record.log_time, json.loads(record.data)

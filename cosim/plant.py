@@ -1,0 +1,432 @@
+"""The plant: a MuJoCo multibody sedan stepped with the raw ``mujoco`` bindings.
+
+The model is built once with PyMJCF (:mod:`cosim.sedan_model`) and compiled from its XML
+(``mjcf_xml``, the model actually simulated, for the log); every joint, body and actuator
+address is looked up by name at construction. Per physics step, :meth:`MujocoPlant.advance`
+runs the actuator models in plain Python and then exactly one ``mujoco.mj_step``:
+
+- steering actuator: first-order lag (``steer_time_constant_s``, exact discretisation) with
+  a rate limit (``max_steer_rate_radps``) on the bicycle-model angle, clipped to
+  ``max_steer_rad``; the left and right wheels get their Ackermann angles
+  (:func:`cosim.sedan_model.ackermann_angles`) through a fast position servo with velocity
+  and acceleration feed-forward, so the servo adds no lag of its own;
+- drive: the total torque clipped to ``max_drive_torque_nm`` and to the power limit
+  ``max_drive_power_w / omega`` (mean spin of the driven wheels), split equally over the
+  driven wheels (an open differential);
+- brakes: the total torque, clipped to ``max_brake_torque_nm``, is split front/rear with a
+  fixed brake balance (:data:`BRAKE_DESIGN_DECEL_G`) and acts on each wheel as a smooth
+  Coulomb friction ``-T omega / sqrt(omega^2 + omega_0^2)``. It is passed to MuJoCo as the
+  spin joint's damping coefficient ``T / sqrt(omega^2 + omega_0^2)``, recomputed every step,
+  so the implicitfast integrator treats it implicitly: no chatter at standstill and no
+  stability limit on ``omega_0``;
+- aerodynamic drag ``1/2 rho C_d A v^2`` and rolling resistance ``C_rr m g`` (faded in by
+  ``tanh(v / 0.1 m/s)``) act on the chassis against its horizontal velocity
+  (``xfrc_applied``);
+- tyres: MuJoCo contacts between the wheel spheres and the ground, friction coefficient
+  ``tire_friction``, elliptic friction cone.
+
+A later issue replaces the contact tyres by a tyre model; the per-step actuator code is
+grouped so that this only touches :meth:`MujocoPlant.advance` and the model builder.
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+
+from cosim.exceptions import PhysicsDivergenceError
+from cosim.initial_state import InitialState
+from cosim.low_level import ActuatorCommand, resistance_force_n
+from cosim.records import WHEEL_NAMES, VehicleState
+from cosim.sedan_model import (
+    FRONT_WHEELS,
+    ackermann_angles,
+    driven_wheels,
+    sedan_xml_and_assets,
+)
+from cosim.vehicle_params import PlantConfig
+
+SETTLE_DURATION_S = 1.5
+"""Simulated time the car stands at construction to find its static equilibrium [s]. The
+slowest mode, body bounce at 1.5 Hz with damping ratio 0.5, decays by e^-7 in 1.5 s."""
+
+BRAKE_SPIN_SCALE_RADPS = 0.1
+"""omega_0 of the smooth brake: below this wheel spin the brake torque fades linearly to
+zero (0.1 rad/s is 3 cm/s at the tyre) [rad/s]."""
+
+BRAKE_DESIGN_DECEL_G = 0.5
+"""The brake balance distributes torque as the axle loads at this deceleration (ideal
+braking, Gillespie ch. 3): front share ``(l_r + h a/g) / L``, 0.67 for the sedan [g]."""
+
+MIN_POWER_SPIN_RADPS = 1.0
+"""Below this mean driven-wheel spin the power limit is evaluated at this spin (it would be
+infinite at standstill; the torque limit governs there) [rad/s]."""
+
+MAX_VELOCITY_NORM2 = 1e8
+"""Squared norm of qvel above which the state counts as diverged: some joint moves faster
+than 10 km/s or 10^4 rad/s, which no car does."""
+
+MAX_POSITION_NORM2 = 1e20
+"""Squared norm of qpos above which the state counts as diverged (MuJoCo itself flags
+positions beyond 1e10; the wheels' spin angles grow without bound, so no tighter limit)."""
+
+
+class MujocoPlant:
+    """The simulated sedan (see the module docstring for what each step does).
+
+    ``physics_dt_s`` is the MuJoCo time step; ``mjcf_xml`` the model actually simulated.
+    The constructor settles the car on its suspension and then calls :meth:`reset`.
+    """
+
+    def __init__(self, config: PlantConfig, physics_dt_s: float, initial: InitialState) -> None:
+        self.config = config
+        self.initial = initial
+        self.physics_dt_s = float(physics_dt_s)
+        xml, assets = sedan_xml_and_assets(config, self.physics_dt_s)
+        self.mjcf_xml: str = xml
+        self.mjcf_assets: dict[str, bytes] = assets
+        self._model = mujoco.MjModel.from_xml_string(xml, assets)
+        self._data = mujoco.MjData(self._model)
+        self._lookup_names()
+        self._configure_actuators()
+        self._settle()
+        self.reset()
+
+    # ----------------------------------------------------------------- construction
+
+    def _id(self, kind: mujoco.mjtObj, name: str) -> int:
+        index = mujoco.mj_name2id(self._model, kind, name)
+        if index < 0:
+            raise ValueError(f"the sedan model has no {kind.name[6:].lower()} named {name!r}")
+        return index
+
+    def _lookup_names(self) -> None:
+        """Addresses of everything the plant reads or writes, by name, once."""
+        m, d = self._model, self._data
+        joint, body = mujoco.mjtObj.mjOBJ_JOINT, mujoco.mjtObj.mjOBJ_BODY
+        actuator, geom = mujoco.mjtObj.mjOBJ_ACTUATOR, mujoco.mjtObj.mjOBJ_GEOM
+        free = self._id(joint, "chassis_free")
+        qadr, vadr = int(m.jnt_qposadr[free]), int(m.jnt_dofadr[free])
+        # Free joint layout (MuJoCo): qpos = position (3), quaternion w x y z (4);
+        # qvel = linear velocity of the body origin in the world frame (3), angular
+        # velocity in the body frame (3).
+        self._pos_slice = slice(qadr, qadr + 3)
+        self._quat_slice = slice(qadr + 3, qadr + 7)
+        self._linvel_slice = slice(vadr, vadr + 3)
+        self._angvel_slice = slice(vadr + 3, vadr + 6)
+        chassis = self._id(body, "chassis")
+        self._chassis_force = d.xfrc_applied[chassis, 0:3]  # view: force at the chassis CoM
+        self._linvel_view = d.qvel[self._linvel_slice]
+        self._qpos_view = d.qpos
+        self._qvel_view = d.qvel
+
+        def qpos_adr(name: str) -> int:
+            return int(m.jnt_qposadr[self._id(joint, name)])
+
+        def dof_adr(name: str) -> int:
+            return int(m.jnt_dofadr[self._id(joint, name)])
+
+        self._wheel_body = tuple(self._id(body, f"{w}_wheel") for w in WHEEL_NAMES)
+        self._suspension_qpos = tuple(qpos_adr(f"{w}_suspension") for w in WHEEL_NAMES)
+        self._spin_dof = tuple(dof_adr(f"{w}_spin") for w in WHEEL_NAMES)
+        self._steer_qpos = tuple(qpos_adr(f"{w}_steer") for w in FRONT_WHEELS)
+        self._steer_act = tuple(self._id(actuator, f"{w}_steer_servo") for w in FRONT_WHEELS)
+        self._drive_act = tuple(
+            self._id(actuator, f"{w}_drive") for w in driven_wheels(self.config.drive)
+        )
+        self._driven_dof = tuple(dof_adr(f"{w}_spin") for w in driven_wheels(self.config.drive))
+        self._tyre_radius_m = self.config.wheel_radius_m
+        self._tyre_geom = {self._id(geom, f"{w}_tyre"): w for w in WHEEL_NAMES}
+        self._warnings = d.warning.number  # view of MuJoCo's warning counters
+
+    def _configure_actuators(self) -> None:
+        """Constants of the actuator models, from the true config and the compiled model."""
+        cfg, m, dt = self.config, self._model, self.physics_dt_s
+        tau = cfg.steer_time_constant_s
+        self._steer_decay = math.exp(-dt / tau) if tau > 0.0 else 0.0
+        self._steer_step_max = cfg.max_steer_rate_radps * dt
+        # Position servo: force = kp (ctrl - q) - kv qdot. Commanding
+        # ctrl = q_ref + kv/kp qdot_ref + I/kp qddot_ref makes it
+        # kp (q_ref - q) + kv (qdot_ref - qdot) + I qddot_ref: the servo follows the
+        # actuator model's output with no lag or overshoot of its own (feed-forward).
+        left_servo = self._steer_act[0]
+        kp = float(m.actuator_gainprm[left_servo, 0])
+        self._servo_kv_over_kp = -float(m.actuator_biasprm[left_servo, 2]) / kp
+        steer_joint = int(m.actuator_trnid[left_servo, 0])
+        self._servo_inertia_over_kp = float(m.dof_M0[int(m.jnt_dofadr[steer_joint])]) / kp
+        front_share = (cfg.cog_rear_m + cfg.cog_height_m * BRAKE_DESIGN_DECEL_G) / cfg.wheelbase_m
+        self._brake_share_by_dof = tuple(
+            (dof, 0.5 * (front_share if wheel in FRONT_WHEELS else 1.0 - front_share))
+            for wheel, dof in zip(WHEEL_NAMES, self._spin_dof, strict=True)
+        )
+        self._dof_damping = m.dof_damping  # view: brake coefficients are written here
+        self._n_driven = len(self._drive_act)
+
+    def _settle(self) -> None:
+        """Let the car stand until its suspension is at rest; remember that equilibrium.
+
+        The springs are preloaded for the static corner loads (sedan_layout), so this only
+        takes up the tyre contacts' small penetration; it records the chassis height, roll
+        and pitch, each suspension deflection and each wheel's rolling radius (centre to
+        the contact point, which MuJoCo places mid-way through the penetration).
+        """
+        m, d = self._model, self._data
+        mujoco.mj_resetData(m, d)
+        n_steps = max(1, math.ceil(SETTLE_DURATION_S / self.physics_dt_s))
+        for _ in range(n_steps):
+            mujoco.mj_step(m, d)
+            self._check(d.time)
+        mujoco.mj_forward(m, d)
+        self._check(d.time)
+        qpos = d.qpos.tolist()
+        qw, qx, qy, qz = qpos[self._quat_slice]
+        roll, pitch, _ = _euler_zyx(qw, qx, qy, qz)
+        self._eq_z_m = qpos[self._pos_slice][2]
+        self._eq_roll_rad, self._eq_pitch_rad = roll, pitch
+        self._eq_suspension_m = tuple(qpos[a] for a in self._suspension_qpos)
+        radius = self._tyre_radius_m
+        self._rolling_radius_m = tuple(
+            0.5 * (radius + float(d.xpos[b, 2])) for b in self._wheel_body
+        )
+        loads = dict.fromkeys(WHEEL_NAMES, 0.0)
+        wrench = np.zeros(6)
+        for i in range(d.ncon):
+            contact = d.contact[i]
+            for geom in (int(contact.geom1), int(contact.geom2)):
+                if geom in self._tyre_geom:
+                    mujoco.mj_contactForce(m, d, i, wrench)
+                    loads[self._tyre_geom[geom]] += float(wrench[0])
+        self._static_load_n = tuple(loads[w] for w in WHEEL_NAMES)
+
+    # ------------------------------------------------------------------- protocol
+
+    def reset(self) -> None:
+        """Put the car at ``initial``: pose, forward speed, wheels rolling, suspension at rest.
+
+        Roll, pitch, chassis height and suspension deflections are those of the static
+        equilibrium found at construction, so the car starts without a bounce; each wheel
+        spins at ``v / r_roll``, its rolling radius, so the tyres start without slip.
+        Actuator states and commands are zero (no drive, no brake, steering straight).
+        """
+        m, d, init = self._model, self._data, self.initial
+        mujoco.mj_resetData(m, d)
+        qpos, qvel = d.qpos, d.qvel
+        qpos[self._pos_slice] = (init.x_m, init.y_m, self._eq_z_m)
+        qpos[self._quat_slice] = _quat_zyx(init.yaw_rad, self._eq_pitch_rad, self._eq_roll_rad)
+        for adr, value in zip(self._suspension_qpos, self._eq_suspension_m, strict=True):
+            qpos[adr] = value
+        speed = init.speed_mps
+        qvel[self._linvel_slice] = (
+            speed * math.cos(init.yaw_rad),
+            speed * math.sin(init.yaw_rad),
+            0.0,
+        )
+        for dof, radius in zip(self._spin_dof, self._rolling_radius_m, strict=True):
+            qvel[dof] = speed / radius
+        for dof in self._spin_dof:
+            self._dof_damping[dof] = 0.0
+        mujoco.mj_forward(m, d)
+        self._check(d.time)
+        self._drive_cmd_nm = 0.0
+        self._brake_cmd_nm = 0.0
+        self._steer_cmd_rad = 0.0
+        self._steer_rad = 0.0
+        self._wheel_steer_rad = (0.0, 0.0)
+        self._wheel_steer_rate_radps = (0.0, 0.0)
+        self._prev_linvel = self._linvel_view.tolist()
+        self._last_command: ActuatorCommand | None = None
+
+    def apply(self, actuator: ActuatorCommand) -> None:
+        """Set the actuators' targets; they act from the next :meth:`advance` on.
+
+        Torques are clipped to the true limits of the car here and in :meth:`advance` (the
+        power limit depends on the wheel speed at each step); the steering angle is clipped
+        to ``max_steer_rad`` and passed through the steering actuator's lag and rate limit.
+        """
+        cfg = self.config
+        self._drive_cmd_nm = min(actuator.drive_torque_nm, cfg.max_drive_torque_nm)
+        self._brake_cmd_nm = min(actuator.brake_torque_nm, cfg.max_brake_torque_nm)
+        self._steer_cmd_rad = actuator.steer_rad
+        self._last_command = actuator
+
+    def advance(self) -> None:
+        """Run the actuator models and exactly one MuJoCo step of ``physics_dt_s``."""
+        m, d, cfg, dt = self._model, self._data, self.config, self.physics_dt_s
+        ctrl = d.ctrl
+        qvel = self._qvel_view.tolist()
+
+        # Steering actuator: lag, then rate limit, then clip (bicycle-model angle).
+        limit = cfg.max_steer_rad
+        target = min(max(self._steer_cmd_rad, -limit), limit)
+        lagged = target + (self._steer_rad - target) * self._steer_decay
+        step = min(max(lagged - self._steer_rad, -self._steer_step_max), self._steer_step_max)
+        self._steer_rad += step
+        left, right = ackermann_angles(self._steer_rad, cfg.wheelbase_m, cfg.track_m)
+        (prev_left, prev_right), (prev_rate_left, prev_rate_right) = (
+            self._wheel_steer_rad,
+            self._wheel_steer_rate_radps,
+        )
+        rate_left, rate_right = (left - prev_left) / dt, (right - prev_right) / dt
+        kv_kp, i_kp = self._servo_kv_over_kp, self._servo_inertia_over_kp
+        ctrl[self._steer_act[0]] = (
+            left + kv_kp * rate_left + i_kp * (rate_left - prev_rate_left) / dt
+        )
+        ctrl[self._steer_act[1]] = (
+            right + kv_kp * rate_right + i_kp * (rate_right - prev_rate_right) / dt
+        )
+        self._wheel_steer_rad = (left, right)
+        self._wheel_steer_rate_radps = (rate_left, rate_right)
+
+        # Drive: torque and power limit, split equally over the driven wheels.
+        drive = self._drive_cmd_nm
+        if drive > 0.0:
+            spin = sum(abs(qvel[dof]) for dof in self._driven_dof) / self._n_driven
+            drive = min(drive, cfg.max_drive_power_w / max(spin, MIN_POWER_SPIN_RADPS))
+        per_wheel = drive / self._n_driven
+        for act in self._drive_act:
+            ctrl[act] = per_wheel
+
+        # Brakes: smooth Coulomb friction, as an implicit damping coefficient per wheel.
+        brake = self._brake_cmd_nm
+        damping = self._dof_damping
+        for dof, share in self._brake_share_by_dof:
+            omega = qvel[dof]
+            damping[dof] = brake * share / math.sqrt(omega * omega + BRAKE_SPIN_SCALE_RADPS**2)
+
+        # Drag and rolling resistance against the horizontal velocity of the chassis.
+        vx, vy, _ = qvel[self._linvel_slice]
+        speed = math.hypot(vx, vy)
+        force = self._chassis_force
+        if speed > 1e-9:
+            scale = resistance_force_n(cfg, speed) / speed
+            force[0] = -scale * vx
+            force[1] = -scale * vy
+        else:
+            force[0] = 0.0
+            force[1] = 0.0
+
+        self._prev_linvel = qvel[self._linvel_slice]
+        t_before = d.time
+        mujoco.mj_step(m, d)
+        self._check(t_before + dt)
+
+    def state(self) -> VehicleState:
+        """The true state at the CoG (see :class:`VehicleState`).
+
+        Read from ``qpos``/``qvel`` (current after the step, unlike MuJoCo's derived
+        quantities, which are those of the step's start). Velocities, yaw rate and
+        accelerations are in the vehicle frame fixed to the chassis (ISO 8855: x forward,
+        y left, z up; it rolls and pitches with the body); the accelerations are the
+        kinematic acceleration of the CoG over the last step (no gravity), zero right after
+        :meth:`reset`. The CoG is the chassis frame origin, i.e. the car's centre of
+        gravity at static equilibrium (suspension travel moves the true one by < 1 mm).
+        """
+        qpos = self._qpos_view.tolist()
+        qvel = self._qvel_view.tolist()
+        x, y, z = qpos[self._pos_slice]
+        qw, qx, qy, qz = qpos[self._quat_slice]
+        roll, pitch, yaw = _euler_zyx(qw, qx, qy, qz)
+        # First two columns of the body-to-world rotation matrix: the vehicle x and y axes.
+        xx, xy, xz = (
+            1.0 - 2.0 * (qy * qy + qz * qz),
+            2.0 * (qx * qy + qw * qz),
+            2.0 * (qx * qz - qw * qy),
+        )
+        yx, yy, yz = (
+            2.0 * (qx * qy - qw * qz),
+            1.0 - 2.0 * (qx * qx + qz * qz),
+            2.0 * (qy * qz + qw * qx),
+        )
+        vwx, vwy, vwz = qvel[self._linvel_slice]
+        _, _, yaw_rate = qvel[self._angvel_slice]
+        pvx, pvy, pvz = self._prev_linvel
+        inv_dt = 1.0 / self.physics_dt_s
+        awx, awy, awz = (vwx - pvx) * inv_dt, (vwy - pvy) * inv_dt, (vwz - pvz) * inv_dt
+        steer_left, steer_right = (qpos[a] for a in self._steer_qpos)
+        return VehicleState(
+            t_s=self._data.time,
+            x_m=x,
+            y_m=y,
+            z_m=z,
+            roll_rad=roll,
+            pitch_rad=pitch,
+            yaw_rad=yaw,
+            vx_mps=xx * vwx + xy * vwy + xz * vwz,
+            vy_mps=yx * vwx + yy * vwy + yz * vwz,
+            yaw_rate_radps=yaw_rate,
+            ax_mps2=xx * awx + xy * awy + xz * awz,
+            ay_mps2=yx * awx + yy * awy + yz * awz,
+            steer_rad=0.5 * (steer_left + steer_right),
+            wheel_speed_radps=tuple(qvel[dof] for dof in self._spin_dof),  # type: ignore[arg-type]
+        )
+
+    # ----------------------------------------------------------------- inspection
+
+    @property
+    def model(self) -> mujoco.MjModel:
+        """The compiled MuJoCo model (for inspection and visualisation; do not edit)."""
+        return self._model
+
+    @property
+    def data(self) -> mujoco.MjData:
+        """The MuJoCo data (for inspection and visualisation; do not edit)."""
+        return self._data
+
+    @property
+    def last_command(self) -> ActuatorCommand | None:
+        """The last :class:`ActuatorCommand` applied since :meth:`reset`, if any."""
+        return self._last_command
+
+    @property
+    def rolling_radius_m(self) -> tuple[float, float, float, float]:
+        """Each wheel's loaded rolling radius at static equilibrium, WHEEL_NAMES order."""
+        return self._rolling_radius_m  # type: ignore[return-value]
+
+    @property
+    def static_wheel_load_n(self) -> tuple[float, float, float, float]:
+        """Each tyre's normal contact force at static equilibrium, WHEEL_NAMES order [N]."""
+        return self._static_load_n  # type: ignore[return-value]
+
+    # -------------------------------------------------------------------- helpers
+
+    def _check(self, t_s: float) -> None:
+        """Raise PhysicsDivergenceError on a MuJoCo warning or a non-finite/absurd state."""
+        warnings = self._warnings
+        if warnings.any():
+            names = [mujoco.mjtWarning(i).name for i in range(len(warnings)) if warnings[i]]
+            raise PhysicsDivergenceError(
+                f"physics diverged at t = {t_s:.4f} s: MuJoCo warning {', '.join(names)} "
+                f"(physics_dt_s = {self.physics_dt_s})"
+            )
+        qpos, qvel = self._qpos_view, self._qvel_view
+        if not (qvel.dot(qvel) < MAX_VELOCITY_NORM2 and qpos.dot(qpos) < MAX_POSITION_NORM2):
+            raise PhysicsDivergenceError(
+                f"physics diverged at t = {t_s:.4f} s: non-finite or absurd position/velocity "
+                f"(|qpos| = {float(np.linalg.norm(qpos)):.3g}, "
+                f"|qvel| = {float(np.linalg.norm(qvel)):.3g}; physics_dt_s = "
+                f"{self.physics_dt_s})"
+            )
+
+
+def _euler_zyx(qw: float, qx: float, qy: float, qz: float) -> tuple[float, float, float]:
+    """Roll, pitch, yaw (intrinsic z-y'-x'', ISO 8855) of a unit quaternion w x y z."""
+    roll = math.atan2(2.0 * (qw * qx + qy * qz), 1.0 - 2.0 * (qx * qx + qy * qy))
+    sin_pitch = 2.0 * (qw * qy - qz * qx)
+    pitch = math.asin(min(max(sin_pitch, -1.0), 1.0))
+    yaw = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+    return roll, pitch, yaw
+
+
+def _quat_zyx(yaw: float, pitch: float, roll: float) -> tuple[float, float, float, float]:
+    """Unit quaternion w x y z of yaw, then pitch, then roll (inverse of :func:`_euler_zyx`)."""
+    cy, sy = math.cos(0.5 * yaw), math.sin(0.5 * yaw)
+    cp, sp = math.cos(0.5 * pitch), math.sin(0.5 * pitch)
+    cr, sr = math.cos(0.5 * roll), math.sin(0.5 * roll)
+    return (
+        cr * cp * cy + sr * sp * sy,
+        sr * cp * cy - cr * sp * sy,
+        cr * sp * cy + sr * cp * sy,
+        cr * cp * sy - sr * sp * cy,
+    )

@@ -1,0 +1,165 @@
+"""Values that cross component boundaries: truth, commands, measurements, estimates, plans.
+
+Frames and units follow docs/architecture.md: world frame ENU (x east, y north, z up),
+vehicle frame ISO 8855 (x forward, y left, z up), yaw counter-clockwise positive, steering
+positive to the left, SI units with the unit in every name.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+WHEEL_NAMES: tuple[str, ...] = ("front_left", "front_right", "rear_left", "rear_right")
+"""Order of the four wheels in every per-wheel tuple."""
+
+
+@dataclass(frozen=True)
+class VehicleState:
+    """The true state of the plant at ``t_s``.
+
+    Position is the centre of gravity in the world frame; velocities and accelerations are
+    those of the centre of gravity expressed in the vehicle frame; ``ax_mps2``/``ay_mps2`` are
+    the kinematic accelerations (no gravity), ``steer_rad`` is the road-wheel angle of the
+    front axle (mean of the two front wheels).
+    """
+
+    t_s: float
+    x_m: float
+    y_m: float
+    z_m: float
+    roll_rad: float
+    pitch_rad: float
+    yaw_rad: float
+    vx_mps: float
+    vy_mps: float
+    yaw_rate_radps: float
+    ax_mps2: float
+    ay_mps2: float
+    steer_rad: float
+    wheel_speed_radps: tuple[float, float, float, float]
+
+    @property
+    def speed_mps(self) -> float:
+        """Magnitude of the horizontal velocity of the centre of gravity."""
+        return float(np.hypot(self.vx_mps, self.vy_mps))
+
+    def to_message(self) -> dict[str, object]:
+        """Plain JSON-ready fields (the `/vehicle/truth` payload)."""
+        message = dataclasses.asdict(self)
+        message["wheel_speed_radps"] = list(self.wheel_speed_radps)
+        return message
+
+
+@dataclass(frozen=True)
+class Command:
+    """What a tracker asks of the car: longitudinal acceleration and road-wheel angle."""
+
+    t_s: float
+    accel_mps2: float
+    steer_rad: float
+
+    def to_message(self) -> dict[str, object]:
+        return dataclasses.asdict(self)
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """One sample of one sensor: named values and their noise covariance."""
+
+    sensor: str
+    t_s: float
+    names: tuple[str, ...]
+    values: np.ndarray
+    covariance: np.ndarray
+
+    def __getitem__(self, name: str) -> float:
+        return float(self.values[self.names.index(name)])
+
+    def to_message(self) -> dict[str, object]:
+        message: dict[str, object] = {"t_s": self.t_s, "sensor": self.sensor}
+        message.update({n: _json_float(v) for n, v in zip(self.names, self.values)})
+        message["sigma"] = [float(s) for s in np.sqrt(np.diag(self.covariance))]
+        return message
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """An estimator's belief at ``t_s``: mean and covariance over named states.
+
+    Read states by name (``estimate["yaw_rad"]``), never by index.
+    """
+
+    t_s: float
+    names: tuple[str, ...]
+    mean: np.ndarray
+    covariance: np.ndarray
+
+    def __getitem__(self, name: str) -> float:
+        return float(self.mean[self.names.index(name)])
+
+    def __contains__(self, name: object) -> bool:
+        return name in self.names
+
+    def sub_covariance(self, names: tuple[str, ...]) -> np.ndarray:
+        """The covariance block of the named states, in the order given."""
+        idx = [self.names.index(n) for n in names]
+        return self.covariance[np.ix_(idx, idx)]
+
+    def to_message(self) -> dict[str, object]:
+        message: dict[str, object] = {"t_s": self.t_s}
+        message.update({n: float(v) for n, v in zip(self.names, self.mean)})
+        message["state_names"] = list(self.names)
+        message["covariance"] = [float(c) for c in self.covariance.ravel()]
+        return message
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A tracker's plan at ``t_s``: predicted states and inputs over its horizon.
+
+    ``states`` has one row per horizon node (N + 1 rows) and one column per name in
+    ``state_names``; ``inputs`` has N rows and the columns ``input_names``.
+    """
+
+    t_s: float
+    dt_s: float
+    state_names: tuple[str, ...]
+    states: np.ndarray
+    input_names: tuple[str, ...]
+    inputs: np.ndarray
+    cost: float
+    solve_time_s: float
+    iterations: int
+    status: str
+    success: bool
+    fallback: bool
+
+    def column(self, name: str) -> np.ndarray:
+        """One predicted state or input over the horizon, by name."""
+        if name in self.state_names:
+            return self.states[:, self.state_names.index(name)]
+        return self.inputs[:, self.input_names.index(name)]
+
+    def to_message(self) -> dict[str, object]:
+        message: dict[str, object] = {
+            "t_s": self.t_s,
+            "dt_s": self.dt_s,
+            "cost": _json_float(self.cost),
+            "solve_time_s": self.solve_time_s,
+            "iterations": self.iterations,
+            "status": self.status,
+            "success": self.success,
+            "fallback": self.fallback,
+        }
+        for name in self.state_names + self.input_names:
+            message[f"predicted_{name}"] = [_json_float(v) for v in self.column(name)]
+        return message
+
+
+def _json_float(value: float) -> float | None:
+    """JSON has no NaN: a non-finite value is logged as null."""
+    value = float(value)
+    return value if np.isfinite(value) else None

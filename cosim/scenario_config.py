@@ -1,0 +1,192 @@
+"""The whole configuration of a run, and how it is loaded from YAML and overrides.
+
+A scenario is a YAML file (built-in ones live in ``cosim/scenarios/``). Loading merges, in
+order: the dataclass defaults, the scenario file, an optional ``--config`` file, the
+command-line options (``--seed``, ``--duration``, ``--tracker``, ``--estimator``) and the
+``--set key.path=value`` overrides; then every key and value is validated.
+"""
+
+from __future__ import annotations
+
+import copy
+import importlib.resources
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from cosim.config_fields import from_dict, section, set_dotted, setting
+from cosim.exceptions import ConfigError, RateError
+from cosim.foxglove import GeoOrigin
+from cosim.initial_state import InitialState
+from cosim.sensors import SensorsConfig
+from cosim.vehicle_params import PlantConfig
+from estimation.config import EstimatorConfig
+from tracker.config import TrackerConfig
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """Time base of the run: every period is a whole number of physics steps."""
+
+    physics_dt_s: float = setting(0.002, low=1e-4, high=0.05)
+    control_period_s: float = setting(0.05, low=1e-4, high=5.0)
+    log_period_s: float = setting(0.01, low=1e-4, high=5.0, doc="truth/estimate log rate")
+    duration_s: float = setting(15.0, low=0.0, high=3600.0)
+
+
+@dataclass(frozen=True)
+class PathConfig:
+    """The reference path and speed."""
+
+    kind: str = setting("double-lane-change", choices=("double-lane-change",))
+    stretch: float = setting(1.5, low=0.2, high=10.0, doc="x-scale of Falcone's constants")
+    speed_mps: float = setting(20.0, low=0.0, high=80.0, doc="reference speed v_D")
+    length_m: float = setting(600.0, low=10.0, high=1e5)
+
+
+@dataclass(frozen=True)
+class ScenarioConfig:
+    """Everything a run needs, resolved and validated."""
+
+    name: str = setting("custom")
+    description: str = setting("")
+    seed: int = setting(0, low=0, high=2**63 - 1)
+    sim: SimConfig = section(SimConfig)
+    path: PathConfig = section(PathConfig)
+    initial: InitialState = section(InitialState)
+    plant: PlantConfig = section(PlantConfig)
+    sensors: SensorsConfig = section(SensorsConfig)
+    estimator: EstimatorConfig = section(EstimatorConfig)
+    tracker: TrackerConfig = section(TrackerConfig)
+    geo: GeoOrigin = section(GeoOrigin)
+
+
+def builtin_scenarios() -> dict[str, str]:
+    """Built-in scenario names and their one-line descriptions."""
+    scenarios = {}
+    for entry in sorted(importlib.resources.files("cosim.scenarios").iterdir(),
+                        key=lambda e: e.name):
+        if entry.name.endswith(".yaml"):
+            data = yaml.safe_load(entry.read_text()) or {}
+            scenarios[entry.name.removesuffix(".yaml")] = str(data.get("description", ""))
+    return scenarios
+
+
+def _read_yaml(path: Path, what: str) -> dict[str, Any]:
+    try:
+        data = yaml.safe_load(path.read_text())
+    except OSError as error:
+        raise ConfigError(f"{what} {str(path)!r}: cannot read ({error.strerror})") from None
+    except yaml.YAMLError as error:
+        mark = getattr(error, "problem_mark", None)
+        where = f" line {mark.line + 1}" if mark is not None else ""
+        raise ConfigError(f"{what} {str(path)!r}:{where} is not valid YAML") from None
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise ConfigError(f"{what} {str(path)!r}: expected a mapping of keys to values")
+    return data
+
+
+def _scenario_data(scenario: str) -> dict[str, Any]:
+    builtin = importlib.resources.files("cosim.scenarios") / f"{scenario}.yaml"
+    if builtin.is_file():
+        data = yaml.safe_load(builtin.read_text()) or {}
+        data.setdefault("name", scenario)
+        return data
+    path = Path(scenario)
+    if path.suffix in (".yaml", ".yml") or path.exists():
+        data = _read_yaml(path, "scenario")
+        data.setdefault("name", path.stem)
+        return data
+    known = ", ".join(builtin_scenarios())
+    raise ConfigError(
+        f"scenario {scenario!r}: expected a built-in name ({known}) or a YAML file path"
+    )
+
+
+def _merge(base: dict[str, Any], top: dict[str, Any]) -> dict[str, Any]:
+    merged = copy.deepcopy(base)
+    for key, value in top.items():
+        if isinstance(value, dict) and isinstance(merged.get(key), dict):
+            merged[key] = _merge(merged[key], value)
+        else:
+            merged[key] = copy.deepcopy(value)
+    return merged
+
+
+def parse_override(text: str) -> tuple[str, Any]:
+    """``'tracker.horizon=30'`` -> ``('tracker.horizon', 30)``; the value is parsed as YAML."""
+    key, sep, raw = text.partition("=")
+    if not sep or not key.strip():
+        raise ConfigError(f"--set {text!r}: expected key.path=value")
+    try:
+        value = yaml.safe_load(raw) if raw.strip() else ""
+    except yaml.YAMLError:
+        value = raw
+    return key.strip(), value
+
+
+def load_config(
+    scenario: str,
+    config_file: str | None = None,
+    overrides: list[str] | tuple[str, ...] = (),
+    seed: int | None = None,
+    duration_s: float | None = None,
+    tracker: str | None = None,
+    estimator: str | None = None,
+) -> ScenarioConfig:
+    """Resolve a scenario name or path plus overrides into a validated configuration."""
+    data = _scenario_data(scenario)
+    if config_file is not None:
+        data = _merge(data, _read_yaml(Path(config_file), "--config"))
+    if seed is not None:
+        data["seed"] = seed
+    if duration_s is not None:
+        set_dotted(data, "sim.duration_s", duration_s)
+    if tracker is not None:
+        set_dotted(data, "tracker.name", tracker)
+    if estimator is not None:
+        set_dotted(data, "estimator.name", estimator)
+    for text in overrides:
+        key, value = parse_override(text)
+        set_dotted(data, key, value)
+    config = from_dict(ScenarioConfig, data)
+    check_rates(config)
+    return config
+
+
+def steps_per_period(period_s: float, physics_dt_s: float, key: str) -> int:
+    """Whole physics steps in ``period_s``; a period that is not a whole multiple is refused.
+
+    Like dm_control's ``compute_n_steps``: rounding a rate silently would change the
+    experiment, so it is an error.
+    """
+    ratio = period_s / physics_dt_s
+    steps = round(ratio)
+    if abs(ratio - steps) > 1e-6 * max(1.0, ratio):
+        below, above = max(steps, 1) * physics_dt_s, (steps + 1) * physics_dt_s
+        raise RateError(
+            f"{key} = {period_s:g}: expected a whole multiple of sim.physics_dt_s = "
+            f"{physics_dt_s:g} (e.g. {below:g} or {above:g})"
+        )
+    return steps
+
+
+def check_rates(config: ScenarioConfig) -> None:
+    """Refuse every period that is not a whole, positive number of physics steps."""
+    dt = config.sim.physics_dt_s
+    periods = {
+        "sim.control_period_s": config.sim.control_period_s,
+        "sim.log_period_s": config.sim.log_period_s,
+        "sensors.gnss.period_s": config.sensors.gnss.period_s,
+        "sensors.imu.period_s": config.sensors.imu.period_s,
+        "sensors.wheel_speed.period_s": config.sensors.wheel_speed.period_s,
+    }
+    for key, period in periods.items():
+        if steps_per_period(period, dt, key) < 1:
+            raise RateError(f"{key} = {period:g}: expected at least sim.physics_dt_s = {dt:g}")
+    steps_per_period(config.plant.actuator_delay_s, dt, "plant.actuator_delay_s")
+    steps_per_period(config.sim.duration_s, dt, "sim.duration_s")

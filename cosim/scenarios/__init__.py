@@ -1,0 +1,1 @@
+"""Built-in scenarios as YAML files (package data)."""

@@ -1,0 +1,63 @@
+"""The one record of vehicle parameters: the plant's truth and a controller's belief.
+
+The plant is built from ``plant`` (a :class:`PlantConfig`, which is a :class:`VehicleParams`
+plus how the plant is simulated); a tracker's internal model reads ``tracker.model`` (a
+:class:`VehicleParams`). Both default to the seed paper's sedan (seed digest section 2:
+m = 1575 kg, I_z = 2875 kg m^2, l_f = 1.2 m, l_r = 1.6 m). Model mismatch is the difference
+between the two records, stated as data.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from cosim.config_fields import setting
+from cosim.exceptions import ConfigError
+
+
+@dataclass(frozen=True)
+class VehicleParams:
+    """Physical parameters of the car (all SI)."""
+
+    mass_kg: float = setting(1575.0, low=100.0, high=20000.0, doc="total mass incl. wheels")
+    yaw_inertia_kgm2: float = setting(2875.0, low=10.0, high=1e6, doc="about the CoG, total")
+    cog_front_m: float = setting(1.2, low=0.05, high=5.0, doc="CoG to front axle (l_f)")
+    cog_rear_m: float = setting(1.6, low=0.05, high=5.0, doc="CoG to rear axle (l_r)")
+    track_m: float = setting(1.6, low=0.5, high=3.0, doc="distance between left and right wheels")
+    cog_height_m: float = setting(0.55, low=0.1, high=2.0, doc="CoG above the ground")
+    wheel_radius_m: float = setting(0.31, low=0.1, high=1.0, doc="rolling radius")
+    wheel_mass_kg: float = setting(20.0, low=1.0, high=200.0, doc="each wheel, part of mass_kg")
+    wheel_inertia_kgm2: float = setting(1.0, low=0.05, high=20.0, doc="each wheel about its axle")
+    tire_friction: float = setting(1.0, low=0.05, high=2.0, doc="tyre-road friction coefficient")
+    max_steer_rad: float = setting(0.5236, low=0.05, high=1.0, doc="road-wheel angle limit")
+    drive: str = setting("rwd", choices=("rwd", "fwd", "awd"), doc="driven axle(s)")
+    max_drive_torque_nm: float = setting(4000.0, low=0.0, high=50000.0, doc="at the wheels, total")
+    max_drive_power_w: float = setting(150e3, low=1e3, high=2e6, doc="at the wheels")
+    max_brake_torque_nm: float = setting(8000.0, low=0.0, high=100000.0, doc="all wheels, total")
+    drag_area_m2: float = setting(0.66, low=0.0, high=10.0, doc="drag coefficient x frontal area")
+    rolling_resistance: float = setting(0.012, low=0.0, high=0.1, doc="coefficient, force/weight")
+
+    def __post_init__(self) -> None:
+        if 4 * self.wheel_mass_kg >= self.mass_kg:
+            raise ConfigError(
+                f"wheel_mass_kg = {self.wheel_mass_kg}: expected four wheels lighter than "
+                f"mass_kg = {self.mass_kg}"
+            )
+
+    @property
+    def wheelbase_m(self) -> float:
+        """Distance between the axles, l_f + l_r."""
+        return self.cog_front_m + self.cog_rear_m
+
+
+@dataclass(frozen=True)
+class PlantConfig(VehicleParams):
+    """The simulated car: its true parameters and how it is simulated."""
+
+    actuator_delay_s: float = setting(0.0, low=0.0, high=2.0, doc="command transport delay")
+    steer_time_constant_s: float = setting(
+        0.05, low=0.0, high=1.0, doc="first-order lag of the steering actuator"
+    )
+    max_steer_rate_radps: float = setting(
+        0.8, low=0.05, high=10.0, doc="rate limit of the steering actuator"
+    )

@@ -1,0 +1,1 @@
+"""State estimation: Kalman filters (filterpy) with their process and measurement models."""

@@ -1,0 +1,77 @@
+"""Estimators by name, and the sensors each one needs."""
+
+from __future__ import annotations
+
+import dataclasses
+import typing
+
+import pytest
+
+from cosim.exceptions import ConfigError
+from cosim.initial_state import InitialState
+from cosim.vehicle_params import VehicleParams
+from estimation.config import EstimatorConfig
+from estimation.ekf import Ekf
+from estimation.registry import (
+    ESTIMATOR_NAMES,
+    estimator_class,
+    make_estimator,
+    required_sensors,
+    supported_sensors,
+)
+from estimation.truth import TruthEstimator
+
+
+def test_every_configurable_name_is_registered() -> None:
+    name_field = {f.name: f for f in dataclasses.fields(EstimatorConfig)}["name"]
+    assert tuple(name_field.metadata["choices"]) == ESTIMATOR_NAMES
+    for name in ESTIMATOR_NAMES:
+        assert estimator_class(name).required_sensors
+
+
+@pytest.mark.parametrize(("name", "cls"), [("ekf", Ekf), ("truth", TruthEstimator)])
+def test_make_estimator(name: str, cls: type) -> None:
+    estimator = make_estimator(
+        EstimatorConfig(name=name), InitialState(x_m=2.0), VehicleParams(), t0_s=1.5
+    )
+    assert isinstance(estimator, cls)
+    estimate = estimator.estimate()
+    assert estimate.t_s == 1.5
+    assert estimate["x_m"] == 2.0
+
+
+def test_unknown_name_lists_the_known_ones() -> None:
+    with pytest.raises(ConfigError, match="ekf, truth"):
+        make_estimator(EstimatorConfig(name="ukf"), InitialState(), VehicleParams())
+
+
+def test_sensors_each_estimator_needs() -> None:
+    assert required_sensors("ekf") == ("gnss",)
+    assert set(supported_sensors("ekf")) >= {"gnss", "imu", "wheel_speed"}
+    assert required_sensors("truth") == ("truth",)
+    assert "truth" not in supported_sensors("ekf")  # the EKF never sees the truth
+    for name in ESTIMATOR_NAMES:
+        assert set(required_sensors(name)) <= set(supported_sensors(name))
+
+
+def test_config_fields_carry_units_or_are_flags() -> None:
+    """Every numeric key names its unit (or is a probability, a pure number)."""
+    units = (
+        "_m",
+        "_rad",
+        "_mps",
+        "_radps",
+        "_mps2",
+        "_s",
+        "m2ps5",
+        "rad2ps3",
+        "m2ps3",
+        "rad2ps",
+        "m2ps",
+        "1ps",
+        "scale_sigma",
+    )
+    hints = typing.get_type_hints(EstimatorConfig)
+    for f in dataclasses.fields(EstimatorConfig):
+        if hints[f.name] is float and f.name != "gate_probability":
+            assert f.name.endswith(units), f.name

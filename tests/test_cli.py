@@ -1,0 +1,85 @@
+"""The command line as users (and outside tests) call it: the installed `cosim` script."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from cosim.metrics import METRIC_KEYS
+from cosim.runner import RunResult
+
+COSIM = str(Path(sys.executable).with_name("cosim"))
+
+
+def cosim(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([COSIM, *args], capture_output=True, text=True, cwd=cwd,
+                          timeout=600, check=False)
+
+
+@pytest.mark.parametrize(
+    ("args", "fragment"),
+    [
+        (("run", "lane-change", "--set", "tracker.horizn=3"), "unknown key 'tracker.horizn'"),
+        (("run", "lane-change", "--set", "plant.mass_kg=-1"), "plant.mass_kg = -1"),
+        (("run", "nowhere"), "scenario 'nowhere'"),
+        (("run", "lane-change", "--tracker", "pid"), "tracker.name = 'pid'"),
+        (("run", "lane-change", "--estimator", "magic"), "estimator.name = 'magic'"),
+        (("run", "lane-change", "--set", "sim.control_period_s=0.033"), "whole multiple"),
+        (("run", "lane-change", "--seed", "abc"), "invalid int value: 'abc'"),
+        (("run", "lane-change", "--duration", "-1"), "--duration -1.0"),
+        (("inspect", "missing.mcap"), "'missing.mcap': no such file"),
+        (("frobnicate",), "invalid choice: 'frobnicate'"),
+    ],
+)
+def test_bad_input_is_one_line_and_exit_code_2(args: tuple[str, ...], fragment: str,
+                                               tmp_path: Path) -> None:
+    result = cosim(*args, cwd=tmp_path)
+    assert result.returncode == 2, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr
+    assert fragment in lines[0]
+    assert "Traceback" not in result.stderr
+
+
+def test_inspect_json_holds_the_metric_contract(short_run: RunResult) -> None:
+    result = cosim("inspect", str(short_run.log_path), "--json")
+    assert result.returncode == 0, result.stderr
+    document = json.loads(result.stdout)
+    assert set(METRIC_KEYS) <= set(document["metrics"])
+    assert document["metrics"]["completed"] is True
+    topics = {c["topic"]: c for c in document["channels"]}
+    assert topics["/vehicle/truth"]["count"] == 201
+    assert document["config"]["tracker"]["name"] == "kinematic-nmpc"
+
+
+def test_inspect_text_and_topic_dump(short_run: RunResult) -> None:
+    text = cosim("inspect", str(short_run.log_path))
+    assert text.returncode == 0
+    assert "/vehicle/truth" in text.stdout and "cte_max_m" in text.stdout
+    dump = cosim("inspect", str(short_run.log_path), "--topic", "/sensors/gnss", "--head", "3")
+    lines = dump.stdout.strip().splitlines()
+    assert len(lines) == 3
+    assert {"log_time_ns", "x_m", "y_m"} <= set(json.loads(lines[0]))
+    assert json.loads(lines[1])["log_time_ns"] == 100_000_000
+
+
+def test_run_writes_a_log_and_prints_the_metrics(tmp_path: Path) -> None:
+    out = tmp_path / "run.mcap"
+    result = cosim("run", "lane-change", "--duration", "1", "--seed", "3", "--out", str(out))
+    assert result.returncode == 0, result.stderr
+    assert out.is_file()
+    assert "cte_max_m" in result.stdout and "completed" in result.stdout
+    default = cosim("run", "lane-change", "--duration", "0.5", cwd=tmp_path)
+    assert default.returncode == 0, default.stderr
+    logs = list((tmp_path / "logs").glob("lane-change-*.mcap"))
+    assert len(logs) == 1
+
+
+def test_scenarios_lists_the_builtins() -> None:
+    result = cosim("scenarios")
+    assert result.returncode == 0
+    assert "lane-change " in result.stdout and "lane-change-limit" in result.stdout

@@ -1,0 +1,105 @@
+"""Scenario configuration: loading, overrides, validation errors, the rate check."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from cosim.exceptions import ConfigError, RateError
+from cosim.scenario_config import builtin_scenarios, load_config
+
+
+def test_builtin_lane_change_matches_the_seed_digest() -> None:
+    config = load_config("lane-change")
+    assert config.path.stretch == 1.5
+    assert config.path.speed_mps == 20.0
+    assert config.initial.speed_mps == 15.0
+    assert config.sim.duration_s == 15.0
+    assert config.plant.mass_kg == 1575.0
+    assert config.plant.yaw_inertia_kgm2 == 2875.0
+    assert (config.plant.cog_front_m, config.plant.cog_rear_m) == (1.2, 1.6)
+    assert config.tracker.name == "kinematic-nmpc"
+    assert config.estimator.name == "ekf"
+
+
+def test_limit_scenario_uses_falcones_constants() -> None:
+    assert load_config("lane-change-limit").path.stretch == 1.0
+    assert {"lane-change", "lane-change-limit"} <= set(builtin_scenarios())
+
+
+def test_overrides_reach_nested_keys_with_yaml_types() -> None:
+    config = load_config("lane-change", overrides=["tracker.horizon=12", "plant.mass_kg=2000",
+                                                   "sensors.gnss.enabled=false"],
+                         seed=7, duration_s=3.0)
+    assert config.tracker.horizon == 12
+    assert config.plant.mass_kg == 2000.0
+    assert config.sensors.gnss.enabled is False
+    assert config.seed == 7
+    assert config.sim.duration_s == 3.0
+    # The controller's belief is independent of the plant's truth: mismatch as data.
+    assert config.tracker.model.mass_kg == 1575.0
+
+
+@pytest.mark.parametrize(
+    ("override", "fragment"),
+    [
+        ("tracker.horizn=30", "unknown key 'tracker.horizn'"),
+        ("plant.mass_kg=-5", "plant.mass_kg = -5: expected a number in [100, 20000]"),
+        ("plant.mass_kg=heavy", "plant.mass_kg = 'heavy': expected a number"),
+        ("tracker.horizon=2.5", "tracker.horizon = 2.5: expected an integer"),
+        ("plant.drive=4wd", "plant.drive = '4wd': expected one of 'rwd', 'fwd', 'awd'"),
+        ("sensors.gnss.enabled=maybe", "sensors.gnss.enabled = 'maybe': expected true or false"),
+        ("plant.mass_kg.x=1", "plant.mass_kg = {'x': 1}: expected a number"),
+        ("nonsense", "expected key.path=value"),
+        ("sim=3", "sim = 3: expected a mapping"),
+    ],
+)
+def test_bad_values_name_the_key_and_the_expectation(override: str, fragment: str) -> None:
+    with pytest.raises(ConfigError) as error:
+        load_config("lane-change", overrides=[override])
+    assert fragment in str(error.value)
+
+
+def test_unknown_scenario_lists_the_builtins() -> None:
+    with pytest.raises(ConfigError, match="expected a built-in name .*lane-change"):
+        load_config("no-such-scenario")
+
+
+def test_scenario_file_and_config_file_merge(tmp_path: Path) -> None:
+    scenario = tmp_path / "mine.yaml"
+    scenario.write_text("path:\n  speed_mps: 12.0\ninitial:\n  speed_mps: 10.0\n")
+    extra = tmp_path / "extra.yaml"
+    extra.write_text("tracker:\n  horizon: 15\n")
+    config = load_config(str(scenario), config_file=str(extra))
+    assert config.name == "mine"
+    assert config.path.speed_mps == 12.0
+    assert config.tracker.horizon == 15
+    broken = tmp_path / "broken.yaml"
+    broken.write_text("path: [unclosed\n")
+    with pytest.raises(ConfigError, match="not valid YAML"):
+        load_config(str(broken))
+
+
+@pytest.mark.parametrize(
+    ("override", "key"),
+    [
+        ("sim.control_period_s=0.051", "sim.control_period_s = 0.051"),
+        ("sensors.gnss.period_s=0.0125", "sensors.gnss.period_s = 0.0125"),
+        ("plant.actuator_delay_s=0.003", "plant.actuator_delay_s = 0.003"),
+        ("sim.log_period_s=0.001", "sim.log_period_s = 0.001"),
+    ],
+)
+def test_periods_must_be_whole_physics_steps(override: str, key: str) -> None:
+    with pytest.raises(RateError) as error:
+        load_config("lane-change", overrides=[override])
+    assert key in str(error.value)
+    assert "whole multiple of sim.physics_dt_s = 0.002" in str(error.value) or \
+        "expected at least" in str(error.value)
+
+
+def test_whole_multiples_are_accepted() -> None:
+    config = load_config("lane-change", overrides=["sim.control_period_s=0.02",
+                                                   "plant.actuator_delay_s=0.1",
+                                                   "sim.physics_dt_s=0.001"])
+    assert config.sim.control_period_s == 0.02

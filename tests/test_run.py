@@ -1,0 +1,125 @@
+"""Closed-loop runs: determinism, the MCAP contract, and the lane change itself."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from mcap.reader import make_reader
+
+from cosim.log_reader import iter_messages, read_summary
+from cosim.metrics import METRIC_KEYS
+from cosim.runner import RunResult
+from tests.conftest import run_scenario
+
+DESIGN_TOPICS = {
+    "/vehicle/truth", "/vehicle/estimate", "/control/command", "/control/plan",
+    "/reference/path", "/metrics", "/tf", "/scene", "/sensors/gnss", "/sensors/imu",
+    "/sensors/wheel_speed",
+}
+WALL_CLOCK_KEYS = {"wall_time_s", "realtime_factor", "solve_ms_p50", "solve_ms_p99",
+                   "solve_ms_max"}
+
+
+def _payloads(path: Path) -> dict[str, list[bytes]]:
+    """Every message's raw bytes by topic, read with the mcap package's own reader."""
+    payloads: dict[str, list[bytes]] = {}
+    with open(path, "rb") as stream:
+        for _, channel, message in make_reader(stream).iter_messages(log_time_order=False):
+            payloads.setdefault(channel.topic, []).append(message.data)
+    return payloads
+
+
+def _strip_wall_clock(payloads: dict[str, list[bytes]]) -> dict[str, list[object]]:
+    stripped: dict[str, list[object]] = {}
+    for topic, messages in payloads.items():
+        decoded: list[object] = []
+        for data in messages:
+            message = json.loads(data)
+            for key in WALL_CLOCK_KEYS | {"solve_time_s"}:
+                message.pop(key, None)
+            decoded.append(message)
+        stripped[topic] = decoded
+    return stripped
+
+
+def test_one_seed_gives_one_result(short_run: RunResult, tmp_path: Path) -> None:
+    again = run_scenario(tmp_path, "lane-change", duration_s=2.0)
+    first, second = _payloads(short_run.log_path), _payloads(again.log_path)
+    assert set(first) == set(second)
+    # Simulation payloads are bit-identical: truth, sensors, estimates, commands.
+    for topic in ("/vehicle/truth", "/vehicle/estimate", "/control/command",
+                  "/sensors/gnss", "/sensors/imu", "/sensors/wheel_speed", "/tf"):
+        assert first[topic] == second[topic], topic
+    # Plans and metrics differ only in wall-clock timing fields.
+    assert _strip_wall_clock(first) == _strip_wall_clock(second)
+
+
+def test_another_seed_gives_other_noise(short_run: RunResult, tmp_path: Path) -> None:
+    other = run_scenario(tmp_path, "lane-change", duration_s=2.0, seed=1)
+    first, second = _payloads(short_run.log_path), _payloads(other.log_path)
+    assert first["/sensors/gnss"] != second["/sensors/gnss"]
+    assert first["/vehicle/truth"] != second["/vehicle/truth"]
+
+
+def test_log_has_every_design_topic_with_a_schema(short_run: RunResult) -> None:
+    summary = read_summary(short_run.log_path)
+    topics = {c.topic: c for c in summary.channels}
+    assert DESIGN_TOPICS <= set(topics)
+    for channel in summary.channels:
+        assert channel.schema_name, channel.topic
+        assert channel.schema_encoding == "jsonschema"
+        assert channel.message_count > 0, channel.topic
+    assert topics["/tf"].schema_name == "foxglove.FrameTransform"
+    assert topics["/scene"].schema_name == "foxglove.SceneUpdate"
+    assert topics["/metrics"].message_count == 1
+    # 2 s at the default rates: truth at 100 Hz, GNSS at 10 Hz, control at 20 Hz.
+    assert topics["/vehicle/truth"].message_count == 201
+    assert topics["/sensors/gnss"].message_count == 21
+    assert topics["/control/plan"].message_count == 40
+    assert not summary.truncated
+    assert summary.duration_s == pytest.approx(2.0)
+
+
+def test_metadata_attachment_and_metrics_round_trip(short_run: RunResult) -> None:
+    summary = read_summary(short_run.log_path)
+    assert summary.config["name"] == "lane-change"
+    assert summary.config["seed"] == 0
+    assert {"cosim", "mujoco", "casadi", "filterpy"} <= set(summary.versions)
+    assert "sedan.xml" in summary.attachments
+    assert summary.metrics is not None
+    assert set(METRIC_KEYS) <= set(summary.metrics)
+    assert summary.metrics["cte_max_m"] == pytest.approx(short_run.metrics["cte_max_m"])
+    assert summary.metrics["completed"] is True
+    # The /metrics message is the last message in the file.
+    with open(short_run.log_path, "rb") as stream:
+        messages = list(make_reader(stream).iter_messages(log_time_order=False))
+    assert messages[-1][1].topic == "/metrics"
+
+
+def test_truth_messages_carry_the_vehicle_state_fields(short_run: RunResult) -> None:
+    _, first = next(iter_messages(short_run.log_path, "/vehicle/truth"))
+    for name in ("t_s", "x_m", "y_m", "yaw_rad", "vx_mps", "vy_mps", "yaw_rate_radps",
+                 "ax_mps2", "ay_mps2", "steer_rad", "wheel_speed_radps"):
+        assert name in first
+    assert first["vx_mps"] == pytest.approx(15.0, abs=0.2)
+    assert len(first["wheel_speed_radps"]) == 4
+    _, estimate = next(iter_messages(short_run.log_path, "/vehicle/estimate"))
+    n = len(estimate["state_names"])
+    assert len(estimate["covariance"]) == n * n
+
+
+@pytest.mark.slow
+def test_lane_change_is_tracked_with_the_ekf_in_the_loop(lane_change_run: RunResult) -> None:
+    metrics = lane_change_run.metrics
+    assert metrics["completed"] is True
+    assert metrics["sim_duration_s"] == pytest.approx(15.0)
+    assert metrics["cte_max_m"] < 0.5
+    assert metrics["solver_failures"] == 0
+    # The estimate fed to the MPC is the filter's, not the truth: it has an error.
+    assert 0.0 < metrics["est_pos_rmse_m"] < 0.05
+    # The car reaches the reference speed: the last seconds are near 20 m/s.
+    speeds = [m["vx_mps"] for _, m in iter_messages(lane_change_run.log_path,
+                                                     "/vehicle/truth")][-200:]
+    assert min(speeds) > 19.0

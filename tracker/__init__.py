@@ -1,0 +1,1 @@
+"""Path tracking: reference paths, bicycle models and model-predictive controllers."""

@@ -1,0 +1,148 @@
+"""The kinematic bicycle model as CasADi expressions (seed digest section 1).
+
+State ``[x_m, y_m, yaw_rad, vx_mps]``: position of the centre of gravity (CoG) in the world
+frame (ENU), yaw counter-clockwise positive, speed of the CoG. Inputs
+``[accel_mps2, steer_rad]``: longitudinal acceleration and front road-wheel angle, positive
+to the left (ISO 8855).
+
+The model is referenced at the CoG, because that is the point the estimator tracks and the
+metrics judge (``cte_max_m`` is the deviation of the true CoG). The CoG velocity is turned
+from the body axis by the kinematic slip angle::
+
+    beta  = atan(l_r / (l_f + l_r) * tan(delta))                      (K1)
+    x'    = v cos(yaw + beta)                                          (K2)
+    y'    = v sin(yaw + beta)                                          (K3)
+    yaw'  = v cos(beta) tan(delta) / (l_f + l_r)                       (K4)
+    v'    = a                                                          (K5)
+
+Relation to the seed's form (section 1): ``x' = v cos(psi)``, ``y' = v sin(psi)``,
+``psi' = v / Lf * delta``. That is the same bicycle referenced at the rear axle, where
+``beta = 0``, with ``Lf`` playing the part of the wheelbase ``l_f + l_r``: for small angles
+``tan(delta) ~ delta`` and ``cos(beta) ~ 1`` so (K4) becomes ``psi' = v delta / L``. Placed at
+the CoG instead, the path of the point differs by the slip angle (K1), a few hundredths of a
+radian in a lane change at 20 m/s, which is not negligible next to a CTE budget of
+centimetres. The seed calls ``Lf`` "front axle to CoG"; with the seed paper's sedan that is
+1.2 m, which would more than double the yaw rate of a 2.8 m car, so the wheelbase reading is
+the consistent one.
+
+Discretisation is classical fourth-order Runge-Kutta (RK4) over the stage step ``dt_s``,
+optionally split into ``substeps``. Its local error is O(dt^5): driving one second of an arc
+of radius 80 m at 20 m/s (the tightest bend of the stretched lane change) in 0.05 s steps,
+RK4 ends within a nanometre of the exact circle, while explicit Euler, as printed in the
+seed, ends 0.12 m off it. Four model evaluations per stage are cheap next to an IPOPT
+iteration, so RK4 costs nothing that matters and removes the integrator from the error
+budget.
+"""
+
+from __future__ import annotations
+
+from types import MappingProxyType
+
+import casadi as ca
+
+from cosim.exceptions import ConfigError
+from cosim.vehicle_params import VehicleParams
+
+STATE_NAMES: tuple[str, ...] = ("x_m", "y_m", "yaw_rad", "vx_mps")
+"""State of the kinematic bicycle, in vector order."""
+
+INPUT_NAMES: tuple[str, ...] = ("accel_mps2", "steer_rad")
+"""Inputs of the kinematic bicycle, in vector order."""
+
+STATE = MappingProxyType({name: i for i, name in enumerate(STATE_NAMES)})
+"""Read-only map from state name to its index in the state vector."""
+
+INPUT = MappingProxyType({name: i for i, name in enumerate(INPUT_NAMES)})
+"""Read-only map from input name to its index in the input vector."""
+
+Symbolic = ca.SX | ca.MX | ca.DM
+
+
+def slip_angle(steer_rad: Symbolic, params: VehicleParams) -> Symbolic:
+    """Kinematic slip angle of the CoG velocity from the body x axis, eq. (K1) [rad]."""
+    return ca.atan(params.cog_rear_m / params.wheelbase_m * ca.tan(steer_rad))
+
+
+def continuous_dynamics(state: Symbolic, inputs: Symbolic, params: VehicleParams) -> Symbolic:
+    """Time derivative of the state, eqs. (K1)-(K5), as a 4x1 CasADi expression."""
+    yaw = state[STATE["yaw_rad"]]
+    speed = state[STATE["vx_mps"]]
+    accel = inputs[INPUT["accel_mps2"]]
+    steer = inputs[INPUT["steer_rad"]]
+    beta = slip_angle(steer, params)
+    derivative = {
+        "x_m": speed * ca.cos(yaw + beta),
+        "y_m": speed * ca.sin(yaw + beta),
+        "yaw_rad": speed * ca.cos(beta) * ca.tan(steer) / params.wheelbase_m,
+        "vx_mps": accel,
+    }
+    return ca.vertcat(*(derivative[name] for name in STATE_NAMES))
+
+
+def rk4_step(
+    state: Symbolic, inputs: Symbolic, dt_s: Symbolic | float, params: VehicleParams
+) -> Symbolic:
+    """One classical RK4 step of length ``dt_s`` with the inputs held constant."""
+    k1 = continuous_dynamics(state, inputs, params)
+    k2 = continuous_dynamics(state + 0.5 * dt_s * k1, inputs, params)
+    k3 = continuous_dynamics(state + 0.5 * dt_s * k2, inputs, params)
+    k4 = continuous_dynamics(state + dt_s * k3, inputs, params)
+    return state + dt_s / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+
+
+def continuous_function(params: VehicleParams) -> ca.Function:
+    """``f(state, inputs) -> state_dot`` as a CasADi Function (eqs. K1-K5)."""
+    state = ca.SX.sym("state", len(STATE_NAMES))
+    inputs = ca.SX.sym("inputs", len(INPUT_NAMES))
+    return ca.Function(
+        "kinematic_bicycle",
+        [state, inputs],
+        [continuous_dynamics(state, inputs, params)],
+        ["state", "inputs"],
+        ["state_dot"],
+    )
+
+
+def discrete_function(params: VehicleParams, dt_s: float, substeps: int = 1) -> ca.Function:
+    """``F(state, inputs) -> next_state`` over ``dt_s`` by ``substeps`` RK4 steps."""
+    if not dt_s > 0.0:
+        raise ConfigError(f"dt_s = {dt_s!r}: expected a positive step")
+    if substeps < 1:
+        raise ConfigError(f"substeps = {substeps!r}: expected an integer >= 1")
+    state = ca.SX.sym("state", len(STATE_NAMES))
+    inputs = ca.SX.sym("inputs", len(INPUT_NAMES))
+    h = dt_s / substeps
+    next_state = state
+    for _ in range(substeps):
+        next_state = rk4_step(next_state, inputs, h, params)
+    return ca.Function(
+        "kinematic_bicycle_rk4",
+        [state, inputs],
+        [next_state],
+        ["state", "inputs"],
+        ["next_state"],
+    )
+
+
+def predict_function(params: VehicleParams, substeps: int = 4) -> ca.Function:
+    """``P(state, inputs, duration_s) -> predicted_state`` after a variable duration (RK4 substeps).
+
+    Used to move an estimate forward over a known latency (seed digest section 1, latency
+    item (a)); ``duration_s = 0`` returns the state unchanged.
+    """
+    if substeps < 1:
+        raise ConfigError(f"substeps = {substeps!r}: expected an integer >= 1")
+    state = ca.SX.sym("state", len(STATE_NAMES))
+    inputs = ca.SX.sym("inputs", len(INPUT_NAMES))
+    duration = ca.SX.sym("duration_s")
+    h = duration / substeps
+    next_state = state
+    for _ in range(substeps):
+        next_state = rk4_step(next_state, inputs, h, params)
+    return ca.Function(
+        "kinematic_bicycle_predict",
+        [state, inputs, duration],
+        [next_state],
+        ["state", "inputs", "duration_s"],
+        ["predicted_state"],
+    )

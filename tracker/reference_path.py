@@ -1,0 +1,112 @@
+"""A reference path parametrised by arc length, with projection of points onto it.
+
+The path is a cubic spline x(s), y(s) through densely sampled points (scipy). Projection
+finds the arc length of the nearest point: a coarse search over a dense table, then Newton
+steps on the spline. The signed lateral error is positive when the point lies left of the
+path (ISO 8855 / ENU convention).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from cosim.exceptions import ConfigError
+
+
+@dataclass(frozen=True)
+class PathPoint:
+    """The path at one arc length."""
+
+    s_m: float
+    x_m: float
+    y_m: float
+    yaw_rad: float
+    curvature_1pm: float
+
+
+@dataclass(frozen=True)
+class Projection:
+    """Where a point sits relative to the path."""
+
+    s_m: float
+    lateral_error_m: float
+    """Signed distance to the path, positive when the point is left of it."""
+    path_yaw_rad: float
+    curvature_1pm: float
+
+
+def wrap_angle(angle_rad: np.ndarray | float) -> np.ndarray | float:
+    """Wrap to (-pi, pi]."""
+    return np.pi - np.mod(np.pi - np.asarray(angle_rad), 2.0 * np.pi)
+
+
+class ReferencePath:
+    """A planar path with a reference speed.
+
+    Args:
+      x_m, y_m: points along the path in the world frame, in driving order.
+      speed_mps: the reference speed along the whole path.
+      table_step_m: spacing of the projection table.
+    """
+
+    def __init__(
+        self, x_m: np.ndarray, y_m: np.ndarray, speed_mps: float, table_step_m: float = 0.25
+    ) -> None:
+        x_m = np.asarray(x_m, dtype=float)
+        y_m = np.asarray(y_m, dtype=float)
+        if x_m.shape != y_m.shape or x_m.ndim != 1 or x_m.size < 4:
+            raise ConfigError("reference path: expected matching 1-D x and y of >= 4 points")
+        seg = np.hypot(np.diff(x_m), np.diff(y_m))
+        if np.any(seg <= 0.0):
+            raise ConfigError("reference path: expected distinct consecutive points")
+        s = np.concatenate(([0.0], np.cumsum(seg)))
+        self._x = CubicSpline(s, x_m)
+        self._y = CubicSpline(s, y_m)
+        self.length_m = float(s[-1])
+        self.speed_mps = float(speed_mps)
+        self._table_s = np.arange(0.0, self.length_m, table_step_m)
+        self._table_x = self._x(self._table_s)
+        self._table_y = self._y(self._table_s)
+
+    def point(self, s_m: float) -> PathPoint:
+        """The path at arc length ``s_m`` (clamped to the path)."""
+        s = float(np.clip(s_m, 0.0, self.length_m))
+        dx, dy = float(self._x(s, 1)), float(self._y(s, 1))
+        ddx, ddy = float(self._x(s, 2)), float(self._y(s, 2))
+        curvature = (dx * ddy - dy * ddx) / (dx * dx + dy * dy) ** 1.5
+        return PathPoint(s, float(self._x(s)), float(self._y(s)), float(np.arctan2(dy, dx)),
+                         float(curvature))
+
+    def sample(self, s_m: np.ndarray) -> dict[str, np.ndarray]:
+        """Vectorised :meth:`point`: arrays ``x_m``, ``y_m``, ``yaw_rad``, ``curvature_1pm``."""
+        s = np.clip(np.asarray(s_m, dtype=float), 0.0, self.length_m)
+        dx, dy = self._x(s, 1), self._y(s, 1)
+        ddx, ddy = self._x(s, 2), self._y(s, 2)
+        return {
+            "s_m": s,
+            "x_m": self._x(s),
+            "y_m": self._y(s),
+            "yaw_rad": np.arctan2(dy, dx),
+            "curvature_1pm": (dx * ddy - dy * ddx) / (dx * dx + dy * dy) ** 1.5,
+        }
+
+    def project(self, x_m: float, y_m: float) -> Projection:
+        """Project a point onto the path: nearest table point, then Newton on the spline."""
+        i = int(np.argmin((self._table_x - x_m) ** 2 + (self._table_y - y_m) ** 2))
+        s = float(self._table_s[i])
+        for _ in range(3):
+            px, py = float(self._x(s)), float(self._y(s))
+            dx, dy = float(self._x(s, 1)), float(self._y(s, 1))
+            ddx, ddy = float(self._x(s, 2)), float(self._y(s, 2))
+            # d/ds of 0.5*|p(s) - q|^2 and its derivative.
+            grad = (px - x_m) * dx + (py - y_m) * dy
+            hess = dx * dx + dy * dy + (px - x_m) * ddx + (py - y_m) * ddy
+            if hess <= 1e-9:
+                break
+            s = float(np.clip(s - grad / hess, 0.0, self.length_m))
+        p = self.point(s)
+        lateral = -np.sin(p.yaw_rad) * (x_m - p.x_m) + np.cos(p.yaw_rad) * (y_m - p.y_m)
+        return Projection(s, float(lateral), p.yaw_rad, p.curvature_1pm)

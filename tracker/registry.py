@@ -1,0 +1,34 @@
+"""Trackers by name: ``tracker.name`` in a scenario picks the constructor.
+
+A tracker is anything with ``step(t_s, estimate, reference) -> (Command, Plan)`` and
+``reset()`` (the :class:`cosim.protocols.Tracker` protocol).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from types import MappingProxyType
+
+from cosim.exceptions import ConfigError
+from cosim.protocols import Tracker
+from tracker.config import TrackerConfig
+from tracker.kinematic_nmpc import KinematicNmpc
+
+_CONSTRUCTORS: MappingProxyType[str, Callable[[TrackerConfig], Tracker]] = MappingProxyType(
+    {
+        "kinematic-nmpc": KinematicNmpc,
+    }
+)
+
+TRACKER_NAMES: tuple[str, ...] = tuple(_CONSTRUCTORS)
+"""Every tracker name :func:`make_tracker` knows (the choices of ``tracker.name``)."""
+
+
+def make_tracker(config: TrackerConfig) -> Tracker:
+    """Build the tracker ``config.name`` from its configuration."""
+    constructor = _CONSTRUCTORS.get(config.name)
+    if constructor is None:
+        raise ConfigError(
+            f"tracker.name = {config.name!r}: expected one of {', '.join(TRACKER_NAMES)}"
+        )
+    return constructor(config)
