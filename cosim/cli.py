@@ -201,6 +201,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except CosimError as error:
         print(f"cosim: error: {error}", file=sys.stderr)
         return EXIT_USAGE
+    except KeyboardInterrupt:  # before or after a run's loop (the loop handles its own)
+        print("cosim: interrupted", file=sys.stderr)
+        return 130
     except BrokenPipeError:
         return 0
 

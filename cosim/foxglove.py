@@ -95,7 +95,7 @@ def static_scene(path_x_m: np.ndarray, path_y_m: np.ndarray,
         "lines": [{
             "type": 0, "pose": _IDENTITY_POSE, "thickness": 0.1, "scale_invariant": False,
             "points": [{"x": float(x), "y": float(y), "z": 0.02}
-                       for x, y in zip(path_x_m, path_y_m)],
+                       for x, y in zip(path_x_m, path_y_m, strict=True)],
             "color": {"r": 0.1, "g": 0.8, "b": 0.2, "a": 1.0}, "colors": [], "indices": [],
         }],
     }

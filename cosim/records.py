@@ -80,7 +80,7 @@ class Measurement:
 
     def to_message(self) -> dict[str, object]:
         message: dict[str, object] = {"t_s": self.t_s, "sensor": self.sensor}
-        message.update({n: _json_float(v) for n, v in zip(self.names, self.values)})
+        message.update({n: _json_float(v) for n, v in zip(self.names, self.values, strict=True)})
         message["sigma"] = [float(s) for s in np.sqrt(np.diag(self.covariance))]
         return message
 
@@ -110,7 +110,7 @@ class Estimate:
 
     def to_message(self) -> dict[str, object]:
         message: dict[str, object] = {"t_s": self.t_s}
-        message.update({n: float(v) for n, v in zip(self.names, self.mean)})
+        message.update({n: float(v) for n, v in zip(self.names, self.mean, strict=True)})
         message["state_names"] = list(self.names)
         message["covariance"] = [float(c) for c in self.covariance.ravel()]
         return message

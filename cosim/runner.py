@@ -18,11 +18,14 @@ with ``completed: false`` in its metrics.
 from __future__ import annotations
 
 import collections
+import contextlib
 import importlib.metadata
 import json
+import signal
+import threading
 import time
 import zlib
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -35,8 +38,8 @@ from cosim.exceptions import PhysicsDivergenceError
 from cosim.low_level import AccelToTorque
 from cosim.metrics import MetricsAccumulator
 from cosim.plant import MujocoPlant
-from cosim.records import Command
 from cosim.recorder import McapRecorder
+from cosim.records import Command, Estimate
 from cosim.scenario_config import ScenarioConfig, steps_per_period
 from cosim.sensors import TruthSensor, make_sensors
 from estimation.registry import make_estimator
@@ -82,6 +85,35 @@ def _versions() -> dict[str, str]:
     return versions
 
 
+class _StopRequest:
+    """Set by SIGINT/SIGTERM while a run goes; the loop checks it once per physics step.
+
+    A flag rather than Python's KeyboardInterrupt: CasADi polls for signals inside IPOPT and
+    would turn the exception into a failed solve, which the tracker rightly survives.
+    """
+
+    def __init__(self) -> None:
+        self.signal_name = ""
+
+    def __call__(self, signum: int, frame: object) -> None:
+        del frame
+        self.signal_name = signal.Signals(signum).name
+
+
+@contextlib.contextmanager
+def _stop_on_signals() -> Iterator[_StopRequest]:
+    request = _StopRequest()
+    if threading.current_thread() is not threading.main_thread():
+        yield request  # signal handlers can only be set from the main thread
+        return
+    previous = {s: signal.signal(s, request) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield request
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+
+
 def _register_topics(recorder: McapRecorder, sensor_names: list[str]) -> None:
     recorder.register("/vehicle/truth", mcap_schemas.VEHICLE_STATE)
     recorder.register("/vehicle/estimate", mcap_schemas.ESTIMATE)
@@ -96,125 +128,178 @@ def _register_topics(recorder: McapRecorder, sensor_names: list[str]) -> None:
         recorder.register(f"/sensors/{name}", mcap_schemas.MEASUREMENT)
 
 
-def run(
-    config: ScenarioConfig,
-    out_path: Path,
-    progress: Callable[[float], None] | None = None,
-) -> RunResult:
-    """Run one scenario to ``out_path``; ``progress`` is called with the fraction done."""
-    wall_start = time.perf_counter()
-    sim = config.sim
-    dt = sim.physics_dt_s
-    n_steps = steps_per_period(sim.duration_s, dt, "sim.duration_s")
-    control_steps = steps_per_period(sim.control_period_s, dt, "sim.control_period_s")
-    log_steps = steps_per_period(sim.log_period_s, dt, "sim.log_period_s")
-    delay_steps = steps_per_period(config.plant.actuator_delay_s, dt, "plant.actuator_delay_s")
+@dataclass
+class _Clock:
+    """The run's step counts: every period as a whole number of physics steps."""
 
-    reference = build_reference(config)
-    plant = MujocoPlant(config.plant, dt, config.initial)
-    estimator = make_estimator(config.estimator, config.initial, config.tracker.model)
-    tracker = make_tracker(config.tracker)
-    low_level = AccelToTorque(config.tracker.model)
-    sensors = make_sensors(config.sensors)
-    if "truth" in getattr(estimator, "required_sensors", ()):
-        sensors.append(TruthSensor(min(sim.log_period_s, sim.control_period_s)))
-    sensor_steps = [
-        steps_per_period(s.period_s, dt, f"sensors.{s.name}.period_s") for s in sensors
-    ]
-    rngs = {s.name: component_rng(config.seed, f"sensors.{s.name}") for s in sensors}
-    gnss_sigma_m = config.sensors.gnss.sigma_m
+    dt_s: float
+    n_steps: int
+    control_steps: int
+    log_steps: int
+    delay_steps: int
 
-    metrics = MetricsAccumulator(reference)
-    delay_line: collections.deque[tuple[int, Command]] = collections.deque()
-    completed, abort_reason = False, ""
-    result_metrics: dict[str, float | int | bool | str] = {}
+    @classmethod
+    def from_config(cls, config: ScenarioConfig) -> _Clock:
+        sim, dt = config.sim, config.sim.physics_dt_s
+        return cls(
+            dt_s=dt,
+            n_steps=steps_per_period(sim.duration_s, dt, "sim.duration_s"),
+            control_steps=steps_per_period(sim.control_period_s, dt, "sim.control_period_s"),
+            log_steps=steps_per_period(sim.log_period_s, dt, "sim.log_period_s"),
+            delay_steps=steps_per_period(config.plant.actuator_delay_s, dt,
+                                         "plant.actuator_delay_s"),
+        )
 
-    with McapRecorder(out_path) as recorder:
-        _register_topics(recorder, [s.name for s in sensors])
+
+class _Run:
+    """The components of one run and the phases of one physics step."""
+
+    def __init__(self, config: ScenarioConfig, recorder: McapRecorder) -> None:
+        self.config = config
+        self.clock = _Clock.from_config(config)
+        self.recorder = recorder
+        self.reference = build_reference(config)
+        self.plant = MujocoPlant(config.plant, self.clock.dt_s, config.initial)
+        self.estimator = make_estimator(config.estimator, config.initial, config.tracker.model)
+        self.tracker = make_tracker(config.tracker)
+        self.low_level = AccelToTorque(config.tracker.model)
+        self.sensors = make_sensors(config.sensors)
+        if "truth" in getattr(self.estimator, "required_sensors", ()):
+            period_s = min(config.sim.log_period_s, config.sim.control_period_s)
+            self.sensors.append(TruthSensor(period_s))
+        self.sensor_steps = [
+            steps_per_period(s.period_s, self.clock.dt_s, f"sensors.{s.name}.period_s")
+            for s in self.sensors
+        ]
+        self.rngs = {s.name: component_rng(config.seed, f"sensors.{s.name}")
+                     for s in self.sensors}
+        self.metrics = MetricsAccumulator(self.reference)
+        self.delay_line: collections.deque[tuple[int, Command]] = collections.deque()
+        self.truth = self.plant.state()
+        self.estimated_speed_mps = config.initial.speed_mps
+
+    def write_header(self) -> None:
+        """Channels, the run's metadata, the simulated MJCF, the path and the static scene."""
+        recorder, config = self.recorder, self.config
+        _register_topics(recorder, [s.name for s in self.sensors])
         config_dict = to_dict(config)
+        versions = _versions()
         recorder.add_metadata("run", {
             "scenario": config.name,
             "seed": str(config.seed),
             "config_yaml": yaml.safe_dump(config_dict, sort_keys=False),
             "config_json": json.dumps(config_dict),
-            "versions": json.dumps(_versions()),
-            **{f"version_{k}": v for k, v in _versions().items()},
+            "versions": json.dumps(versions),
+            **{f"version_{k}": v for k, v in versions.items()},
         })
-        recorder.add_attachment("sedan.xml", "application/xml", plant.mjcf_xml.encode())
-        samples = reference.sample(np.arange(0.0, reference.length_m, 1.0))
+        recorder.add_attachment("sedan.xml", "application/xml", self.plant.mjcf_xml.encode())
+        samples = self.reference.sample(np.arange(0.0, self.reference.length_m, 1.0))
         recorder.write("/reference/path", 0.0, {
             **{k: [float(v) for v in samples[k]] for k in samples},
-            "speed_mps": reference.speed_mps,
+            "speed_mps": self.reference.speed_mps,
         })
         recorder.write("/scene", 0.0, foxglove.static_scene(
             samples["x_m"], samples["y_m"], config.plant))
 
+    def current_estimate(self, t_s: float) -> Estimate:
+        self.estimator.predict(t_s)
+        estimate = self.estimator.estimate()
+        self.estimated_speed_mps = estimate["vx_mps"]
+        return estimate
+
+    def log(self, t_s: float) -> None:
+        estimate = self.current_estimate(t_s)
+        self.recorder.write_finite("/vehicle/truth", t_s, self.truth.to_message())
+        self.recorder.write_finite("/vehicle/estimate", t_s, estimate.to_message())
+        self.recorder.write("/tf", t_s, foxglove.frame_transform(self.truth))
+        self.metrics.add_truth(self.truth)
+        self.metrics.add_estimate(estimate, self.truth)
+
+    def sense(self, k: int, t_s: float) -> None:
+        for sensor, steps in zip(self.sensors, self.sensor_steps, strict=True):
+            if k % steps:
+                continue
+            measurement = sensor.sample(self.truth, self.rngs[sensor.name])
+            self.recorder.write_finite(f"/sensors/{sensor.name}", t_s, measurement.to_message())
+            if sensor.name == "gnss":
+                self.recorder.write("/gnss/fix", t_s, foxglove.location_fix(
+                    measurement["x_m"], measurement["y_m"], t_s,
+                    self.config.sensors.gnss.sigma_m, self.config.geo))
+            update = self.estimator.update(measurement)
+            if sensor.name != "truth":  # noise-free: NIS is undefined
+                self.metrics.add_update(update.accepted, update.nis, update.dim,
+                                        update.reason != "ignored")
+
+    def control(self, k: int, t_s: float) -> None:
+        command, plan = self.tracker.step(t_s, self.current_estimate(t_s), self.reference)
+        self.recorder.write_finite("/control/plan", t_s, plan.to_message())
+        self.metrics.add_plan(plan)
+        self.delay_line.append((k + self.clock.delay_steps, command))
+
+    def actuate(self, k: int, t_s: float) -> None:
+        """Apply the commands that leave the delay line at step ``k``."""
+        while self.delay_line and self.delay_line[0][0] <= k:
+            _, command = self.delay_line.popleft()
+            actuator = self.low_level.convert(command, self.estimated_speed_mps)
+            self.plant.apply(actuator)
+            self.metrics.add_command(command)
+            self.recorder.write("/control/command", t_s, {
+                "t_s": t_s, "accel_mps2": command.accel_mps2, "steer_rad": command.steer_rad,
+                "drive_torque_nm": actuator.drive_torque_nm,
+                "brake_torque_nm": actuator.brake_torque_nm,
+            })
+
+    def loop(self, stop: _StopRequest, progress: Callable[[float], None] | None) -> None:
+        clock = self.clock
+        for k in range(clock.n_steps + 1):
+            t_s = k * clock.dt_s
+            if k % clock.log_steps == 0:
+                self.log(t_s)
+            self.sense(k, t_s)
+            if k == clock.n_steps:
+                return
+            if k % clock.control_steps == 0:
+                self.control(k, t_s)
+            self.actuate(k, t_s)
+            self.plant.advance()
+            self.truth = self.plant.state()
+            if stop.signal_name:
+                raise KeyboardInterrupt
+            if progress is not None and k % 500 == 0:
+                progress(k / clock.n_steps)
+
+
+def run(
+    config: ScenarioConfig,
+    out_path: Path,
+    progress: Callable[[float], None] | None = None,
+) -> RunResult:
+    """Run one scenario to ``out_path``; ``progress`` is called with the fraction done.
+
+    SIGINT and SIGTERM stop the run between two physics steps; the log is finished with
+    ``completed: false`` and the result says ``interrupted``.
+    """
+    wall_start = time.perf_counter()
+    completed, abort_reason = False, ""
+    with McapRecorder(out_path) as recorder:
+        state = _Run(config, recorder)
+        state.write_header()
         try:
-            truth = plant.state()
-            latest_speed_mps = config.initial.speed_mps
-            for k in range(n_steps + 1):
-                t_s = k * dt
-                if k % log_steps == 0:
-                    estimator.predict(t_s)
-                    estimate = estimator.estimate()
-                    latest_speed_mps = estimate["vx_mps"]
-                    recorder.write_finite("/vehicle/truth", t_s, truth.to_message())
-                    recorder.write_finite("/vehicle/estimate", t_s, estimate.to_message())
-                    recorder.write("/tf", t_s, foxglove.frame_transform(truth))
-                    metrics.add_truth(truth)
-                    metrics.add_estimate(estimate, truth)
-                for sensor, steps in zip(sensors, sensor_steps):
-                    if k % steps:
-                        continue
-                    measurement = sensor.sample(truth, rngs[sensor.name])
-                    recorder.write_finite(f"/sensors/{sensor.name}", t_s,
-                                          measurement.to_message())
-                    if sensor.name == "gnss":
-                        recorder.write("/gnss/fix", t_s, foxglove.location_fix(
-                            measurement["x_m"], measurement["y_m"], t_s, gnss_sigma_m,
-                            config.geo))
-                    update = estimator.update(measurement)
-                    if sensor.name != "truth":  # noise-free: NIS is undefined
-                        metrics.add_update(update.accepted, update.nis, update.dim,
-                                           update.reason != "ignored")
-                if k == n_steps:
-                    break
-                if k % control_steps == 0:
-                    estimator.predict(t_s)
-                    estimate = estimator.estimate()
-                    latest_speed_mps = estimate["vx_mps"]
-                    command, plan = tracker.step(t_s, estimate, reference)
-                    recorder.write_finite("/control/plan", t_s, plan.to_message())
-                    metrics.add_plan(plan)
-                    delay_line.append((k + delay_steps, command))
-                while delay_line and delay_line[0][0] <= k:
-                    _, command = delay_line.popleft()
-                    actuator = low_level.convert(command, latest_speed_mps)
-                    plant.apply(actuator)
-                    metrics.add_command(command)
-                    recorder.write("/control/command", t_s, {
-                        "t_s": t_s, "accel_mps2": command.accel_mps2,
-                        "steer_rad": command.steer_rad,
-                        "drive_torque_nm": actuator.drive_torque_nm,
-                        "brake_torque_nm": actuator.brake_torque_nm,
-                    })
-                plant.advance()
-                truth = plant.state()
-                if progress is not None and k % 500 == 0:
-                    progress(k / n_steps)
+            with _stop_on_signals() as stop:
+                state.loop(stop, progress)
             completed = True
         except PhysicsDivergenceError as error:
             abort_reason = str(error)
         except KeyboardInterrupt:
             abort_reason = "interrupted"
         except Exception as error:  # the log is finished below, then the error goes on
-            abort_reason = f"{type(error).__name__}: {error}"
-            _finish(recorder, metrics, wall_start, False, abort_reason)
+            _finish(recorder, state.metrics, wall_start, False,
+                    f"{type(error).__name__}: {error}")
             raise
         if progress is not None:
             progress(1.0)
-        result_metrics = _finish(recorder, metrics, wall_start, completed, abort_reason)
-    return RunResult(Path(out_path), result_metrics, completed, abort_reason)
+        metrics = _finish(recorder, state.metrics, wall_start, completed, abort_reason)
+    return RunResult(Path(out_path), metrics, completed, abort_reason)
 
 
 def _finish(recorder: McapRecorder, metrics: MetricsAccumulator, wall_start: float,

@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import json
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
 
+from cosim.log_reader import read_summary
 from cosim.metrics import METRIC_KEYS
 from cosim.runner import RunResult
 
@@ -83,3 +86,28 @@ def test_scenarios_lists_the_builtins() -> None:
     result = cosim("scenarios")
     assert result.returncode == 0
     assert "lane-change " in result.stdout and "lane-change-limit" in result.stdout
+
+
+def test_interrupt_finishes_the_log_with_completed_false(tmp_path: Path) -> None:
+    out = tmp_path / "interrupted.mcap"
+    process = subprocess.Popen([COSIM, "run", "lane-change", "--out", str(out)],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # Wait (without timing anything) until the loop has flushed a few chunks of data.
+    deadline = time.monotonic() + 300
+    while (not out.exists() or out.stat().st_size < 600_000) and process.poll() is None:
+        if time.monotonic() > deadline:
+            process.kill()
+            pytest.fail("the run wrote no data")
+        time.sleep(0.02)
+    process.send_signal(signal.SIGINT)
+    _, stderr = process.communicate(timeout=300)
+    assert process.returncode == 130, stderr
+    assert "interrupted" in stderr and "Traceback" not in stderr
+    summary = read_summary(out)
+    assert not summary.truncated
+    assert summary.metrics is not None
+    assert summary.metrics["completed"] is False
+    assert summary.metrics["abort_reason"] == "interrupted"
+    truth = {c.topic: c.message_count for c in summary.channels}["/vehicle/truth"]
+    assert 0 < truth < 1501
+    assert summary.metrics["sim_duration_s"] < 15.0
