@@ -113,7 +113,12 @@ def from_dict(cls: type[T], data: Any, prefix: str = "") -> T:
             kwargs[name] = _convert(value, hint, dict(fields[name].metadata), key)
     # Defaults are validated too: a wrong default is a bug, and a section may have
     # cross-field rules in __post_init__ that raise ConfigError.
-    return cls(**kwargs)
+    try:
+        return cls(**kwargs)
+    except ConfigError as error:  # a cross-field rule of __post_init__: name the section
+        if prefix:
+            raise ConfigError(f"{prefix}.{error}") from None
+        raise
 
 
 def to_dict(config: Any) -> dict[str, Any]:

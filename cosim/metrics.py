@@ -13,7 +13,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from cosim.maneuver_metrics import maneuver_metrics
 from cosim.records import Command, Estimate, Plan, VehicleState
+from tracker.maneuver import ManeuverConfig
 from tracker.reference_path import ReferencePath, wrap_angle
 
 NEES_STATES = ("x_m", "y_m", "yaw_rad", "vx_mps")
@@ -44,6 +46,13 @@ class MetricsAccumulator:
     """Collects what the metrics need while a run goes; :meth:`result` computes them."""
 
     reference: ReferencePath
+    maneuver: ManeuverConfig | None = None
+    """Set for open-loop runs: adds the manoeuvre's steady-state (and step) metrics."""
+    t_s: list[float] = field(default_factory=list)
+    true_steer_rad: list[float] = field(default_factory=list)
+    yaw_rate_radps: list[float] = field(default_factory=list)
+    ay_mps2: list[float] = field(default_factory=list)
+    speed_mps: list[float] = field(default_factory=list)
     cte_m: list[float] = field(default_factory=list)
     heading_err_rad: list[float] = field(default_factory=list)
     speed_err_mps: list[float] = field(default_factory=list)
@@ -65,6 +74,12 @@ class MetricsAccumulator:
         self.heading_err_rad.append(float(wrap_angle(truth.yaw_rad - projection.path_yaw_rad)))
         self.speed_err_mps.append(truth.speed_mps - self.reference.speed_mps)
         self.last_t_s = truth.t_s
+        if self.maneuver is not None:
+            self.t_s.append(truth.t_s)
+            self.true_steer_rad.append(truth.steer_rad)
+            self.yaw_rate_radps.append(truth.yaw_rate_radps)
+            self.ay_mps2.append(truth.ay_mps2)
+            self.speed_mps.append(truth.speed_mps)
 
     def add_estimate(self, estimate: Estimate, truth: VehicleState) -> None:
         error = np.array([
@@ -104,6 +119,12 @@ class MetricsAccumulator:
             return float(np.percentile(solve_ms, q)) if solve_ms.size else float("nan")
 
         sim_duration_s = self.last_t_s
+        extra: dict[str, float] = {}
+        if self.maneuver is not None:
+            extra = maneuver_metrics(
+                np.asarray(self.t_s), np.asarray(self.true_steer_rad),
+                np.asarray(self.yaw_rate_radps), np.asarray(self.ay_mps2),
+                np.asarray(self.speed_mps), self.maneuver)
         return {
             "cte_max_m": _max_abs(self.cte_m),
             "cte_rms_m": _rms(self.cte_m),
@@ -127,4 +148,5 @@ class MetricsAccumulator:
             "wall_time_s": wall_time_s,
             "realtime_factor": sim_duration_s / wall_time_s if wall_time_s > 0 else float("nan"),
             "completed": completed,
+            **extra,
         }

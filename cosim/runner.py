@@ -72,6 +72,9 @@ def build_reference(config: ScenarioConfig) -> ReferencePath:
     path = config.path
     if path.kind == "double-lane-change":
         return double_lane_change(path.speed_mps, path.stretch, path.length_m)
+    if path.kind == "straight":
+        x_m = np.linspace(0.0, path.length_m, 4) + config.initial.x_m
+        return ReferencePath(x_m, np.full(4, config.initial.y_m), path.speed_mps)
     raise AssertionError(f"unhandled path kind {path.kind!r}")  # validated by choices
 
 
@@ -161,7 +164,7 @@ class _Run:
         self.reference = build_reference(config)
         self.plant = MujocoPlant(config.plant, self.clock.dt_s, config.initial)
         self.estimator = make_estimator(config.estimator, config.initial, config.tracker.model)
-        self.tracker = make_tracker(config.tracker)
+        self.tracker = make_tracker(config.tracker, config.maneuver)
         self.low_level = AccelToTorque(config.tracker.model)
         self.sensors = make_sensors(config.sensors)
         if "truth" in getattr(self.estimator, "required_sensors", ()):
@@ -173,7 +176,9 @@ class _Run:
         ]
         self.rngs = {s.name: component_rng(config.seed, f"sensors.{s.name}")
                      for s in self.sensors}
-        self.metrics = MetricsAccumulator(self.reference)
+        open_loop = config.tracker.name == "open-loop"
+        self.metrics = MetricsAccumulator(self.reference,
+                                          config.maneuver if open_loop else None)
         self.delay_line: collections.deque[tuple[int, Command]] = collections.deque()
         self.truth = self.plant.state()
         self.estimated_speed_mps = config.initial.speed_mps

@@ -24,6 +24,7 @@ from cosim.sensors import SensorsConfig
 from cosim.vehicle_params import PlantConfig
 from estimation.config import EstimatorConfig
 from tracker.config import TrackerConfig
+from tracker.maneuver import ManeuverConfig
 
 
 @dataclass(frozen=True)
@@ -40,7 +41,7 @@ class SimConfig:
 class PathConfig:
     """The reference path and speed."""
 
-    kind: str = setting("double-lane-change", choices=("double-lane-change",))
+    kind: str = setting("double-lane-change", choices=("double-lane-change", "straight"))
     stretch: float = setting(1.5, low=0.2, high=10.0, doc="x-scale of Falcone's constants")
     speed_mps: float = setting(20.0, low=0.0, high=80.0, doc="reference speed v_D")
     length_m: float = setting(600.0, low=10.0, high=1e5)
@@ -60,6 +61,7 @@ class ScenarioConfig:
     sensors: SensorsConfig = section(SensorsConfig)
     estimator: EstimatorConfig = section(EstimatorConfig)
     tracker: TrackerConfig = section(TrackerConfig)
+    maneuver: ManeuverConfig = section(ManeuverConfig)
     geo: GeoOrigin = section(GeoOrigin)
 
 

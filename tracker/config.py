@@ -46,7 +46,7 @@ from cosim.config_fields import section, setting
 from cosim.exceptions import ConfigError
 from cosim.vehicle_params import VehicleParams
 
-TRACKER_CHOICES: tuple[str, ...] = ("kinematic-nmpc",)
+TRACKER_CHOICES: tuple[str, ...] = ("kinematic-nmpc", "open-loop")
 """Values ``tracker.name`` accepts; :data:`tracker.registry.TRACKER_NAMES` maps each one."""
 
 

@@ -13,10 +13,15 @@ from cosim.exceptions import ConfigError
 from cosim.protocols import Tracker
 from tracker.config import TrackerConfig
 from tracker.kinematic_nmpc import KinematicNmpc
+from tracker.maneuver import ManeuverConfig
+from tracker.open_loop import OpenLoopTracker
 
-_CONSTRUCTORS: MappingProxyType[str, Callable[[TrackerConfig], Tracker]] = MappingProxyType(
+_CONSTRUCTORS: MappingProxyType[
+    str, Callable[[TrackerConfig, ManeuverConfig], Tracker]
+] = MappingProxyType(
     {
-        "kinematic-nmpc": KinematicNmpc,
+        "kinematic-nmpc": lambda config, maneuver: KinematicNmpc(config),
+        "open-loop": OpenLoopTracker,
     }
 )
 
@@ -24,11 +29,11 @@ TRACKER_NAMES: tuple[str, ...] = tuple(_CONSTRUCTORS)
 """Every tracker name :func:`make_tracker` knows (the choices of ``tracker.name``)."""
 
 
-def make_tracker(config: TrackerConfig) -> Tracker:
-    """Build the tracker ``config.name`` from its configuration."""
+def make_tracker(config: TrackerConfig, maneuver: ManeuverConfig | None = None) -> Tracker:
+    """Build the tracker ``config.name``; ``maneuver`` drives the ``open-loop`` tracker."""
     constructor = _CONSTRUCTORS.get(config.name)
     if constructor is None:
         raise ConfigError(
             f"tracker.name = {config.name!r}: expected one of {', '.join(TRACKER_NAMES)}"
         )
-    return constructor(config)
+    return constructor(config, maneuver if maneuver is not None else ManeuverConfig())
