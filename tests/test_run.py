@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import jsonschema
 import pytest
 from mcap.reader import make_reader
 
@@ -123,3 +124,15 @@ def test_lane_change_is_tracked_with_the_ekf_in_the_loop(lane_change_run: RunRes
     speeds = [m["vx_mps"] for _, m in iter_messages(lane_change_run.log_path,
                                                      "/vehicle/truth")][-200:]
     assert min(speeds) > 19.0
+
+
+def test_every_message_matches_its_channel_schema(short_run: RunResult) -> None:
+    with open(short_run.log_path, "rb") as stream:
+        reader = make_reader(stream)
+        checked: dict[str, int] = {}
+        for schema, channel, message in reader.iter_messages(log_time_order=False):
+            if checked.get(channel.topic, 0) >= 20:
+                continue
+            jsonschema.validate(json.loads(message.data), json.loads(schema.data))
+            checked[channel.topic] = checked.get(channel.topic, 0) + 1
+    assert DESIGN_TOPICS <= set(checked)
