@@ -31,7 +31,7 @@ from cosim.initial_state import InitialState
 from cosim.records import Estimate, Measurement
 from cosim.vehicle_params import VehicleParams
 from estimation.config import EstimatorConfig
-from estimation.errors import EstimatorError, TimeOrderError
+from estimation.errors import EstimatorError
 from estimation.models import (
     ANGLE_STATES,
     MAX_STEP_S,
@@ -43,6 +43,7 @@ from estimation.models import (
     state_index,
     wrap_angle,
 )
+from estimation.timing import forward_interval_s, is_stale
 from estimation.update_result import (
     ACCEPTED,
     GATE,
@@ -55,9 +56,6 @@ from estimation.update_result import (
     SensorCounts,
     UpdateResult,
 )
-
-TIME_TOLERANCE_S = 1e-9
-"""Two times closer than this are the same time (sensor clocks are multiples of a step)."""
 
 
 @dataclass(frozen=True)
@@ -211,22 +209,14 @@ class Ekf:
 
     def predict(self, t_s: float) -> None:
         """Propagate the belief to ``t_s`` (no-op at the current time; never backwards)."""
-        t_s = float(t_s)
-        if not math.isfinite(t_s):
-            raise ValueError(f"predict to t_s = {t_s!r}: expected a finite time")
-        if t_s < self._t_s - TIME_TOLERANCE_S:
-            raise TimeOrderError(
-                f"predict to t_s = {t_s!r} s: the filter is at {self._t_s!r} s and cannot go "
-                "back in time"
-            )
-        interval_s = t_s - self._t_s
-        if interval_s <= TIME_TOLERANCE_S:
+        interval_s = forward_interval_s(self._t_s, float(t_s), "filter")
+        if interval_s == 0.0:
             return
         substeps = max(1, math.ceil(interval_s / self._config.max_step_s - 1e-9))
         dt_s = interval_s / substeps
         for _ in range(substeps):
             self._kf.predict_substep(dt_s)
-        self._t_s = t_s
+        self._t_s = float(t_s)
         self._normalise()
         if not self._is_finite():
             raise EstimatorError(
@@ -271,7 +261,7 @@ class Ekf:
         if not (math.isfinite(t_s) and np.isfinite(z).all() and np.isfinite(r_matrix).all()):
             counts.rejected_nonfinite += 1
             return UpdateResult(False, math.nan, dim, NON_FINITE)
-        if t_s < self._t_s - TIME_TOLERANCE_S:
+        if is_stale(self._t_s, t_s):
             counts.rejected_stale += 1
             return UpdateResult(False, math.nan, dim, STALE)
 

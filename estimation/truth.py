@@ -18,9 +18,8 @@ from cosim.initial_state import InitialState
 from cosim.records import Estimate, Measurement
 from cosim.vehicle_params import VehicleParams
 from estimation.config import EstimatorConfig
-from estimation.ekf import TIME_TOLERANCE_S
-from estimation.errors import TimeOrderError
 from estimation.models import VEHICLE_STATE_NAMES, wrap_angle
+from estimation.timing import forward_interval_s, is_stale
 from estimation.update_result import (
     ACCEPTED,
     IGNORED,
@@ -81,16 +80,8 @@ class TruthEstimator:
 
     def predict(self, t_s: float) -> None:
         """Extrapolate the last truth to ``t_s`` (constant accelerations and yaw rate)."""
-        t_s = float(t_s)
-        if not math.isfinite(t_s):
-            raise ValueError(f"predict to t_s = {t_s!r}: expected a finite time")
-        if t_s < self._t_s - TIME_TOLERANCE_S:
-            raise TimeOrderError(
-                f"predict to t_s = {t_s!r} s: the estimator is at {self._t_s!r} s and cannot "
-                "go back in time"
-            )
-        dt_s = t_s - self._t_s
-        if dt_s <= TIME_TOLERANCE_S:
+        dt_s = forward_interval_s(self._t_s, float(t_s), "estimator")
+        if dt_s == 0.0:
             return
         s = dict(zip(TRUTH_STATE_NAMES, self._mean, strict=True))
         r = s["yaw_rate_radps"]
@@ -125,7 +116,7 @@ class TruthEstimator:
         if not (math.isfinite(t_s) and np.isfinite(values).all()):
             counts.rejected_nonfinite += 1
             return UpdateResult(False, math.nan, dim, NON_FINITE)
-        if t_s < self._t_s - TIME_TOLERANCE_S:
+        if is_stale(self._t_s, t_s):
             counts.rejected_stale += 1
             return UpdateResult(False, math.nan, dim, STALE)
         for name in _ANGLE_NAMES:
