@@ -35,6 +35,11 @@ def setting(
     )
 
 
+def items(item_cls: type) -> Any:
+    """A list of sections, each validated as ``item_cls`` (empty by default)."""
+    return dataclasses.field(default=(), metadata={"doc": item_cls.__doc__ or ""})
+
+
 def section(factory: type) -> Any:
     """A nested configuration section with the nested dataclass's defaults."""
     return dataclasses.field(default_factory=factory, metadata={"doc": factory.__doc__ or ""})
@@ -86,6 +91,15 @@ def _convert(value: Any, hint: Any, meta: dict[str, Any], key: str) -> Any:
     return value
 
 
+def _items(item_cls: type, data: Any, key: str) -> tuple[Any, ...]:
+    """A list of sections (``faults: [{...}, {...}]``) as a tuple of dataclasses."""
+    if data is None:
+        return ()
+    if not isinstance(data, list):
+        raise ConfigError(f"{key} = {data!r}: expected a list")
+    return tuple(from_dict(item_cls, item, f"{key}[{i}]") for i, item in enumerate(data))
+
+
 def from_dict(cls: type[T], data: Any, prefix: str = "") -> T:
     """Build the dataclass ``cls`` from ``data``, validating every key and value.
 
@@ -109,6 +123,8 @@ def from_dict(cls: type[T], data: Any, prefix: str = "") -> T:
         hint = hints[name]
         if dataclasses.is_dataclass(hint):
             kwargs[name] = from_dict(hint, value, key)
+        elif typing.get_origin(hint) is tuple:
+            kwargs[name] = _items(typing.get_args(hint)[0], value, key)
         else:
             kwargs[name] = _convert(value, hint, dict(fields[name].metadata), key)
     # Defaults are validated too: a wrong default is a bug, and a section may have
@@ -122,8 +138,16 @@ def from_dict(cls: type[T], data: Any, prefix: str = "") -> T:
 
 
 def to_dict(config: Any) -> dict[str, Any]:
-    """The configuration as plain nested dictionaries (for YAML/JSON and the MCAP log)."""
-    return dataclasses.asdict(config)
+    """The configuration as plain nested dictionaries and lists (for YAML, JSON, the log)."""
+    return _plain(dataclasses.asdict(config))
+
+
+def _plain(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    return value
 
 
 def set_dotted(data: dict[str, Any], dotted_key: str, value: Any) -> None:
@@ -154,6 +178,9 @@ def describe(cls: type, prefix: str = "") -> list[tuple[str, str, str]]:
         hint = hints[f.name]
         if dataclasses.is_dataclass(hint):
             rows.extend(describe(hint, key))
+            continue
+        if typing.get_origin(hint) is tuple:
+            rows.extend(describe(typing.get_args(hint)[0], f"{key}[]"))
             continue
         kind = {bool: "true/false", int: "an integer", float: "a number", str: "a string"}[hint]
         rows.append((key, repr(f.default), _expected(dict(f.metadata), kind)))

@@ -31,6 +31,23 @@ METRIC_KEYS = (
 """Keys every run's metrics hold (a contract: outside tests read them)."""
 
 
+REJECTION_CAUSES = ("rejected_gate", "rejected_nonfinite", "rejected_stale",
+                    "rejected_invalid")
+
+
+def rejection_counts(counts: dict[str, dict[str, int]]) -> dict[str, int]:
+    """``rejected_measurements`` (whole measurements refused, all causes), the same per
+    cause, and ``channels_gated`` (single channels the gate refused, also inside partly
+    fused measurements), from an estimator's per-sensor counters."""
+    totals = {cause: sum(c.get(cause, 0) for c in counts.values())
+              for cause in REJECTION_CAUSES}
+    return {
+        "rejected_measurements": sum(totals.values()),
+        **totals,
+        "channels_gated": sum(c.get("channels_gated", 0) for c in counts.values()),
+    }
+
+
 def _rms(values: list[float] | np.ndarray) -> float:
     array = np.asarray(values, dtype=float)
     return float(np.sqrt(np.mean(array**2))) if array.size else float("nan")
@@ -65,7 +82,8 @@ class MetricsAccumulator:
     speed_est_err_mps: list[float] = field(default_factory=list)
     nees: list[float] = field(default_factory=list)
     nis_per_dof: list[float] = field(default_factory=list)
-    rejected_measurements: int = 0
+    estimator_counts: dict[str, dict[str, int]] = field(default_factory=dict)
+    """Per sensor, the estimator's own counters (set at the end of the run)."""
     last_t_s: float = 0.0
 
     def add_truth(self, truth: VehicleState) -> None:
@@ -95,11 +113,9 @@ class MetricsAccumulator:
         if np.all(np.isfinite(covariance)) and np.linalg.det(covariance) > 0.0:
             self.nees.append(float(error @ np.linalg.solve(covariance, error)))
 
-    def add_update(self, accepted: bool, nis: float, dim: int, counts_as_rejection: bool) -> None:
+    def add_update(self, accepted: bool, nis: float, dim: int) -> None:
         if accepted and dim > 0 and np.isfinite(nis):
             self.nis_per_dof.append(nis / dim)
-        elif counts_as_rejection:
-            self.rejected_measurements += 1
 
     def add_plan(self, plan: Plan) -> None:
         self.solve_time_s.append(plan.solve_time_s)
@@ -143,7 +159,7 @@ class MetricsAccumulator:
             "est_speed_rmse_mps": _rms(self.speed_est_err_mps),
             "nees_mean": float(np.mean(self.nees)) if self.nees else float("nan"),
             "nis_mean": float(np.mean(self.nis_per_dof)) if self.nis_per_dof else float("nan"),
-            "rejected_measurements": self.rejected_measurements,
+            **rejection_counts(self.estimator_counts),
             "sim_duration_s": sim_duration_s,
             "wall_time_s": wall_time_s,
             "realtime_factor": sim_duration_s / wall_time_s if wall_time_s > 0 else float("nan"),

@@ -35,6 +35,7 @@ import yaml
 from cosim import __version__, foxglove, mcap_schemas
 from cosim.config_fields import to_dict
 from cosim.exceptions import PhysicsDivergenceError
+from cosim.faults import FaultInjector
 from cosim.low_level import AccelToTorque
 from cosim.metrics import MetricsAccumulator
 from cosim.plant import MujocoPlant
@@ -176,6 +177,8 @@ class _Run:
         ]
         self.rngs = {s.name: component_rng(config.seed, f"sensors.{s.name}")
                      for s in self.sensors}
+        self.faults = {s.name: FaultInjector(config.faults, s.name, s.names)
+                       for s in self.sensors}
         open_loop = config.tracker.name == "open-loop"
         self.metrics = MetricsAccumulator(self.reference,
                                           config.maneuver if open_loop else None)
@@ -224,7 +227,10 @@ class _Run:
         for sensor, steps in zip(self.sensors, self.sensor_steps, strict=True):
             if k % steps:
                 continue
-            measurement = sensor.sample(self.truth, self.rngs[sensor.name])
+            measurement = self.faults[sensor.name].apply(
+                sensor.sample(self.truth, self.rngs[sensor.name]))
+            if measurement is None:  # a dropout: nothing is delivered
+                continue
             self.recorder.write_finite(f"/sensors/{sensor.name}", t_s, measurement.to_message())
             if sensor.name == "gnss":
                 self.recorder.write("/gnss/fix", t_s, foxglove.location_fix(
@@ -232,8 +238,7 @@ class _Run:
                     self.config.sensors.gnss.sigma_m, self.config.geo))
             update = self.estimator.update(measurement)
             if sensor.name != "truth":  # noise-free: NIS is undefined
-                self.metrics.add_update(update.accepted, update.nis, update.dim,
-                                        update.reason != "ignored")
+                self.metrics.add_update(update.accepted, update.nis, update.dim)
 
     def control(self, k: int, t_s: float) -> None:
         command, plan = self.tracker.step(t_s, self.current_estimate(t_s), self.reference)
@@ -298,19 +303,23 @@ def run(
         except KeyboardInterrupt:
             abort_reason = "interrupted"
         except Exception as error:  # the log is finished below, then the error goes on
-            _finish(recorder, state.metrics, wall_start, False,
+            _finish(recorder, state, wall_start, False,
                     f"{type(error).__name__}: {error}")
             raise
         if progress is not None:
             progress(1.0)
-        metrics = _finish(recorder, state.metrics, wall_start, completed, abort_reason)
+        metrics = _finish(recorder, state, wall_start, completed, abort_reason)
     return RunResult(Path(out_path), metrics, completed, abort_reason)
 
 
-def _finish(recorder: McapRecorder, metrics: MetricsAccumulator, wall_start: float,
+def _finish(recorder: McapRecorder, state: _Run, wall_start: float,
             completed: bool, abort_reason: str) -> dict[str, float | int | bool | str]:
+    metrics = state.metrics
+    counts = getattr(state.estimator, "counts", None)
+    metrics.estimator_counts = counts() if counts is not None else {}
     values: dict[str, float | int | bool | str] = dict(
         metrics.result(time.perf_counter() - wall_start, completed))
+    values["faults_injected"] = sum(f.injected for f in state.faults.values())
     if abort_reason:
         values["abort_reason"] = abort_reason
     recorder.write_finite("/metrics", metrics.last_t_s, values)

@@ -9,6 +9,7 @@ command-line options (``--seed``, ``--duration``, ``--tracker``, ``--estimator``
 from __future__ import annotations
 
 import copy
+import dataclasses
 import importlib.resources
 from dataclasses import dataclass
 from pathlib import Path
@@ -16,11 +17,12 @@ from typing import Any
 
 import yaml
 
-from cosim.config_fields import from_dict, section, set_dotted, setting
+from cosim.config_fields import from_dict, items, section, set_dotted, setting
 from cosim.exceptions import ConfigError, RateError
+from cosim.faults import FaultConfig
 from cosim.foxglove import GeoOrigin
 from cosim.initial_state import InitialState
-from cosim.sensors import SensorsConfig
+from cosim.sensors import SensorsConfig, suite_preset
 from cosim.vehicle_params import PlantConfig
 from estimation.config import EstimatorConfig
 from tracker.config import TrackerConfig
@@ -59,6 +61,7 @@ class ScenarioConfig:
     initial: InitialState = section(InitialState)
     plant: PlantConfig = section(PlantConfig)
     sensors: SensorsConfig = section(SensorsConfig)
+    faults: tuple[FaultConfig, ...] = items(FaultConfig)
     estimator: EstimatorConfig = section(EstimatorConfig)
     tracker: TrackerConfig = section(TrackerConfig)
     maneuver: ManeuverConfig = section(ManeuverConfig)
@@ -155,6 +158,10 @@ def load_config(
     for text in overrides:
         key, value = parse_override(text)
         set_dotted(data, key, value)
+    sensors = data.get("sensors")
+    if isinstance(sensors, dict) and isinstance(sensors.get("suite"), str):
+        # The suite presets figures; what the user set explicitly wins.
+        data["sensors"] = _merge(suite_preset(sensors["suite"]), sensors)
     config = from_dict(ScenarioConfig, data)
     check_rates(config)
     return config
@@ -183,10 +190,11 @@ def check_rates(config: ScenarioConfig) -> None:
     periods = {
         "sim.control_period_s": config.sim.control_period_s,
         "sim.log_period_s": config.sim.log_period_s,
-        "sensors.gnss.period_s": config.sensors.gnss.period_s,
-        "sensors.imu.period_s": config.sensors.imu.period_s,
-        "sensors.wheel_speed.period_s": config.sensors.wheel_speed.period_s,
     }
+    for field in dataclasses.fields(config.sensors):
+        sensor = getattr(config.sensors, field.name)
+        if hasattr(sensor, "period_s"):
+            periods[f"sensors.{field.name}.period_s"] = sensor.period_s
     for key, period in periods.items():
         if steps_per_period(period, dt, key) < 1:
             raise RateError(f"{key} = {period:g}: expected at least sim.physics_dt_s = {dt:g}")

@@ -9,12 +9,20 @@ sensor's noise.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
+from typing import Union
 
 import numpy as np
 
 from cosim.config_fields import section, setting
 from cosim.records import WHEEL_NAMES, Measurement, VehicleState
+
+Sensor = Union["GnssSensor", "ImuSensor", "WheelSpeedSensor", "SteeringAngleSensor",
+               "TruthSensor"]
+
+
+SENSOR_SUITES = ("rtk", "gnss", "ideal")
 
 
 @dataclass(frozen=True)
@@ -28,12 +36,21 @@ class GnssConfig:
 
 @dataclass(frozen=True)
 class ImuConfig:
-    """IMU at the centre of gravity: yaw rate and horizontal kinematic acceleration."""
+    """IMU at the centre of gravity: yaw rate and horizontal kinematic acceleration.
+
+    Each channel has white noise plus a bias that starts at a random value
+    (``*_bias_sigma``) and wanders as a random walk (``*_bias_walk``, the standard deviation
+    of the bias change over one second).
+    """
 
     enabled: bool = setting(True)
     period_s: float = setting(0.01, low=0.001, high=10.0)
     gyro_sigma_radps: float = setting(0.005, low=0.0, high=10.0)
+    gyro_bias_sigma_radps: float = setting(0.002, low=0.0, high=1.0, doc="initial bias spread")
+    gyro_bias_walk_radps: float = setting(0.0002, low=0.0, high=1.0, doc="bias change per sqrt(s)")
     accel_sigma_mps2: float = setting(0.05, low=0.0, high=100.0)
+    accel_bias_sigma_mps2: float = setting(0.02, low=0.0, high=10.0, doc="initial bias spread")
+    accel_bias_walk_mps2: float = setting(0.002, low=0.0, high=10.0, doc="bias change per sqrt(s)")
 
 
 @dataclass(frozen=True)
@@ -43,15 +60,54 @@ class WheelSpeedConfig:
     enabled: bool = setting(True)
     period_s: float = setting(0.01, low=0.001, high=10.0)
     sigma_radps: float = setting(0.05, low=0.0, high=100.0)
+    quantum_radps: float = setting(0.01, low=0.0, high=10.0, doc="resolution (0: none)")
+
+
+@dataclass(frozen=True)
+class SteeringConfig:
+    """Steering-angle sensor, converted to the mean front road-wheel angle."""
+
+    enabled: bool = setting(True)
+    period_s: float = setting(0.01, low=0.001, high=10.0)
+    sigma_rad: float = setting(0.001, low=0.0, high=1.0)
+    quantum_rad: float = setting(0.0005, low=0.0, high=0.1, doc="resolution (0: none)")
 
 
 @dataclass(frozen=True)
 class SensorsConfig:
-    """The car's sensor suite."""
+    """The car's sensor suite. ``suite`` presets the figures (see :func:`suite_preset`);
+    any figure set explicitly (``--set sensors.gnss.sigma_m=0.1``) wins over the preset."""
 
+    suite: str = setting("rtk", choices=SENSOR_SUITES)
     gnss: GnssConfig = section(GnssConfig)
     imu: ImuConfig = section(ImuConfig)
     wheel_speed: WheelSpeedConfig = section(WheelSpeedConfig)
+    steering: SteeringConfig = section(SteeringConfig)
+
+
+def suite_preset(suite: str) -> dict[str, dict[str, float]]:
+    """The figures a named suite changes from the defaults, as a ``sensors:`` mapping.
+
+    - ``rtk`` (the defaults): RTK-corrected GNSS (2 cm), an automotive MEMS IMU (gyro bias
+      of about 0.1 deg/s), ABS wheel encoders, an EPS steering-angle sensor;
+    - ``gnss``: the same car with a standalone GNSS receiver (0.5 m);
+    - ``ideal``: every sensor noise-free, unbiased and unquantised, for debugging.
+    """
+    if suite == "gnss":
+        return {"gnss": {"sigma_m": 0.5}}
+    if suite == "ideal":
+        zero = {"gnss": GnssConfig, "imu": ImuConfig, "wheel_speed": WheelSpeedConfig,
+                "steering": SteeringConfig}
+        return {
+            name: {f.name: 0.0 for f in dataclasses.fields(cls)
+                   if f.name not in ("enabled", "period_s")}
+            for name, cls in zero.items()
+        }
+    return {}
+
+
+def _quantise(values: np.ndarray, quantum: float) -> np.ndarray:
+    return np.round(values / quantum) * quantum if quantum > 0.0 else values
 
 
 class GnssSensor:
@@ -71,10 +127,10 @@ class GnssSensor:
 
 
 class ImuSensor:
-    """Yaw rate and the kinematic acceleration of the CoG in the vehicle frame.
+    """Yaw rate and the kinematic acceleration of the CoG in the vehicle frame, with white
+    noise and a random-walk bias on each channel.
 
-    Gravity is taken as already removed (an ideal attitude-compensated IMU); bias and
-    gravity leakage through roll and pitch come with the sensor-suite issue.
+    Gravity is taken as already removed (an ideal attitude-compensated IMU).
     """
 
     name = "imu"
@@ -85,11 +141,26 @@ class ImuSensor:
         self._sigma = np.array(
             [config.gyro_sigma_radps, config.accel_sigma_mps2, config.accel_sigma_mps2]
         )
+        self._bias_sigma = np.array([config.gyro_bias_sigma_radps,
+                                     config.accel_bias_sigma_mps2,
+                                     config.accel_bias_sigma_mps2])
+        self._bias_step = np.array([config.gyro_bias_walk_radps, config.accel_bias_walk_mps2,
+                                    config.accel_bias_walk_mps2]) * np.sqrt(config.period_s)
+        self._bias: np.ndarray | None = None
         self._covariance = np.diag(self._sigma**2)
 
+    @property
+    def bias(self) -> np.ndarray:
+        """The current bias of each channel (zeros before the first sample)."""
+        return np.zeros(3) if self._bias is None else self._bias.copy()
+
     def sample(self, truth: VehicleState, rng: np.random.Generator) -> Measurement:
+        if self._bias is None:
+            self._bias = rng.normal(0.0, 1.0, 3) * self._bias_sigma
+        else:
+            self._bias = self._bias + rng.normal(0.0, 1.0, 3) * self._bias_step
         values = np.array([truth.yaw_rate_radps, truth.ax_mps2, truth.ay_mps2])
-        values = values + rng.normal(0.0, 1.0, 3) * self._sigma
+        values = values + self._bias + rng.normal(0.0, 1.0, 3) * self._sigma
         return Measurement(self.name, truth.t_s, self.names, values, self._covariance)
 
 
@@ -102,13 +173,34 @@ class WheelSpeedSensor:
     def __init__(self, config: WheelSpeedConfig) -> None:
         self.period_s = config.period_s
         self._sigma = config.sigma_radps
-        self._covariance = np.eye(4) * config.sigma_radps**2
+        self._quantum = config.quantum_radps
+        # Quantisation adds the variance of a uniform error, quantum^2 / 12.
+        self._covariance = np.eye(4) * (config.sigma_radps**2 + config.quantum_radps**2 / 12)
 
     def sample(self, truth: VehicleState, rng: np.random.Generator) -> Measurement:
         values = np.asarray(truth.wheel_speed_radps, dtype=float) + rng.normal(
             0.0, self._sigma, 4
         )
+        values = _quantise(values, self._quantum)
         return Measurement(self.name, truth.t_s, self.names, values, self._covariance)
+
+
+class SteeringAngleSensor:
+    """The steering-angle sensor, expressed as the mean front road-wheel angle."""
+
+    name = "steering"
+    names = ("steer_rad",)
+
+    def __init__(self, config: SteeringConfig) -> None:
+        self.period_s = config.period_s
+        self._sigma = config.sigma_rad
+        self._quantum = config.quantum_rad
+        self._covariance = np.eye(1) * (config.sigma_rad**2 + config.quantum_rad**2 / 12)
+
+    def sample(self, truth: VehicleState, rng: np.random.Generator) -> Measurement:
+        values = np.array([truth.steer_rad]) + rng.normal(0.0, self._sigma, 1)
+        return Measurement(self.name, truth.t_s, self.names, _quantise(values, self._quantum),
+                           self._covariance)
 
 
 TRUTH_FIELDS = (
@@ -133,13 +225,15 @@ class TruthSensor:
         return Measurement(self.name, truth.t_s, self.names, values, self._covariance)
 
 
-def make_sensors(config: SensorsConfig) -> list[GnssSensor | ImuSensor | WheelSpeedSensor]:
+def make_sensors(config: SensorsConfig) -> list[Sensor]:
     """The enabled sensors of the suite, in a fixed order."""
-    sensors: list[GnssSensor | ImuSensor | WheelSpeedSensor] = []
+    sensors: list[Sensor] = []
     if config.gnss.enabled:
         sensors.append(GnssSensor(config.gnss))
     if config.imu.enabled:
         sensors.append(ImuSensor(config.imu))
     if config.wheel_speed.enabled:
         sensors.append(WheelSpeedSensor(config.wheel_speed))
+    if config.steering.enabled:
+        sensors.append(SteeringAngleSensor(config.steering))
     return sensors
