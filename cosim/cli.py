@@ -4,6 +4,7 @@
                        [--seed N] [--duration S] [--set key.path=value ...] [--out FILE.mcap]
     cosim inspect FILE.mcap [--json] [--topic T [--head N]]
     cosim scenarios
+    cosim identify [--config FILE.yaml] [--set key.path=value ...] [--json]
 
 Bad input: one line on stderr naming the bad value and what was expected, exit code 2.
 A run that aborts exits 1 (its log is complete up to the abort); an interrupt exits 130.
@@ -56,6 +57,14 @@ def _build_parser() -> argparse.ArgumentParser:
     inspect.add_argument("--head", type=int, metavar="N", help="only the first N messages")
 
     commands.add_parser("scenarios", help="list the built-in scenarios")
+
+    identify = commands.add_parser(
+        "identify", help="identify the plant's bicycle-model parameters and actuator lags")
+    identify.add_argument("--config", metavar="FILE.yaml",
+                          help="YAML merged over the lane-change scenario")
+    identify.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                          dest="overrides", help="override a config key, e.g. plant.mass_kg=2000")
+    identify.add_argument("--json", action="store_true", help="print one JSON object")
     return parser
 
 
@@ -191,11 +200,47 @@ def _command_scenarios(args: argparse.Namespace) -> int:
     return 0
 
 
+IDENTIFY_SCENARIO = "lane-change"
+"""`cosim identify` identifies the plant of this scenario's config (with the overrides)."""
+
+
+def _command_identify(args: argparse.Namespace) -> int:
+    from cosim.identification import identify
+    from cosim.scenario_config import load_config
+
+    config = load_config(IDENTIFY_SCENARIO, args.config, args.overrides)
+    model = identify(config.plant, config.tracker.model, config.sim.physics_dt_s)
+    if args.json:
+        print(json.dumps(_json_ready(model.to_dict())))
+        return 0
+    rows = [(quantity, _format_value(value), unit, residual)
+            for quantity, value, unit, residual in model.table_rows()]
+    title = f"identified plant of {config.name}"
+    header = ("quantity", "value", "unit", "residual")
+    if sys.stdout.isatty():
+        from rich.console import Console
+        from rich.table import Table
+
+        table = Table(title=title)
+        for name in header:
+            table.add_column(name, justify="right" if name == "value" else "left")
+        for row in rows:
+            table.add_row(*row)
+        Console().print(table)
+        return 0
+    widths = [max(len(row[i]) for row in [header, *rows]) for i in range(3)]
+    print(title)
+    for row in [header, *rows]:
+        cells = [f"{cell:<{width}}" for cell, width in zip(row[:3], widths, strict=True)]
+        print(("  " + "  ".join([*cells, row[3]])).rstrip())
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``cosim`` console script."""
     args = _build_parser().parse_args(argv)
     handlers = {"run": _command_run, "inspect": _command_inspect,
-                "scenarios": _command_scenarios}
+                "scenarios": _command_scenarios, "identify": _command_identify}
     try:
         return handlers[args.command](args)
     except CosimError as error:

@@ -3,7 +3,7 @@
 The model is built once with PyMJCF (:mod:`cosim.sedan_model`) and compiled from its XML
 (``mjcf_xml``, the model actually simulated, for the log); every joint, body and actuator
 address is looked up by name at construction. Per physics step, :meth:`MujocoPlant.advance`
-runs the actuator models in plain Python and then exactly one ``mujoco.mj_step``:
+runs the actuator models in plain Python and then exactly one MuJoCo step:
 
 - steering actuator: first-order lag (``steer_time_constant_s``, exact discretisation) with
   a rate limit (``max_steer_rate_radps``) on the bicycle-model angle, clipped to
@@ -22,30 +22,53 @@ runs the actuator models in plain Python and then exactly one ``mujoco.mj_step``
 - aerodynamic drag ``1/2 rho C_d A v^2`` and rolling resistance ``C_rr m g`` (faded in by
   ``tanh(v / 0.1 m/s)``) act on the chassis against its horizontal velocity
   (``xfrc_applied``);
-- tyres: MuJoCo contacts between the wheel spheres and the ground, friction coefficient
-  ``tire_friction``, elliptic friction cone.
+- tyres, by ``PlantConfig.tire_model``:
 
-A later issue replaces the contact tyres by a tyre model; the per-step actuator code is
-grouped so that this only touches :meth:`MujocoPlant.advance` and the model builder.
+  - ``pacejka`` (default): the wheel-ground contacts are frictionless (``condim`` 1) and
+    carry only the normal force; MuJoCo does the multibody dynamics, suspension, normal
+    loads and collisions. The step is split (``mj_step1``, tyre forces, ``mj_step2``,
+    exactly ``mj_step`` for the implicitfast integrator): from each wheel's contact
+    point, its slip velocity in the wheel's heading frame and the contact's normal force
+    of the previous step, :func:`cosim.tire_model.patch_step` (Magic Formula with a
+    relaxing contact patch) gives the longitudinal and lateral tyre force, applied to
+    the wheel body at the contact point (``xfrc_applied``: the force and its moment
+    about the wheel centre). ``tire_friction`` is the tyres' peak friction;
+  - ``contact``: MuJoCo's contact friction is the tyre (``condim`` 3, elliptic cone,
+    friction ``tire_friction``): nearly rigid until it slides, so the car steers
+    kinematically (no cornering stiffness); kept for comparison.
+
+With ``lead_car`` (:class:`cosim.lead_car.LeadCarConfig`), a kinematic lead car (a mocap
+body without colliding geoms) drives ahead; the plant advances it after each step.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from typing import NamedTuple
 
 import mujoco
 import numpy as np
 
 from cosim.exceptions import PhysicsDivergenceError
 from cosim.initial_state import InitialState
+from cosim.lead_car import (
+    LeadCarConfig,
+    LeadCarPath,
+    LeadCarState,
+    advance_lead_car,
+    lead_car_path,
+)
 from cosim.low_level import ActuatorCommand, resistance_force_n
 from cosim.records import WHEEL_NAMES, VehicleState
 from cosim.sedan_model import (
     FRONT_WHEELS,
+    LEAD_CAR_PREFIX,
     ackermann_angles,
     driven_wheels,
     sedan_xml_and_assets,
 )
+from cosim.tire_model import PATCH_AT_REST, PatchState, TyreParams, patch_step
 from cosim.vehicle_params import PlantConfig
 
 SETTLE_DURATION_S = 1.5
@@ -80,17 +103,27 @@ class MujocoPlant:
     The constructor settles the car on its suspension and then calls :meth:`reset`.
     """
 
-    def __init__(self, config: PlantConfig, physics_dt_s: float, initial: InitialState) -> None:
+    def __init__(self, config: PlantConfig, physics_dt_s: float, initial: InitialState,
+                 lead_car: LeadCarConfig | None = None) -> None:
         self.config = config
         self.initial = initial
+        self.lead_car = lead_car
         self.physics_dt_s = float(physics_dt_s)
-        xml, assets = sedan_xml_and_assets(config, self.physics_dt_s)
+        xml, assets = sedan_xml_and_assets(config, self.physics_dt_s, lead_car is not None)
         self.mjcf_xml: str = xml
         self.mjcf_assets: dict[str, bytes] = assets
         self._model = mujoco.MjModel.from_xml_string(xml, assets)
         self._data = mujoco.MjData(self._model)
         self._lookup_names()
         self._configure_actuators()
+        self._tyres: _MagicFormulaTyres | None = (
+            _MagicFormulaTyres(config, self._model, self.physics_dt_s)
+            if config.tire_model == "pacejka"
+            else None
+        )
+        self._lead: _LeadCar | None = None
+        if lead_car is not None:
+            self._lookup_lead_car()
         self._settle()
         self.reset()
 
@@ -141,6 +174,16 @@ class MujocoPlant:
         self._tyre_geom = {self._id(geom, f"{w}_tyre"): w for w in WHEEL_NAMES}
         self._warnings = d.warning.number  # view of MuJoCo's warning counters
 
+    def _lookup_lead_car(self) -> None:
+        """Mocap slot of the lead car and its rear overhang (centre to rear-bumper site)."""
+        m = self._model
+        body = self._id(mujoco.mjtObj.mjOBJ_BODY, LEAD_CAR_PREFIX)
+        self._lead_mocap = int(m.body_mocapid[body])
+        if self._lead_mocap < 0:
+            raise ValueError(f"the lead car body {LEAD_CAR_PREFIX!r} is not a mocap body")
+        site = self._id(mujoco.mjtObj.mjOBJ_SITE, f"{LEAD_CAR_PREFIX}rear_bumper")
+        self._lead_rear_overhang_m = -float(m.site_pos[site, 0])
+
     def _configure_actuators(self) -> None:
         """Constants of the actuator models, from the true config and the compiled model."""
         cfg, m, dt = self.config, self._model, self.physics_dt_s
@@ -174,9 +217,11 @@ class MujocoPlant:
         """
         m, d = self._model, self._data
         mujoco.mj_resetData(m, d)
+        if self._tyres is not None:
+            self._tyres.reset((0.0, 0.0, 0.0, 0.0))
         n_steps = max(1, math.ceil(SETTLE_DURATION_S / self.physics_dt_s))
         for _ in range(n_steps):
-            mujoco.mj_step(m, d)
+            self._physics_step()
             self._check(d.time)
         mujoco.mj_forward(m, d)
         self._check(d.time)
@@ -207,8 +252,10 @@ class MujocoPlant:
 
         Roll, pitch, chassis height and suspension deflections are those of the static
         equilibrium found at construction, so the car starts without a bounce; each wheel
-        spins at ``v / r_roll``, its rolling radius, so the tyres start without slip.
-        Actuator states and commands are zero (no drive, no brake, steering straight).
+        spins at ``v / r_roll``, its rolling radius, so the tyres start without slip (Magic
+        Formula tyres: undeflected, carrying their static loads). Actuator states and
+        commands are zero (no drive, no brake, steering straight). The lead car, if any, is
+        back at its start.
         """
         m, d, init = self._model, self._data, self.initial
         mujoco.mj_resetData(m, d)
@@ -227,6 +274,8 @@ class MujocoPlant:
             qvel[dof] = speed / radius
         for dof in self._spin_dof:
             self._dof_damping[dof] = 0.0
+        if self._tyres is not None:
+            self._tyres.reset(self._static_load_n)
         mujoco.mj_forward(m, d)
         self._check(d.time)
         self._drive_cmd_nm = 0.0
@@ -237,6 +286,14 @@ class MujocoPlant:
         self._wheel_steer_rate_radps = (0.0, 0.0)
         self._prev_linvel = self._linvel_view.tolist()
         self._last_command: ActuatorCommand | None = None
+        if self.lead_car is not None:
+            path = lead_car_path(
+                self.lead_car, init.x_m, init.y_m, init.yaw_rad, self._lead_rear_overhang_m
+            )
+            self._lead = _LeadCar(
+                self.lead_car, path, path.state(0.0, 0.0, self.lead_car.initial_speed_mps, 0.0)
+            )
+            self._place_lead_car(self._lead.state)
 
     def apply(self, actuator: ActuatorCommand) -> None:
         """Set the actuators' targets; they act from the next :meth:`advance` on.
@@ -253,7 +310,7 @@ class MujocoPlant:
 
     def advance(self) -> None:
         """Run the actuator models and exactly one MuJoCo step of ``physics_dt_s``."""
-        m, d, cfg, dt = self._model, self._data, self.config, self.physics_dt_s
+        d, cfg, dt = self._data, self.config, self.physics_dt_s
         ctrl = d.ctrl
         qvel = self._qvel_view.tolist()
 
@@ -309,8 +366,37 @@ class MujocoPlant:
 
         self._prev_linvel = qvel[self._linvel_slice]
         t_before = d.time
-        mujoco.mj_step(m, d)
+        self._physics_step()
         self._check(t_before + dt)
+        lead = self._lead
+        if lead is not None:
+            lead.state = advance_lead_car(lead.config, lead.path, lead.state, dt)
+            self._place_lead_car(lead.state)
+
+    def _place_lead_car(self, lead: LeadCarState) -> None:
+        """Set the lead car's mocap pose (MuJoCo uses it from the next step on)."""
+        d = self._data
+        d.mocap_pos[self._lead_mocap] = (lead.x_m, lead.y_m, 0.0)
+        half_yaw = 0.5 * lead.yaw_rad
+        d.mocap_quat[self._lead_mocap] = (math.cos(half_yaw), 0.0, 0.0, math.sin(half_yaw))
+
+    def _physics_step(self) -> None:
+        """One MuJoCo step; with Magic Formula tyres, their forces are applied mid-step.
+
+        ``mj_step1`` computes the kinematics and contacts of the current state, the tyres
+        turn them into forces on the wheels (``xfrc_applied``), ``mj_step2`` integrates,
+        and the contacts' normal forces of this step become the tyres' loads for the next.
+        The split is exactly ``mj_step`` for the implicitfast integrator.
+        """
+        m, d = self._model, self._data
+        tyres = self._tyres
+        if tyres is None:
+            mujoco.mj_step(m, d)
+            return
+        mujoco.mj_step1(m, d)
+        tyres.apply_forces(d)
+        mujoco.mj_step2(m, d)
+        tyres.read_loads(d)
 
     def state(self) -> VehicleState:
         """The true state at the CoG (see :class:`VehicleState`).
@@ -384,6 +470,17 @@ class MujocoPlant:
         """Each wheel's loaded rolling radius at static equilibrium, WHEEL_NAMES order."""
         return self._rolling_radius_m  # type: ignore[return-value]
 
+    def lead_state(self) -> LeadCarState:
+        """The lead car at the plant's time; raises ``ValueError`` when it has none."""
+        if self._lead is None:
+            raise ValueError("this plant has no lead car (MujocoPlant(..., lead_car=None))")
+        return self._lead.state
+
+    def tyre_forces(self) -> tuple[TyreForces, ...] | None:
+        """Each tyre's load, slip and forces of the last step, ``WHEEL_NAMES`` order;
+        ``None`` with ``tire_model = contact`` (MuJoCo's contacts are the tyres)."""
+        return None if self._tyres is None else self._tyres.forces()
+
     @property
     def static_wheel_load_n(self) -> tuple[float, float, float, float]:
         """Each tyre's normal contact force at static equilibrium, WHEEL_NAMES order [N]."""
@@ -408,6 +505,193 @@ class MujocoPlant:
                 f"|qvel| = {float(np.linalg.norm(qvel)):.3g}; physics_dt_s = "
                 f"{self.physics_dt_s})"
             )
+
+
+@dataclasses.dataclass
+class _LeadCar:
+    """The lead car's configuration, its path and its current state (mutable: per step)."""
+
+    config: LeadCarConfig
+    path: LeadCarPath
+    state: LeadCarState
+
+
+class TyreForces(NamedTuple):
+    """One tyre at one step (wheel heading frame at the contact, ISO 8855 axes)."""
+
+    load_n: float
+    """Normal load used for the step: the contact's normal force of the step before [N]."""
+    forward_speed_mps: float
+    """Forward speed of the wheel centre, ``V_cx`` [m/s]."""
+    slip_velocity_x_mps: float
+    """Velocity of the wheel's material point at the contact, along the heading [m/s]."""
+    slip_velocity_y_mps: float
+    """The same, to the left of the heading [m/s]."""
+    force_x_n: float
+    """Longitudinal tyre force on the wheel [N]."""
+    force_y_n: float
+    """Lateral tyre force on the wheel [N]."""
+
+
+class _MagicFormulaTyres:
+    """The four Magic Formula tyres of a plant: contact geometry in, wheel forces out.
+
+    Per step, for each wheel with a ground contact: the heading frame at the contact
+    (x = spin axis x contact normal, normalised: the wheel's heading in the road plane; y =
+    normal x x), the velocity of the wheel's material point at the contact point and of the
+    wheel centre (from MuJoCo's ``cvel``: angular velocity and the linear velocity at the
+    chassis subtree's centre of mass), and the normal load (the contact's normal force of
+    the previous step) go into :func:`cosim.tire_model.patch_step`; the resulting force acts
+    at the contact point: ``xfrc_applied`` of the wheel body holds the force and its moment
+    about the wheel's centre of mass (the wheel centre for the sedan).
+    """
+
+    def __init__(self, config: PlantConfig, model: mujoco.MjModel, physics_dt_s: float) -> None:
+        body, geom = mujoco.mjtObj.mjOBJ_BODY, mujoco.mjtObj.mjOBJ_GEOM
+        self._dt_s = physics_dt_s
+        self._friction = config.tire_friction
+        front = dataclasses.replace(
+            config.tyre,
+            cornering_stiffness_max_prad=config.tyre.cornering_stiffness_max_prad
+            * config.front_cornering_stiffness_scale,
+        )
+        rear = dataclasses.replace(
+            config.tyre,
+            cornering_stiffness_max_prad=config.tyre.cornering_stiffness_max_prad
+            * config.rear_cornering_stiffness_scale,
+        )
+        self._params: tuple[TyreParams, ...] = tuple(
+            front if wheel in FRONT_WHEELS else rear for wheel in WHEEL_NAMES
+        )
+        self._wheel_body = tuple(
+            mujoco.mj_name2id(model, body, f"{wheel}_wheel") for wheel in WHEEL_NAMES
+        )
+        self._wheel_of_geom = {
+            mujoco.mj_name2id(model, geom, f"{wheel}_tyre"): index
+            for index, wheel in enumerate(WHEEL_NAMES)
+        }
+        if min(self._wheel_body) < 0 or min(self._wheel_of_geom) < 0:
+            raise ValueError("the sedan model lacks a <wheel>_wheel body or <wheel>_tyre geom")
+        chassis = mujoco.mj_name2id(model, body, "chassis")
+        self._root = int(model.body_rootid[chassis])
+        self._n_wheels = len(WHEEL_NAMES)
+        self.reset((0.0,) * self._n_wheels)
+
+    def reset(self, loads_n: tuple[float, ...]) -> None:
+        """Undeflected tyres carrying ``loads_n``; no contact seen yet."""
+        self._loads_n = list(loads_n)
+        self._patch: list[PatchState] = [PATCH_AT_REST] * self._n_wheels
+        self._contact_efc: list[tuple[int, int]] = []
+        self._last: list[tuple[float, ...]] = [
+            (load, 0.0, 0.0, 0.0, 0.0, 0.0) for load in loads_n
+        ]
+
+    def apply_forces(self, d: mujoco.MjData) -> None:
+        """Set each wheel's ``xfrc_applied`` from the state after ``mj_step1``."""
+        n_wheels = self._n_wheels
+        contact_of_wheel: list[int] = [-1] * n_wheels
+        normal_sign_of_wheel = [1.0] * n_wheels
+        depth_of_wheel = [math.inf] * n_wheels
+        contact_efc: list[tuple[int, int]] = []
+        ncon = d.ncon
+        if ncon:
+            contacts = d.contact
+            geoms = contacts.geom.tolist()
+            dist = contacts.dist.tolist()
+            efc_address = contacts.efc_address.tolist()
+            wheel_of_geom = self._wheel_of_geom
+            for i in range(ncon):
+                geom1, geom2 = geoms[i]
+                # The contact normal points from geom1 to geom2: up, into the tyre, when the
+                # tyre is geom2 (MuJoCo puts the plane first); flipped otherwise.
+                sign = 1.0
+                wheel = wheel_of_geom.get(geom2, -1)
+                if wheel < 0:
+                    sign = -1.0
+                    wheel = wheel_of_geom.get(geom1, -1)
+                    if wheel < 0:
+                        continue
+                contact_efc.append((wheel, efc_address[i]))
+                if dist[i] < depth_of_wheel[wheel]:
+                    depth_of_wheel[wheel] = dist[i]
+                    contact_of_wheel[wheel] = i
+                    normal_sign_of_wheel[wheel] = sign
+            positions = contacts.pos.tolist()
+            frames = contacts.frame.tolist()
+        self._contact_efc = contact_efc
+        cvel = d.cvel.tolist()
+        xpos = d.xpos.tolist()
+        xipos = d.xipos.tolist()
+        xmat = d.xmat.tolist()
+        cx, cy, cz = d.subtree_com[self._root].tolist()
+        xfrc = d.xfrc_applied
+        loads = self._loads_n
+        patches = self._patch
+        last = self._last
+        friction, dt = self._friction, self._dt_s
+        for wheel in range(n_wheels):
+            body = self._wheel_body[wheel]
+            index = contact_of_wheel[wheel]
+            if index < 0:
+                patches[wheel] = PATCH_AT_REST
+                xfrc[body] = 0.0
+                last[wheel] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+                continue
+            px, py, pz = positions[index]
+            frame = frames[index]
+            sign = normal_sign_of_wheel[wheel]
+            nx, ny, nz = sign * frame[0], sign * frame[1], sign * frame[2]
+            rot = xmat[body]
+            ax, ay, az = rot[1], rot[4], rot[7]  # the wheel's spin axis (body y) in the world
+            # Heading in the road plane: spin axis x normal, normalised; lateral: normal x it.
+            fx, fy, fz = ay * nz - az * ny, az * nx - ax * nz, ax * ny - ay * nx
+            norm = math.sqrt(fx * fx + fy * fy + fz * fz)
+            fx, fy, fz = fx / norm, fy / norm, fz / norm
+            lx, ly, lz = ny * fz - nz * fy, nz * fx - nx * fz, nx * fy - ny * fx
+            wx, wy, wz, vx, vy, vz = cvel[body]
+            # Velocity of the wheel's material point at the contact and of the wheel centre:
+            # v + w x (p - c), with v the velocity at the subtree CoM c (MuJoCo's cvel).
+            rx, ry, rz = px - cx, py - cy, pz - cz
+            mx = vx + wy * rz - wz * ry
+            my = vy + wz * rx - wx * rz
+            mz = vz + wx * ry - wy * rx
+            ox, oy, oz = xpos[body]
+            rx, ry, rz = ox - cx, oy - cy, oz - cz
+            forward_speed = (
+                (vx + wy * rz - wz * ry) * fx
+                + (vy + wz * rx - wx * rz) * fy
+                + (vz + wx * ry - wy * rx) * fz
+            )
+            slip_x = mx * fx + my * fy + mz * fz
+            slip_y = mx * lx + my * ly + mz * lz
+            load = loads[wheel]
+            result = patch_step(
+                self._params[wheel], friction, load, forward_speed, slip_x, slip_y,
+                patches[wheel], dt,
+            )
+            patches[wheel] = result.state
+            force_x, force_y = result.force_x_n, result.force_y_n
+            gx = force_x * fx + force_y * lx
+            gy = force_x * fy + force_y * ly
+            gz = force_x * fz + force_y * lz
+            # Moment of the force at the contact about the wheel's centre of mass: (p - i) x F.
+            ix, iy, iz = xipos[body]
+            rx, ry, rz = px - ix, py - iy, pz - iz
+            xfrc[body] = (gx, gy, gz, ry * gz - rz * gy, rz * gx - rx * gz, rx * gy - ry * gx)
+            last[wheel] = (load, forward_speed, slip_x, slip_y, force_x, force_y)
+
+    def read_loads(self, d: mujoco.MjData) -> None:
+        """After ``mj_step2``: each tyre's normal load, the sum of its contacts' normal forces
+        (``condim`` 1: one constraint row per contact, the normal force)."""
+        loads = [0.0] * self._n_wheels
+        if self._contact_efc:
+            efc_force = d.efc_force
+            for wheel, address in self._contact_efc:
+                loads[wheel] += float(efc_force[address])
+        self._loads_n = loads
+
+    def forces(self) -> tuple[TyreForces, ...]:
+        return tuple(TyreForces(*values) for values in self._last)
 
 
 def _euler_zyx(qw: float, qx: float, qy: float, qz: float) -> tuple[float, float, float]:

@@ -19,8 +19,10 @@ Model structure (all names are fixed; the plant looks everything up by name)::
           <wheel>_suspension  slide joint along chassis z, spring + damper
           <wheel>_steer       hinge about z (front wheels only), position servo
           <wheel>_spin        hinge about y, positive when rolling forward
-          <wheel>_tyre        sphere: the only colliding geom of the car
+          <wheel>_tyre        sphere: the only colliding geom of the car (condim 1 with
+                              the Magic Formula tyres, 3 with MuJoCo's contact friction)
           <wheel>_rim         visual cylinder
+      lead_car/ (optional mocap body from models/lead_car.xml, :func:`attach_lead_car`)
     actuators: <front wheel>_steer_servo, <driven wheel>_drive (motor on the spin joint)
 
 The joints of one wheel body compose in order (MuJoCo applies them as a chain), so the spin
@@ -104,6 +106,20 @@ def driven_wheels(drive: str) -> tuple[str, ...]:
     if drive == "awd":
         return WHEEL_NAMES
     raise ConfigError(f"drive = {drive!r}: expected one of 'rwd', 'fwd', 'awd'")
+
+
+def tyre_contact_dimension(tire_model: str) -> int:
+    """``condim`` of the tyre-ground contacts for ``PlantConfig.tire_model``.
+
+    ``pacejka``: 1, the contacts carry only the normal force (frictionless) and
+    :mod:`cosim.tire_model` supplies the tyre forces; ``contact``: 3, MuJoCo's friction
+    (elliptic cone) is the tyre.
+    """
+    if tire_model == "pacejka":
+        return 1
+    if tire_model == "contact":
+        return 3
+    raise ConfigError(f"tire_model = {tire_model!r}: expected one of 'pacejka', 'contact'")
 
 
 def ackermann_angles(steer_rad: float, wheelbase_m: float, track_m: float) -> tuple[float, float]:
@@ -256,6 +272,29 @@ def sedan_xml_path() -> Path:
     return models_dir() / "sedan.xml"
 
 
+def lead_car_xml_path() -> Path:
+    """Path of the lead car model (:mod:`cosim.lead_car`)."""
+    return models_dir() / "lead_car.xml"
+
+
+LEAD_CAR_PREFIX = "lead_car/"
+"""PyMJCF prefixes every name of the attached lead car with its model name: the mocap body
+is ``lead_car/``, its site ``lead_car/rear_bumper``."""
+
+
+def attach_lead_car(root: mjcf.RootElement) -> None:
+    """Attach ``models/lead_car.xml`` to the world of ``root`` as a mocap body.
+
+    The attachment frame (body ``lead_car/``, a child of the world) is made a mocap body:
+    no mass, no degrees of freedom, its pose set by the plant through ``mocap_pos`` and
+    ``mocap_quat``. Its geoms do not collide, so it cannot act on the ego car.
+    """
+    mjcf = import_mjcf()
+    lead = mjcf.from_path(str(lead_car_xml_path()))
+    frame = root.attach(lead)
+    frame.mocap = True
+
+
 def import_mjcf() -> types.ModuleType:
     """Import dm_control's PyMJCF lazily, silencing only GLFW's headless DISPLAY warning.
 
@@ -269,13 +308,17 @@ def import_mjcf() -> types.ModuleType:
     return mjcf
 
 
-def build_sedan(config: PlantConfig, physics_dt_s: float) -> mjcf.RootElement:
+def build_sedan(config: PlantConfig, physics_dt_s: float,
+                lead_car: bool = False) -> mjcf.RootElement:
     """The sedan for ``config`` as a PyMJCF tree, with physics step ``physics_dt_s``.
 
+    With ``lead_car``, the lead car (:func:`attach_lead_car`) is added to the world.
+
     Applies mass, yaw inertia, CoG position and height, track, wheel radius/mass/inertia,
-    tyre friction, the steering limit (joint range), the drive layout (drive motors exist
-    only on the driven wheels, added or removed as needed, with the per-wheel share of the
-    torque limit as their control range) and the time step.
+    tyre friction and contact dimension (:func:`tyre_contact_dimension`), the steering
+    limit (joint range), the drive layout (drive motors exist only on the driven wheels,
+    added or removed as needed, with the per-wheel share of the torque limit as their
+    control range) and the time step.
     """
     if not (math.isfinite(physics_dt_s) and physics_dt_s > 0.0):
         raise ConfigError(f"physics_dt_s = {physics_dt_s!r}: expected a positive number")
@@ -305,6 +348,7 @@ def build_sedan(config: PlantConfig, physics_dt_s: float) -> mjcf.RootElement:
         tyre = root.find("geom", f"{wheel}_tyre")
         tyre.size = [layout.wheel_radius_m]
         tyre.friction = [config.tire_friction, *tyre.friction[1:]]
+        tyre.condim = tyre_contact_dimension(config.tire_model)
         rim = root.find("geom", f"{wheel}_rim")
         rim.size = [layout.wheel_radius_m, 0.5 * TYRE_WIDTH_M]
         if wheel in FRONT_WHEELS:
@@ -322,6 +366,8 @@ def build_sedan(config: PlantConfig, physics_dt_s: float) -> mjcf.RootElement:
             drive.ctrlrange = [0.0, drive_limit_per_wheel]
         elif drive is not None:
             drive.remove()
+    if lead_car:
+        attach_lead_car(root)
     return root
 
 
@@ -341,7 +387,8 @@ def _shape_body(root: mjcf.RootElement, params: VehicleParams) -> None:
     cabin.size = [0.5 * params.wheelbase_m, width_half - 0.1, 0.5 * (cabin_top - shell_top)]
 
 
-def sedan_xml_and_assets(config: PlantConfig, physics_dt_s: float) -> tuple[str, dict[str, bytes]]:
+def sedan_xml_and_assets(config: PlantConfig, physics_dt_s: float,
+                         lead_car: bool = False) -> tuple[str, dict[str, bytes]]:
     """The MJCF text and its assets exactly as simulated (for MuJoCo and for the run log)."""
-    root = build_sedan(config, physics_dt_s)
+    root = build_sedan(config, physics_dt_s, lead_car)
     return root.to_xml_string(precision=12), root.get_assets()

@@ -11,8 +11,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from cosim.config_fields import setting
+from cosim.config_fields import section, setting
 from cosim.exceptions import ConfigError
+from cosim.tire_model import TyreParams
 
 
 @dataclass(frozen=True)
@@ -60,4 +61,21 @@ class PlantConfig(VehicleParams):
     )
     max_steer_rate_radps: float = setting(
         0.8, low=0.05, high=10.0, doc="rate limit of the steering actuator"
+    )
+    tire_model: str = setting(
+        "pacejka",
+        choices=("pacejka", "contact"),
+        doc="pacejka: Magic Formula tyres (cosim.tire_model) on frictionless wheel contacts; "
+        "contact: MuJoCo's contact friction as the tyres (no cornering stiffness)",
+    )
+    tyre: TyreParams = section(TyreParams)
+    front_cornering_stiffness_scale: float = setting(
+        0.77,
+        low=0.05,
+        high=5.0,
+        doc="effective front-axle cornering stiffness / the tyre's (pacejka only): stands in "
+        "for the steering compliance and roll steer the model lacks",
+    )
+    rear_cornering_stiffness_scale: float = setting(
+        1.0, low=0.05, high=5.0, doc="effective rear-axle cornering stiffness / the tyre's"
     )

@@ -67,6 +67,11 @@ def nominal_model() -> mujoco.MjModel:
     return compile_model(PlantConfig())
 
 
+@pytest.fixture(scope="module", params=["pacejka", "contact"])
+def model_per_tire_model(request: pytest.FixtureRequest) -> mujoco.MjModel:
+    return compile_model(PlantConfig(tire_model=request.param))
+
+
 def test_models_dir_holds_the_sedan() -> None:
     assert sedan_xml_path().is_file()
     assert (models_dir() / "README.md").is_file()
@@ -100,13 +105,28 @@ def test_dm_control_physics_from_a_variant() -> None:
     }
 
 
-def test_components_have_names(nominal_model: mujoco.MjModel) -> None:
+def test_components_have_names(model_per_tire_model: mujoco.MjModel) -> None:
     # After dm_control's suite_test.test_components_have_names; body 0 is MuJoCo's world.
+    assert_all_named(model_per_tire_model)
+
+
+def assert_all_named(model: mujoco.MjModel) -> None:
     for kind, size_field in NAMED_OBJECTS:
         first = 1 if kind == mujoco.mjtObj.mjOBJ_BODY else 0
-        for index in range(first, getattr(nominal_model, size_field)):
-            name = mujoco.mj_id2name(nominal_model, kind, index)
+        for index in range(first, getattr(model, size_field)):
+            name = mujoco.mj_id2name(model, kind, index)
             assert name, f"unnamed {kind.name} with id {index}"
+
+
+def test_tyre_contacts_per_tire_model() -> None:
+    # Magic Formula tyres: frictionless wheel contacts that carry only the normal force;
+    # contact tyres: MuJoCo's friction with condim 3 and the configured mu.
+    for tire_model, condim in (("pacejka", 1), ("contact", 3)):
+        model = compile_model(PlantConfig(tire_model=tire_model, tire_friction=0.7))
+        for wheel in ("front_left", "front_right", "rear_left", "rear_right"):
+            tyre = model.geom(f"{wheel}_tyre")
+            assert tyre.condim[0] == condim and tyre.priority[0] == 1
+            assert tyre.friction[0] == pytest.approx(0.7)
 
 
 def test_expected_names_exist(nominal_model: mujoco.MjModel) -> None:
@@ -137,6 +157,8 @@ def test_shipped_xml_is_the_nominal_build(nominal_model: mujoco.MjModel) -> None
         "dof_damping",
         "geom_size",
         "geom_friction",
+        "geom_condim",
+        "geom_priority",
         "geom_pos",
         "actuator_gainprm",
         "actuator_biasprm",

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 
+import mujoco
 import numpy as np
 import pytest
 
@@ -23,6 +24,7 @@ from cosim.vehicle_params import PlantConfig, VehicleParams
 DT_S = 0.002
 CONTROL_STEPS = 25  # 50 ms control period
 NOMINAL = PlantConfig()
+TIRE_MODELS = ("pacejka", "contact")
 
 
 def plant_at(speed_mps: float, config: PlantConfig = NOMINAL, **initial: float) -> MujocoPlant:
@@ -110,20 +112,22 @@ def test_body_bounce_is_about_1_5_hz_and_well_damped() -> None:
     assert -heights[turns[1]] / heights[turns[0]] == pytest.approx(0.16, abs=0.05)
 
 
-def test_coasting_covers_40_m_minus_the_resistance_loss() -> None:
+@pytest.mark.parametrize("tire_model", TIRE_MODELS)
+def test_coasting_covers_40_m_minus_the_resistance_loss(tire_model: str) -> None:
     # Drag 0.5 * 1.225 * 0.66 * 20^2 = 161.7 N, rolling 0.012 * 1575 * 9.81 = 185.4 N:
     # deceleration 347.1 N / 1616.6 kg = 0.215 m/s^2, so 2 s cover
     # 40 - 0.5 * 0.215 * 2^2 = 39.57 m and end at 20 - 0.43 = 19.57 m/s.
-    plant = plant_at(20.0)
+    plant = plant_at(20.0, PlantConfig(tire_model=tire_model))
     end = run(plant, 2.0)[-1]
     assert end.x_m == pytest.approx(39.57, abs=0.05)
     assert end.vx_mps == pytest.approx(19.57, abs=0.02)
 
 
+@pytest.mark.parametrize("tire_model", TIRE_MODELS)
 @pytest.mark.parametrize("drive", ["rwd", "fwd", "awd"])
-def test_straight_driving_stays_straight(drive: str) -> None:
+def test_straight_driving_stays_straight(drive: str, tire_model: str) -> None:
     # 5 s at 20 m/s with the speed held by drive torque: no crabbing, wheels roll freely.
-    plant = plant_at(20.0, PlantConfig(drive=drive))
+    plant = plant_at(20.0, PlantConfig(drive=drive, tire_model=tire_model))
     states = run(plant, 5.0, hold_accel(0.0))
     end = states[-1]
     assert end.x_m == pytest.approx(100.0, abs=0.5)
@@ -133,15 +137,74 @@ def test_straight_driving_stays_straight(drive: str) -> None:
         assert omega * 0.31 / end.vx_mps == pytest.approx(1.0, abs=0.01)
 
 
-def test_constant_small_steer_gives_the_kinematic_yaw_rate() -> None:
-    # At 10 m/s with delta = 0.04 rad: r = v delta / L = 10 * 0.04 / 2.8 = 0.143 rad/s.
-    plant = plant_at(10.0)
+def test_constant_small_steer_gives_the_kinematic_yaw_rate_on_contact_tyres() -> None:
+    # MuJoCo's contact tyres hardly slip: at 10 m/s with delta = 0.04 rad the yaw rate is
+    # the kinematic r = v delta / L = 10 * 0.04 / 2.8 = 0.143 rad/s.
+    plant = plant_at(10.0, PlantConfig(tire_model="contact"))
     end = run(plant, 3.0, hold_accel(0.0, steer_rad=0.04))[-1]
     kinematic = end.speed_mps * 0.04 / 2.8
     assert end.yaw_rate_radps == pytest.approx(kinematic, rel=0.10)
     assert end.steer_rad == pytest.approx(0.04, abs=2e-3)
     # Lateral acceleration of a steady turn: a_y = v r.
     assert end.ay_mps2 == pytest.approx(end.vx_mps * end.yaw_rate_radps, rel=0.05)
+
+
+def test_constant_small_steer_understeers_on_magic_formula_tyres() -> None:
+    # The default tyres understeer by about 2 deg/g = 0.035 rad/g: the yaw rate is the
+    # kinematic one divided by 1 + K v^2 / (g L) = 1 + 0.035 * 100 / 27.5 = 1.13 at 10 m/s
+    # (tests/conformance measures K itself).
+    plant = plant_at(10.0)
+    end = run(plant, 3.0, hold_accel(0.0, steer_rad=0.04))[-1]
+    kinematic = end.speed_mps * 0.04 / 2.8
+    assert 0.80 * kinematic < end.yaw_rate_radps < 0.95 * kinematic
+    assert end.steer_rad == pytest.approx(0.04, abs=2e-3)
+    assert end.ay_mps2 == pytest.approx(end.vx_mps * end.yaw_rate_radps, rel=0.05)
+    # The tyres carry the car: normal loads sum to its weight, lateral forces (each along
+    # its wheel's axis, the front ones steered by ~0.04 rad) to m a_y = 1575 v r.
+    tyres = plant.tyre_forces()
+    assert tyres is not None
+    assert sum(t.load_n for t in tyres) == pytest.approx(1575.0 * 9.81, rel=0.01)
+    assert sum(t.force_y_n for t in tyres) == pytest.approx(
+        1575.0 * end.vx_mps * end.yaw_rate_radps, rel=0.03
+    )
+    assert plant_at(10.0, PlantConfig(tire_model="contact")).tyre_forces() is None
+
+
+def test_tyre_kinematics_match_mujocos_object_velocity() -> None:
+    # The plant's hand-written contact kinematics against MuJoCo's own: after a step,
+    # MuJoCo's positions, contacts and velocities are still those the tyres used (mj_step2
+    # does not recompute them). Reference: mj_objectVelocity at the wheel's CoM, moved to
+    # the contact point, in the heading frame (spin axis x up, up x heading).
+    plant = plant_at(12.0)
+    run(plant, 1.5, hold_accel(1.0, steer_rad=0.08))
+    model, data = plant.model, plant.data
+    tyres = plant.tyre_forces()
+    assert tyres is not None
+    velocity = np.zeros(6)
+    for wheel, tyre in zip(("front_left", "front_right", "rear_left", "rear_right"), tyres,
+                           strict=True):
+        body = model.body(f"{wheel}_wheel").id
+        geom = model.geom(f"{wheel}_tyre").id
+        contact = next(c for c in data.contact[: data.ncon] if geom in (c.geom1, c.geom2))
+        mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_BODY, body, velocity, 0)
+        omega, linear = velocity[:3], velocity[3:]
+        at_contact = linear + np.cross(omega, contact.pos - data.xipos[body])
+        at_centre = linear + np.cross(omega, data.xpos[body] - data.xipos[body])
+        normal = contact.frame[:3]
+        heading = np.cross(data.xmat[body].reshape(3, 3)[:, 1], normal)
+        heading /= np.linalg.norm(heading)
+        lateral = np.cross(normal, heading)
+        assert tyre.slip_velocity_x_mps == pytest.approx(at_contact @ heading, abs=1e-9)
+        assert tyre.slip_velocity_y_mps == pytest.approx(at_contact @ lateral, abs=1e-9)
+        assert tyre.forward_speed_mps == pytest.approx(at_centre @ heading, abs=1e-9)
+        # The applied force is the tyre force at the contact, with its moment.
+        force = tyre.force_x_n * heading + tyre.force_y_n * lateral
+        applied = data.xfrc_applied[body]
+        np.testing.assert_allclose(applied[:3], force, atol=1e-9)
+        np.testing.assert_allclose(
+            applied[3:], np.cross(contact.pos - data.xipos[body], force), atol=1e-9
+        )
+    assert abs(tyres[0].slip_velocity_y_mps) > 1e-3  # it is cornering: the test has teeth
 
 
 def test_steering_right_turns_right() -> None:
@@ -163,9 +226,10 @@ def test_braking_demand_of_3_mps2_removes_6_mps_in_2_s() -> None:
     assert end.ax_mps2 == pytest.approx(-3.0, rel=0.15)
 
 
-def test_braking_to_standstill_is_smooth_and_stays_still() -> None:
+@pytest.mark.parametrize("tire_model", TIRE_MODELS)
+def test_braking_to_standstill_is_smooth_and_stays_still(tire_model: str) -> None:
     # From 5 m/s at -3 m/s^2 the car stops after about 5 / 3 = 1.7 s and 5^2 / 6 = 4.2 m.
-    plant = plant_at(5.0)
+    plant = plant_at(5.0, PlantConfig(tire_model=tire_model))
     states = run(plant, 4.0, hold_accel(-3.0))
     stopped = [s for s in states if s.t_s > 2.5]
     assert states[-1].x_m == pytest.approx(4.2, abs=0.3)
@@ -181,12 +245,20 @@ def test_heavier_car_than_believed_accelerates_less() -> None:
     assert end.vx_mps - 10.0 == pytest.approx(4.0 * 1616.6 / 2041.6, rel=0.1)
 
 
-def test_tyre_friction_limits_braking() -> None:
-    # Full brake torque on a mu = 0.3 road: deceleration about mu g = 2.9 m/s^2, not more.
-    plant = plant_at(20.0, PlantConfig(tire_friction=0.3))
+@pytest.mark.parametrize(
+    ("tire_model", "low_g", "high_g"),
+    # Contact tyres: Coulomb friction, about mu g. Magic Formula tyres: the locked wheels
+    # slide at the tail of the curve, 0.53 mu F_z at k = -1 for mu = 0.3 (0.63 at mu = 1,
+    # tests/plant/test_tire_model.py), so the car decelerates at 0.5-0.7 mu g.
+    [("contact", 0.8, 1.15), ("pacejka", 0.5, 0.7)],
+)
+def test_tyre_friction_limits_braking(tire_model: str, low_g: float, high_g: float) -> None:
+    # Full brake torque on a mu = 0.3 road: the tyres' friction limits the deceleration.
+    plant = plant_at(20.0, PlantConfig(tire_friction=0.3, tire_model=tire_model))
     states = run(plant, 1.0, lambda s: ActuatorCommand(s.t_s, 0.0, 8000.0, 0.0))
     decel = 20.0 - states[-1].vx_mps
-    assert 0.8 * 0.3 * 9.81 < decel < 1.15 * 0.3 * 9.81 + 0.2
+    assert low_g * 0.3 * 9.81 < decel < high_g * 0.3 * 9.81 + 0.2
+    assert max(abs(w) for w in states[-1].wheel_speed_radps) < 1.0  # locked
 
 
 def test_steering_respects_the_rate_limit() -> None:
@@ -220,12 +292,14 @@ def test_steering_is_clipped_to_max_steer() -> None:
     assert end.steer_rad == pytest.approx(0.5 * (left + right), abs=0.01)
 
 
-def test_two_plants_from_one_config_are_bit_identical() -> None:
+@pytest.mark.parametrize("tire_model", TIRE_MODELS)
+def test_two_plants_from_one_config_are_bit_identical(tire_model: str) -> None:
     def drive(plant: MujocoPlant) -> VehicleState:
         run(plant, 1000 * DT_S, hold_accel(1.0, steer_rad=0.05))
         return plant.state()
 
-    first, second = drive(plant_at(12.0)), drive(plant_at(12.0))
+    config = PlantConfig(tire_model=tire_model)
+    first, second = drive(plant_at(12.0, config)), drive(plant_at(12.0, config))
     assert first == second
     assert first.t_s == pytest.approx(2.0)
 
