@@ -111,3 +111,25 @@ def test_interrupt_finishes_the_log_with_completed_false(tmp_path: Path) -> None
     truth = {c.topic: c.message_count for c in summary.channels}["/vehicle/truth"]
     assert 0 < truth < 1501
     assert summary.metrics["sim_duration_s"] < 15.0
+
+
+def test_a_killed_run_leaves_a_log_that_inspect_reads(tmp_path: Path) -> None:
+    out = tmp_path / "killed.mcap"
+    process = subprocess.Popen([COSIM, "run", "lane-change", "--out", str(out)],
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 300
+    while (not out.exists() or out.stat().st_size < 700_000) and process.poll() is None:
+        if time.monotonic() > deadline:
+            break
+        time.sleep(0.02)
+    process.kill()
+    process.wait(timeout=60)
+    result = cosim("inspect", str(out), "--json")
+    assert result.returncode == 0, result.stderr
+    document = json.loads(result.stdout)
+    assert document["truncated"] is True
+    counts = {c["topic"]: c["count"] for c in document["channels"]}
+    # At least a few chunks (256 KiB each) of data survived: seconds of the run.
+    assert counts["/vehicle/truth"] > 100
+    assert counts["/metrics"] == 0
+    assert document["metrics"] == {}
