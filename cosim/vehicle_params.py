@@ -5,6 +5,14 @@ plus how the plant is simulated); a tracker's internal model reads ``tracker.mod
 :class:`VehicleParams`). Both default to the seed paper's sedan (seed digest section 2:
 m = 1575 kg, I_z = 2875 kg m^2, l_f = 1.2 m, l_r = 1.6 m). Model mismatch is the difference
 between the two records, stated as data.
+
+The steering actuator (``steer_time_constant_s``, ``max_steer_rate_radps``) is the plant's
+truth in ``plant`` and a tracker's belief in ``tracker.model``. The axle cornering
+stiffnesses are a belief for dynamic models only (the plant's own tyres are the Pacejka
+model in ``plant.tyre``); their defaults are what ``cosim identify`` finds on the default
+sedan (C_f = 72 550 N/rad, C_r = 79 580 N/rad, understeer gradient 2.2 deg/g), not the seed
+paper's C_f = 19 000 and C_r = 33 000 N/rad (section 2), which a user can still state as a
+belief (``--set tracker.model.cornering_stiffness_front_npr=19000``).
 """
 
 from __future__ import annotations
@@ -37,6 +45,26 @@ class VehicleParams:
     max_brake_torque_nm: float = setting(8000.0, low=0.0, high=100000.0, doc="all wheels, total")
     drag_area_m2: float = setting(0.66, low=0.0, high=10.0, doc="drag coefficient x frontal area")
     rolling_resistance: float = setting(0.012, low=0.0, high=0.1, doc="coefficient, force/weight")
+    steer_time_constant_s: float = setting(
+        0.05, low=0.0, high=1.0, doc="first-order lag of the steering actuator"
+    )
+    max_steer_rate_radps: float = setting(
+        0.8, low=0.05, high=10.0, doc="rate limit of the steering actuator"
+    )
+    cornering_stiffness_front_npr: float = setting(
+        72550.0,
+        low=1e3,
+        high=1e6,
+        doc="front-axle cornering stiffness (both tyres), belief for dynamic models; the "
+        "plant's own tyres are the Pacejka model in `plant.tyre` [N/rad]",
+    )
+    cornering_stiffness_rear_npr: float = setting(
+        79580.0,
+        low=1e3,
+        high=1e6,
+        doc="rear-axle cornering stiffness (both tyres), belief for dynamic models; the "
+        "plant's own tyres are the Pacejka model in `plant.tyre` [N/rad]",
+    )
 
     def __post_init__(self) -> None:
         if 4 * self.wheel_mass_kg >= self.mass_kg:
@@ -56,12 +84,6 @@ class PlantConfig(VehicleParams):
     """The simulated car: its true parameters and how it is simulated."""
 
     actuator_delay_s: float = setting(0.0, low=0.0, high=2.0, doc="command transport delay")
-    steer_time_constant_s: float = setting(
-        0.05, low=0.0, high=1.0, doc="first-order lag of the steering actuator"
-    )
-    max_steer_rate_radps: float = setting(
-        0.8, low=0.05, high=10.0, doc="rate limit of the steering actuator"
-    )
     tire_model: str = setting(
         "pacejka",
         choices=("pacejka", "contact"),

@@ -10,7 +10,10 @@ driving one state each; the filter integrates them over every prediction interva
 driving a state makes that state a random walk whose standard deviation grows as
 ``sqrt(q * t)``. Units: ``m2ps5`` is m^2/s^5 (jerk), ``rad2ps3`` rad^2/s^3 (yaw
 acceleration), ``m2ps3`` m^2/s^3 (lateral acceleration), ``rad2ps`` rad^2/s, ``m2ps`` m^2/s,
-``1ps`` 1/s (a dimensionless state: the rolling-radius scale).
+``1ps`` 1/s (a dimensionless state: the rolling-radius scale); ``radpmps2`` is rad per m/s^2.
+
+The defaults were set on the MuJoCo sedan (the default plant) from its logged truth: see
+the module docstring of :mod:`estimation.models` and the comments below.
 """
 
 from __future__ import annotations
@@ -18,8 +21,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from cosim.config_fields import setting
+from estimation.models import TYRE_MODELS
 
-ESTIMATOR_NAMES: tuple[str, ...] = ("ekf", "truth")
+ESTIMATOR_NAMES: tuple[str, ...] = ("ekf", "ukf", "truth")
 """Values ``estimator.name`` accepts; :func:`estimation.registry.make_estimator` builds each."""
 
 
@@ -28,27 +32,67 @@ class EstimatorConfig:
     """The state estimator: which one, its process noise, initial uncertainty and gating."""
 
     name: str = setting(
-        "ekf", choices=ESTIMATOR_NAMES, doc="ekf: the CTRA extended Kalman filter; truth: debug"
+        "ekf",
+        choices=ESTIMATOR_NAMES,
+        doc="ekf: extended Kalman filter; ukf: unscented Kalman filter (same models); "
+        "truth: the true state (debugging)",
     )
+
+    tyre_model: str = setting(
+        "saturating",
+        choices=TYRE_MODELS,
+        doc="the bicycle's tyres: linear (C alpha), or saturating (C alpha limited smoothly at "
+        "mu F_z of the static axle load)",
+    )
+
+    # Body roll (R2 of estimation.models). Defaults: the MuJoCo sedan's suspension
+    # (models/README.md): roll stiffness 2 (k_f + k_r) (t/2)^2 = 92 570 N m/rad less the
+    # sprung weight's m_s g h = 8 260 N m/rad, sprung mass 1495 kg at h = 0.563 m, roll
+    # inertia 517 + m_s h^2 = 991 kg m^2, damping 2 (c_f + c_r) (t/2)^2 = 9 400 N m s/rad:
+    # gradient m_s h / k = 0.0100 rad/(m/s^2), 1.47 Hz, damping ratio 0.51 (a least-squares
+    # fit on the lane change's truth: 0.0092-0.0100 rad/(m/s^2), 1.1-1.9 Hz, 0.4-0.65).
+    roll_gradient_radpmps2: float = setting(
+        0.0100, low=0.0, high=0.1, doc="steady body roll per lateral acceleration (0: no roll)"
+    )
+    roll_frequency_hz: float = setting(1.47, low=0.1, high=5.0, doc="natural frequency of roll")
+    roll_damping_ratio: float = setting(0.51, low=0.01, high=5.0, doc="damping ratio of roll")
 
     # Process noise (continuous-time white-noise PSDs).
     jerk_psd_m2ps5: float = setting(
-        100.0, low=0.0, high=1e6, doc="longitudinal jerk driving ax_mps2 [m^2/s^5]"
+        5.0, low=0.0, high=1e6, doc="longitudinal jerk driving ax_mps2 [m^2/s^5]"
     )
     yaw_accel_psd_rad2ps3: float = setting(
-        0.5, low=0.0, high=1e6, doc="yaw acceleration driving yaw_rate_radps [rad^2/s^3]"
+        5e-4, low=0.0, high=1e6, doc="yaw acceleration the bicycle does not explain [rad^2/s^3]"
     )
     lateral_accel_psd_m2ps3: float = setting(
-        0.3, low=0.0, high=1e6, doc="white lateral acceleration driving vy_mps [m^2/s^3]"
+        5e-4, low=0.0, high=1e6, doc="white lateral acceleration driving vy_mps [m^2/s^3]"
     )
-    lateral_velocity_time_constant_s: float = setting(
-        1.0, low=0.1, high=1e4, doc="vy_mps relaxes to zero with this time constant"
+    steer_psd_rad2ps: float = setting(
+        0.001, low=0.0, high=100.0, doc="random walk of steer_rad between steering samples"
+    )
+    roll_accel_psd_rad2ps3: float = setting(
+        1e-3, low=0.0, high=100.0, doc="roll acceleration the roll mode does not explain"
+    )
+    lateral_residual_sigma_mps2: float = setting(
+        0.1,
+        low=1e-6,
+        high=100.0,
+        doc="stationary sigma of the lateral force the tyre model does not explain, per mass",
+    )
+    lateral_residual_time_constant_s: float = setting(
+        0.5, low=0.05, high=1e4, doc="the lateral residual relaxes to zero with this time constant"
+    )
+    gyro_bias_psd_rad2ps3: float = setting(
+        4e-8, low=0.0, high=1.0, doc="random walk of the gyro bias ((rad/s)^2 per s)"
+    )
+    accel_bias_psd_m2ps5: float = setting(
+        4e-6, low=0.0, high=1.0, doc="random walk of the ax accelerometer bias ((m/s^2)^2 per s)"
     )
     yaw_psd_rad2ps: float = setting(
-        1e-6, low=0.0, high=10.0, doc="heading random walk (unmodelled yaw errors) [rad^2/s]"
+        1e-8, low=0.0, high=10.0, doc="heading random walk (unmodelled yaw errors) [rad^2/s]"
     )
     position_psd_m2ps: float = setting(
-        1e-4, low=0.0, high=100.0, doc="position random walk (unmodelled motion) [m^2/s]"
+        1e-6, low=0.0, high=100.0, doc="position random walk (unmodelled motion) [m^2/s]"
     )
     rolling_radius_scale_psd_1ps: float = setting(
         1e-6, low=0.0, high=1.0, doc="random walk of rolling_radius_scale (drive slip) [1/s]"
@@ -59,19 +103,33 @@ class EstimatorConfig:
 
     # Model errors of the measurement equations, added to each measurement's own covariance.
     wheel_model_sigma_mps: float = setting(
-        0.05, low=0.0, high=10.0, doc="tyre slip, rolling-radius error (at the wheel centre)"
+        0.03, low=0.0, high=10.0, doc="tyre slip, rolling-radius error (at the wheel centre)"
     )
     lateral_accel_model_sigma_mps2: float = setting(
-        1.0, low=0.0, high=50.0, doc="ay = yaw_rate * vx neglects dvy/dt"
+        0.1, low=0.0, high=50.0, doc="IMU lateral acceleration: accelerometer bias, vibration"
+    )
+    steer_model_sigma_rad: float = setting(
+        0.0, low=0.0, high=1.0, doc="steering sensor: mean road-wheel angle vs the bicycle's"
     )
 
     # Initial uncertainty (the mean comes from the scenario's initial state).
     init_position_sigma_m: float = setting(0.5, low=1e-6, high=1e4)
-    init_yaw_sigma_rad: float = setting(0.05, low=1e-6, high=10.0)
+    init_yaw_sigma_rad: float = setting(
+        0.01, low=1e-6, high=10.0, doc="the run starts at the scenario's initial state"
+    )
     init_speed_sigma_mps: float = setting(0.5, low=1e-6, high=100.0)
     init_lateral_speed_sigma_mps: float = setting(0.1, low=1e-6, high=100.0)
     init_yaw_rate_sigma_radps: float = setting(0.05, low=1e-6, high=10.0)
     init_accel_sigma_mps2: float = setting(0.5, low=1e-6, high=100.0)
+    init_steer_sigma_rad: float = setting(0.05, low=1e-6, high=1.0)
+    init_roll_sigma_rad: float = setting(0.005, low=1e-6, high=1.0)
+    init_roll_rate_sigma_radps: float = setting(0.02, low=1e-6, high=10.0)
+    init_gyro_bias_sigma_radps: float = setting(
+        0.002, low=1e-9, high=1.0, doc="spread of the gyro's turn-on bias"
+    )
+    init_accel_bias_sigma_mps2: float = setting(
+        0.02, low=1e-9, high=10.0, doc="spread of the ax accelerometer's turn-on bias"
+    )
     init_rolling_radius_scale_sigma: float = setting(
         0.01, low=1e-6, high=0.5, doc="relative error of the believed wheel radius"
     )
@@ -87,3 +145,8 @@ class EstimatorConfig:
         high=1e9,
         doc="after a sensor's updates fail the gate for this long, fuse them ungated",
     )
+
+    # Unscented transform (ukf only): Van der Merwe's scaled sigma points.
+    ukf_alpha: float = setting(1.0, low=1e-4, high=1.0, doc="spread of the sigma points")
+    ukf_beta: float = setting(2.0, low=0.0, high=10.0, doc="prior knowledge of the distribution")
+    ukf_kappa: float = setting(0.0, low=-10.0, high=10.0, doc="secondary scaling")

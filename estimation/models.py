@@ -1,44 +1,95 @@
-"""Process and measurement models of the EKF, built symbolically with CasADi.
+"""Process and measurement models of the Kalman filters, built symbolically with CasADi.
+
+The EKF (:mod:`estimation.ekf`) and the UKF (:mod:`estimation.ukf`) share every equation
+here: the same CasADi functions, evaluated numerically (the EKF also uses their exact
+Jacobians, the UKF only their values at its sigma points).
 
 State (world frame ENU for the pose, vehicle frame ISO 8855 for the rates), named by
 :data:`STATE_NAMES`:
 
-========================  ==================================================================
-``x_m``, ``y_m``          position of the centre of gravity (CoG), world frame
-``yaw_rad``               heading of the vehicle x axis, CCW from world x, wrapped (-pi, pi]
-``vx_mps``, ``vy_mps``    velocity of the CoG in the vehicle frame
-``yaw_rate_radps``        yaw rate r
-``ax_mps2``               kinematic acceleration of the CoG along the vehicle x axis (what
-                          a gravity-compensated IMU measures; ``d vx/dt = ax + r vy``)
-``rolling_radius_scale``  effective rolling radius of the rear wheels over the believed one
-                          (tyre deflection, wear, steady drive slip); dimensionless, ~1
-========================  ==================================================================
+===============================  ============================================================
+``x_m``, ``y_m``                 position of the centre of gravity (CoG), world frame (a point
+                                 of the body: it sways sideways when the body rolls)
+``yaw_rad``                      heading of the vehicle x axis, CCW from world x, (-pi, pi]
+``vx_mps``, ``vy_mps``           velocity of the CoG in the vehicle frame
+``yaw_rate_radps``               yaw rate r
+``ax_mps2``                      kinematic acceleration of the CoG along the vehicle x axis
+                                 (what a gravity-compensated IMU measures; ``vx' = ax + r vy``)
+``steer_rad``                    front road-wheel angle delta (mean of the two front wheels),
+                                 positive to the left, as the ``steering`` sensor reports it
+``roll_rad``                     body roll phi about the vehicle x axis (positive: left side
+                                 up, as in a left turn)
+``roll_rate_radps``              its rate p
+``lateral_accel_residual_mps2``  lateral tyre force per unit mass that the tyre model does not
+                                 explain (load transfer, camber, the tyre law's own error);
+                                 the IMU's lateral acceleration observes it
+``gyro_bias_radps``              bias of the IMU's yaw-rate channel
+``ax_bias_mps2``                 bias of the IMU's longitudinal acceleration channel
+``rolling_radius_scale``         effective rolling radius of the freely rolling wheels over the
+                                 believed one (tyre deflection, wear); dimensionless, ~1
+===============================  ============================================================
 
-Process model: constant turn rate and acceleration (CTRA, Schubert et al., "Comparison and
-evaluation of advanced motion models for vehicle tracking", FUSION 2008) extended with a
-lateral velocity (the sideslip of a real car, which makes the course over ground differ from
-the heading). In continuous time::
+Process model: the dynamic bicycle (seed digest section 2; Rajamani, "Vehicle Dynamics and
+Control", 2nd ed., section 2.3; the equations of :mod:`tracker.dynamic_bicycle`, written
+again here so that the filter can guard the slip angles at low speed and add what follows),
+with the measured steering angle as its input through the state ``steer_rad``, a body roll
+mode, and planar rigid-body kinematics::
 
-    dx/dt  = vx cos(yaw) - vy sin(yaw)          d vx/dt = ax + r vy
-    dy/dt  = vx sin(yaw) + vy cos(yaw)          d vy/dt = -vy / tau + w_vy
-    dyaw/dt = r + w_yaw                         dr/dt   = w_r
-    (dx, dy)/dt += w_pos                        d ax/dt = w_j
-                                                d k/dt  = w_k    (k: rolling_radius_scale)
+    vy_a = vy + h p                          (lateral velocity at the roll axis)  (R1)
+    alpha_f = delta - (vy_a + l_f r) / v_s, alpha_r = -(vy_a - l_r r) / v_s      (D1, D2)
+    F_yf = C_f alpha_f,                     F_yr = C_r alpha_r                   (D3)
+    F_yi = mu F_zi tanh(C_i alpha_i / (mu F_zi)),  i = f, r                      (D3')
+    a_t = (F_yf + F_yr) / m + d             (lateral acceleration from the tyres)
+    p' = -omega^2 (phi - G a_t) - 2 zeta omega p + w_p,   phi' = p               (R2)
+    vy' = a_t - r vx - h p' + w_vy                                               (D4)
+    r'  = (l_f F_yf - l_r F_yr) / I_z + w_r                                      (D5)
+    x' = vx cos(yaw) - vy sin(yaw) + w_x,   y' = vx sin(yaw) + vy cos(yaw) + w_y (D6)
+    yaw' = r + w_yaw,   vx' = ax + r vy,    ax' = w_j,   delta' = w_delta
+    d' = -d / tau_d + w_d,   b_g' = w_bg,   b_x' = w_bx,   k' = w_k
 
-with independent white noises ``w`` of the configured power spectral densities. ``vy`` is a
-first-order Gauss-Markov process: without lateral-force information (no steering angle, no
-tyre model) the filter knows only that the sideslip is small and does not persist; the
-difference between the course seen by GNSS and the heading integrated from the gyro is what
-drives it. With ``vy = 0`` the model is the textbook CTRA.
+The roll mode (R1)-(R2) is a second-order system driven by the tyres' lateral
+acceleration with the steady roll gradient ``G``, natural frequency ``omega`` and damping
+ratio ``zeta`` (Gillespie, "Fundamentals of Vehicle Dynamics", ch. 8, roll gradient;
+:class:`RollParams`); the CoG sits ``h`` (the belief's ``cog_height_m``) above the roll
+axis, so when the body rolls it sways sideways relative to the axles: the tyres see the
+axles' lateral velocity ``vy + h p``, an IMU and a GNSS antenna at the CoG see the sway. On
+the MuJoCo sedan the sway is 2.5 cm at 0.5 g and the CoG's lateral acceleration differs
+from the tyres' by up to 1 m/s^2 in a lane change: without (R1)-(R2) the tyre model's
+error in lateral acceleration is 0.13 m/s^2 RMS, with them 0.05 m/s^2.
 
-Discretisation over a sub-step ``dt``: the mean by one classical Runge-Kutta 4 step (no
-singularity at zero yaw rate, unlike the closed-form CTRA), its Jacobian ``F`` by CasADi's
-automatic differentiation of that step, and the process noise by the exact integral of the
-linearised system (Van Loan 1978; ``dQ/dt = A Q + Q A' + W``, ``Q(0) = 0``) written as its
-power series ``Q(dt) = sum_k dt^(k+1)/(k+1)! L^k(W)`` with ``L(X) = A X + X A'``. The
-coupling graph of ``A`` is acyclic apart from the ``-1/tau`` self-loop of ``vy``, so the
-series converges like ``(dt/tau)^k / k!``; :data:`NOISE_SERIES_TERMS` terms are exact to
-rounding for ``dt <= 0.02 s`` and ``tau >= 0.1 s``, which is why those are the limits.
+``C_f``, ``C_r`` are the axle cornering stiffnesses of the *belief* (``VehicleParams``). The
+``saturating`` tyre law (D3'), the default, is (D3) with a smooth limit at the friction force
+``mu F_z`` of the static axle load (``mu``: the belief's ``tire_friction``); it has the same
+cornering stiffness and differs from (D3) only where the tyres saturate: on the Pacejka
+sedan in a 0.8 g lane change the linear law's lateral acceleration is off by 1.7 m/s^2 RMS
+where ``|a_y| > 4 m/s^2``, (D3') by 0.24 m/s^2.
+
+``d`` is ``lateral_accel_residual_mps2``, a first-order Gauss-Markov process: the tyre model
+is trusted on average, but the IMU's lateral acceleration can pull the force it predicts to
+what the car really does, so the side slip keeps being integrated correctly where the model
+is wrong. ``b_g`` and ``b_x`` are the biases of the gyro and of the longitudinal accelerometer
+(random walks, as the sensors' biases are), ``k`` the rolling-radius scale and every ``w``
+white noise of the configured power spectral density (``estimation.config``; the values
+were set from the MuJoCo sedan's truth: e.g. the yaw-acceleration error of the model has a
+PSD of 1e-5 to 4e-4 rad^2/s^3, the residual ``d`` 0.05-0.15 m/s^2 RMS with a correlation
+time of 0.3-0.5 s). Without ``b_x`` the accelerometer's
+bias (0.02 m/s^2) makes the speed from the IMU drift against the wheel speeds, and the
+filter explains the conflict with a drifting rolling radius: the speed was off by 0.11 m/s
+(0.5 %) on the lane change with 0.5 m GNSS.
+
+``v_s`` is the forward speed with a floor at low
+speed (:func:`slip_speed`: equal to ``vx`` above :data:`LOW_SPEED_MPS`, never below half of
+it), where the slip angles of (D1)-(D2) are undefined; below that speed the tyre model
+quickly pulls the car onto the kinematic bicycle.
+
+Discretisation over a sub-step ``dt``: the mean by one classical Runge-Kutta 4 step, its
+Jacobian ``F`` by CasADi's automatic differentiation of that step, and the process noise by
+the exact integral of the system linearised at the start of the sub-step (Van Loan 1978;
+``dQ/dt = A Q + Q A' + W``, ``Q(0) = 0``) written as its power series
+``Q(dt) = sum_k dt^(k+1)/(k+1)! L^k(W)`` with ``L(X) = A X + X A'``. The series converges
+like ``(2 |A| dt)^k / k!``; the largest entries of ``A`` are the roll mode's ``omega^2``
+(about 90 1/s^2) and the tyre terms at the floor speed (about 45 1/s), so
+:data:`NOISE_SERIES_TERMS` terms are exact to rounding for ``dt <= MAX_STEP_S``.
 """
 
 from __future__ import annotations
@@ -61,26 +112,43 @@ VEHICLE_STATE_NAMES: tuple[str, ...] = (
     "vy_mps",
     "yaw_rate_radps",
     "ax_mps2",
+    "steer_rad",
+    "roll_rad",
 )
-"""The EKF's states that describe the car's motion (named as in VehicleState)."""
+"""The filters' states that describe the car's motion (named as in VehicleState)."""
 
-SENSOR_STATE_NAMES: tuple[str, ...] = ("rolling_radius_scale",)
-"""The EKF's states that describe its sensors: effective rolling radius / believed radius."""
+MODEL_STATE_NAMES: tuple[str, ...] = ("roll_rate_radps", "lateral_accel_residual_mps2")
+"""States of the vehicle model that VehicleState does not carry: the roll rate, and the
+error of the tyre model."""
 
-STATE_NAMES: tuple[str, ...] = VEHICLE_STATE_NAMES + SENSOR_STATE_NAMES
-"""Names of the EKF's states, in the order of its mean and covariance."""
+SENSOR_STATE_NAMES: tuple[str, ...] = ("gyro_bias_radps", "ax_bias_mps2", "rolling_radius_scale")
+"""States that describe the sensors: the biases of the gyro and of the longitudinal
+accelerometer, the wheels' effective / believed rolling radius."""
+
+STATE_NAMES: tuple[str, ...] = VEHICLE_STATE_NAMES + MODEL_STATE_NAMES + SENSOR_STATE_NAMES
+"""Names of the filters' states, in the order of their mean and covariance."""
 
 ANGLE_STATES: tuple[str, ...] = ("yaw_rad",)
-"""States that are angles: wrapped to (-pi, pi] after every step."""
+"""States that are angles on the whole circle: wrapped to (-pi, pi] after every step."""
 
-NOISE_SERIES_TERMS = 10
+NOISE_SERIES_TERMS = 20
 """Terms of the power series of the discrete process noise (see the module docstring)."""
 
-MIN_LATERAL_TIME_CONSTANT_S = 0.1
-"""Smallest ``tau`` of the vy Gauss-Markov process the noise series is exact for."""
+MIN_RESIDUAL_TIME_CONSTANT_S = 0.05
+"""Smallest time constant of the lateral residual the noise series is exact for."""
 
 MAX_STEP_S = 0.02
 """Longest sub-step the noise series is exact for."""
+
+LOW_SPEED_MPS = 5.0
+"""Below this forward speed the slip angles use :func:`slip_speed`'s floor, not vx."""
+
+DEFAULT_CORNERING_STIFFNESS_FRONT_NPR = 72550.0
+"""Front-axle cornering stiffness of the Pacejka sedan (``cosim identify``), used when the
+belief (``VehicleParams``) does not carry one [N/rad]."""
+
+DEFAULT_CORNERING_STIFFNESS_REAR_NPR = 79580.0
+"""Rear-axle cornering stiffness of the Pacejka sedan (``cosim identify``) [N/rad]."""
 
 
 def wrap_angle(angle_rad: float | np.ndarray) -> float | np.ndarray:
@@ -101,7 +169,10 @@ class DenseFunction:
 
     Calls go through CasADi's buffer interface into arrays allocated once (about 1 us
     instead of about 25 us for a call with DM conversions); results are returned as copies.
-    Every output of ``function`` must be dense (build it with ``ca.densify``).
+    Every output of ``function`` must be dense (build it with ``ca.densify``). A matrix of
+    CasADi's shape ``(rows, columns)`` is passed and returned as a numpy array of shape
+    ``(columns, rows)`` (CasADi is column-major): for a Function mapped over points, one
+    point per numpy row.
     """
 
     def __init__(self, function: ca.Function) -> None:
@@ -109,8 +180,6 @@ class DenseFunction:
         for i in range(function.n_out()):
             if not function.sparsity_out(i).is_dense():
                 raise ValueError(f"{function.name()}: output {i} must be dense")
-        # CasADi stores matrices column-major and its buffers must be C-contiguous numpy
-        # arrays, so each matrix lives in an array of the transposed shape.
         self._inputs = [np.zeros(function.size_in(i)[::-1]) for i in range(function.n_in())]
         self._outputs = [np.zeros(function.size_out(i)[::-1]) for i in range(function.n_out())]
         self._buffer, self._evaluate = function.buffer()
@@ -127,6 +196,23 @@ class DenseFunction:
             array.T[...] = np.reshape(value, array.T.shape)
         self._evaluate()
         return tuple(array.T.copy() for array in self._outputs)
+
+    def rows(self, *args: np.ndarray | float) -> tuple[np.ndarray, ...]:
+        """Like calling, but inputs and outputs in numpy's transposed layout (one point per
+        row for a mapped Function), without transposing."""
+        if len(args) != len(self._inputs):
+            raise TypeError(f"{self.function.name()} takes {len(self._inputs)} inputs")
+        for array, value in zip(self._inputs, args, strict=True):
+            array[...] = np.reshape(value, array.shape)
+        self._evaluate()
+        return tuple(array.copy() for array in self._outputs)
+
+    def vector(self, x: np.ndarray) -> np.ndarray:
+        """The first output, flattened, of a Function of one vector input (the fast path of
+        the UKF's many small calls)."""
+        self._inputs[0][...] = x
+        self._evaluate()
+        return self._outputs[0].ravel().copy()
 
 
 def state_index(name: str) -> int:
@@ -149,6 +235,160 @@ def _stack(values: Mapping[str, ca.SX | float]) -> ca.SX:
     return ca.vertcat(*[values[name] for name in STATE_NAMES])
 
 
+TYRE_MODELS: tuple[str, ...] = ("saturating", "linear")
+"""Tyre laws of the filters' bicycle: (D3) with or without the friction limit (D3')."""
+
+GRAVITY_MPS2 = 9.81
+"""Gravitational acceleration for the static axle loads [m/s^2]."""
+
+
+@dataclass(frozen=True)
+class RollParams:
+    """The body roll mode the filters believe (R2): ``gradient_radpmps2`` steady roll per
+    lateral acceleration, ``frequency_hz`` and ``damping_ratio`` of the mode,
+    ``sway_arm_m`` the height of the CoG above the roll axis. A zero gradient and arm
+    switch the mode off (the body then neither rolls nor sways)."""
+
+    gradient_radpmps2: float = 0.0
+    frequency_hz: float = 1.5
+    damping_ratio: float = 0.5
+    sway_arm_m: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("gradient_radpmps2", "sway_arm_m"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0.0):
+                raise ValueError(f"{name} = {value!r}: expected a finite number >= 0")
+        for name in ("frequency_hz", "damping_ratio"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0.0):
+                raise ValueError(f"{name} = {value!r}: expected a positive finite number")
+
+    @property
+    def angular_frequency_radps(self) -> float:
+        """omega = 2 pi f."""
+        return 2.0 * math.pi * self.frequency_hz
+
+
+@dataclass(frozen=True)
+class BicycleParams:
+    """The numbers of the dynamic bicycle the filters believe (SI; cornering stiffnesses per
+    axle, both tyres; ``tyre_friction`` the peak friction coefficient, used by the
+    ``saturating`` tyre law only)."""
+
+    mass_kg: float
+    yaw_inertia_kgm2: float
+    cog_front_m: float
+    cog_rear_m: float
+    cornering_stiffness_front_npr: float
+    cornering_stiffness_rear_npr: float
+    tyre_friction: float = 1.0
+    tyre_model: str = "saturating"
+    roll: RollParams = RollParams()
+
+    def __post_init__(self) -> None:
+        for name, value in vars(self).items():
+            if name in ("tyre_model", "roll"):
+                continue
+            if not (math.isfinite(value) and value > 0.0):
+                raise ValueError(f"{name} = {value!r}: expected a positive finite number")
+        if self.tyre_model not in TYRE_MODELS:
+            raise ValueError(
+                f"tyre_model = {self.tyre_model!r}: expected one of {', '.join(TYRE_MODELS)}"
+            )
+
+    @property
+    def axle_loads_n(self) -> tuple[float, float]:
+        """Static vertical loads of the front and rear axle, ``m g l_r / L``, ``m g l_f / L``."""
+        weight_n = self.mass_kg * GRAVITY_MPS2
+        wheelbase_m = self.cog_front_m + self.cog_rear_m
+        return weight_n * self.cog_rear_m / wheelbase_m, weight_n * self.cog_front_m / wheelbase_m
+
+    @classmethod
+    def from_vehicle(
+        cls, belief: VehicleParams, tyre_model: str = "saturating", roll: RollParams | None = None
+    ) -> BicycleParams:
+        """Mass, yaw inertia, CoG position, axle cornering stiffnesses and tyre friction of
+        ``belief``; ``roll`` the body roll mode (none by default).
+
+        ``VehicleParams`` gains ``cornering_stiffness_front_npr``/``_rear_npr``; a record
+        without them gets :data:`DEFAULT_CORNERING_STIFFNESS_FRONT_NPR` and
+        :data:`DEFAULT_CORNERING_STIFFNESS_REAR_NPR` (the identified Pacejka sedan).
+        """
+        return cls(
+            mass_kg=belief.mass_kg,
+            yaw_inertia_kgm2=belief.yaw_inertia_kgm2,
+            cog_front_m=belief.cog_front_m,
+            cog_rear_m=belief.cog_rear_m,
+            cornering_stiffness_front_npr=float(getattr(
+                belief, "cornering_stiffness_front_npr", DEFAULT_CORNERING_STIFFNESS_FRONT_NPR
+            )),
+            cornering_stiffness_rear_npr=float(getattr(
+                belief, "cornering_stiffness_rear_npr", DEFAULT_CORNERING_STIFFNESS_REAR_NPR
+            )),
+            tyre_friction=belief.tire_friction,
+            tyre_model=tyre_model,
+            roll=RollParams() if roll is None else roll,
+        )
+
+
+def slip_speed(vx_mps: ca.SX | float) -> ca.SX:
+    """The forward speed the slip angles divide by: ``vx`` at and above
+    :data:`LOW_SPEED_MPS` ``= v0``, ``v0/2 + vx^2/(2 v0)`` below (continuous with its first
+    derivative, at least ``v0/2``)."""
+    v0 = LOW_SPEED_MPS
+    return ca.if_else(vx_mps >= v0, vx_mps, 0.5 * v0 + vx_mps**2 / (2.0 * v0))
+
+
+def axle_forces(s: Mapping[str, ca.SX], bicycle: BicycleParams) -> tuple[ca.SX, ca.SX]:
+    """Lateral forces of the front and rear axle, (D1)-(D3) or (D1), (D2), (D3') [N]."""
+    speed = slip_speed(s["vx_mps"])
+    r = s["yaw_rate_radps"]
+    axle_vy = axle_lateral_velocity(s, bicycle)
+    alpha_front = s["steer_rad"] - (axle_vy + bicycle.cog_front_m * r) / speed  # (D1)
+    alpha_rear = -(axle_vy - bicycle.cog_rear_m * r) / speed  # (D2)
+    linear_front = bicycle.cornering_stiffness_front_npr * alpha_front  # (D3)
+    linear_rear = bicycle.cornering_stiffness_rear_npr * alpha_rear
+    if bicycle.tyre_model == "linear":
+        return linear_front, linear_rear
+    # (D3'): F = mu F_z tanh(C alpha / (mu F_z)), the linear tyre up to a smooth limit at
+    # the friction force of the static axle load.
+    limit_front, limit_rear = (bicycle.tyre_friction * load for load in bicycle.axle_loads_n)
+    return (
+        limit_front * ca.tanh(linear_front / limit_front),
+        limit_rear * ca.tanh(linear_rear / limit_rear),
+    )
+
+
+def axle_lateral_velocity(s: Mapping[str, ca.SX], bicycle: BicycleParams) -> ca.SX:
+    """Lateral velocity of the roll axis below the CoG, in the vehicle frame, (R1) [m/s]."""
+    return s["vy_mps"] + bicycle.roll.sway_arm_m * s["roll_rate_radps"]
+
+
+def lateral_tyre_accel(s: Mapping[str, ca.SX], bicycle: BicycleParams) -> ca.SX:
+    """Lateral acceleration the tyres give the car, ``a_t``: their force per unit mass plus
+    the residual state [m/s^2]."""
+    force_front, force_rear = axle_forces(s, bicycle)
+    return (force_front + force_rear) / bicycle.mass_kg + s["lateral_accel_residual_mps2"]
+
+
+def roll_accel(s: Mapping[str, ca.SX], bicycle: BicycleParams) -> ca.SX:
+    """Roll acceleration of the body, (R2) without noise [rad/s^2]."""
+    roll = bicycle.roll
+    omega = roll.angular_frequency_radps
+    target = roll.gradient_radpmps2 * lateral_tyre_accel(s, bicycle)
+    return (
+        -omega**2 * (s["roll_rad"] - target)
+        - 2.0 * roll.damping_ratio * omega * s["roll_rate_radps"]
+    )
+
+
+def cog_lateral_accel(s: Mapping[str, ca.SX], bicycle: BicycleParams) -> ca.SX:
+    """Kinematic lateral acceleration of the CoG, ``vy' + r vx = a_t - h p'``: what an IMU
+    at the CoG measures [m/s^2]."""
+    return lateral_tyre_accel(s, bicycle) - bicycle.roll.sway_arm_m * roll_accel(s, bicycle)
+
+
 @dataclass(frozen=True)
 class ProcessNoise:
     """Continuous-time white-noise power spectral densities driving the states."""
@@ -158,6 +398,11 @@ class ProcessNoise:
     lateral_accel_psd_m2ps3: float
     yaw_accel_psd_rad2ps3: float
     jerk_psd_m2ps5: float
+    steer_psd_rad2ps: float
+    roll_accel_psd_rad2ps3: float
+    lateral_residual_psd_m2ps5: float
+    gyro_bias_psd_rad2ps3: float
+    accel_bias_psd_m2ps5: float
     rolling_radius_scale_psd_1ps: float
 
     def __post_init__(self) -> None:
@@ -175,28 +420,44 @@ class ProcessNoise:
             "vy_mps": self.lateral_accel_psd_m2ps3,
             "yaw_rate_radps": self.yaw_accel_psd_rad2ps3,
             "ax_mps2": self.jerk_psd_m2ps5,
+            "steer_rad": self.steer_psd_rad2ps,
+            "roll_rad": 0.0,
+            "roll_rate_radps": self.roll_accel_psd_rad2ps3,
+            "lateral_accel_residual_mps2": self.lateral_residual_psd_m2ps5,
+            "gyro_bias_radps": self.gyro_bias_psd_rad2ps3,
+            "ax_bias_mps2": self.accel_bias_psd_m2ps5,
             "rolling_radius_scale": self.rolling_radius_scale_psd_1ps,
         }
         return np.diag([psd[name] for name in STATE_NAMES])
 
 
 class ProcessModel:
-    """The CTRA process model with its CasADi-built discretisation.
+    """The dynamic-bicycle process model with its CasADi-built discretisation.
 
-    The CasADi functions are built once, here; :meth:`step` only evaluates them.
+    The CasADi functions are built once, here; :meth:`step`, :meth:`noise` and
+    :meth:`propagate` only evaluate them.
     """
 
-    def __init__(self, noise: ProcessNoise, lateral_time_constant_s: float) -> None:
+    def __init__(
+        self,
+        noise: ProcessNoise,
+        bicycle: BicycleParams,
+        residual_time_constant_s: float,
+        sigma_point_count: int = 0,
+    ) -> None:
         if not (
-            math.isfinite(lateral_time_constant_s)
-            and lateral_time_constant_s >= MIN_LATERAL_TIME_CONSTANT_S
+            math.isfinite(residual_time_constant_s)
+            and residual_time_constant_s >= MIN_RESIDUAL_TIME_CONSTANT_S
         ):
             raise ValueError(
-                f"lateral_time_constant_s = {lateral_time_constant_s!r}: expected a number "
-                f">= {MIN_LATERAL_TIME_CONSTANT_S}"
+                f"residual_time_constant_s = {residual_time_constant_s!r}: expected a number "
+                f">= {MIN_RESIDUAL_TIME_CONSTANT_S}"
             )
+        if sigma_point_count < 0:
+            raise ValueError(f"sigma_point_count = {sigma_point_count}: expected >= 0")
         self.noise = noise
-        self.lateral_time_constant_s = lateral_time_constant_s
+        self.bicycle = bicycle
+        self.residual_time_constant_s = residual_time_constant_s
         n = len(STATE_NAMES)
         x = ca.SX.sym("x", n)
         dt = ca.SX.sym("dt_s")
@@ -219,27 +480,46 @@ class ProcessModel:
         q = 0.5 * (q + q.T)
 
         self.derivative_function = ca.Function(
-            "ctra_derivative", [x], [self._derivative(x), ca.densify(a)]
+            "bicycle_derivative", [x], [self._derivative(x), ca.densify(a)]
         )
         self.step_function = ca.Function(
-            "ctra_step", [x, dt], [x_next, ca.densify(transition), ca.densify(q)]
+            "bicycle_step", [x, dt], [x_next, ca.densify(transition), ca.densify(q)]
         )
+        mean_step = ca.Function("bicycle_mean_step", [x, dt], [x_next])
+        noise_function = ca.Function("bicycle_noise", [x, dt], [ca.densify(q)])
         self._derivative_fast = DenseFunction(self.derivative_function)
         self._step_fast = DenseFunction(self.step_function)
+        self._noise_fast = DenseFunction(noise_function)
+        self._mean_step_fast = DenseFunction(mean_step)
+        self._mapped_step: DenseFunction | None = None
+        if sigma_point_count:
+            self._mapped_step = DenseFunction(mean_step.map(sigma_point_count, "serial"))
 
     def _derivative(self, x: ca.SX) -> ca.SX:
         s = _named(x)
         cos_yaw, sin_yaw = ca.cos(s["yaw_rad"]), ca.sin(s["yaw_rad"])
         r = s["yaw_rate_radps"]
+        force_front, force_rear = axle_forces(s, self.bicycle)
+        bicycle = self.bicycle
         return _stack(
             {
-                "x_m": s["vx_mps"] * cos_yaw - s["vy_mps"] * sin_yaw,
+                "x_m": s["vx_mps"] * cos_yaw - s["vy_mps"] * sin_yaw,  # (D6)
                 "y_m": s["vx_mps"] * sin_yaw + s["vy_mps"] * cos_yaw,
                 "yaw_rad": r,
                 "vx_mps": s["ax_mps2"] + r * s["vy_mps"],
-                "vy_mps": -s["vy_mps"] / self.lateral_time_constant_s,
-                "yaw_rate_radps": 0.0,
+                "vy_mps": cog_lateral_accel(s, bicycle) - r * s["vx_mps"],  # (D4)
+                "yaw_rate_radps": (
+                    bicycle.cog_front_m * force_front - bicycle.cog_rear_m * force_rear
+                ) / bicycle.yaw_inertia_kgm2,  # (D5)
                 "ax_mps2": 0.0,
+                "steer_rad": 0.0,
+                "roll_rad": s["roll_rate_radps"],
+                "roll_rate_radps": roll_accel(s, bicycle),  # (R2)
+                "lateral_accel_residual_mps2": (
+                    -s["lateral_accel_residual_mps2"] / self.residual_time_constant_s
+                ),
+                "gyro_bias_radps": 0.0,
+                "ax_bias_mps2": 0.0,
                 "rolling_radius_scale": 0.0,
             }
         )
@@ -249,14 +529,40 @@ class ProcessModel:
         f, a = self._derivative_fast(np.asarray(x, dtype=float).reshape(-1))
         return f.reshape(-1), a
 
+    @staticmethod
+    def _check_step(dt_s: float) -> None:
+        if not 0.0 <= dt_s <= MAX_STEP_S * (1.0 + 1e-9):
+            raise ValueError(f"dt_s = {dt_s!r}: expected a sub-step in [0, {MAX_STEP_S}] s")
+
     def step(self, x: np.ndarray, dt_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One sub-step: the predicted mean (column), its Jacobian F and the noise Q.
 
-        ``dt_s`` must not exceed :data:`MAX_STEP_S` (the filter splits longer intervals).
+        ``dt_s`` must not exceed :data:`MAX_STEP_S` (the filters split longer intervals).
         """
-        if not 0.0 <= dt_s <= MAX_STEP_S * (1.0 + 1e-9):
-            raise ValueError(f"dt_s = {dt_s!r}: expected a sub-step in [0, {MAX_STEP_S}] s")
+        self._check_step(dt_s)
         return self._step_fast(x, dt_s)
+
+    def process_noise(self, x: np.ndarray, dt_s: float) -> np.ndarray:
+        """The discrete process noise Q of a sub-step, linearised at ``x``."""
+        self._check_step(dt_s)
+        return self._noise_fast(x, dt_s)[0]
+
+    def propagate(self, points: np.ndarray, dt_s: float) -> np.ndarray:
+        """The RK4 sub-step of every row of ``points`` (one state per row), in one call.
+
+        Uses the Function mapped over ``sigma_point_count`` points if ``points`` has that
+        many rows, else one call per point.
+        """
+        self._check_step(dt_s)
+        points = np.asarray(points, dtype=float)
+        if points.ndim != 2 or points.shape[1] != len(STATE_NAMES):
+            raise ValueError(
+                f"points of shape {points.shape}: expected (count, {len(STATE_NAMES)})"
+            )
+        mapped = self._mapped_step
+        if mapped is not None and points.shape[0] == mapped.function.size_in(0)[1]:
+            return mapped.rows(points, np.full(points.shape[0], dt_s))[0]
+        return np.vstack([self._mean_step_fast(p, dt_s)[0].reshape(-1) for p in points])
 
 
 @dataclass(frozen=True)
@@ -267,12 +573,14 @@ class MeasurementModel:
     sensor's measurements but are dropped (e.g. the steered front wheel speeds);
     ``model_sigma`` is the standard deviation of the model's own error per channel, added
     to the measurement's covariance; ``angle_channels`` have their innovations wrapped.
+    ``function`` returns ``h(x)`` and ``dh/dx``; ``value_function`` ``h(x)`` alone.
     """
 
     sensor: str
     channels: tuple[str, ...]
     model_sigma: tuple[float, ...]
     function: DenseFunction
+    value_function: DenseFunction
     ignored_channels: tuple[str, ...] = ()
     angle_channels: tuple[str, ...] = ()
 
@@ -280,6 +588,10 @@ class MeasurementModel:
         """``h(x)`` (one value per channel) and its Jacobian ``dh/dx``."""
         h, jac = self.function(x)
         return h.reshape(-1), jac
+
+    def value(self, x: np.ndarray) -> np.ndarray:
+        """``h(x)``, one value per channel."""
+        return self.value_function.vector(np.reshape(x, -1))
 
     def select(self, names: tuple[str, ...]) -> tuple[tuple[int, ...], tuple[int, ...]]:
         """Rows of the model and columns of the measurement for the channels in ``names``.
@@ -302,82 +614,140 @@ class MeasurementModel:
         return tuple(model_rows), tuple(measurement_columns)
 
 
-def _measurement_function(
+def _measurement_functions(
     sensor: str, outputs: list[Callable[[dict[str, ca.SX]], ca.SX]]
-) -> DenseFunction:
+) -> tuple[DenseFunction, DenseFunction]:
     x = ca.SX.sym("x", len(STATE_NAMES))
     s = _named(x)
-    h = ca.vertcat(*[expr(s) for expr in outputs])
-    return DenseFunction(
-        ca.Function(f"h_{sensor}", [x], [ca.densify(h), ca.densify(ca.jacobian(h, x))])
+    h = ca.densify(ca.vertcat(*[expr(s) for expr in outputs]))
+    return (
+        DenseFunction(ca.Function(f"h_{sensor}", [x], [h, ca.densify(ca.jacobian(h, x))])),
+        DenseFunction(ca.Function(f"h_{sensor}_value", [x], [h])),
     )
 
 
+def _model(
+    sensor: str,
+    channels: tuple[str, ...],
+    outputs: list[Callable[[dict[str, ca.SX]], ca.SX]],
+    model_sigma: tuple[float, ...] | None = None,
+    **options: tuple[str, ...],
+) -> MeasurementModel:
+    function, value_function = _measurement_functions(sensor, outputs)
+    return MeasurementModel(
+        sensor=sensor,
+        channels=channels,
+        model_sigma=model_sigma if model_sigma is not None else (0.0,) * len(channels),
+        function=function,
+        value_function=value_function,
+        **options,
+    )
+
+
+def ackermann_angles(steer_rad: ca.SX, wheelbase_m: float, track_m: float) -> tuple[ca.SX, ca.SX]:
+    """Left and right road-wheel angles for the bicycle angle ``steer_rad`` (Ackermann
+    geometry, Gillespie, "Fundamentals of Vehicle Dynamics", ch. 6, as the plant steers:
+    ``tan(delta_left) = L tan(delta) / (L - t/2 tan(delta))``, right with ``+``). The
+    steering sensor's mean of the two differs from ``delta`` by O(delta^3)."""
+    tan_delta = ca.tan(steer_rad)
+    lever = 0.5 * track_m * tan_delta
+    return (
+        ca.atan2(wheelbase_m * tan_delta, wheelbase_m - lever),
+        ca.atan2(wheelbase_m * tan_delta, wheelbase_m + lever),
+    )
+
+
+def wheel_spin(
+    s: Mapping[str, ca.SX], wheel: str, belief: VehicleParams, bicycle: BicycleParams
+) -> ca.SX:
+    """Spin rate of ``wheel`` (one of ``WHEEL_NAMES``) of a car rolling without longitudinal
+    slip [rad/s].
+
+    The wheel centre moves with the rigid body, ``(vx - r y_w, vy_a + r x_w)`` in the
+    vehicle frame at the wheel's position ``(x_w, y_w)`` (``vy_a``: the roll axis's lateral
+    velocity, (R1)) (``x_w = l_f`` or ``-l_r``, ``y_w = +-t/2``,
+    left positive); the wheel spins at the component along its own plane (steered by its
+    Ackermann angle at the front), over the believed radius times ``rolling_radius_scale``.
+    """
+    front = wheel.startswith("front")
+    left = wheel.endswith("left")
+    x_w = belief.cog_front_m if front else -belief.cog_rear_m
+    y_w = 0.5 * belief.track_m if left else -0.5 * belief.track_m
+    r = s["yaw_rate_radps"]
+    forward = s["vx_mps"] - r * y_w
+    sideways = axle_lateral_velocity(s, bicycle) + r * x_w
+    if front:
+        left_angle, right_angle = ackermann_angles(
+            s["steer_rad"], belief.wheelbase_m, belief.track_m
+        )
+        angle = left_angle if left else right_angle
+        along = forward * ca.cos(angle) + sideways * ca.sin(angle)
+    else:
+        along = forward
+    return along / (belief.wheel_radius_m * s["rolling_radius_scale"])
+
+
+def free_rolling_wheels(belief: VehicleParams) -> tuple[str, ...]:
+    """The wheels (of ``WHEEL_NAMES``) without drive torque, whose spin tells the speed over
+    ground: the front wheels of a rear-wheel drive, the rear ones of a front-wheel drive,
+    all four of an all-wheel drive (whose drive slip is left to the model sigma and the
+    gate). A driven wheel slips by several per cent under acceleration and its inner wheel
+    spins up in a hard turn (open differential), which no rolling-radius state follows."""
+    if belief.drive == "rwd":
+        return tuple(w for w in WHEEL_NAMES if w.startswith("front"))
+    if belief.drive == "fwd":
+        return tuple(w for w in WHEEL_NAMES if w.startswith("rear"))
+    return WHEEL_NAMES
+
+
 def build_measurement_models(
-    belief: VehicleParams, wheel_model_sigma_mps: float, lateral_accel_model_sigma_mps2: float
+    belief: VehicleParams,
+    wheel_model_sigma_mps: float,
+    lateral_accel_model_sigma_mps2: float,
+    steer_model_sigma_rad: float = 0.0,
+    tyre_model: str = "saturating",
+    roll: RollParams | None = None,
 ) -> dict[str, MeasurementModel]:
-    """The measurement models of every sensor the EKF fuses, by sensor name.
+    """The measurement models of every sensor the filters fuse, by sensor name.
 
     - ``gnss``: CoG position in the world frame.
-    - ``imu``: yaw rate; kinematic accelerations in the vehicle frame, ``ax`` a state and
-      ``ay = r vx`` (kinematic, the ``dvy/dt`` term is left to ``model_sigma``).
-    - ``wheel_speed``: spin of the (unsteered) rear wheels; the centre of the rear-left
-      wheel moves forward at ``vx - r track/2`` (rigid body, left is +y), the rear-right at
-      ``vx + r track/2``; spin = that speed / (believed radius * rolling_radius_scale).
-      Front wheels are steered by an angle the filter does not know; their channels are
-      ignored.
+    - ``imu``: yaw rate plus the gyro bias; the kinematic accelerations of the CoG in the
+      vehicle frame: ``ax`` a state plus the accelerometer's bias, ``ay = vy' + r vx``
+      (:func:`cog_lateral_accel`, (D4)).
+    - ``wheel_speed``: spin of the freely rolling wheels (:func:`free_rolling_wheels`,
+      :func:`wheel_spin`); the driven wheels' channels are ignored.
+    - ``steering``: the front road-wheel angle ``steer_rad``.
     - ``heading`` (optional, e.g. a dual-antenna GNSS): ``yaw_rad`` directly.
     """
-    radius_m = belief.wheel_radius_m
-    half_track_m = 0.5 * belief.track_m
-    wheel_sigma_radps = wheel_model_sigma_mps / radius_m
-    rear_left, rear_right = (f"{w}_radps" for w in WHEEL_NAMES if w.startswith("rear"))
-    front = tuple(f"{w}_radps" for w in WHEEL_NAMES if w.startswith("front"))
+    bicycle = BicycleParams.from_vehicle(belief, tyre_model, roll)
+    wheel_sigma_radps = wheel_model_sigma_mps / belief.wheel_radius_m
+    fused = free_rolling_wheels(belief)
+    ignored = tuple(f"{w}_radps" for w in WHEEL_NAMES if w not in fused)
     models = [
-        MeasurementModel(
-            sensor="gnss",
-            channels=("x_m", "y_m"),
-            model_sigma=(0.0, 0.0),
-            function=_measurement_function("gnss", [lambda s: s["x_m"], lambda s: s["y_m"]]),
-        ),
-        MeasurementModel(
-            sensor="imu",
-            channels=("yaw_rate_radps", "ax_mps2", "ay_mps2"),
+        _model("gnss", ("x_m", "y_m"), [lambda s: s["x_m"], lambda s: s["y_m"]]),
+        _model(
+            "imu",
+            ("yaw_rate_radps", "ax_mps2", "ay_mps2"),
+            [
+                lambda s: s["yaw_rate_radps"] + s["gyro_bias_radps"],
+                lambda s: s["ax_mps2"] + s["ax_bias_mps2"],
+                lambda s: cog_lateral_accel(s, bicycle),
+            ],
             model_sigma=(0.0, 0.0, lateral_accel_model_sigma_mps2),
-            function=_measurement_function(
-                "imu",
-                [
-                    lambda s: s["yaw_rate_radps"],
-                    lambda s: s["ax_mps2"],
-                    lambda s: s["yaw_rate_radps"] * s["vx_mps"],
-                ],
-            ),
         ),
-        MeasurementModel(
-            sensor="wheel_speed",
-            channels=(rear_left, rear_right),
-            model_sigma=(wheel_sigma_radps, wheel_sigma_radps),
-            function=_measurement_function(
-                "wheel_speed",
-                [
-                    lambda s: (
-                        (s["vx_mps"] - half_track_m * s["yaw_rate_radps"])
-                        / (radius_m * s["rolling_radius_scale"])
-                    ),
-                    lambda s: (
-                        (s["vx_mps"] + half_track_m * s["yaw_rate_radps"])
-                        / (radius_m * s["rolling_radius_scale"])
-                    ),
-                ],
-            ),
-            ignored_channels=front,
+        _model(
+            "wheel_speed",
+            tuple(f"{w}_radps" for w in fused),
+            [lambda s, w=w: wheel_spin(s, w, belief, bicycle) for w in fused],
+            model_sigma=(wheel_sigma_radps,) * len(fused),
+            ignored_channels=ignored,
         ),
-        MeasurementModel(
-            sensor="heading",
-            channels=("yaw_rad",),
-            model_sigma=(0.0,),
-            function=_measurement_function("heading", [lambda s: s["yaw_rad"]]),
-            angle_channels=("yaw_rad",),
+        _model(
+            "steering",
+            ("steer_rad",),
+            [lambda s: s["steer_rad"]],
+            model_sigma=(steer_model_sigma_rad,),
         ),
+        _model("heading", ("yaw_rad",), [lambda s: s["yaw_rad"]], angle_channels=("yaw_rad",)),
     ]
     return {model.sensor: model for model in models}

@@ -8,9 +8,11 @@ from cosim.vehicle_params import VehicleParams
 from estimation.config import ESTIMATOR_NAMES, EstimatorConfig
 from estimation.ekf import Ekf
 from estimation.truth import TruthEstimator
+from estimation.ukf import Ukf
 
 __all__ = [
     "ESTIMATOR_NAMES",
+    "Estimator",
     "estimator_class",
     "make_estimator",
     "required_sensors",
@@ -18,10 +20,15 @@ __all__ = [
 ]
 
 
-def estimator_class(name: str) -> type[Ekf] | type[TruthEstimator]:
+Estimator = Ekf | Ukf | TruthEstimator
+
+
+def estimator_class(name: str) -> type[Ekf] | type[Ukf] | type[TruthEstimator]:
     """The class registered as ``name``; a :class:`ConfigError` listing the known ones."""
     if name == "ekf":
         return Ekf
+    if name == "ukf":
+        return Ukf
     if name == "truth":
         return TruthEstimator
     raise ConfigError(f"estimator.name = {name!r}: expected one of {', '.join(ESTIMATOR_NAMES)}")
@@ -33,7 +40,7 @@ def make_estimator(
     belief: VehicleParams,
     *,
     t0_s: float = 0.0,
-) -> Ekf | TruthEstimator:
+) -> Estimator:
     """Build the estimator ``config.name`` with its initial belief at ``t0_s``."""
     return estimator_class(config.name)(config, initial, belief, t0_s=t0_s)
 

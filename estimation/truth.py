@@ -29,14 +29,12 @@ from estimation.update_result import (
     UpdateResult,
 )
 
-TRUTH_STATE_NAMES: tuple[str, ...] = VEHICLE_STATE_NAMES + (
-    "ay_mps2",
-    "steer_rad",
-    "z_m",
-    "roll_rad",
-    "pitch_rad",
+TRUTH_STATE_NAMES: tuple[str, ...] = VEHICLE_STATE_NAMES + tuple(
+    name
+    for name in ("ay_mps2", "steer_rad", "z_m", "roll_rad", "pitch_rad")
+    if name not in VEHICLE_STATE_NAMES
 )
-"""The EKF's vehicle states followed by the rest of the truth's scalar fields."""
+"""The filters' vehicle states followed by the rest of the truth's scalar fields."""
 
 _ANGLE_NAMES: tuple[str, ...] = ("yaw_rad", "roll_rad", "pitch_rad", "steer_rad")
 

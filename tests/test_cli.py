@@ -56,7 +56,7 @@ def test_inspect_json_holds_the_metric_contract(short_run: RunResult) -> None:
     assert document["metrics"]["completed"] is True
     topics = {c["topic"]: c for c in document["channels"]}
     assert topics["/vehicle/truth"]["count"] == 201
-    assert document["config"]["tracker"]["name"] == "kinematic-nmpc"
+    assert document["config"]["tracker"]["name"] == "dynamic-nmpc"
 
 
 def test_inspect_text_and_topic_dump(short_run: RunResult) -> None:

@@ -19,7 +19,7 @@ def test_builtin_lane_change_matches_the_seed_digest() -> None:
     assert config.plant.mass_kg == 1575.0
     assert config.plant.yaw_inertia_kgm2 == 2875.0
     assert (config.plant.cog_front_m, config.plant.cog_rear_m) == (1.2, 1.6)
-    assert config.tracker.name == "kinematic-nmpc"
+    assert config.tracker.name == "dynamic-nmpc"
     assert config.estimator.name == "ekf"
 
 

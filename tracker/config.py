@@ -15,26 +15,37 @@ with ``a_{-1}, delta_{-1}`` the previously applied command. Each weight multipli
 square of an SI quantity per second of horizon, so changing ``dt_s`` or ``horizon`` does not
 rescale the balance between the terms.
 
-Default tuning (measured on the MuJoCo sedan with the EKF in the loop, stretched double lane
-change at 20 m/s from 15 m/s, about 0.5 g; the tracker tests check the kinematic bench):
+Default tuning, shared by both NMPCs and made for the default tracker ``dynamic-nmpc``
+(measured on the MuJoCo sedan with Pacejka tyres and the EKF in the loop, stretched double
+lane change at 20 m/s from 15 m/s, about 0.5 g; max CTE for seeds 0/1/2, ``plant.mass_kg=
+2000``, ``plant.tire_friction=0.7``; details in :mod:`tracker.dynamic_nmpc`):
 
-* ``steer_rate`` dominates the steering terms. The kinematic model has neither the car's
-  yaw and sideslip dynamics nor the steering actuator (50 ms first-order lag, 0.8 rad/s).
-  A fast loop (``cte`` / ``steer_rate`` of 4, the first guess) diverged on the plant as
-  soon as the steering lagged more than the model believed (120 ms lag, 100 ms delay, wet
-  road). At a ratio of 0.5 the nominal car stays well within 0.1 m of the path, and within
-  0.45 m with a 0.2 s steering lag. The other weights matter little: ``heading`` is small
-  next to ``cte`` and only damps; ``speed`` against ``accel`` makes the car accelerate at
-  the 3 m/s^2 bound from 15 to 20 m/s, as in the seed paper (section 2).
-* ``latency_s = 0.075``: the 50 ms steering time constant of the default plant plus half
-  of the 50 ms control period (zero-order hold). Predicting the estimate over it (section
-  1, item (a)) lowers the nominal max CTE from about 0.14 m to 0.06-0.09 m, and with an
-  extra 100 ms actuator delay in the plant from 1.8 m to 0.33 m. Set it to 0 for a plant
-  that acts instantly (as the kinematic test bench does), and add
-  ``plant.actuator_delay_s`` to it when the plant has a transport delay.
+* ``steer_rate = 3`` against ``cte = 10``. The dynamic model carries the yaw and sideslip
+  dynamics and the steering actuator, so the loop can be much faster than the kinematic
+  NMPC's ``steer_rate = 20`` (0.13 m nominal): ``steer_rate`` 1 / 3 / 10 gives
+  0.050 / 0.056 / 0.096 m nominal, 0.094 / 0.110 / 0.157 m with the 2000 kg car. Below 3
+  the gain is a few millimetres, bought with a jumpier wheel on the straight (RMS steering
+  rate from sensor noise 0.048 / 0.032 / 0.020 rad/s) and less margin: with MuJoCo contact
+  tyres (a car with no cornering compliance, far from the belief) ``steer_rate = 1``
+  oscillated to 1.96 m, 3 gives 0.37 m (seed lesson: with noisy sensing, moderate weights
+  beat aggressive ones). The kinematic NMPC with these weights: 0.75 m on the default
+  sedan (1.56 m with 20); with contact tyres 0.12 m with the filter that has no tyre model
+  (0.13 m with 20), 3.0 m with the filter that assumes the belief's linear tyres (0.69 m
+  with 20): ``--set tracker.weights.steer_rate=20`` restores its earlier tuning.
+  The other weights matter little: ``heading`` 0.5 instead of 2 changes nothing; ``speed``
+  against ``accel`` makes the car accelerate at the 3 m/s^2 bound from 15 to 20 m/s, as in
+  the seed paper (section 2).
+* ``limit_excess = 1e4``: the soft limit on the dynamic model's slip angles (the linear
+  tyres' range). It never binds at 0.5 g; on Falcone's unstretched path (1.11 g,
+  ``lane-change-limit``) it keeps the car from spinning (0.70 m instead of 15.7 m).
+* ``latency_s = 0``: the command's transport delay, which no model contains; set it to
+  ``plant.actuator_delay_s`` (with a 100 ms delay: 0.12 m with ``latency_s = 0.1``,
+  0.6-1.4 m without). The steering actuator's lag is not latency: the dynamic model
+  contains it, and the kinematic model, which lacks it, adds ``model.steer_time_constant_s``
+  itself (section 1, latency item (a); see :mod:`tracker.kinematic_nmpc`).
 * ``horizon = 25`` at ``dt_s = 0.05``: 1.25 s or 25 m of preview at 20 m/s, the length of
   one steering swing of the lane change (section 1: longer horizons at higher speed). 20
-  and 30 stages give within 10 % of the same errors.
+  stages: 0.094 m; 30 stages: 0.052 m at about 15 % more solve time.
 """
 
 from __future__ import annotations
@@ -46,7 +57,7 @@ from cosim.config_fields import section, setting
 from cosim.exceptions import ConfigError
 from cosim.vehicle_params import VehicleParams
 
-TRACKER_CHOICES: tuple[str, ...] = ("kinematic-nmpc", "open-loop")
+TRACKER_CHOICES: tuple[str, ...] = ("kinematic-nmpc", "dynamic-nmpc", "open-loop")
 """Values ``tracker.name`` accepts; :data:`tracker.registry.TRACKER_NAMES` maps each one."""
 
 
@@ -62,7 +73,14 @@ class TrackerWeights:
     accel_rate: float = setting(
         0.05, low=0.0, high=1e6, doc="(rate of acceleration)^2 [s^5/m^2]"
     )
-    steer_rate: float = setting(20.0, low=0.0, high=1e6, doc="(steering rate)^2 [s/rad^2]")
+    steer_rate: float = setting(3.0, low=0.0, high=1e6, doc="(steering rate)^2 [s/rad^2]")
+    limit_excess: float = setting(
+        1e4,
+        low=0.0,
+        high=1e9,
+        doc="(excess over the model's soft limits)^2; dynamic-nmpc: tyre slip angles beyond "
+        "the linear range [1/(rad^2 s)]",
+    )
 
 
 @dataclass(frozen=True)
@@ -73,7 +91,7 @@ class TrackerConfig:
     ``plant`` section. Their difference is the model mismatch under study.
     """
 
-    name: str = setting("kinematic-nmpc", choices=TRACKER_CHOICES, doc="tracker to build")
+    name: str = setting("dynamic-nmpc", choices=TRACKER_CHOICES, doc="tracker to build")
     horizon: int = setting(25, low=2, high=200, doc="number of stages N")
     dt_s: float = setting(0.05, low=0.005, high=1.0, doc="length of one stage [s]")
     weights: TrackerWeights = section(TrackerWeights)
@@ -88,7 +106,12 @@ class TrackerConfig:
     max_iterations: int = setting(100, low=1, high=10000, doc="IPOPT iteration limit")
     tolerance: float = setting(1e-6, low=1e-12, high=1.0, doc="IPOPT convergence tolerance")
     latency_s: float = setting(
-        0.075, low=0.0, high=2.0, doc="actuation latency to predict over (seed section 1)"
+        0.0,
+        low=0.0,
+        high=2.0,
+        doc="command transport delay to predict over (seed section 1), e.g. "
+        "plant.actuator_delay_s; a model without the steering actuator adds "
+        "model.steer_time_constant_s itself",
     )
     fallback_time_s: float = setting(
         0.5, low=0.0, high=10.0, doc="how long to replay the last plan before a safe stop"

@@ -212,21 +212,30 @@ def steady_lateral_velocity(vx_mps: Symbolic | float, yaw_rate_radps: Symbolic |
 
 
 def slip_angles(lateral_state: Symbolic, steer_rad: Symbolic, vx_mps: Symbolic,
-                params: Symbolic) -> tuple[Symbolic, Symbolic]:
-    """Front and rear axle slip angles, (D1)-(D2) [rad]."""
+                params: Symbolic, min_slip_speed_mps: float = 0.0) -> tuple[Symbolic, Symbolic]:
+    """Front and rear axle slip angles, (D1)-(D2) [rad].
+
+    With ``min_slip_speed_mps > 0`` the speed in the denominators is ``fmax(vx,
+    min_slip_speed_mps)``: (D1)-(D2) are singular at standstill, and a controller's model
+    must stay finite (and not too stiff) at any speed its optimiser tries.
+    """
     vy = lateral_state[LATERAL_STATE["vy_mps"]]
     r = lateral_state[LATERAL_STATE["yaw_rate_radps"]]
     l_f, l_r = _param(params, "cog_front_m"), _param(params, "cog_rear_m")
+    if min_slip_speed_mps > 0.0:
+        vx_mps = ca.fmax(vx_mps, min_slip_speed_mps)
     alpha_f = steer_rad - (vy + l_f * r) / vx_mps
     alpha_r = -(vy - l_r * r) / vx_mps
     return alpha_f, alpha_r
 
 
 def lateral_dynamics(lateral_state: Symbolic, steer_rad: Symbolic, vx_mps: Symbolic,
-                     params: Symbolic) -> Symbolic:
-    """``[vy', r']`` of (D1)-(D5) as a 2x1 expression (``vx_mps`` must be positive)."""
+                     params: Symbolic, min_slip_speed_mps: float = 0.0) -> Symbolic:
+    """``[vy', r']`` of (D1)-(D5) as a 2x1 expression (``vx_mps`` must be positive unless
+    ``min_slip_speed_mps > 0`` guards the slip angles, see :func:`slip_angles`)."""
     r = lateral_state[LATERAL_STATE["yaw_rate_radps"]]
-    alpha_f, alpha_r = slip_angles(lateral_state, steer_rad, vx_mps, params)
+    alpha_f, alpha_r = slip_angles(lateral_state, steer_rad, vx_mps, params,
+                                   min_slip_speed_mps)
     force_front = _param(params, "cornering_stiffness_front_npr") * alpha_f  # (D3)
     force_rear = _param(params, "cornering_stiffness_rear_npr") * alpha_r
     derivative = {
@@ -238,13 +247,16 @@ def lateral_dynamics(lateral_state: Symbolic, steer_rad: Symbolic, vx_mps: Symbo
     return ca.vertcat(*(derivative[name] for name in LATERAL_STATE_NAMES))
 
 
-def continuous_dynamics(state: Symbolic, inputs: Symbolic, params: Symbolic) -> Symbolic:
-    """Time derivative of the full state, (D1)-(D6), as a 6x1 expression."""
+def continuous_dynamics(state: Symbolic, inputs: Symbolic, params: Symbolic,
+                        min_slip_speed_mps: float = 0.0) -> Symbolic:
+    """Time derivative of the full state, (D1)-(D6), as a 6x1 expression
+    (``min_slip_speed_mps``: see :func:`slip_angles`)."""
     yaw = state[STATE["yaw_rad"]]
     vx = state[STATE["vx_mps"]]
     vy = state[STATE["vy_mps"]]
     r = state[STATE["yaw_rate_radps"]]
-    lateral = lateral_dynamics(ca.vertcat(vy, r), inputs[INPUT["steer_rad"]], vx, params)
+    lateral = lateral_dynamics(ca.vertcat(vy, r), inputs[INPUT["steer_rad"]], vx, params,
+                               min_slip_speed_mps)
     derivative = {
         "x_m": vx * ca.cos(yaw) - vy * ca.sin(yaw),
         "y_m": vx * ca.sin(yaw) + vy * ca.cos(yaw),

@@ -12,6 +12,7 @@ from types import MappingProxyType
 from cosim.exceptions import ConfigError
 from cosim.protocols import Tracker
 from tracker.config import TrackerConfig
+from tracker.dynamic_nmpc import DynamicNmpc
 from tracker.kinematic_nmpc import KinematicNmpc
 from tracker.maneuver import ManeuverConfig
 from tracker.open_loop import OpenLoopTracker
@@ -21,6 +22,7 @@ _CONSTRUCTORS: MappingProxyType[
 ] = MappingProxyType(
     {
         "kinematic-nmpc": lambda config, maneuver: KinematicNmpc(config),
+        "dynamic-nmpc": lambda config, maneuver: DynamicNmpc(config),
         "open-loop": OpenLoopTracker,
     }
 )

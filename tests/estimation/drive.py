@@ -1,14 +1,20 @@
-"""Synthetic drives for the estimator tests: truth from kinematics, noisy sensors, a run.
+"""Synthetic drives for the estimator tests: a dynamic-bicycle truth, noisy sensors, a run.
 
-The truth is integrated here, independently of the filter, from prescribed yaw-rate,
-acceleration and sideslip profiles (the same kinematic equations as the EKF's process model,
-see estimation/models.py). Sensors sample it on an integer-millisecond clock with a seeded
-numpy Generator: GNSS at 10 Hz, IMU at 100 Hz, wheel speeds at 100 Hz offset by 5 ms so the
-filter sees measurements out of one common rhythm.
+The truth is integrated here in numpy, independently of estimation/models.py, from
+prescribed steering and longitudinal-acceleration profiles: the dynamic bicycle of the seed
+digest (section 2; Rajamani, "Vehicle Dynamics and Control", section 2.3) with the
+tyre law ``F = mu F_z tanh(C alpha / (mu F_z))`` (or linear), the belief's mass, inertia,
+CoG position and cornering stiffnesses, for the point on the roll axis below the CoG; and a
+second-order body roll driven by the tyres' lateral acceleration, which sways the CoG
+sideways by ``h phi`` (the MuJoCo sedan's numbers: :data:`ROLL_GRADIENT_RADPMPS2` ...).
+Sensors sample it on an integer-millisecond clock with a seeded numpy Generator: GNSS at
+10 Hz, IMU and steering at 100 Hz, wheel speeds at 100 Hz offset by 5 ms, so the filter
+sees measurements out of one common rhythm.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -17,20 +23,35 @@ import numpy as np
 
 from cosim.initial_state import InitialState
 from cosim.records import WHEEL_NAMES, Measurement
+from cosim.sedan_model import ackermann_angles
 from cosim.vehicle_params import VehicleParams
 from estimation.config import EstimatorConfig
-from estimation.ekf import Ekf
-from estimation.models import STATE_NAMES, wrap_angle
+from estimation.models import (
+    DEFAULT_CORNERING_STIFFNESS_FRONT_NPR,
+    DEFAULT_CORNERING_STIFFNESS_REAR_NPR,
+    STATE_NAMES,
+    wrap_angle,
+)
+from estimation.registry import make_estimator
 
 TRUTH_STEP_S = 1e-3
 GNSS_PERIOD_MS = 100
 IMU_PERIOD_MS = 10
+STEERING_PERIOD_MS = 10
 WHEEL_PERIOD_MS = 10
 WHEEL_OFFSET_MS = 5
+GRAVITY_MPS2 = 9.81
 
 IMU_YAW_RATE_SIGMA_RADPS = 0.003
 IMU_ACCEL_SIGMA_MPS2 = 0.05
 WHEEL_SIGMA_RADPS = 0.05
+STEERING_SIGMA_RAD = 0.001
+REAR_DRIVE_SLIP_PER_MPS2 = 0.01
+"""Drive slip of the (driven, ignored) rear wheels per m/s^2 of acceleration."""
+ROLL_GRADIENT_RADPMPS2 = 0.0100
+ROLL_FREQUENCY_HZ = 1.47
+ROLL_DAMPING_RATIO = 0.51
+"""The body roll mode of the MuJoCo sedan (estimation/config.py derives the same numbers)."""
 
 NEES_STATES: tuple[str, ...] = ("x_m", "y_m", "yaw_rad", "vx_mps")
 
@@ -51,58 +72,43 @@ def _sine_cycle(t_s: float, start_s: float, period_s: float) -> float:
 
 @dataclass(frozen=True)
 class Profile:
-    """Prescribed motion: yaw rate, longitudinal acceleration, sideslip, over time."""
+    """Prescribed inputs: road-wheel angle and kinematic longitudinal acceleration."""
 
     name: str
     duration_s: float
     speed0_mps: float
-    yaw_rate_radps: Callable[[float], float]
+    steer_rad: Callable[[float], float]
     accel_mps2: Callable[[float], float]
-    lateral_velocity_mps: Callable[[float, float, float], float] = (
-        lambda t_s, vx_mps, yaw_rate_radps: 0.0
-    )
-    """vy as a function of time, vx and yaw rate (0: the plain CTRA truth)."""
 
 
-def lane_change(sideslip_gain_s: float = 0.0) -> Profile:
-    """Accelerate 15 -> ~17.6 m/s, then a double lane change (~3.5 m each way), 15 s.
+@functools.cache
+def lane_change(peak_steer_rad: float = 0.045) -> Profile:
+    """Accelerate 15 -> ~17.6 m/s, then a double lane change, 15 s.
 
-    With ``sideslip_gain_s`` != 0 the car also slips sideways, ``vy = -gain * vx * r``
-    (a sedan above its characteristic speed points its nose into the turn).
+    The default peak steer gives yaw rates of about 0.2 rad/s and 3.5 m/s^2 of lateral
+    acceleration (mildly nonlinear: the tanh tyres give 4 % less force than linear ones).
     """
-    peak_yaw_rate_radps = 0.2
     period_s = 2.5
     return Profile(
         name="lane-change",
         duration_s=15.0,
         speed0_mps=15.0,
-        yaw_rate_radps=lambda t: (
-            peak_yaw_rate_radps * (_sine_cycle(t, 4.0, period_s) - _sine_cycle(t, 9.0, period_s))
+        steer_rad=lambda t: peak_steer_rad * (
+            _sine_cycle(t, 4.0, period_s) - _sine_cycle(t, 9.0, period_s)
         ),
         accel_mps2=lambda t: 1.5 * _smooth_bump(t, 0.5, 3.5),
-        lateral_velocity_mps=lambda t, vx, r: -sideslip_gain_s * vx * r,
     )
 
 
-def circle(
-    radius_m: float = 40.0, speed_mps: float = 15.0, sideslip_gain_s: float = 0.0
-) -> Profile:
-    """Enter a circle of ``radius_m`` over 1 s and keep going round, 20 s.
-
-    ``sideslip_gain_s`` as in :func:`lane_change` (a steady sideslip on the circle).
-    """
-    yaw_rate = speed_mps / radius_m
-
-    def yaw_rate_radps(t_s: float) -> float:
-        return yaw_rate * min(1.0, max(0.0, t_s - 1.0))
-
+@functools.cache
+def circle(steer_rad: float = 0.06, speed_mps: float = 15.0, duration_s: float = 20.0) -> Profile:
+    """Steer into a steady turn over 1 s (0.06 rad at 15 m/s: ~0.24 rad/s, 3.6 m/s^2)."""
     return Profile(
         name="circle",
-        duration_s=20.0,
+        duration_s=duration_s,
         speed0_mps=speed_mps,
-        yaw_rate_radps=yaw_rate_radps,
+        steer_rad=lambda t: steer_rad * min(1.0, max(0.0, t - 1.0)),
         accel_mps2=lambda t: 0.0,
-        lateral_velocity_mps=lambda t, vx, r: -sideslip_gain_s * vx * r,
     )
 
 
@@ -117,61 +123,108 @@ class Truth:
         return float(self.values[name][index_ms])
 
 
-def simulate_truth(profile: Profile, initial: InitialState) -> Truth:
-    """Integrate the kinematics (RK4 at 1 ms) for the prescribed profiles."""
-    steps = round(profile.duration_s / TRUTH_STEP_S)
-    t = np.arange(steps + 1) * TRUTH_STEP_S
+def _tyre_force_n(
+    stiffness_npr: float, slip_rad: float, load_n: float, friction: float, saturating: bool
+) -> float:
+    linear = stiffness_npr * slip_rad
+    if not saturating:
+        return linear
+    limit = friction * load_n
+    return limit * math.tanh(linear / limit)
 
-    def lateral(t_s: float, vx: float) -> float:
-        return profile.lateral_velocity_mps(t_s, vx, profile.yaw_rate_radps(t_s))
 
-    def derivative(t_s: float, pose: np.ndarray) -> np.ndarray:
-        x, y, yaw, vx = pose
-        r = profile.yaw_rate_radps(t_s)
-        vy = lateral(t_s, vx)
+@functools.cache
+def simulate_truth(
+    profile: Profile,
+    initial: InitialState,
+    belief: VehicleParams,
+    saturating: bool = True,
+    roll_gradient_radpmps2: float = ROLL_GRADIENT_RADPMPS2,
+) -> Truth:
+    """Integrate the dynamic bicycle and the roll mode (RK4 at 1 ms) driven by the
+    profile's inputs; report the motion of the CoG as VehicleState does. Cached (the
+    profiles are too): callers must not modify the arrays."""
+    m, i_z = belief.mass_kg, belief.yaw_inertia_kgm2
+    l_f, l_r = belief.cog_front_m, belief.cog_rear_m
+    c_f = getattr(belief, "cornering_stiffness_front_npr", DEFAULT_CORNERING_STIFFNESS_FRONT_NPR)
+    c_r = getattr(belief, "cornering_stiffness_rear_npr", DEFAULT_CORNERING_STIFFNESS_REAR_NPR)
+    load_f = m * GRAVITY_MPS2 * l_r / (l_f + l_r)
+    load_r = m * GRAVITY_MPS2 * l_f / (l_f + l_r)
+    mu = belief.tire_friction
+    omega = 2.0 * math.pi * ROLL_FREQUENCY_HZ
+    arm_m = belief.cog_height_m if roll_gradient_radpmps2 > 0.0 else 0.0
+
+    def forces(state: np.ndarray, steer: float) -> tuple[float, float]:
+        _, _, _, vx, vy_axis, r, _, _ = state
+        alpha_f = steer - (vy_axis + l_f * r) / vx
+        alpha_r = -(vy_axis - l_r * r) / vx
+        return (
+            _tyre_force_n(c_f, alpha_f, load_f, mu, saturating),
+            _tyre_force_n(c_r, alpha_r, load_r, mu, saturating),
+        )
+
+    def roll_accel(state: np.ndarray, lateral_accel: float) -> float:
+        roll, roll_rate = state[6], state[7]
+        return (-omega**2 * (roll - roll_gradient_radpmps2 * lateral_accel)
+                - 2.0 * ROLL_DAMPING_RATIO * omega * roll_rate)
+
+    def derivative(t_s: float, state: np.ndarray) -> np.ndarray:
+        # The planar motion of the point on the roll axis below the CoG, and the roll.
+        _, _, yaw, vx, vy_axis, r, _, roll_rate = state
+        f_f, f_r = forces(state, profile.steer_rad(t_s))
+        lateral_accel = (f_f + f_r) / m
         return np.array(
             [
-                vx * math.cos(yaw) - vy * math.sin(yaw),
-                vx * math.sin(yaw) + vy * math.cos(yaw),
+                vx * math.cos(yaw) - vy_axis * math.sin(yaw),
+                vx * math.sin(yaw) + vy_axis * math.cos(yaw),
                 r,
-                profile.accel_mps2(t_s) + r * vy,
+                profile.accel_mps2(t_s) + r * vy_axis,
+                lateral_accel - r * vx,
+                (l_f * f_f - l_r * f_r) / i_z,
+                roll_rate,
+                roll_accel(state, lateral_accel),
             ]
         )
 
-    poses = np.empty((steps + 1, 4))
-    poses[0] = (initial.x_m, initial.y_m, initial.yaw_rad, initial.speed_mps)
+    steps = round(profile.duration_s / TRUTH_STEP_S)
+    t = np.arange(steps + 1) * TRUTH_STEP_S
+    states = np.empty((steps + 1, 8))
+    states[0] = (initial.x_m, initial.y_m, initial.yaw_rad, initial.speed_mps, 0.0, 0.0, 0.0,
+                 0.0)
     h = TRUTH_STEP_S
     for k in range(steps):
-        tk, p = t[k], poses[k]
-        k1 = derivative(tk, p)
-        k2 = derivative(tk + h / 2, p + h / 2 * k1)
-        k3 = derivative(tk + h / 2, p + h / 2 * k2)
-        k4 = derivative(tk + h, p + h * k3)
-        poses[k + 1] = p + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-
-    vx = poses[:, 3]
-    r = np.array([profile.yaw_rate_radps(tk) for tk in t])
-    vy = np.array([lateral(tk, v) for tk, v in zip(t, vx, strict=True)])
-    ax = np.array([profile.accel_mps2(tk) for tk in t])  # kinematic: dvx/dt - r vy
-    vy_dot = np.gradient(vy, TRUTH_STEP_S)
+        tk, s = t[k], states[k]
+        k1 = derivative(tk, s)
+        k2 = derivative(tk + h / 2, s + h / 2 * k1)
+        k3 = derivative(tk + h / 2, s + h / 2 * k2)
+        k4 = derivative(tk + h, s + h * k3)
+        states[k + 1] = s + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    steer = np.array([profile.steer_rad(tk) for tk in t])
+    lateral = np.array([sum(forces(s, d)) / m for s, d in zip(states, steer, strict=True)])
+    roll_accels = np.array([roll_accel(s, a) for s, a in zip(states, lateral, strict=True)])
+    yaw, roll, roll_rate = states[:, 2], states[:, 6], states[:, 7]
+    sway_m = -arm_m * roll  # the CoG moves right (-y) when the body rolls left side up
     return Truth(
         t_s=t,
         values={
-            "x_m": poses[:, 0],
-            "y_m": poses[:, 1],
-            "yaw_rad": np.asarray(wrap_angle(poses[:, 2])),
-            "vx_mps": vx,
-            "vy_mps": vy,
-            "yaw_rate_radps": r,
-            "ax_mps2": ax,
-            "ay_mps2": vy_dot + r * vx,
+            "x_m": states[:, 0] - sway_m * np.sin(yaw),
+            "y_m": states[:, 1] + sway_m * np.cos(yaw),
+            "yaw_rad": np.asarray(wrap_angle(yaw)),
+            "vx_mps": states[:, 3],
+            "vy_mps": states[:, 4] - arm_m * roll_rate,
+            "vy_axis_mps": states[:, 4],
+            "yaw_rate_radps": states[:, 5],
+            "ax_mps2": np.array([profile.accel_mps2(tk) for tk in t]),
+            "ay_mps2": lateral - arm_m * roll_accels,  # = vy' + r vx at the CoG
+            "steer_rad": steer,
+            "roll_rad": roll,
         },
     )
 
 
 @dataclass(frozen=True)
 class SensorSetup:
-    """Noise and faults of the synthetic sensors."""
+    """Noise, biases and faults of the synthetic sensors."""
 
     gnss_sigma_m: float = 0.02
     gnss_outage_s: tuple[float, float] | None = None
@@ -181,8 +234,11 @@ class SensorSetup:
     gnss_offset_from_s: float | None = None
     """From this time on every GNSS fix is offset by ``gnss_outlier_m`` (persistent fault)."""
     nan_imu_at_s: float | None = None
+    gyro_bias_radps: float = 0.0
+    ax_bias_mps2: float = 0.0
     use_imu: bool = True
     use_wheels: bool = True
+    use_steering: bool = True
     rolling_radius_scale: float = 1.0
     """True effective rolling radius over the believed one (the filter starts at 1)."""
 
@@ -194,9 +250,9 @@ def _ms(t_s: float) -> int:
 def synthesize(
     truth: Truth, belief: VehicleParams, setup: SensorSetup, rng: np.random.Generator
 ) -> list[Measurement]:
-    """Every sensor's measurements, sorted by time (gnss, imu, wheels on ties)."""
+    """Every sensor's measurements, sorted by time (gnss, imu, steering, wheels on ties)."""
     # One child generator per sensor: turning a sensor off does not change another's noise.
-    gnss_rng, imu_rng, wheel_rng = rng.spawn(3)
+    gnss_rng, imu_rng, wheel_rng, steering_rng = rng.spawn(4)
     last_ms = len(truth.t_s) - 1
     measurements: list[tuple[int, int, Measurement]] = []
 
@@ -215,8 +271,10 @@ def synthesize(
 
     imu_names = ("yaw_rate_radps", "ax_mps2", "ay_mps2")
     imu_sigma = np.array([IMU_YAW_RATE_SIGMA_RADPS, IMU_ACCEL_SIGMA_MPS2, IMU_ACCEL_SIGMA_MPS2])
+    imu_bias = np.array([setup.gyro_bias_radps, setup.ax_bias_mps2, 0.0])
     for index in range(IMU_PERIOD_MS, last_ms + 1, IMU_PERIOD_MS):
-        values = np.array([truth.at(index, n) for n in imu_names]) + imu_rng.normal(0, imu_sigma)
+        values = np.array([truth.at(index, n) for n in imu_names]) + imu_bias
+        values = values + imu_rng.normal(0, imu_sigma)
         if setup.nan_imu_at_s is not None and index == _ms(setup.nan_imu_at_s):
             values[1] = math.nan
         if setup.use_imu:
@@ -228,18 +286,32 @@ def synthesize(
                 )
             )
 
+    for index in range(STEERING_PERIOD_MS, last_ms + 1, STEERING_PERIOD_MS):
+        value = truth.at(index, "steer_rad") + steering_rng.normal(0.0, STEERING_SIGMA_RAD)
+        if setup.use_steering:
+            cov = np.eye(1) * STEERING_SIGMA_RAD**2
+            measurement = Measurement(
+                "steering", index / 1000.0, ("steer_rad",), np.array([value]), cov
+            )
+            measurements.append((index, 2, measurement))
+
     wheel_names = tuple(f"{w}_radps" for w in WHEEL_NAMES)
     half_track = 0.5 * belief.track_m
     for index in range(WHEEL_OFFSET_MS, last_ms + 1, WHEEL_PERIOD_MS):
-        vx, vy, r = (truth.at(index, n) for n in ("vx_mps", "vy_mps", "yaw_rate_radps"))
-        # Front wheels roll along their own (steered) direction: centre speed magnitude.
+        vx, vy, r, ax, steer = (
+            truth.at(index, n) for n in ("vx_mps", "vy_axis_mps", "yaw_rate_radps", "ax_mps2",
+                                         "steer_rad")
+        )
+        # Front wheels: the centre's velocity along the wheel's own (Ackermann) plane.
+        left, right = ackermann_angles(steer, belief.wheelbase_m, belief.track_m)
         front_lateral = vy + r * belief.cog_front_m
+        slip = 1.0 + REAR_DRIVE_SLIP_PER_MPS2 * ax  # driven rear wheels spin faster
         speeds = np.array(
             [
-                math.hypot(vx - r * half_track, front_lateral),
-                math.hypot(vx + r * half_track, front_lateral),
-                vx - r * half_track,
-                vx + r * half_track,
+                (vx - r * half_track) * math.cos(left) + front_lateral * math.sin(left),
+                (vx + r * half_track) * math.cos(right) + front_lateral * math.sin(right),
+                (vx - r * half_track) * slip,
+                (vx + r * half_track) * slip,
             ]
         )
         radius_m = belief.wheel_radius_m * setup.rolling_radius_scale
@@ -247,7 +319,7 @@ def synthesize(
         if setup.use_wheels:
             cov = np.eye(4) * WHEEL_SIGMA_RADPS**2
             measurements.append(
-                (index, 2, Measurement("wheel_speed", index / 1000.0, wheel_names, values, cov))
+                (index, 3, Measurement("wheel_speed", index / 1000.0, wheel_names, values, cov))
             )
     measurements.sort(key=lambda item: (item[0], item[1]))
     return [m for _, _, m in measurements]
@@ -266,20 +338,28 @@ class Run:
     counts: dict[str, dict[str, int]] = field(default_factory=dict)
     reasons: list[tuple[float, str, str]] = field(default_factory=list)
 
+    def state(self, name: str) -> np.ndarray:
+        return self.means[:, STATE_NAMES.index(name)]
+
+    def sigma(self, name: str) -> np.ndarray:
+        index = STATE_NAMES.index(name)
+        return np.sqrt(self.covariances[:, index, index])
+
     def error(self, name: str) -> np.ndarray:
         """Estimate minus truth (wrapped for yaw) at every logged time."""
-        estimate = self.means[:, STATE_NAMES.index(name)]
         true = self.truth.values[name][self.truth_index]
-        difference = estimate - true
+        difference = self.state(name) - true
         return np.asarray(wrap_angle(difference)) if name == "yaw_rad" else difference
 
     def settled(self, after_s: float = 1.0) -> np.ndarray:
         return self.t_s >= after_s
 
+    def position_error_m(self) -> np.ndarray:
+        return np.hypot(self.error("x_m"), self.error("y_m"))
+
     def position_rmse_m(self, mask: np.ndarray | None = None) -> float:
         mask = self.settled() if mask is None else mask
-        squared = self.error("x_m") ** 2 + self.error("y_m") ** 2
-        return float(np.sqrt(np.mean(squared[mask])))
+        return float(np.sqrt(np.mean(self.position_error_m()[mask] ** 2)))
 
     def rmse(self, name: str, mask: np.ndarray | None = None) -> float:
         mask = self.settled() if mask is None else mask
@@ -298,19 +378,21 @@ class Run:
 def run_filter(
     profile: Profile,
     *,
+    estimator: str = "ekf",
     seed: int = 0,
     setup: SensorSetup | None = None,
     config: EstimatorConfig | None = None,
     initial: InitialState | None = None,
+    saturating_truth: bool = True,
 ) -> Run:
-    """Simulate ``profile``, synthesise the sensors, fuse everything with the EKF."""
+    """Simulate ``profile``, synthesise the sensors, fuse everything with ``estimator``."""
     setup = SensorSetup() if setup is None else setup
-    config = EstimatorConfig() if config is None else config
+    config = EstimatorConfig(name=estimator) if config is None else config
     initial = InitialState(speed_mps=profile.speed0_mps) if initial is None else initial
     belief = VehicleParams()
-    truth = simulate_truth(profile, initial)
+    truth = simulate_truth(profile, initial, belief, saturating_truth)
     measurements = synthesize(truth, belief, setup, np.random.default_rng(seed))
-    ekf = Ekf(config, initial, belief)
+    filter_ = make_estimator(config, initial, belief)
     times, indices, means, covariances = [], [], [], []
     nis: dict[str, list[float]] = {}
     reasons: list[tuple[float, str, str]] = []
@@ -320,14 +402,14 @@ def run_filter(
         index = _ms(measurement.t_s)
         while next_log_ms < index:
             # Log on a fixed 100 Hz grid whether or not the IMU is in use.
-            ekf.predict(next_log_ms / 1000.0)
-            estimate = ekf.estimate()
+            filter_.predict(next_log_ms / 1000.0)
+            estimate = filter_.estimate()
             times.append(estimate.t_s)
             indices.append(next_log_ms)
             means.append(estimate.mean)
             covariances.append(estimate.covariance)
             next_log_ms += log_every
-        result = ekf.update(measurement)
+        result = filter_.update(measurement)
         if result.accepted:
             nis.setdefault(measurement.sensor, []).append(result.nis)
         if result.reason != "accepted":
@@ -339,6 +421,6 @@ def run_filter(
         covariances=np.array(covariances),
         truth=truth,
         nis=nis,
-        counts=ekf.counts(),
+        counts=filter_.counts(),
         reasons=reasons,
     )

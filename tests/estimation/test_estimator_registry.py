@@ -20,6 +20,7 @@ from estimation.registry import (
     supported_sensors,
 )
 from estimation.truth import TruthEstimator
+from estimation.ukf import Ukf
 
 
 def test_every_configurable_name_is_registered() -> None:
@@ -29,7 +30,7 @@ def test_every_configurable_name_is_registered() -> None:
         assert estimator_class(name).required_sensors
 
 
-@pytest.mark.parametrize(("name", "cls"), [("ekf", Ekf), ("truth", TruthEstimator)])
+@pytest.mark.parametrize(("name", "cls"), [("ekf", Ekf), ("ukf", Ukf), ("truth", TruthEstimator)])
 def test_make_estimator(name: str, cls: type) -> None:
     estimator = make_estimator(
         EstimatorConfig(name=name), InitialState(x_m=2.0), VehicleParams(), t0_s=1.5
@@ -41,15 +42,16 @@ def test_make_estimator(name: str, cls: type) -> None:
 
 
 def test_unknown_name_lists_the_known_ones() -> None:
-    with pytest.raises(ConfigError, match="ekf, truth"):
-        make_estimator(EstimatorConfig(name="ukf"), InitialState(), VehicleParams())
+    with pytest.raises(ConfigError, match="ekf, ukf, truth"):
+        make_estimator(EstimatorConfig(name="magic"), InitialState(), VehicleParams())
 
 
 def test_sensors_each_estimator_needs() -> None:
-    assert required_sensors("ekf") == ("gnss",)
-    assert set(supported_sensors("ekf")) >= {"gnss", "imu", "wheel_speed"}
+    for name in ("ekf", "ukf"):
+        assert required_sensors(name) == ("gnss",)
+        assert set(supported_sensors(name)) >= {"gnss", "imu", "wheel_speed", "steering"}
+        assert "truth" not in supported_sensors(name)  # a filter never sees the truth
     assert required_sensors("truth") == ("truth",)
-    assert "truth" not in supported_sensors("ekf")  # the EKF never sees the truth
     for name in ESTIMATOR_NAMES:
         assert set(required_sensors(name)) <= set(supported_sensors(name))
 
@@ -70,8 +72,12 @@ def test_config_fields_carry_units_or_are_flags() -> None:
         "m2ps",
         "1ps",
         "scale_sigma",
+        "_radpmps2",
+        "_hz",
     )
+    dimensionless = ("gate_probability", "roll_damping_ratio", "ukf_alpha", "ukf_beta",
+                     "ukf_kappa")
     hints = typing.get_type_hints(EstimatorConfig)
     for f in dataclasses.fields(EstimatorConfig):
-        if hints[f.name] is float and f.name != "gate_probability":
+        if hints[f.name] is float and f.name not in dimensionless:
             assert f.name.endswith(units), f.name

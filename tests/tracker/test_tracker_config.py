@@ -11,6 +11,7 @@ from cosim.config_fields import describe, from_dict, to_dict
 from cosim.exceptions import ConfigError
 from cosim.vehicle_params import VehicleParams
 from tracker.config import TRACKER_CHOICES, TrackerConfig, TrackerWeights
+from tracker.dynamic_nmpc import DynamicNmpc
 from tracker.kinematic_nmpc import KinematicNmpc
 from tracker.registry import TRACKER_NAMES, make_tracker
 
@@ -18,12 +19,18 @@ from tracker.registry import TRACKER_NAMES, make_tracker
 def test_defaults() -> None:
     config = from_dict(TrackerConfig, {}, "tracker")
     assert config == TrackerConfig()
-    assert config.name == "kinematic-nmpc"
+    assert config.name == "dynamic-nmpc"
     assert 20 <= config.horizon <= 30
     assert config.dt_s == 0.05
     assert config.max_steer_rad == pytest.approx(math.pi / 8)  # seed digest section 1
     assert (config.accel_min_mps2, config.accel_max_mps2) == (-3.0, 3.0)
     assert config.model == VehicleParams()
+    assert config.latency_s == 0.0  # the default plant has no transport delay
+    # The belief of dynamic models: what `cosim identify` finds on the default sedan.
+    assert config.model.cornering_stiffness_front_npr == 72550.0
+    assert config.model.cornering_stiffness_rear_npr == 79580.0
+    assert config.model.steer_time_constant_s == 0.05
+    assert config.model.max_steer_rate_radps == 0.8
     assert config.horizon_s == pytest.approx(config.horizon * config.dt_s)
 
 
@@ -54,6 +61,13 @@ def test_nested_keys_set_like_the_command_line() -> None:
         ({"max_steer_rad": 2.0}, "tracker.max_steer_rad = 2.0"),
         ({"max_iterations": 0}, "tracker.max_iterations = 0"),
         ({"model": {"cog_rear_m": 0.0}}, "tracker.model.cog_rear_m = 0.0"),
+        ({"model": {"cornering_stiffness_front_npr": 0}},
+         "tracker.model.cornering_stiffness_front_npr = 0: expected a number in"),
+        ({"model": {"cornering_stiffness_rear_npr": "stiff"}},
+         "tracker.model.cornering_stiffness_rear_npr = 'stiff'"),
+        ({"model": {"steer_time_constant_s": -0.05}}, "tracker.model.steer_time_constant_s"),
+        ({"weights": {"limit_excess": -1.0}}, "tracker.weights.limit_excess = -1.0"),
+        ({"latency_s": 3.0}, "tracker.latency_s = 3.0"),
     ],
 )
 def test_bad_values_name_their_key(data: dict, message: str) -> None:
@@ -85,7 +99,17 @@ def test_every_key_is_documented() -> None:
 
 def test_registry_knows_every_configurable_name() -> None:
     assert TRACKER_NAMES == TRACKER_CHOICES
-    assert isinstance(make_tracker(TrackerConfig()), KinematicNmpc)
+    assert isinstance(make_tracker(TrackerConfig()), DynamicNmpc)
+    kinematic = dataclasses.replace(TrackerConfig(), name="kinematic-nmpc")
+    assert isinstance(make_tracker(kinematic), KinematicNmpc)
+
+
+def test_the_seed_papers_tyres_are_a_belief_one_can_state() -> None:
+    config = from_dict(TrackerConfig, {"model": {"cornering_stiffness_front_npr": 19000,
+                                                 "cornering_stiffness_rear_npr": 33000}},
+                       "tracker")
+    assert config.model.cornering_stiffness_front_npr == 19000.0
+    assert isinstance(make_tracker(config), DynamicNmpc)
 
 
 def test_registry_refuses_unknown_names() -> None:

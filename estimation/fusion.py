@@ -1,0 +1,573 @@
+"""Asynchronous multi-rate fusion with per-channel gating: what every Kalman filter here shares.
+
+:class:`KalmanFusion` holds everything about *when* and *whether* a measurement is fused;
+its subclasses (:class:`estimation.ekf.Ekf`, :class:`estimation.ukf.Ukf`) say *how*, with
+filterpy's filters and the models of :mod:`estimation.models`:
+
+- time: every measurement is fused at its own time stamp; the filter predicts to it in
+  sub-steps of at most ``config.max_step_s`` and refuses to go back;
+- per-measurement checks: non-finite values are rejected (never fused), stale measurements
+  (older than the filter) are rejected, the normalised innovation squared (NIS) is tested
+  against a chi-square gate, jointly and, if that fails, channel by channel; a channel that
+  fails for ``gate_release_s`` is believed again (its jump is given room in P first);
+  every outcome is counted per sensor;
+- hygiene: yaw wrapped to (-pi, pi], angle innovations wrapped, P kept symmetric, and an
+  update that would leave P not positive definite or anything non-finite is undone.
+
+A subclass implements :meth:`KalmanFusion._predict_substep` and
+:meth:`KalmanFusion._trial_update` (the filter's update of a group of channels, computed
+and then undone, so that the gate can look at it first) and keeps its mean and covariance
+in :attr:`KalmanFusion._x` / :attr:`KalmanFusion._p` (properties over the filterpy object).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from abc import ABC, abstractmethod
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.stats import chi2
+
+from cosim.exceptions import ConfigError
+from cosim.initial_state import InitialState
+from cosim.records import Estimate, Measurement
+from cosim.vehicle_params import VehicleParams
+from estimation.config import EstimatorConfig
+from estimation.errors import EstimatorError
+from estimation.models import (
+    ANGLE_STATES,
+    MAX_STEP_S,
+    STATE_NAMES,
+    BicycleParams,
+    MeasurementModel,
+    ProcessModel,
+    ProcessNoise,
+    RollParams,
+    build_measurement_models,
+    state_index,
+    wrap_angle,
+)
+from estimation.timing import forward_interval_s, is_stale
+from estimation.update_result import (
+    ACCEPTED,
+    GATE,
+    GATE_RELEASED,
+    IGNORED,
+    INVALID,
+    NON_FINITE,
+    PARTIAL,
+    STALE,
+    SensorCounts,
+    UpdateResult,
+)
+
+
+@dataclass(frozen=True)
+class Selection:
+    """Which channels of a measurement (by its names) the filter fuses, and how."""
+
+    model_rows: tuple[int, ...]
+    measurement_columns: tuple[int, ...]
+    angle_rows: tuple[int, ...]
+    model_variance: np.ndarray
+
+
+@dataclass(frozen=True)
+class TrialUpdate:
+    """A filter's update of some channels, computed but not committed.
+
+    ``innovation`` and ``innovation_covariance`` are the prior's ``y`` and ``S`` (with the
+    measurement noise); ``mean``/``covariance`` the posterior the update would give.
+    """
+
+    innovation: np.ndarray
+    innovation_covariance: np.ndarray
+    mean: np.ndarray
+    covariance: np.ndarray
+
+
+@dataclass(frozen=True)
+class Innovation:
+    """One (group of) channel(s) of a measurement against the current belief."""
+
+    rows: tuple[int, ...]
+    """Rows of the measurement model."""
+    nis: float
+    trial: TrialUpdate
+
+
+def residual_function(
+    angle_rows: tuple[int, ...],
+) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    """``z - h`` with the angle channels (rows ``angle_rows``) wrapped to (-pi, pi]."""
+
+    def residual(z: np.ndarray, h: np.ndarray) -> np.ndarray:
+        difference = np.asarray(z, dtype=float) - np.asarray(h, dtype=float)
+        for row in angle_rows:
+            difference[row] = wrap_angle(difference[row])
+        return difference
+
+    return residual
+
+
+def process_noise(config: EstimatorConfig) -> ProcessNoise:
+    """The configured PSDs; the lateral residual's from its stationary sigma and time
+    constant (a first-order Gauss-Markov process: ``q = 2 sigma^2 / tau``)."""
+    residual_psd = (
+        2.0 * config.lateral_residual_sigma_mps2**2 / config.lateral_residual_time_constant_s
+    )
+    return ProcessNoise(
+        position_psd_m2ps=config.position_psd_m2ps,
+        yaw_psd_rad2ps=config.yaw_psd_rad2ps,
+        lateral_accel_psd_m2ps3=config.lateral_accel_psd_m2ps3,
+        yaw_accel_psd_rad2ps3=config.yaw_accel_psd_rad2ps3,
+        jerk_psd_m2ps5=config.jerk_psd_m2ps5,
+        steer_psd_rad2ps=config.steer_psd_rad2ps,
+        roll_accel_psd_rad2ps3=config.roll_accel_psd_rad2ps3,
+        lateral_residual_psd_m2ps5=residual_psd,
+        gyro_bias_psd_rad2ps3=config.gyro_bias_psd_rad2ps3,
+        accel_bias_psd_m2ps5=config.accel_bias_psd_m2ps5,
+        rolling_radius_scale_psd_1ps=config.rolling_radius_scale_psd_1ps,
+    )
+
+
+def roll_params(config: EstimatorConfig, belief: VehicleParams) -> RollParams:
+    """The configured roll mode; the CoG sits the belief's ``cog_height_m`` above the roll
+    axis (taken at the ground: independent vertical suspensions)."""
+    return RollParams(
+        gradient_radpmps2=config.roll_gradient_radpmps2,
+        frequency_hz=config.roll_frequency_hz,
+        damping_ratio=config.roll_damping_ratio,
+        sway_arm_m=belief.cog_height_m if config.roll_gradient_radpmps2 > 0.0 else 0.0,
+    )
+
+
+def initial_belief(
+    config: EstimatorConfig, initial: InitialState
+) -> tuple[np.ndarray, np.ndarray]:
+    """Mean (position, yaw, forward speed from ``initial``; the rest zero, the rolling-radius
+    scale one) and diagonal covariance (the configured standard deviations)."""
+    mean = {
+        "x_m": initial.x_m,
+        "y_m": initial.y_m,
+        "yaw_rad": wrap_angle(initial.yaw_rad),
+        "vx_mps": initial.speed_mps,
+        "vy_mps": 0.0,
+        "yaw_rate_radps": 0.0,
+        "ax_mps2": 0.0,
+        "steer_rad": 0.0,
+        "roll_rad": 0.0,
+        "roll_rate_radps": 0.0,
+        "lateral_accel_residual_mps2": 0.0,
+        "gyro_bias_radps": 0.0,
+        "ax_bias_mps2": 0.0,
+        "rolling_radius_scale": 1.0,
+    }
+    sigma = {
+        "x_m": config.init_position_sigma_m,
+        "y_m": config.init_position_sigma_m,
+        "yaw_rad": config.init_yaw_sigma_rad,
+        "vx_mps": config.init_speed_sigma_mps,
+        "vy_mps": config.init_lateral_speed_sigma_mps,
+        "yaw_rate_radps": config.init_yaw_rate_sigma_radps,
+        "ax_mps2": config.init_accel_sigma_mps2,
+        "steer_rad": config.init_steer_sigma_rad,
+        "roll_rad": config.init_roll_sigma_rad,
+        "roll_rate_radps": config.init_roll_rate_sigma_radps,
+        "lateral_accel_residual_mps2": config.lateral_residual_sigma_mps2,
+        "gyro_bias_radps": config.init_gyro_bias_sigma_radps,
+        "ax_bias_mps2": config.init_accel_bias_sigma_mps2,
+        "rolling_radius_scale": config.init_rolling_radius_scale_sigma,
+    }
+    return (
+        np.array([float(mean[name]) for name in STATE_NAMES]),
+        np.diag([float(sigma[name]) ** 2 for name in STATE_NAMES]),
+    )
+
+
+class KalmanFusion(ABC):
+    """A Kalman filter over :data:`estimation.models.STATE_NAMES`, fed asynchronously.
+
+    ``initial`` sets the mean and ``config`` its standard deviations (see
+    :func:`initial_belief`); ``belief`` gives the dynamic bicycle, the wheel radius and the
+    track the models need. ``t0_s`` is the time of the initial belief.
+    """
+
+    required_sensors: tuple[str, ...] = ("gnss",)
+    """Sensors without which the filter cannot work (GNSS alone makes every vehicle state
+    observable)."""
+
+    supported_sensors: tuple[str, ...] = ("gnss", "imu", "wheel_speed", "steering", "heading")
+    """Sensors the filter fuses; measurements of any other sensor are ignored."""
+
+    state_names: tuple[str, ...] = STATE_NAMES
+
+    kind: str = ""
+    """Short name for messages ("EKF", "UKF")."""
+
+    def __init__(
+        self,
+        config: EstimatorConfig,
+        initial: InitialState,
+        belief: VehicleParams,
+        *,
+        t0_s: float = 0.0,
+    ) -> None:
+        if not math.isfinite(t0_s):
+            raise ValueError(f"t0_s = {t0_s!r}: expected a finite time")
+        if not 0.0 < config.max_step_s <= MAX_STEP_S:
+            raise ConfigError(
+                f"estimator.max_step_s = {config.max_step_s!r}: expected a number in "
+                f"(0, {MAX_STEP_S:g}]"
+            )
+        self._config = config
+        roll = roll_params(config, belief)
+        self._process = ProcessModel(
+            process_noise(config),
+            BicycleParams.from_vehicle(belief, config.tyre_model, roll),
+            config.lateral_residual_time_constant_s,
+            sigma_point_count=self._sigma_point_count(),
+        )
+        self._models: dict[str, MeasurementModel] = build_measurement_models(
+            belief,
+            wheel_model_sigma_mps=config.wheel_model_sigma_mps,
+            lateral_accel_model_sigma_mps2=config.lateral_accel_model_sigma_mps2,
+            steer_model_sigma_rad=config.steer_model_sigma_rad,
+            tyre_model=config.tyre_model,
+            roll=roll,
+        )
+        self._angle_indices = tuple(state_index(name) for name in ANGLE_STATES)
+        mean, covariance = initial_belief(config, initial)
+        self._setup_filter(mean, covariance)
+        self._t_s = float(t0_s)
+
+        self._counts: dict[str, SensorCounts] = {}
+        self._gate_thresholds: dict[int, float] = {}
+        self._gate_failing_since_s: dict[tuple[str, tuple[str, ...]], float] = {}
+        self._selections: dict[tuple[str, tuple[str, ...]], Selection] = {}
+
+    # ------------------------------------------------------------------- filter-specific
+
+    def _sigma_point_count(self) -> int:
+        """Sigma points the process model should be mapped over (0: none)."""
+        return 0
+
+    @abstractmethod
+    def _setup_filter(self, mean: np.ndarray, covariance: np.ndarray) -> None:
+        """Create the filterpy object with this initial belief."""
+
+    @property
+    @abstractmethod
+    def _x(self) -> np.ndarray:
+        """The mean, 1-D (a view: do not modify in place)."""
+
+    @abstractmethod
+    def _set_mean(self, mean: np.ndarray) -> None: ...
+
+    @property
+    @abstractmethod
+    def _p(self) -> np.ndarray:
+        """The covariance (a view: do not modify in place)."""
+
+    @abstractmethod
+    def _set_covariance(self, covariance: np.ndarray) -> None: ...
+
+    @abstractmethod
+    def _predict_substep(self, dt_s: float) -> None:
+        """Propagate mean and covariance over ``dt_s`` (at most ``max_step_s``)."""
+
+    @abstractmethod
+    def _trial_update(
+        self,
+        model: MeasurementModel,
+        rows: tuple[int, ...],
+        z: np.ndarray,
+        r_matrix: np.ndarray,
+        residual: Callable[[np.ndarray, np.ndarray], np.ndarray],
+        angle_rows: tuple[int, ...],
+    ) -> TrialUpdate:
+        """The filter's update with the channels ``rows`` of ``model`` (measured ``z``,
+        noise ``r_matrix``), computed without changing the belief."""
+
+    # ----------------------------------------------------------------------------- queries
+
+    @property
+    def t_s(self) -> float:
+        """Time of the current belief."""
+        return self._t_s
+
+    def estimate(self) -> Estimate:
+        """The current belief (copies: later steps do not change it)."""
+        return Estimate(
+            t_s=self._t_s,
+            names=STATE_NAMES,
+            mean=np.array(self._x, dtype=float).reshape(-1),
+            covariance=np.array(self._p, dtype=float),
+        )
+
+    def counts(self) -> dict[str, dict[str, int]]:
+        """Per sensor: accepted, rejected (by cause), ignored and gate-released updates."""
+        return {sensor: dataclasses.asdict(c) for sensor, c in sorted(self._counts.items())}
+
+    def gate_threshold(self, dim: int) -> float:
+        """The NIS above which a ``dim``-channel update is rejected (chi-square quantile)."""
+        if dim < 1:
+            raise ValueError(f"dim = {dim}: expected at least one channel")
+        if dim not in self._gate_thresholds:
+            self._gate_thresholds[dim] = float(chi2.ppf(self._config.gate_probability, dim))
+        return self._gate_thresholds[dim]
+
+    # ----------------------------------------------------------------------------- predict
+
+    def predict(self, t_s: float) -> None:
+        """Propagate the belief to ``t_s`` (no-op at the current time; never backwards)."""
+        interval_s = forward_interval_s(self._t_s, float(t_s), "filter")
+        if interval_s == 0.0:
+            return
+        substeps = max(1, math.ceil(interval_s / self._config.max_step_s - 1e-9))
+        dt_s = interval_s / substeps
+        for _ in range(substeps):
+            self._predict_substep(dt_s)
+            self._normalise()
+        self._t_s = float(t_s)
+        if not self._is_finite():
+            raise EstimatorError(
+                f"{self.kind} prediction to t_s = {t_s} s produced a non-finite state or "
+                "covariance"
+            )
+
+    # ------------------------------------------------------------------------------ update
+
+    def update(self, measurement: Measurement) -> UpdateResult:
+        """Fuse one measurement at its own time (predicting to it first).
+
+        Measurements of sensors the filter does not model are ignored (``accepted=False``,
+        counted as ``ignored``). Non-finite, stale and gated measurements are rejected and
+        counted; they never touch the state. Independent channels are gated one by one: a
+        measurement with some channels gated is ``accepted`` with reason ``"partial"``, and
+        its ``nis``/``dim`` are those of the fused channels.
+        """
+        sensor = measurement.sensor
+        counts = self._counts.setdefault(sensor, SensorCounts())
+        model = self._models.get(sensor)
+        if model is None:
+            counts.ignored += 1
+            return UpdateResult(False, math.nan, 0, IGNORED)
+        selection = self._selection(model, tuple(measurement.names))
+        dim = len(selection.model_rows)
+        if dim == 0:
+            counts.ignored += 1
+            return UpdateResult(False, math.nan, 0, IGNORED)
+
+        values = np.asarray(measurement.values, dtype=float).reshape(-1)
+        covariance = np.asarray(measurement.covariance, dtype=float)
+        size = len(measurement.names)
+        if values.shape != (size,) or covariance.shape != (size, size):
+            raise ValueError(
+                f"{sensor} measurement: {size} names but values of shape {values.shape} and "
+                f"covariance of shape {covariance.shape}"
+            )
+        columns = list(selection.measurement_columns)
+        z = values[columns]
+        r_matrix = covariance[np.ix_(columns, columns)] + np.diag(selection.model_variance)
+        t_s = float(measurement.t_s)
+        if not (math.isfinite(t_s) and np.isfinite(z).all() and np.isfinite(r_matrix).all()):
+            counts.rejected_nonfinite += 1
+            return UpdateResult(False, math.nan, dim, NON_FINITE)
+        if is_stale(self._t_s, t_s):
+            counts.rejected_stale += 1
+            return UpdateResult(False, math.nan, dim, STALE)
+
+        self.predict(t_s)
+        everything = tuple(range(dim))
+        joint = self._innovation(model, selection, everything, z, r_matrix)
+        if joint is None:
+            counts.rejected_invalid += 1
+            return UpdateResult(False, math.nan, dim, INVALID)
+        if not self._config.gate or joint.nis <= self.gate_threshold(dim):
+            # The common case: one joint update.
+            self._forget_gate_failures(model, selection, everything)
+            if not self._apply(joint):
+                counts.rejected_invalid += 1
+                return UpdateResult(False, joint.nis, dim, INVALID)
+            counts.accepted += 1
+            return UpdateResult(True, joint.nis, dim, ACCEPTED)
+
+        # Above the gate. Independent channels (diagonal R) are then gated one by one and
+        # fused sequentially, so a spinning wheel or a lateral-acceleration transient costs
+        # only its own channel (for a linear model sequential fusion equals the joint
+        # update: Bar-Shalom, Li, Kirubarajan 2001, section 3.3.2). Correlated channels
+        # stay one group.
+        if np.any(r_matrix - np.diag(np.diag(r_matrix))):
+            groups = [everything]
+        else:
+            groups = [(i,) for i in everything]
+        fused_nis, fused_dim, tested_nis = 0.0, 0, 0.0
+        gated = released = invalid = 0
+        for group in groups:
+            outcome, nis = self._gate_and_fuse(model, selection, group, z, r_matrix, t_s)
+            if math.isfinite(nis):
+                tested_nis += nis
+            if outcome in (ACCEPTED, GATE_RELEASED):
+                fused_nis += nis
+                fused_dim += len(group)
+                released += outcome == GATE_RELEASED
+            elif outcome == GATE:
+                gated += len(group)
+            else:
+                invalid += 1
+        counts.channels_gated += gated
+        counts.gate_released += released
+        if fused_dim == 0:
+            if gated:
+                counts.rejected_gate += 1
+                return UpdateResult(False, tested_nis, dim, GATE)
+            counts.rejected_invalid += 1
+            return UpdateResult(False, math.nan, dim, INVALID)
+        counts.accepted += 1
+        if gated or invalid:
+            return UpdateResult(True, fused_nis, fused_dim, PARTIAL)
+        return UpdateResult(True, fused_nis, fused_dim, GATE_RELEASED if released else ACCEPTED)
+
+    def _innovation(
+        self,
+        model: MeasurementModel,
+        selection: Selection,
+        group: tuple[int, ...],
+        z: np.ndarray,
+        r_matrix: np.ndarray,
+    ) -> Innovation | None:
+        """The channels ``group`` (indices into ``z``) against the current belief: the
+        filter's trial update and its NIS. ``None`` if the innovation covariance is not
+        positive definite."""
+        index = list(group)
+        rows = tuple(selection.model_rows[i] for i in index)
+        angle_rows = tuple(j for j, i in enumerate(group) if i in selection.angle_rows)
+        residual = residual_function(angle_rows)
+        try:
+            trial = self._trial_update(
+                model, rows, z[index], r_matrix[np.ix_(index, index)], residual, angle_rows
+            )
+        except np.linalg.LinAlgError:
+            return None
+        s_matrix = 0.5 * (trial.innovation_covariance + trial.innovation_covariance.T)
+        innovation = trial.innovation.reshape(-1)
+        if len(group) == 1:
+            if not s_matrix[0, 0] > 0.0:
+                return None
+            nis = float(innovation[0] ** 2 / s_matrix[0, 0])
+        else:
+            try:
+                cholesky = np.linalg.cholesky(s_matrix)
+            except np.linalg.LinAlgError:
+                return None
+            whitened = np.linalg.solve(cholesky, innovation)
+            nis = float(whitened @ whitened)
+        if not math.isfinite(nis):
+            return None
+        return Innovation(rows, nis, trial)
+
+    def _apply(self, innovation: Innovation) -> bool:
+        """Commit a trial update; refuse (return False, belief unchanged) if it is
+        non-finite or its covariance not positive definite."""
+        mean = np.asarray(innovation.trial.mean, dtype=float).reshape(-1)
+        covariance = np.asarray(innovation.trial.covariance, dtype=float)
+        covariance = 0.5 * (covariance + covariance.T)
+        if not (np.isfinite(mean).all() and np.isfinite(covariance).all()):
+            return False
+        try:
+            np.linalg.cholesky(covariance)
+        except np.linalg.LinAlgError:
+            return False
+        self._set_mean(mean)
+        self._set_covariance(covariance)
+        self._normalise()
+        return True
+
+    def _gate_and_fuse(
+        self,
+        model: MeasurementModel,
+        selection: Selection,
+        group: tuple[int, ...],
+        z: np.ndarray,
+        r_matrix: np.ndarray,
+        t_s: float,
+    ) -> tuple[str, float]:
+        """Gate and fuse the channels ``group`` on their own: outcome and NIS."""
+        innovation = self._innovation(model, selection, group, z, r_matrix)
+        if innovation is None:
+            return INVALID, math.nan
+        key = self._gate_key(model, selection, group)
+        if innovation.nis <= self.gate_threshold(len(group)):
+            self._gate_failing_since_s.pop(key, None)
+            if not self._apply(innovation):
+                return INVALID, innovation.nis
+            return ACCEPTED, innovation.nis
+        since_s = self._gate_failing_since_s.setdefault(key, t_s)
+        if t_s - since_s < self._config.gate_release_s:
+            return GATE, innovation.nis
+        released_nis = innovation.nis  # reported: the disagreement that was believed
+        _, jacobian = model.evaluate(self._x)
+        self._inflate_for_jump(jacobian[list(innovation.rows), :], innovation.trial.innovation)
+        inflated = self._innovation(model, selection, group, z, r_matrix)
+        if inflated is None or not self._apply(inflated):
+            return INVALID, released_nis
+        return GATE_RELEASED, released_nis
+
+    @staticmethod
+    def _gate_key(
+        model: MeasurementModel, selection: Selection, group: tuple[int, ...]
+    ) -> tuple[str, tuple[str, ...]]:
+        """Which channels a run of gate failures belongs to (for ``gate_release_s``)."""
+        return model.sensor, tuple(model.channels[selection.model_rows[i]] for i in group)
+
+    def _forget_gate_failures(
+        self, model: MeasurementModel, selection: Selection, group: tuple[int, ...]
+    ) -> None:
+        if self._gate_failing_since_s:
+            self._gate_failing_since_s.pop(self._gate_key(model, selection, group), None)
+            for i in group:
+                self._gate_failing_since_s.pop(self._gate_key(model, selection, (i,)), None)
+
+    # ----------------------------------------------------------------------------- helpers
+
+    def _inflate_for_jump(self, jacobian: np.ndarray, innovation: np.ndarray) -> None:
+        """Make room for a persistent jump before a gate-released update.
+
+        A sensor that has disagreed for ``gate_release_s`` is believed: the state is taken
+        to have jumped. The covariance grows by ``G y y' G'`` with ``G = D H' (H D H')^-1``
+        and ``D = diag(P)``: the jump ``y`` is explained by the states the channels observe,
+        shared in proportion to their variances (a GNSS jump moves the position only, not
+        the speed through its correlation with the position). Afterwards the innovation has
+        NIS ``n / (1 + n)`` < 1 and the update fuses it as an ordinary measurement.
+        """
+        spread = np.diag(self._p)[:, None] * jacobian.T
+        gain = spread @ np.linalg.inv(jacobian @ spread)
+        jump = gain @ np.asarray(innovation, dtype=float).reshape(-1)
+        self._set_covariance(self._p + np.outer(jump, jump))
+
+    def _selection(self, model: MeasurementModel, names: tuple[str, ...]) -> Selection:
+        key = (model.sensor, names)
+        if key not in self._selections:
+            model_rows, columns = model.select(names)
+            angle_rows = tuple(
+                i for i, row in enumerate(model_rows) if model.channels[row] in model.angle_channels
+            )
+            variance = np.array([model.model_sigma[row] ** 2 for row in model_rows])
+            self._selections[key] = Selection(model_rows, columns, angle_rows, variance)
+        return self._selections[key]
+
+    def _normalise(self) -> None:
+        """Wrap the angle states and symmetrise the covariance."""
+        x = np.array(self._x, dtype=float).reshape(-1)
+        for index in self._angle_indices:
+            x[index] = wrap_angle(x[index])
+        self._set_mean(x)
+        p = self._p
+        self._set_covariance(0.5 * (p + p.T))
+
+    def _is_finite(self) -> bool:
+        return bool(np.isfinite(self._x).all() and np.isfinite(self._p).all())

@@ -1,0 +1,183 @@
+"""The unscented Kalman filter: the EKF's state and models, propagated by sigma points.
+
+Built on filterpy's :class:`~filterpy.kalman.UnscentedKalmanFilter` with Van der Merwe's
+scaled sigma points (:class:`~filterpy.kalman.MerweScaledSigmaPoints`; Van der Merwe, "Sigma-
+Point Kalman Filters for Probabilistic Inference in Dynamic State-Space Models", PhD thesis,
+2004, section 3.2.2). It shares with :class:`estimation.ekf.Ekf` the state, the CasADi
+process and measurement models of :mod:`estimation.models` (evaluated numerically at the
+sigma points; the process step mapped over all of them in one call) and everything about
+when and whether a measurement is fused (:class:`estimation.fusion.KalmanFusion`).
+
+Differences from the EKF, all about the unscented transform:
+
+- the process noise of a sub-step is the same Van Loan integral as the EKF's, evaluated at
+  the prior mean (it is added after the transform, as filterpy does);
+- yaw: the propagated sigma points' yaws are unwrapped around the first point's before the
+  transform, so that plain means and differences are exact (the spread of the points is far
+  below pi), and the mean is wrapped afterwards; angle channels of a measurement are
+  averaged on the circle (weighted mean of ``sin``/``cos``) and differenced wrapped;
+- before every update the sigma points are drawn afresh from the current belief (filterpy
+  reuses those of the last prediction, which would be stale after an earlier update at the
+  same time);
+- the jump inflation of a gate release uses the measurement model's Jacobian at the mean.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
+
+from estimation.fusion import KalmanFusion, TrialUpdate
+from estimation.models import ANGLE_STATES, STATE_NAMES, MeasurementModel, ProcessModel, state_index
+
+
+def _circular_mean_function(
+    angle_columns: tuple[int, ...],
+) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    """Weighted mean of sigma points (one per row) with the columns ``angle_columns``
+    averaged on the circle."""
+
+    def mean(sigmas: np.ndarray, weights: np.ndarray) -> np.ndarray:
+        result = np.dot(weights, sigmas)
+        for column in angle_columns:
+            result[column] = np.arctan2(
+                np.dot(weights, np.sin(sigmas[:, column])),
+                np.dot(weights, np.cos(sigmas[:, column])),
+            )
+        return result
+
+    return mean
+
+
+def _wrapped_difference_function(
+    angle_columns: tuple[int, ...],
+) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    """``a - b`` with the columns ``angle_columns`` wrapped to [-pi, pi)."""
+
+    def difference(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        result = np.subtract(a, b)
+        for column in angle_columns:
+            result[..., column] = _wrap(result[..., column])
+        return result
+
+    return difference
+
+
+class _BicycleUnscentedFilter(UnscentedKalmanFilter):
+    """filterpy's UKF whose sigma points go through the process model in one mapped call,
+    with angles unwrapped around the first sigma point and a vectorised cross covariance."""
+
+    def __init__(self, process: ProcessModel, points: MerweScaledSigmaPoints) -> None:
+        super().__init__(
+            dim_x=len(STATE_NAMES),
+            dim_z=1,
+            dt=0.0,
+            hx=None,
+            fx=None,
+            points=points,
+        )
+        self._process = process
+        self._angles = [state_index(name) for name in ANGLE_STATES]
+
+    def compute_process_sigmas(self, dt: float, fx: object = None, **fx_args: object) -> None:
+        """Draw the sigma points of the current belief and propagate them all at once."""
+        del fx, fx_args
+        sigmas = self._process.propagate(self.points_fn.sigma_points(self.x, self.P), dt)
+        reference = sigmas[0, self._angles]
+        sigmas[:, self._angles] = reference + _wrap(sigmas[:, self._angles] - reference)
+        self.sigmas_f = sigmas
+
+    def cross_variance(
+        self, x: np.ndarray, z: np.ndarray, sigmas_f: np.ndarray, sigmas_h: np.ndarray
+    ) -> np.ndarray:
+        """``sum_i Wc_i (X_i - x)(Z_i - z)'`` in one product (filterpy loops in Python)."""
+        dx = self.residual_x(sigmas_f, x)
+        dz = self.residual_z(sigmas_h, z)
+        return (dx * self.Wc[:, None]).T @ dz
+
+
+def _wrap(angle_rad: np.ndarray) -> np.ndarray:
+    """Angles wrapped to [-pi, pi) (vectorised; for differences, where the end is moot)."""
+    return (angle_rad + np.pi) % (2.0 * np.pi) - np.pi
+
+
+class Ukf(KalmanFusion):
+    """Unscented Kalman filter over :data:`estimation.models.STATE_NAMES`.
+
+    Sigma points: ``config.ukf_alpha``, ``ukf_beta``, ``ukf_kappa`` (Van der Merwe's alpha,
+    beta, kappa). The defaults (1, 2, 0) give all-positive weights (no negative centre
+    weight, so the transformed covariance stays positive semi-definite) and points at
+    ``sqrt(n)`` standard deviations. See :class:`estimation.fusion.KalmanFusion` for the
+    rest of the contract.
+    """
+
+    kind = "UKF"
+
+    def _sigma_point_count(self) -> int:
+        return 2 * len(STATE_NAMES) + 1
+
+    def _setup_filter(self, mean: np.ndarray, covariance: np.ndarray) -> None:
+        self._points = MerweScaledSigmaPoints(
+            n=len(STATE_NAMES),
+            alpha=self._config.ukf_alpha,
+            beta=self._config.ukf_beta,
+            kappa=self._config.ukf_kappa,
+        )
+        self._kf = _BicycleUnscentedFilter(self._process, self._points)
+        self._kf.x = mean.copy()
+        self._kf.P = covariance.copy()
+
+    @property
+    def _x(self) -> np.ndarray:
+        return self._kf.x
+
+    def _set_mean(self, mean: np.ndarray) -> None:
+        self._kf.x = np.asarray(mean, dtype=float).reshape(-1)
+
+    @property
+    def _p(self) -> np.ndarray:
+        return self._kf.P
+
+    def _set_covariance(self, covariance: np.ndarray) -> None:
+        self._kf.P = covariance
+
+    def _predict_substep(self, dt_s: float) -> None:
+        self._kf.Q = self._process.process_noise(self._kf.x, dt_s)
+        self._kf.predict(dt_s)
+
+    def _trial_update(
+        self,
+        model: MeasurementModel,
+        rows: tuple[int, ...],
+        z: np.ndarray,
+        r_matrix: np.ndarray,
+        residual: Callable[[np.ndarray, np.ndarray], np.ndarray],
+        angle_rows: tuple[int, ...],
+    ) -> TrialUpdate:
+        """filterpy's UKF update through sigma points drawn from the current belief."""
+        del residual  # the same, vectorised: _wrapped_difference_function
+        kf = self._kf
+        x_before, p_before = kf.x, kf.P
+        index = list(rows)
+        kf.sigmas_f = self._points.sigma_points(kf.x, kf.P)
+        if angle_rows:
+            kf.z_mean = _circular_mean_function(angle_rows)
+            kf.residual_z = _wrapped_difference_function(angle_rows)
+        else:
+            kf.z_mean, kf.residual_z = None, np.subtract
+        try:
+            kf.update(
+                np.asarray(z, dtype=float).reshape(-1),
+                R=r_matrix,
+                hx=lambda point: model.value(point)[index],
+            )
+            return TrialUpdate(
+                innovation=np.asarray(kf.y, dtype=float).reshape(-1).copy(),
+                innovation_covariance=np.array(kf.S, dtype=float),
+                mean=kf.x.copy(),
+                covariance=kf.P.copy(),
+            )
+        finally:
+            kf.x, kf.P = x_before, p_before

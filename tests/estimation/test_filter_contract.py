@@ -1,0 +1,351 @@
+"""The filters' contract (EKF and UKF alike): time handling, rejection and counting, gating,
+angles, copies, a positive definite covariance."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from cosim.config_fields import from_dict
+from cosim.exceptions import ConfigError
+from cosim.initial_state import InitialState
+from cosim.records import Measurement
+from cosim.vehicle_params import VehicleParams
+from estimation.config import EstimatorConfig
+from estimation.errors import TimeOrderError
+from estimation.fusion import KalmanFusion
+from estimation.models import STATE_NAMES
+from estimation.registry import make_estimator
+from estimation.update_result import REASONS
+
+FILTERS = ("ekf", "ukf")
+
+IMU_NAMES = ("yaw_rate_radps", "ax_mps2", "ay_mps2")
+IMU_COV = np.diag([0.003, 0.05, 0.05]) ** 2
+WHEEL_NAMES = ("front_left_radps", "front_right_radps", "rear_left_radps", "rear_right_radps")
+GNSS_COV = np.eye(2) * 0.02**2
+
+
+@pytest.fixture(params=FILTERS)
+def name(request: pytest.FixtureRequest) -> str:
+    """Every test taking ``name`` runs for each filter."""
+    return request.param
+
+
+def _filter(name: str, config: EstimatorConfig | None = None, **initial: float) -> KalmanFusion:
+    config = dataclasses.replace(config or EstimatorConfig(), name=name)
+    estimator = make_estimator(config, InitialState(**initial), VehicleParams())
+    assert isinstance(estimator, KalmanFusion)
+    return estimator
+
+
+def _gnss(t_s: float, x_m: float, y_m: float, cov: np.ndarray = GNSS_COV) -> Measurement:
+    return Measurement("gnss", t_s, ("x_m", "y_m"), np.array([x_m, y_m]), cov)
+
+
+def _imu(t_s: float, yaw_rate: float, ax: float = 0.0, ay: float = 0.0) -> Measurement:
+    return Measurement("imu", t_s, IMU_NAMES, np.array([yaw_rate, ax, ay]), IMU_COV)
+
+
+def test_initial_estimate_comes_from_the_initial_state(name: str) -> None:
+    config = EstimatorConfig()
+    kf = _filter(name, config, x_m=5.0, y_m=-3.0, yaw_rad=1.0, speed_mps=12.0)
+    estimate = kf.estimate()
+    assert estimate.t_s == 0.0
+    assert estimate.names == STATE_NAMES
+    expected = {
+        "x_m": 5.0,
+        "y_m": -3.0,
+        "yaw_rad": 1.0,
+        "vx_mps": 12.0,
+        "rolling_radius_scale": 1.0,
+    }
+    for name in STATE_NAMES:
+        assert estimate[name] == pytest.approx(expected.get(name, 0.0))
+    sigma = np.sqrt(np.diag(estimate.covariance))
+    assert sigma[STATE_NAMES.index("x_m")] == pytest.approx(config.init_position_sigma_m)
+    assert sigma[STATE_NAMES.index("yaw_rad")] == pytest.approx(config.init_yaw_sigma_rad)
+    assert sigma[STATE_NAMES.index("ax_mps2")] == pytest.approx(config.init_accel_sigma_mps2)
+
+
+def test_estimate_is_a_copy(name: str) -> None:
+    kf = _filter(name)
+    estimate = kf.estimate()
+    estimate.mean[:] = 99.0
+    estimate.covariance[:] = 99.0
+    assert kf.estimate()["x_m"] == 0.0
+    assert kf.estimate().covariance[0, 1] == 0.0
+
+
+def test_predict_at_the_current_time_is_a_no_op(name: str) -> None:
+    kf = _filter(name)
+    kf.predict(0.5)
+    before = kf.estimate()
+    kf.predict(0.5)
+    after = kf.estimate()
+    assert after.t_s == before.t_s
+    np.testing.assert_array_equal(after.mean, before.mean)
+    np.testing.assert_array_equal(after.covariance, before.covariance)
+
+
+def test_predict_refuses_to_go_back_in_time(name: str) -> None:
+    kf = _filter(name)
+    kf.predict(1.0)
+    with pytest.raises(TimeOrderError, match="cannot go back"):
+        kf.predict(0.99)
+    with pytest.raises(ValueError, match="finite"):
+        kf.predict(math.nan)
+    assert kf.t_s == 1.0
+
+
+def test_prediction_does_not_depend_on_how_the_interval_is_split(name: str) -> None:
+    """One predict over 1 s or ~70 irregular ones: same mean, same covariance.
+
+    The EKF's mean is the RK4 solution either way (to its truncation error, a millionth of
+    a standard deviation); the UKF's mean is an average over sigma points drawn afresh at
+    every sub-step, so it agrees to a small fraction of a standard deviation, and its
+    covariance, where the sigma points reach into the saturating tyres (the steering angle is
+    unmeasured here and its spread grows), to 15 %.
+    """
+    config = EstimatorConfig(gate=False)
+    one, many = _filter(name, config, speed_mps=15.0), _filter(name, config, speed_mps=15.0)
+    for kf in (one, many):  # start turning and accelerating
+        assert kf.update(_imu(0.0, yaw_rate=0.3, ax=1.0, ay=4.5)).accepted
+    one.predict(1.0)
+    rng = np.random.default_rng(3)
+    t_s = 0.0
+    while t_s < 1.0:
+        t_s = min(1.0, t_s + rng.uniform(0.0005, 0.03))
+        many.predict(t_s)
+    a, b = one.estimate(), many.estimate()
+    assert b.t_s == a.t_s == 1.0
+    sigma = np.sqrt(np.diag(a.covariance))
+    mean_tolerance = 1e-6 if name == "ekf" else 1e-3
+    np.testing.assert_allclose(b.mean / sigma, a.mean / sigma, rtol=0, atol=mean_tolerance)
+    # Compared on the scale of the standard deviations (correlation-like units): the
+    # Jacobians are taken at different points, so only nearly equal.
+    scale = np.sqrt(np.outer(np.diag(a.covariance), np.diag(a.covariance)))
+    tolerance = 1e-5 if name == "ekf" else 0.15
+    np.testing.assert_allclose(b.covariance / scale, a.covariance / scale, rtol=0, atol=tolerance)
+
+
+def test_measurement_in_the_future_is_predicted_to(name: str) -> None:
+    kf = _filter(name, speed_mps=20.0)
+    result = kf.update(_gnss(2.0, 40.0, 0.0))
+    assert result.accepted and result.dim == 2
+    assert kf.t_s == 2.0
+    assert kf.estimate()["x_m"] == pytest.approx(40.0, abs=0.01)
+
+
+def test_non_finite_measurements_are_rejected_and_counted(name: str) -> None:
+    kf = _filter(name, speed_mps=10.0)
+    assert kf.update(_gnss(0.1, 1.0, 0.0)).accepted
+    before = kf.estimate()
+    bad = [
+        _gnss(0.2, math.nan, 0.0),
+        _gnss(0.2, 2.0, math.inf),
+        _gnss(0.2, 2.0, 0.0, cov=np.array([[math.nan, 0.0], [0.0, 1.0]])),
+        _gnss(math.nan, 2.0, 0.0),
+    ]
+    for measurement in bad:
+        result = kf.update(measurement)
+        assert not result.accepted
+        assert result.reason == "non-finite"
+        assert math.isnan(result.nis)
+    after = kf.estimate()
+    assert np.isfinite(after.mean).all() and np.isfinite(after.covariance).all()
+    np.testing.assert_array_equal(after.mean, before.mean)
+    assert after.t_s == before.t_s  # a rejected measurement does not even move the time
+    assert kf.counts()["gnss"]["rejected_nonfinite"] == 4
+    assert kf.counts()["gnss"]["accepted"] == 1
+
+
+def test_stale_measurements_are_rejected_and_counted(name: str) -> None:
+    kf = _filter(name, speed_mps=10.0)
+    kf.predict(1.0)
+    result = kf.update(_gnss(0.5, 5.0, 0.0))
+    assert not result.accepted and result.reason == "stale"
+    assert kf.counts()["gnss"]["rejected_stale"] == 1
+
+
+def test_unmodelled_sensors_are_ignored_not_rejected(name: str) -> None:
+    kf = _filter(name)
+    truth = Measurement("truth", 0.1, ("x_m",), np.array([1.0]), np.zeros((1, 1)))
+    result = kf.update(truth)
+    assert not result.accepted and result.dim == 0 and result.reason == "ignored"
+    counts = kf.counts()["truth"]
+    assert counts["ignored"] == 1
+    assert sum(v for k, v in counts.items() if k.startswith("rejected")) == 0
+    assert kf.t_s == 0.0
+
+
+def test_unknown_channel_and_bad_shapes_raise(name: str) -> None:
+    kf = _filter(name)
+    with pytest.raises(ValueError, match="z_m"):
+        kf.update(Measurement("gnss", 0.1, ("x_m", "z_m"), np.zeros(2), np.eye(2)))
+    with pytest.raises(ValueError, match="shape"):
+        kf.update(Measurement("gnss", 0.1, ("x_m", "y_m"), np.zeros(3), np.eye(2)))
+
+
+def test_driven_wheels_are_ignored_free_wheels_fused(name: str) -> None:
+    """The sedan is rear-wheel driven: its front wheels tell the speed, the rear ones slip."""
+    radius = VehicleParams().wheel_radius_m
+    kf = _filter(name, speed_mps=10.0)
+    spin = 11.0 / radius
+    values = np.array([spin, spin, -1e3, 1e3])  # rear channels are nonsense on purpose
+    result = kf.update(Measurement("wheel_speed", 0.01, WHEEL_NAMES, values, np.eye(4) * 0.01))
+    assert result.accepted and result.dim == 2
+    assert 10.0 < kf.estimate()["vx_mps"] <= 11.0
+
+
+def test_outlier_is_gated_and_counted_and_gate_off_accepts_it(name: str) -> None:
+    gated = _filter(name, speed_mps=10.0)
+    open_gate = _filter(name, EstimatorConfig(gate=False), speed_mps=10.0)
+    for kf in (gated, open_gate):
+        for k in range(1, 31):
+            assert kf.update(_gnss(0.1 * k, 1.0 * k, 0.0)).accepted
+    outlier = _gnss(3.1, 31.0 + 20.0, 20.0)
+    result = gated.update(outlier)
+    assert not result.accepted and result.reason == "gate"
+    assert result.nis > gated.gate_threshold(2)
+    assert gated.counts()["gnss"]["rejected_gate"] == 1
+    assert gated.counts()["gnss"]["channels_gated"] == 2
+    assert gated.estimate()["x_m"] == pytest.approx(31.0, abs=0.1)
+    assert gated.estimate()["y_m"] == pytest.approx(0.0, abs=0.1)
+    result = open_gate.update(outlier)
+    assert result.accepted and result.nis > 1e3
+    assert open_gate.estimate()["x_m"] > 40.0
+
+
+def test_channels_are_gated_one_by_one(name: str) -> None:
+    """A jump in x alone costs the x channel only; y is still fused."""
+    kf = _filter(name, speed_mps=10.0)
+    for k in range(1, 31):
+        assert kf.update(_gnss(0.1 * k, 1.0 * k, 0.0)).accepted
+    kf.predict(3.1)
+    y_sigma_before = math.sqrt(kf.estimate().sub_covariance(("y_m",))[0, 0])
+    result = kf.update(_gnss(3.1, 31.0 + 20.0, 0.01))
+    assert result.accepted and result.reason == "partial" and result.dim == 1
+    counts = kf.counts()["gnss"]
+    assert counts["channels_gated"] == 1 and counts["rejected_gate"] == 0
+    estimate = kf.estimate()
+    assert estimate["x_m"] == pytest.approx(31.0, abs=0.1)
+    assert math.sqrt(estimate.sub_covariance(("y_m",))[0, 0]) < y_sigma_before
+
+
+def test_locking_wheel_is_gated_alone(name: str) -> None:
+    """The right front wheel jumps by 10 % (a brake locking it, a bad tooth): its channel is
+    gated, the other one fused."""
+    kf = _filter(name, speed_mps=15.0)
+    names = ("front_left_radps", "front_right_radps")
+    spin = 15.0 / VehicleParams().wheel_radius_m
+    cov = np.eye(2) * 0.05**2
+    for k in range(1, 51):
+        measurement = Measurement("wheel_speed", 0.01 * k, names, np.array([spin, spin]), cov)
+        assert kf.update(measurement).reason == "accepted"
+    slipping = Measurement("wheel_speed", 0.51, names, np.array([spin, 0.9 * spin]), cov)
+    result = kf.update(slipping)
+    assert result.reason == "partial" and result.dim == 1
+    assert kf.estimate()["vx_mps"] == pytest.approx(15.0, abs=0.05)
+
+
+def test_gate_threshold_is_the_chi_square_quantile(name: str) -> None:
+    kf = _filter(name, EstimatorConfig(gate_probability=0.99))
+    assert kf.gate_threshold(1) == pytest.approx(6.634897, rel=1e-6)
+    assert kf.gate_threshold(2) == pytest.approx(9.210340, rel=1e-6)
+    with pytest.raises(ValueError):
+        kf.gate_threshold(0)
+
+
+def test_gate_is_released_after_persistent_rejections(name: str) -> None:
+    """A lasting jump of the GNSS is believed after gate_release_s of rejections."""
+    kf = _filter(name, EstimatorConfig(gate_release_s=1.0), speed_mps=10.0)
+    for k in range(1, 31):
+        kf.update(_gnss(0.1 * k, 1.0 * k, 0.0))
+    reasons = []
+    for k in range(31, 80):
+        reasons.append(kf.update(_gnss(0.1 * k, 1.0 * k + 20.0, 20.0)).reason)
+    counts = kf.counts()["gnss"]
+    assert counts["rejected_gate"] == 10  # 3.1 s .. 4.0 s
+    assert counts["gate_released"] == 2  # the x and the y channel, once each
+    assert reasons[:10] == ["gate"] * 10
+    assert reasons[10] == "gate-released"
+    # The jump is taken as a jump of the position, not of the speed: no oscillation after.
+    assert reasons[11:] == ["accepted"] * (len(reasons) - 11)
+    estimate = kf.estimate()
+    assert estimate["x_m"] == pytest.approx(7.9 * 10.0 + 20.0, abs=0.01)
+    assert estimate["y_m"] == pytest.approx(20.0, abs=0.01)
+    assert estimate["vx_mps"] == pytest.approx(10.0, abs=0.01)
+
+
+def test_yaw_is_wrapped_through_pi(name: str) -> None:
+    # Started in a turn it knows nothing of: a yaw-rate prior wide enough for 0.5 rad/s.
+    config = EstimatorConfig(init_yaw_rate_sigma_radps=1.0)
+    kf = _filter(name, config, yaw_rad=3.0, speed_mps=10.0)
+    for k in range(1, 101):
+        kf.update(_imu(0.01 * k, yaw_rate=0.5, ay=5.0))
+    yaw = kf.estimate()["yaw_rad"]
+    assert -math.pi < yaw <= math.pi
+    # 0.5 rad/s for 1 s; the yaw rate takes a few samples to settle from its prior.
+    assert yaw == pytest.approx(3.0 + 0.5 - 2 * math.pi, abs=0.03)
+
+
+def test_angle_innovation_is_wrapped(name: str) -> None:
+    """A heading of -3.1 rad seen from 3.1 rad is 0.083 rad away, not 6.2 rad."""
+    config = EstimatorConfig()
+    kf = _filter(name, config, yaw_rad=3.1)
+    heading = Measurement("heading", 0.0, ("yaw_rad",), np.array([-3.1]), np.eye(1) * 0.05**2)
+    result = kf.update(heading)
+    assert result.accepted
+    expected_innovation = 2 * math.pi - 6.2
+    variance = config.init_yaw_sigma_rad**2 + 0.05**2
+    assert result.nis == pytest.approx(expected_innovation**2 / variance, rel=1e-6)
+    yaw = kf.estimate()["yaw_rad"]
+    assert abs(yaw) > 3.1  # moved towards pi, across it or not
+    assert -math.pi < yaw <= math.pi
+
+
+def test_covariance_stays_symmetric_positive_definite(name: str) -> None:
+    kf = _filter(name, speed_mps=15.0)
+    rng = np.random.default_rng(0)
+    for k in range(1, 501):
+        t_s = 0.01 * k
+        kf.update(_imu(t_s, 0.1 + rng.normal(0, 0.003), rng.normal(0, 0.05), 1.5))
+        if k % 10 == 0:
+            kf.update(_gnss(t_s, 15.0 * t_s, 0.0, cov=np.eye(2) * 1e-6))
+    covariance = kf.estimate().covariance
+    np.testing.assert_array_equal(covariance, covariance.T)
+    assert np.linalg.eigvalsh(covariance).min() > 0.0
+
+
+def test_config_from_dict_and_validation(name: str) -> None:
+    config = from_dict(EstimatorConfig, {"gate": False, "jerk_psd_m2ps5": 10}, "estimator")
+    assert config.gate is False and config.jerk_psd_m2ps5 == 10.0
+    assert from_dict(EstimatorConfig, {"name": name}, "estimator").name == name
+    with pytest.raises(ConfigError, match="estimator.name"):
+        from_dict(EstimatorConfig, {"name": "magic"}, "estimator")
+    with pytest.raises(ConfigError, match="estimator.tyre_model"):
+        from_dict(EstimatorConfig, {"tyre_model": "pacejka"}, "estimator")
+    with pytest.raises(ConfigError, match="estimator.gate_probability"):
+        from_dict(EstimatorConfig, {"gate_probability": 1.5}, "estimator")
+    with pytest.raises(ConfigError, match="estimator.gate"):
+        from_dict(EstimatorConfig, {"gate": "no"}, "estimator")
+    with pytest.raises(ConfigError, match="estimator.max_step_s"):
+        _filter(name, EstimatorConfig(max_step_s=0.05))  # built directly, bypassing from_dict
+
+
+def test_reasons_are_exact_codes() -> None:
+    """Callers compare reasons as strings (the runner counts ``reason != "ignored"``)."""
+    assert REASONS == (
+        "accepted",
+        "partial",
+        "gate-released",
+        "gate",
+        "non-finite",
+        "stale",
+        "invalid",
+        "ignored",
+    )
