@@ -22,6 +22,10 @@ from tests.tracker.closed_loop import (
     estimate_of,
     run_closed_loop,
 )
+from tests.tracker.contract import (
+    assert_commands_within_bounds,
+    assert_every_solve_succeeded,
+)
 from tracker.config import TrackerConfig
 from tracker.double_lane_change import double_lane_change
 from tracker.kinematic_nmpc import KinematicNmpc
@@ -58,20 +62,11 @@ def test_lane_change_reaches_reference_speed(lane_change: ClosedLoopResult) -> N
 
 
 def test_lane_change_has_no_solver_failures(lane_change: ClosedLoopResult) -> None:
-    assert all(plan.success and not plan.fallback for plan in lane_change.plans)
-    assert all(np.isfinite(plan.cost) for plan in lane_change.plans)
-    assert all(0 < plan.iterations <= CONFIG.max_iterations for plan in lane_change.plans)
+    assert_every_solve_succeeded(lane_change.plans, CONFIG)
 
 
 def test_lane_change_commands_within_bounds(lane_change: ClosedLoopResult) -> None:
-    steer = np.array([c.steer_rad for c in lane_change.commands])
-    accel = np.array([c.accel_mps2 for c in lane_change.commands])
-    assert np.all(np.abs(steer) <= CONFIG.max_steer_rad)
-    assert np.all(accel >= CONFIG.accel_min_mps2)
-    assert np.all(accel <= CONFIG.accel_max_mps2)
-    # The first command is rate-limited against the zero command of reset().
-    steer_steps = np.abs(np.diff(np.concatenate(([0.0], steer))))
-    assert np.all(steer_steps <= CONFIG.max_steer_rate_radps * CONFIG.dt_s + 1e-9)
+    assert_commands_within_bounds(lane_change.commands, CONFIG)
 
 
 def test_lane_change_plan_is_complete(lane_change: ClosedLoopResult) -> None:
