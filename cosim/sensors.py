@@ -18,7 +18,8 @@ import numpy as np
 from cosim.config_fields import section, setting
 from cosim.records import WHEEL_NAMES, Measurement, VehicleState
 
-Sensor = Union["GnssSensor", "ImuSensor", "WheelSpeedSensor", "SteeringAngleSensor",
+Sensor = Union["GnssSensor", "HeadingSensor", "ImuSensor", "WheelSpeedSensor",
+               "SteeringAngleSensor",
                "TruthSensor"]
 
 
@@ -32,6 +33,15 @@ class GnssConfig:
     enabled: bool = setting(True)
     period_s: float = setting(0.1, low=0.001, high=10.0)
     sigma_m: float = setting(0.02, low=0.0, high=100.0, doc="per horizontal axis")
+
+
+@dataclass(frozen=True)
+class HeadingConfig:
+    """Dual-antenna GNSS heading: the yaw of the baseline between two antennas."""
+
+    enabled: bool = setting(False)
+    period_s: float = setting(0.1, low=0.001, high=10.0)
+    sigma_rad: float = setting(0.003, low=0.0, high=1.0, doc="about 0.17 deg: 1-2 m baseline")
 
 
 @dataclass(frozen=True)
@@ -80,6 +90,7 @@ class SensorsConfig:
 
     suite: str = setting("rtk", choices=SENSOR_SUITES)
     gnss: GnssConfig = section(GnssConfig)
+    heading: HeadingConfig = section(HeadingConfig)
     imu: ImuConfig = section(ImuConfig)
     wheel_speed: WheelSpeedConfig = section(WheelSpeedConfig)
     steering: SteeringConfig = section(SteeringConfig)
@@ -96,7 +107,8 @@ def suite_preset(suite: str) -> dict[str, dict[str, float]]:
     if suite == "gnss":
         return {"gnss": {"sigma_m": 0.5}}
     if suite == "ideal":
-        zero = {"gnss": GnssConfig, "imu": ImuConfig, "wheel_speed": WheelSpeedConfig,
+        zero = {"gnss": GnssConfig, "heading": HeadingConfig, "imu": ImuConfig,
+                "wheel_speed": WheelSpeedConfig,
                 "steering": SteeringConfig}
         return {
             name: {f.name: 0.0 for f in dataclasses.fields(cls)
@@ -185,6 +197,23 @@ class WheelSpeedSensor:
         return Measurement(self.name, truth.t_s, self.names, values, self._covariance)
 
 
+class HeadingSensor:
+    """Dual-antenna GNSS heading with white Gaussian noise, wrapped to (-pi, pi]."""
+
+    name = "heading"
+    names = ("yaw_rad",)
+
+    def __init__(self, config: HeadingConfig) -> None:
+        self.period_s = config.period_s
+        self._sigma = config.sigma_rad
+        self._covariance = np.eye(1) * config.sigma_rad**2
+
+    def sample(self, truth: VehicleState, rng: np.random.Generator) -> Measurement:
+        yaw = truth.yaw_rad + rng.normal(0.0, self._sigma)
+        values = np.array([np.pi - np.mod(np.pi - yaw, 2.0 * np.pi)])
+        return Measurement(self.name, truth.t_s, self.names, values, self._covariance)
+
+
 class SteeringAngleSensor:
     """The steering-angle sensor, expressed as the mean front road-wheel angle."""
 
@@ -230,6 +259,8 @@ def make_sensors(config: SensorsConfig) -> list[Sensor]:
     sensors: list[Sensor] = []
     if config.gnss.enabled:
         sensors.append(GnssSensor(config.gnss))
+    if config.heading.enabled:
+        sensors.append(HeadingSensor(config.heading))
     if config.imu.enabled:
         sensors.append(ImuSensor(config.imu))
     if config.wheel_speed.enabled:
