@@ -32,6 +32,7 @@ from cosim.identification.fits import (
     simulate_first_order,
 )
 from cosim.vehicle_params import VehicleParams
+from tests.named_vectors import named_vector
 from tracker.dynamic_bicycle import (
     INPUT,
     INPUT_NAMES,
@@ -58,17 +59,11 @@ COSIM = str(Path(sys.executable).with_name("cosim"))
 
 
 def _state(**values: float) -> np.ndarray:
-    state = np.zeros(len(STATE_NAMES))
-    for name, value in values.items():
-        state[STATE[name]] = value
-    return state
+    return named_vector(STATE, **values)
 
 
 def _inputs(accel_mps2: float = 0.0, steer_rad: float = 0.0) -> np.ndarray:
-    inputs = np.zeros(len(INPUT_NAMES))
-    inputs[INPUT["accel_mps2"]] = accel_mps2
-    inputs[INPUT["steer_rad"]] = steer_rad
-    return inputs
+    return named_vector(INPUT, accel_mps2=accel_mps2, steer_rad=steer_rad)
 
 
 # ------------------------------------------------------------------ dynamic bicycle

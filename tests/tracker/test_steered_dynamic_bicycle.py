@@ -11,6 +11,7 @@ import pytest
 
 from cosim.exceptions import ConfigError
 from cosim.vehicle_params import VehicleParams
+from tests.named_vectors import named_vector
 from tracker import dynamic_bicycle as bicycle
 from tracker.steered_dynamic_bicycle import (
     INPUT,
@@ -34,17 +35,11 @@ SEED_PAPER = SteeredBicycleParams.from_vehicle(VehicleParams(
 
 
 def _state(**values: float) -> np.ndarray:
-    state = np.zeros(len(STATE_NAMES))
-    for name, value in values.items():
-        state[STATE[name]] = value
-    return state
+    return named_vector(STATE, **values)
 
 
 def _inputs(accel_mps2: float = 0.0, steer_rad: float = 0.0) -> np.ndarray:
-    inputs = np.zeros(len(INPUT_NAMES))
-    inputs[INPUT["accel_mps2"]] = accel_mps2
-    inputs[INPUT["steer_rad"]] = steer_rad
-    return inputs
+    return named_vector(INPUT, accel_mps2=accel_mps2, steer_rad=steer_rad)
 
 
 def _simulate(state: np.ndarray, inputs: np.ndarray, duration_s: float,
