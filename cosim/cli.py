@@ -5,9 +5,13 @@
     cosim inspect FILE.mcap [--json] [--topic T [--head N]]
     cosim scenarios
     cosim identify [--config FILE.yaml] [--set key.path=value ...] [--json]
+    cosim sweep SPEC.yaml [--workers N] [--backend process|ray] [--out DIR] [--keep-logs]
+                          [--resume]
 
 Bad input: one line on stderr naming the bad value and what was expected, exit code 2.
 A run that aborts exits 1 (its log is complete up to the abort); an interrupt exits 130.
+A sweep exits 0 when every run has a row (failed runs and failed pass criteria included: the
+results say so), 1 if a worker process died, 130 on an interrupt (finish with --resume).
 """
 
 from __future__ import annotations
@@ -65,6 +69,20 @@ def _build_parser() -> argparse.ArgumentParser:
     identify.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                           dest="overrides", help="override a config key, e.g. plant.mass_kg=2000")
     identify.add_argument("--json", action="store_true", help="print one JSON object")
+
+    sweep = commands.add_parser(
+        "sweep", help="run a scenario over a grid or random sample of parameters and seeds")
+    sweep.add_argument("spec", metavar="SPEC.yaml", help="the sweep spec (see cosim.sweep.spec)")
+    sweep.add_argument("--workers", type=int, metavar="N",
+                       help="parallel runs (default: the number of cores)")
+    sweep.add_argument("--backend", choices=("process", "ray"), default="process",
+                       help="process pool on this machine (default) or Ray")
+    sweep.add_argument("--out", metavar="DIR",
+                       help="output directory (default logs/sweep-<spec>-<time>)")
+    sweep.add_argument("--keep-logs", action="store_true",
+                       help="keep every run's MCAP log under DIR/logs")
+    sweep.add_argument("--resume", action="store_true",
+                       help="finish the interrupted sweep in --out DIR (same spec)")
     return parser
 
 
@@ -236,11 +254,42 @@ def _command_identify(args: argparse.Namespace) -> int:
     return 0
 
 
+def _command_sweep(args: argparse.Namespace) -> int:
+    from cosim.sweep.driver import default_out_dir, run_sweep
+    from cosim.sweep.execute import WorkerCrashError
+
+    if args.resume and args.out is None:
+        raise CosimError("--resume: expected --out DIR, the directory of the sweep to finish")
+    if not Path(args.spec).is_file():
+        raise CosimError(f"{args.spec!r}: no such file (expected a sweep spec YAML)")
+    out = Path(args.out) if args.out is not None else default_out_dir(Path(args.spec))
+    try:
+        outcome = run_sweep(args.spec, out, args.workers, args.backend, args.keep_logs,
+                            args.resume)
+    except WorkerCrashError as error:
+        print(f"cosim: sweep aborted: {error}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print(f"cosim: sweep interrupted; finished rows are kept: resume with `cosim sweep "
+              f"{args.spec} --out {out} --resume`", file=sys.stderr)
+        return 130
+    earlier = outcome.finished - outcome.ran
+    print(f"sweep: {outcome.runs} runs (ran {outcome.ran} now"
+          + (f", {earlier} from before" if earlier else "")
+          + f") in {outcome.wall_time_s:.1f} s; {outcome.passed} pass, "
+          f"{outcome.finished - outcome.passed} fail"
+          + (f" ({outcome.errors} with an error)" if outcome.errors else ""))
+    for path in outcome.files:
+        print(f"  {path}")
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``cosim`` console script."""
     args = _build_parser().parse_args(argv)
     handlers = {"run": _command_run, "inspect": _command_inspect,
-                "scenarios": _command_scenarios, "identify": _command_identify}
+                "scenarios": _command_scenarios, "identify": _command_identify,
+                "sweep": _command_sweep}
     try:
         return handlers[args.command](args)
     except CosimError as error:

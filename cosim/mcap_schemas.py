@@ -83,6 +83,13 @@ MEASUREMENT = {
     "additionalProperties": NUMBER_OR_NULL,
 }
 
+DISTURBANCE = object_schema(
+    "cosim.Disturbance",
+    {"t_s": NUMBER, "kind": STRING, "heading_step_rad": NUMBER,
+     "yaw_rate_change_radps": NUMBER},
+    "An unmeasured disturbance applied to the plant (scenario `disturbances`).",
+)
+
 REFERENCE_PATH = object_schema(
     "cosim.ReferencePath",
     {"s_m": NUMBERS, "x_m": NUMBERS, "y_m": NUMBERS, "yaw_rad": NUMBERS,

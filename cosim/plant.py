@@ -295,6 +295,16 @@ class MujocoPlant:
             )
             self._place_lead_car(self._lead.state)
 
+    def add_yaw_rate(self, delta_radps: float) -> None:
+        """Raise the chassis's yaw rate by ``delta_radps`` at once (a yaw disturbance).
+
+        The chassis's angular velocity about its own z axis changes; its linear velocity
+        does not, so the body turns away from its course and the tyres react
+        (:mod:`cosim.disturbances`).
+        """
+        self._data.qvel[self._angvel_slice.start + 2] += delta_radps
+        mujoco.mj_forward(self._model, self._data)
+
     def apply(self, actuator: ActuatorCommand) -> None:
         """Set the actuators' targets; they act from the next :meth:`advance` on.
 

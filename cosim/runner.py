@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from cosim import __version__, foxglove, mcap_schemas
+from cosim import __version__, disturbances, foxglove, mcap_schemas
 from cosim.config_fields import to_dict
 from cosim.exceptions import PhysicsDivergenceError
 from cosim.faults import FaultInjector
@@ -118,7 +118,8 @@ def _stop_on_signals() -> Iterator[_StopRequest]:
             signal.signal(signum, handler)
 
 
-def _register_topics(recorder: McapRecorder, sensor_names: list[str]) -> None:
+def _register_topics(recorder: McapRecorder, sensor_names: list[str],
+                     disturbed: bool) -> None:
     recorder.register("/vehicle/truth", mcap_schemas.VEHICLE_STATE)
     recorder.register("/vehicle/estimate", mcap_schemas.ESTIMATE)
     recorder.register("/control/command", mcap_schemas.COMMAND)
@@ -128,6 +129,8 @@ def _register_topics(recorder: McapRecorder, sensor_names: list[str]) -> None:
     recorder.register("/tf", mcap_schemas.FRAME_TRANSFORM)
     recorder.register("/scene", mcap_schemas.SCENE_UPDATE)
     recorder.register("/gnss/fix", mcap_schemas.LOCATION_FIX)
+    if disturbed:  # a channel exists only when it will carry messages
+        recorder.register("/plant/disturbance", mcap_schemas.DISTURBANCE)
     for name in sensor_names:
         recorder.register(f"/sensors/{name}", mcap_schemas.MEASUREMENT)
 
@@ -183,13 +186,16 @@ class _Run:
         self.metrics = MetricsAccumulator(self.reference,
                                           config.maneuver if open_loop else None)
         self.delay_line: collections.deque[tuple[int, Command]] = collections.deque()
+        self.yaw_rate_changes = collections.deque(disturbances.schedule(
+            config.disturbances, self.clock.dt_s, component_rng(config.seed, "disturbances")))
         self.truth = self.plant.state()
         self.estimated_speed_mps = config.initial.speed_mps
 
     def write_header(self) -> None:
         """Channels, the run's metadata, the simulated MJCF, the path and the static scene."""
         recorder, config = self.recorder, self.config
-        _register_topics(recorder, [s.name for s in self.sensors])
+        _register_topics(recorder, [s.name for s in self.sensors],
+                         bool(config.disturbances))
         config_dict = to_dict(config)
         versions = _versions()
         recorder.add_metadata("run", {
@@ -259,6 +265,16 @@ class _Run:
                 "brake_torque_nm": actuator.brake_torque_nm,
             })
 
+    def disturb(self, k: int, t_s: float) -> None:
+        """Apply the unmeasured disturbances due at step ``k`` (:mod:`cosim.disturbances`)."""
+        while self.yaw_rate_changes and self.yaw_rate_changes[0].step <= k:
+            change = self.yaw_rate_changes.popleft()
+            self.plant.add_yaw_rate(change.delta_radps)
+            self.truth = self.plant.state()
+            self.recorder.write("/plant/disturbance", t_s, {
+                "t_s": t_s, "kind": "heading_step", "heading_step_rad": change.angle_rad,
+                "yaw_rate_change_radps": change.delta_radps})
+
     def loop(self, stop: _StopRequest, progress: Callable[[float], None] | None) -> None:
         clock = self.clock
         for k in range(clock.n_steps + 1):
@@ -271,6 +287,7 @@ class _Run:
             if k % clock.control_steps == 0:
                 self.control(k, t_s)
             self.actuate(k, t_s)
+            self.disturb(k, t_s)
             self.plant.advance()
             self.truth = self.plant.state()
             if stop.signal_name:

@@ -18,6 +18,7 @@ from typing import Any
 import yaml
 
 from cosim.config_fields import from_dict, items, section, set_dotted, setting
+from cosim.disturbances import DisturbanceConfig
 from cosim.exceptions import ConfigError, RateError
 from cosim.faults import FaultConfig
 from cosim.foxglove import GeoOrigin
@@ -62,6 +63,7 @@ class ScenarioConfig:
     plant: PlantConfig = section(PlantConfig)
     sensors: SensorsConfig = section(SensorsConfig)
     faults: tuple[FaultConfig, ...] = items(FaultConfig)
+    disturbances: tuple[DisturbanceConfig, ...] = items(DisturbanceConfig)
     estimator: EstimatorConfig = section(EstimatorConfig)
     tracker: TrackerConfig = section(TrackerConfig)
     maneuver: ManeuverConfig = section(ManeuverConfig)
@@ -162,9 +164,26 @@ def load_config(
     if isinstance(sensors, dict) and isinstance(sensors.get("suite"), str):
         # The suite presets figures; what the user set explicitly wins.
         data["sensors"] = _merge(suite_preset(sensors["suite"]), sensors)
+    _believe_actuator_delay(data)
     config = from_dict(ScenarioConfig, data)
     check_rates(config)
     return config
+
+
+def _believe_actuator_delay(data: dict[str, Any]) -> None:
+    """A tracker that is not told its latency believes in the plant's actuator delay.
+
+    The delay line is part of the testbed, not of the car, so the controller knows it
+    (issue 5: "forward-predict over the known actuator delay"); ``tracker.latency_s`` set
+    explicitly wins, which is how a study makes the belief wrong on purpose.
+    """
+    plant, tracker = data.get("plant"), data.get("tracker")
+    if not isinstance(plant, dict) or "actuator_delay_s" not in plant:
+        return
+    if tracker is None:
+        data["tracker"] = tracker = {}
+    if isinstance(tracker, dict) and "latency_s" not in tracker:
+        tracker["latency_s"] = plant["actuator_delay_s"]
 
 
 def steps_per_period(period_s: float, physics_dt_s: float, key: str) -> int:

@@ -387,7 +387,8 @@ class KalmanFusion(ABC):
         if joint is None:
             counts.rejected_invalid += 1
             return UpdateResult(False, math.nan, dim, INVALID)
-        if not self._config.gate or joint.nis <= self.gate_threshold(dim):
+        use_gate = self._config.gate and (sensor != "imu" or self._config.gate_imu)
+        if not use_gate or joint.nis <= self.gate_threshold(dim):
             # The common case: one joint update.
             self._forget_gate_failures(model, selection, everything)
             if not self._apply(joint):

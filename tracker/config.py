@@ -7,13 +7,14 @@ command line (``--set tracker.horizon=30``, ``--set tracker.weights.cte=5``) is 
 The cost the weights enter (seed digest section 1) is integrated over the horizon::
 
     J = sum_{k=1..N} dt [ w_cte cte_k^2 + w_heading epsi_k^2 + w_speed (v_k - v_ref)^2 ]
-      + sum_{k=0..N-1} dt [ w_accel a_k^2 + w_steer delta_k^2
+      + sum_{k=0..N-1} dt [ w_accel a_k^2 + w_steer (delta_k - delta_ff,k)^2
                             + w_accel_rate ((a_k - a_{k-1}) / dt)^2
                             + w_steer_rate ((delta_k - delta_{k-1}) / dt)^2 ]
 
-with ``a_{-1}, delta_{-1}`` the previously applied command. Each weight multiplies the
-square of an SI quantity per second of horizon, so changing ``dt_s`` or ``horizon`` does not
-rescale the balance between the terms.
+with ``a_{-1}, delta_{-1}`` the previously applied command and ``delta_ff,k`` the
+steady-state steering of the reference's curvature (``curvature_feedforward``; zero when
+off). Each weight multiplies the square of an SI quantity per second of horizon, so changing
+``dt_s`` or ``horizon`` does not rescale the balance between the terms.
 
 Default tuning, shared by both NMPCs and made for the default tracker ``dynamic-nmpc``
 (measured on the MuJoCo sedan with Pacejka tyres and the EKF in the loop, stretched double
@@ -28,24 +29,38 @@ lane change at 20 m/s from 15 m/s, about 0.5 g; max CTE for seeds 0/1/2, ``plant
   rate from sensor noise 0.048 / 0.032 / 0.020 rad/s) and less margin: with MuJoCo contact
   tyres (a car with no cornering compliance, far from the belief) ``steer_rate = 1``
   oscillated to 1.96 m, 3 gives 0.37 m (seed lesson: with noisy sensing, moderate weights
-  beat aggressive ones). The kinematic NMPC with these weights: 0.75 m on the default
-  sedan (1.56 m with 20); with contact tyres 0.12 m with the filter that has no tyre model
-  (0.13 m with 20), 3.0 m with the filter that assumes the belief's linear tyres (0.69 m
-  with 20): ``--set tracker.weights.steer_rate=20`` restores its earlier tuning.
+  beat aggressive ones). The kinematic NMPC with these weights: 0.054 / 0.043 m (seeds
+  0/1) with ``kinematic_understeer`` (the default), 0.80 / 0.75 m with seed section 1's
+  pure kinematic model (1.56 m with 20); with contact tyres 0.12 m with the filter that
+  has no tyre model (0.13 m with 20), 3.0 m with the filter that assumes the belief's
+  linear tyres (0.69 m with 20): ``--set tracker.weights.steer_rate=20`` restores its
+  earlier tuning.
   The other weights matter little: ``heading`` 0.5 instead of 2 changes nothing; ``speed``
   against ``accel`` makes the car accelerate at the 3 m/s^2 bound from 15 to 20 m/s, as in
   the seed paper (section 2).
 * ``limit_excess = 1e4``: the soft limit on the dynamic model's slip angles (the linear
   tyres' range). It never binds at 0.5 g; on Falcone's unstretched path (1.11 g,
   ``lane-change-limit``) it keeps the car from spinning (0.70 m instead of 15.7 m).
-* ``latency_s = 0``: the command's transport delay, which no model contains; set it to
-  ``plant.actuator_delay_s`` (with a 100 ms delay: 0.12 m with ``latency_s = 0.1``,
-  0.6-1.4 m without). The steering actuator's lag is not latency: the dynamic model
-  contains it, and the kinematic model, which lacks it, adds ``model.steer_time_constant_s``
-  itself (section 1, latency item (a); see :mod:`tracker.kinematic_nmpc`).
+* ``latency_compensation = true``, ``latency_s`` = ``plant.actuator_delay_s`` unless set:
+  the command's transport delay, which no model contains. The estimate is predicted over it
+  with the commands already in the delay line (:mod:`tracker.delay_line`). With a 100 ms
+  delay (seed 0): 0.073 m against 0.057 m without delay; without compensation the car
+  spins (8.2 m). The steering actuator's lag is not latency: the dynamic model contains
+  it, and the kinematic model, which lacks it, adds ``model.steer_time_constant_s`` to the
+  delay it predicts over (section 1, latency item (a); see :mod:`tracker.kinematic_nmpc`).
+* ``reference = spline`` with ``curvature_feedforward``: the seed's cubic fit
+  (``cubic-polynomial``) gives 0.047 / 0.063 / 0.074 m (seeds 0/1/2, dynamic-nmpc)
+  against 0.058 / 0.046 / 0.047 m; the feed-forward changes less than a millimetre on
+  the lane change (0.0575 / 0.0462 / 0.0469 m without; seed lesson: it changed little);
+  on a 40 m circle it removes the steering weight's pull off the path (0.06 mm without).
 * ``horizon = 25`` at ``dt_s = 0.05``: 1.25 s or 25 m of preview at 20 m/s, the length of
   one steering swing of the lane change (section 1: longer horizons at higher speed). 20
   stages: 0.094 m; 30 stages: 0.052 m at about 15 % more solve time.
+* ``solver = ipopt``: the reference. ``fatrop`` reaches the same optimum 2-3 times faster
+  and ``sqp-rti`` (one Gauss-Newton SQP step per control step, hpipm for the QP) gives the
+  same max CTE on the lane change (seeds 0/1/2, both NMPCs) 6-10 times faster:
+  ``kinematic-nmpc`` at N = 20 0.5-0.6 ms median against 2.4-3.5 ms; ``dynamic-nmpc``
+  0.7-0.9 ms against 5-10 ms (a loaded 2-core machine; table in :mod:`tracker.nmpc`).
 """
 
 from __future__ import annotations
@@ -56,8 +71,13 @@ from dataclasses import dataclass
 from cosim.config_fields import section, setting
 from cosim.exceptions import ConfigError
 from cosim.vehicle_params import VehicleParams
+from tracker.dynamic_mpc_config import DynamicMpcConfig
+from tracker.horizon_reference import REFERENCE_KINDS
+from tracker.ltv_mpc_config import LtvMpcConfig
 
-TRACKER_CHOICES: tuple[str, ...] = ("kinematic-nmpc", "dynamic-nmpc", "open-loop")
+TRACKER_CHOICES: tuple[str, ...] = (
+    "kinematic-nmpc", "dynamic-nmpc", "dynamic-mpc", "ltv-mpc", "open-loop",
+)
 """Values ``tracker.name`` accepts; :data:`tracker.registry.TRACKER_NAMES` maps each one."""
 
 
@@ -103,15 +123,63 @@ class TrackerConfig:
     )
     accel_min_mps2: float = setting(-3.0, low=-20.0, high=0.0, doc="strongest braking")
     accel_max_mps2: float = setting(3.0, low=0.0, high=20.0, doc="strongest acceleration")
-    max_iterations: int = setting(100, low=1, high=10000, doc="IPOPT iteration limit")
-    tolerance: float = setting(1e-6, low=1e-12, high=1.0, doc="IPOPT convergence tolerance")
+    reference: str = setting(
+        "spline",
+        choices=REFERENCE_KINDS,
+        doc="reference over the horizon (tracker.horizon_reference): spline, the path "
+        "itself at the arc lengths to be covered; cubic-polynomial, seed section 1's cubic "
+        "fitted to the waypoints in the vehicle frame",
+    )
+    kinematic_understeer: bool = setting(
+        True,
+        doc="kinematic-nmpc: turn at the steady-state yaw rate and slip of the belief's "
+        "linear tyres (tracker.kinematic_bicycle (U1)-(U2)) instead of the kinematic ones; "
+        "false is seed section 1's model (max CTE 0.80 m against 0.054 m on the sedan)",
+    )
+    curvature_feedforward: bool = setting(
+        True,
+        doc="NMPCs: penalise the steering's departure from the steady-state angle of the "
+        "reference's curvature (atan(L kappa) + K v^2 kappa, K the model's understeer "
+        "gradient) rather than from straight ahead",
+    )
+    solver: str = setting(
+        "ipopt",
+        choices=("ipopt", "fatrop", "sqp-rti"),
+        doc="NLP solver of kinematic-nmpc and dynamic-nmpc (measured table in tracker.nmpc): "
+        "ipopt (interior point, general sparse; the reference), fatrop (interior point over "
+        "the stages; IPOPT's optimum 2-3x faster), sqp-rti (real-time iteration: "
+        "rti_iterations Gauss-Newton SQP steps per control step from the shifted plan, "
+        "one QP each; same max CTE on the lane change 6-10x faster: kinematic N=20 "
+        "0.5-0.6 ms median against 2.4-3.5 ms with ipopt)",
+    )
+    rti_qp_solver: str = setting(
+        "hpipm",
+        choices=("hpipm", "qrqp", "osqp"),
+        doc="QP back-end of solver sqp-rti: hpipm (Riccati interior point over the stages; "
+        "fastest), qrqp (CasADi's sparse active set; 2-3x slower), osqp (ADMM at 1e-6; "
+        "fast on the kinematic model, 8x slower on the dynamic one)",
+    )
+    rti_iterations: int = setting(
+        1, low=1, high=100, doc="SQP iterations per step of solver sqp-rti (exactly this many)"
+    )
+    max_iterations: int = setting(
+        100, low=1, high=10000, doc="iteration limit of solvers ipopt and fatrop"
+    )
+    tolerance: float = setting(
+        1e-6, low=1e-12, high=1.0, doc="convergence tolerance of solvers ipopt and fatrop"
+    )
+    latency_compensation: bool = setting(
+        True,
+        doc="predict the estimate over latency_s with the commands in the delay line "
+        "(seed section 1, latency remedy (a))",
+    )
     latency_s: float = setting(
         0.0,
         low=0.0,
         high=2.0,
-        doc="command transport delay to predict over (seed section 1), e.g. "
-        "plant.actuator_delay_s; a model without the steering actuator adds "
-        "model.steer_time_constant_s itself",
+        doc="the command transport delay the tracker believes in; a scenario that does not "
+        "set it gets plant.actuator_delay_s. A model without the steering actuator adds "
+        "model.steer_time_constant_s to the prediction itself",
     )
     fallback_time_s: float = setting(
         0.5, low=0.0, high=10.0, doc="how long to replay the last plan before a safe stop"
@@ -120,6 +188,8 @@ class TrackerConfig:
         -2.0, low=-20.0, high=0.0, doc="deceleration of the safe stop"
     )
     model: VehicleParams = section(VehicleParams)
+    dynamic_mpc: DynamicMpcConfig = section(DynamicMpcConfig)
+    ltv_mpc: LtvMpcConfig = section(LtvMpcConfig)
 
     def __post_init__(self) -> None:
         if not self.accel_min_mps2 < self.accel_max_mps2:

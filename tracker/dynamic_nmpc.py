@@ -83,6 +83,7 @@ def dynamic_model(config: TrackerConfig) -> NmpcModel:
         predict=predict_function(params),
         dt_s=config.dt_s,
         unmodelled_lag_s=0.0,
+        understeer_gradient_radpmps2=params.bicycle.understeer_gradient_radpmps2,
         internal_rest_inputs={"road_wheel_angle_rad": "steer_rad"},
         limits=slip_angle_function(params),
         limit_names=("front_slip_rad", "rear_slip_rad"),
@@ -91,7 +92,7 @@ def dynamic_model(config: TrackerConfig) -> NmpcModel:
 
 
 class DynamicNmpc(Nmpc):
-    """Dynamic-bicycle NMPC path tracker with IPOPT (seed digest sections 1 and 2).
+    """Dynamic-bicycle NMPC path tracker (seed digest sections 1 and 2; ``tracker.solver``).
 
     Args:
       config: the tracker configuration; ``config.model`` is the controller's belief

@@ -63,47 +63,76 @@ def slip_angle(steer_rad: Symbolic, params: VehicleParams) -> Symbolic:
     return ca.atan(params.cog_rear_m / params.wheelbase_m * ca.tan(steer_rad))
 
 
-def continuous_dynamics(state: Symbolic, inputs: Symbolic, params: VehicleParams) -> Symbolic:
-    """Time derivative of the state, eqs. (K1)-(K5), as a 4x1 CasADi expression."""
+def continuous_dynamics(state: Symbolic, inputs: Symbolic, params: VehicleParams,
+                        understeer: bool = False) -> Symbolic:
+    """Time derivative of the state, eqs. (K1)-(K5), as a 4x1 CasADi expression.
+
+    ``understeer``: the steady-state turn of the linear-tyre dynamic bicycle instead of the
+    kinematic one, still with four states (no lateral dynamics). The yaw rate and the CoG
+    slip angle are those the car settles to at speed ``v`` and steering ``delta``
+    (seed section 2's tyres; Rajamani, Vehicle Dynamics and Control, 2nd ed., 3.3)::
+
+        r    = v tan(delta) / (L + K v^2)                                   (U1)
+        beta = atan(tan(delta) / (L + K v^2) (l_r - m l_f v^2 / (C_r L)))   (U2)
+
+    with ``K = m (l_r / C_f - l_f / C_r) / L`` the belief's understeer gradient; both
+    reduce to (K1) and (K4) at ``v = 0`` (and for small angles when the tyres are rigid).
+    """
     yaw = state[STATE["yaw_rad"]]
     speed = state[STATE["vx_mps"]]
     accel = inputs[INPUT["accel_mps2"]]
     steer = inputs[INPUT["steer_rad"]]
-    beta = slip_angle(steer, params)
+    if understeer:
+        p = params
+        length = p.wheelbase_m
+        gradient = p.mass_kg / length * (p.cog_rear_m / p.cornering_stiffness_front_npr
+                                         - p.cog_front_m / p.cornering_stiffness_rear_npr)
+        curvature = ca.tan(steer) / (length + gradient * speed**2)
+        beta = ca.atan(curvature * (p.cog_rear_m - p.mass_kg * p.cog_front_m * speed**2
+                                    / (p.cornering_stiffness_rear_npr * length)))
+        yaw_rate = speed * curvature
+    else:
+        beta = slip_angle(steer, params)
+        yaw_rate = speed * ca.cos(beta) * ca.tan(steer) / params.wheelbase_m
     derivative = {
         "x_m": speed * ca.cos(yaw + beta),
         "y_m": speed * ca.sin(yaw + beta),
-        "yaw_rad": speed * ca.cos(beta) * ca.tan(steer) / params.wheelbase_m,
+        "yaw_rad": yaw_rate,
         "vx_mps": accel,
     }
     return ca.vertcat(*(derivative[name] for name in STATE_NAMES))
 
 
 def rk4_step(
-    state: Symbolic, inputs: Symbolic, dt_s: Symbolic | float, params: VehicleParams
+    state: Symbolic, inputs: Symbolic, dt_s: Symbolic | float, params: VehicleParams,
+    understeer: bool = False,
 ) -> Symbolic:
     """One classical RK4 step of length ``dt_s`` with the inputs held constant."""
-    k1 = continuous_dynamics(state, inputs, params)
-    k2 = continuous_dynamics(state + 0.5 * dt_s * k1, inputs, params)
-    k3 = continuous_dynamics(state + 0.5 * dt_s * k2, inputs, params)
-    k4 = continuous_dynamics(state + dt_s * k3, inputs, params)
+    def f(x: Symbolic) -> Symbolic:
+        return continuous_dynamics(x, inputs, params, understeer)
+
+    k1 = f(state)
+    k2 = f(state + 0.5 * dt_s * k1)
+    k3 = f(state + 0.5 * dt_s * k2)
+    k4 = f(state + dt_s * k3)
     return state + dt_s / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
 
 
-def continuous_function(params: VehicleParams) -> ca.Function:
-    """``f(state, inputs) -> state_dot`` as a CasADi Function (eqs. K1-K5)."""
+def continuous_function(params: VehicleParams, understeer: bool = False) -> ca.Function:
+    """``f(state, inputs) -> state_dot`` as a CasADi Function (eqs. K1-K5, or U1-U2)."""
     state = ca.SX.sym("state", len(STATE_NAMES))
     inputs = ca.SX.sym("inputs", len(INPUT_NAMES))
     return ca.Function(
         "kinematic_bicycle",
         [state, inputs],
-        [continuous_dynamics(state, inputs, params)],
+        [continuous_dynamics(state, inputs, params, understeer)],
         ["state", "inputs"],
         ["state_dot"],
     )
 
 
-def discrete_function(params: VehicleParams, dt_s: float, substeps: int = 1) -> ca.Function:
+def discrete_function(params: VehicleParams, dt_s: float, substeps: int = 1,
+                      understeer: bool = False) -> ca.Function:
     """``F(state, inputs) -> next_state`` over ``dt_s`` by ``substeps`` RK4 steps."""
     if not dt_s > 0.0:
         raise ConfigError(f"dt_s = {dt_s!r}: expected a positive step")
@@ -114,7 +143,7 @@ def discrete_function(params: VehicleParams, dt_s: float, substeps: int = 1) -> 
     h = dt_s / substeps
     next_state = state
     for _ in range(substeps):
-        next_state = rk4_step(next_state, inputs, h, params)
+        next_state = rk4_step(next_state, inputs, h, params, understeer)
     return ca.Function(
         "kinematic_bicycle_rk4",
         [state, inputs],
@@ -124,7 +153,8 @@ def discrete_function(params: VehicleParams, dt_s: float, substeps: int = 1) -> 
     )
 
 
-def predict_function(params: VehicleParams, substeps: int = 4) -> ca.Function:
+def predict_function(params: VehicleParams, substeps: int = 4,
+                     understeer: bool = False) -> ca.Function:
     """``P(state, inputs, duration_s) -> predicted_state`` after a variable duration (RK4 substeps).
 
     Used to move an estimate forward over a known latency (seed digest section 1, latency
@@ -138,7 +168,7 @@ def predict_function(params: VehicleParams, substeps: int = 4) -> ca.Function:
     h = duration / substeps
     next_state = state
     for _ in range(substeps):
-        next_state = rk4_step(next_state, inputs, h, params)
+        next_state = rk4_step(next_state, inputs, h, params, understeer)
     return ca.Function(
         "kinematic_bicycle_predict",
         [state, inputs, duration],

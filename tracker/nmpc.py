@@ -1,6 +1,6 @@
 """The NLP machinery every nonlinear MPC path tracker shares (seed digest section 1).
 
-At every control step solve, by multiple shooting with IPOPT,
+At every control step solve, by multiple shooting with the NLP solver ``tracker.solver``,
 ``min_{x,u} sum_k c_k(x_k, u_k)  s.t.  x_{k+1} = F(x_k, u_k), x_0 = estimated state``,
 apply the first input and keep the rest as the next warm start. A tracker is an
 :class:`NmpcModel` (the model ``F`` and how its state is formed from an estimate) plus a
@@ -30,9 +30,14 @@ apply the first input and keep the rest as the next warm start. A tracker is an
   actuator's angle, which no estimator reports) are *internal*: the tracker carries them
   itself, propagating last step's state with the command it applied (exact for an
   actuator driven by that command), and starts them at rest at the last applied input.
-* Latency (section 1, item (a)): the initial state is predicted forward over
-  ``latency_s`` plus the actuator lag the model leaves out (``unmodelled_lag_s``) plus the
-  age of the estimate, with the previous command, before the optimisation starts.
+* Latency (section 1, item (a)): with ``latency_compensation`` the tracker believes the
+  car receives each command ``latency_s`` after it was issued (the runner's delay line,
+  ``plant.actuator_delay_s``), plus the actuator lag the model leaves out
+  (``unmodelled_lag_s``, approximated as more delay). The estimate is predicted forward
+  from its time to ``t_s`` plus that delay, piece by piece with the commands already on
+  their way (:class:`tracker.delay_line.IssuedInputs`), not the last one held: the
+  optimisation then decides the input the car applies once the delay has passed. The
+  internal states are propagated with the same applied commands.
 * Warm start: the previous solution shifted by the time elapsed; on the first step the
   last applied actuation held over the horizon and rolled out through the model (section
   1, "warm start").
@@ -42,9 +47,62 @@ apply the first input and keep the rest as the next warm start. A tracker is an
   stop: steering back to zero at the steering-rate limit, then held, and a constant
   deceleration to standstill. :meth:`Nmpc.step` never raises for a solver failure.
 
-The NLP is built once in the constructor; a step only sets parameters and solves. Nothing
-depends on wall-clock time except the reported ``solve_time_s``, so equal inputs give
-equal outputs.
+* Solvers (``tracker.solver``; built once in the constructor, a step only sets parameters
+  and solves; the solver's own verdict decides success, see :meth:`_Nlp.solve`):
+
+  - ``ipopt`` (default): interior point with a general sparse factorisation, on the
+    variables in blocks ``[x_0 .. x_N, u_0 .. u_{N-1}]``; the steering-rate constraint
+    couples neighbouring inputs.
+  - ``fatrop``: an interior point method for optimal control, one Riccati recursion over
+    the stages per iteration. It needs the NLP stage by stage: ``[z_0, u_0, z_1, ..,
+    z_N]`` with ``z_k = [x_k, u_{k-1}]``, the previous input carried as a state so the
+    rate bound and the rate costs stay within a stage, the constraints ordered stage by
+    stage (:meth:`Nmpc._staged_problem`). Same optimum as IPOPT (first commands within
+    1e-7), same iteration count; each iteration is cheaper.
+  - ``sqp-rti``: a real-time iteration (Diehl): ``rti_iterations`` (1) Gauss-Newton SQP
+    steps per control step on the staged NLP, warm-started from the shifted plan, each one
+    QP (``rti_qp_solver``: hpipm, a stage-wise Riccati interior point, by default). Not
+    converged within a step (one step from a cold guess is 6e-4 off the optimum's first
+    command) but converged along the run, since the warm start carries the iterate on.
+    CasADi's ``sqpmethod`` with ``max_iter = 1`` would do the same, but it ignores a
+    failed QP (:class:`_RealTimeIteration`), so the iteration is written out here.
+
+  Measured with ``bench/solve_time.py`` (MuJoCo sedan, EKF, lane change; p50 and p99 of
+  the per-step solve time, median over seeds 0/1/2; max CTE for seeds 0/1/2; 2 cores
+  shared with other jobs under load, so every time is inflated, IPOPT's by about 1.5-2x
+  against a quiet moment, and p99 mostly shows the scheduler, not the solver):
+
+  ===================  ===============  ============  =========================  ========
+  tracker              solver           p50/p99 [ms]  max CTE, seeds 0/1/2 [m]   failures
+  ===================  ===============  ============  =========================  ========
+  kinematic, N = 20    ipopt            3.50 / 11.2   0.7914 / 0.7499 / 0.7369   0
+  kinematic, N = 20    fatrop           0.90 / 5.7    0.7914 / 0.7499 / 0.7369   0
+  kinematic, N = 20    sqp-rti, hpipm   0.59 / 4.9    0.7914 / 0.7499 / 0.7369   0
+  kinematic, N = 20    sqp-rti, qrqp    0.97 / 6.7    0.7914 / 0.7499 / 0.7369   0
+  kinematic, N = 20    sqp-rti, osqp    0.76 / 1.4    0.7914 / 0.7499 / 0.7369   0
+  kinematic, N = 25    ipopt            3.30 / 13.2   0.7972 / 0.7542 / 0.7366   0
+  kinematic, N = 25    fatrop           1.10 / 6.2    0.7972 / 0.7542 / 0.7366   0
+  kinematic, N = 25    sqp-rti, hpipm   0.65 / 5.1    0.7972 / 0.7543 / 0.7366   0
+  dynamic, N = 25      ipopt            10.5 / 24.3   0.0575 / 0.0462 / 0.0469   0
+  dynamic, N = 25      fatrop           3.12 / 12.1   0.0575 / 0.0462 / 0.0469   0
+  dynamic, N = 25      sqp-rti, hpipm   0.92 / 5.5    0.0575 / 0.0462 / 0.0469   0
+  dynamic, N = 25      sqp-rti, qrqp    2.48 / 10.8   0.0575 / 0.0462 / 0.0469   0
+  dynamic, N = 25      sqp-rti, osqp    8.22 / 21.9   0.0575 / 0.0462 / 0.0469   0
+  ===================  ===============  ============  =========================  ========
+
+  In a quieter moment: kinematic N = 20 p50 2.4-2.5 ms with IPOPT, 0.82-1.1 ms with
+  fatrop, 0.49-0.52 ms (p99 0.82 ms) with the RTI; dynamic 5.2 ms with IPOPT, 0.68-0.78
+  ms with the RTI. Harder cases (dynamic-nmpc, seed 0, max CTE ipopt / fatrop / RTI):
+  Falcone's unstretched path at 1.11 g 0.6734 / 0.6734 / 0.6704 m (the soft slip limits
+  active), a 2000 kg car on friction 0.7 0.1584 m for all three, 100 ms actuator delay
+  0.0735 m for all three; no failures. IPOPT stays the default: its results are the
+  reference the rest of the testbed was tuned and tested against (the RTI's plans are
+  one Gauss-Newton step, not an optimum, and report ``RTI_Completed``); ``sqp-rti`` is
+  as accurate on every case above and 6-10 times faster, ``fatrop`` gives IPOPT's
+  optimum 2-3 times faster.
+
+Nothing depends on wall-clock time except the reported ``solve_time_s``, so equal inputs
+give equal outputs.
 """
 
 from __future__ import annotations
@@ -61,13 +119,16 @@ import numpy as np
 from cosim.exceptions import ConfigError
 from cosim.records import Command, Estimate, Plan
 from tracker.config import TrackerConfig
+from tracker.delay_line import IssuedInputs
+from tracker.fallback import (
+    INPUT,
+    INPUT_NAMES,
+    FailureClock,
+    safe_stop_inputs,
+    shifted_inputs,
+)
+from tracker.horizon_reference import horizon_reference
 from tracker.reference_path import ReferencePath
-
-INPUT_NAMES: tuple[str, ...] = ("accel_mps2", "steer_rad")
-"""Inputs of every NMPC model: the :class:`cosim.records.Command` fields, in vector order."""
-
-INPUT = MappingProxyType({name: i for i, name in enumerate(INPUT_NAMES)})
-"""Read-only map from input name to its index in the input vector."""
 
 REQUIRED_STATE_NAMES: tuple[str, ...] = ("x_m", "y_m", "yaw_rad", "vx_mps")
 """States the cost and the safe stop read: CoG position (world frame), yaw, forward speed."""
@@ -96,6 +157,8 @@ class NmpcModel:
     predict: ca.Function
     dt_s: float
     unmodelled_lag_s: float = 0.0
+    understeer_gradient_radpmps2: float = 0.0
+    """K of the model's steady turn, ``delta = atan(L kappa) + K v^2 kappa`` (0: neutral)."""
     internal_rest_inputs: Mapping[str, str] = field(default_factory=dict)
     input_names: tuple[str, ...] = INPUT_NAMES
     limits: ca.Function | None = None
@@ -142,6 +205,15 @@ class NmpcModel:
                                   f"{n_x} states and {n_u} inputs")
 
 
+def _weighted_squares(terms: list[tuple[float, ca.SX]]) -> ca.SX:
+    """``w_0 e_0^2 + w_1 e_1^2 + ...`` for ``(w, e)`` pairs, summed left to right."""
+    total = None
+    for weight, error in terms:
+        term = weight * error**2
+        total = term if total is None else total + term
+    return total
+
+
 class _Layout:
     """Named blocks of a flat vector (parameters or constraints), in declaration order."""
 
@@ -169,6 +241,137 @@ class _Layout:
 
 
 @dataclass(frozen=True)
+class _Solution:
+    """What one solve produced (before :meth:`Nmpc.step` checks it is finite)."""
+
+    w: np.ndarray
+    cost: float
+    status: str
+    iterations: int
+    success: bool
+    solve_time_s: float
+
+
+@dataclass(frozen=True)
+class _RealTimeIteration:
+    """Gauss-Newton SQP steps on the stage-wise NLP, each one structured QP (Diehl's
+    real-time iteration), built once.
+
+    ``qp_data(w, p) -> (H, grad f, g, J_g)``: the Gauss-Newton Hessian ``2 J_r' J_r`` of
+    the cost's residuals, the cost gradient, the constraints and their Jacobian at the
+    iterate ``w``; ``qp`` solves for the step ``dw``:
+    ``min 1/2 dw' H dw + grad f' dw`` s.t. ``lbx <= w + dw <= ubx`` and
+    ``lbg <= g + J_g dw <= ubg``; ``cost(w, p)`` is the NLP's cost at the result.
+
+    CasADi's ``sqpmethod`` (``max_iter = 1``) does the same, but in CasADi 3.8 it carries
+    on silently when a QP fails (``Maximum_Iterations_Exceeded`` either way) unless the QP
+    raises, which dumps the whole QP to stdout; here every QP's status is checked.
+    """
+
+    qp_data: ca.Function
+    qp: ca.Function
+    cost: ca.Function
+    iterations: int
+
+    def solve(self, w: np.ndarray, params: np.ndarray, nlp: _Nlp) -> _Solution:
+        """``iterations`` full steps from ``w`` within ``nlp``'s bounds; the first QP that
+        fails ends it unsuccessfully (hpipm's status: 1 iteration limit, 2 step too small,
+        3 NaN, 4 inconsistent equalities; qrqp and osqp report words)."""
+        start = time.perf_counter()
+        for iteration in range(1, self.iterations + 1):
+            hessian, gradient, g, jacobian = self.qp_data(w, params)
+            g = np.asarray(g, dtype=float).ravel()
+            step = self.qp(h=hessian, g=gradient, a=jacobian, lbx=nlp.lbx - w,
+                           ubx=nlp.ubx - w, lba=nlp.lbg - g, uba=nlp.ubg - g)
+            stats = self.qp.stats()
+            if not stats.get("success", False):
+                status = f"QP_Failed ({stats.get('return_status', 'unknown')})"
+                return _Solution(w, math.nan, status, iteration, False,
+                                 time.perf_counter() - start)
+            w = w + np.asarray(step["x"], dtype=float).ravel()
+        cost = float(self.cost(w, params))
+        return _Solution(w, cost, "RTI_Completed", self.iterations, True,
+                         time.perf_counter() - start)
+
+
+@dataclass(frozen=True)
+class _Nlp:
+    """One solver's NLP, built once: the solver, where the plan sits in its flat vector of
+    variables ``w``, and the bounds (the parameters vary, nothing else does)."""
+
+    solver_name: str
+    """``tracker.solver``."""
+    solver: ca.Function | _RealTimeIteration
+    """A CasADi ``nlpsol`` (ipopt, fatrop), or the real-time iteration (sqp-rti)."""
+    state_index: np.ndarray
+    """``(N+1, n_x)`` integers: ``w[state_index[k, i]]`` is state ``i`` at node ``k``."""
+    input_index: np.ndarray
+    """``(N, n_u)`` integers: ``w[input_index[k, j]]`` is input ``j`` of stage ``k``."""
+    carried_index: np.ndarray
+    """``(N+1, n_u)`` integers: the input applied before node ``k``, which the stage-wise
+    NLPs carry as a state (row 0: the previously applied command); ``(0, n_u)`` when the
+    NLP has none."""
+    lbx: np.ndarray
+    ubx: np.ndarray
+    lbg: np.ndarray
+    ubg: np.ndarray
+
+    def pack(self, states: np.ndarray, inputs: np.ndarray,
+             input_prev: np.ndarray) -> np.ndarray:
+        """The flat vector of variables holding a trajectory (e.g. a warm start)."""
+        w = np.empty(self.lbx.size)
+        w[self.state_index] = states
+        w[self.input_index] = inputs
+        if self.carried_index.size:
+            w[self.carried_index] = np.vstack((input_prev, inputs))
+        return w
+
+    def solve(self, w0: np.ndarray, params: np.ndarray) -> _Solution:
+        """Solve from the guess ``w0``; CasADi errors raise ``RuntimeError``.
+
+        Success is each solver's own verdict: IPOPT's and fatrop's ``success`` (converged
+        to ``tracker.tolerance``), the real-time iteration's every QP solved. The status
+        is IPOPT's ``return_status``; fatrop's is an integer flag, reported as
+        ``Solve_Succeeded`` (0) or ``fatrop_flag_<n>`` (1 both at the iteration limit and
+        on an infeasible problem); the real-time iteration's ``RTI_Completed`` or
+        ``QP_Failed (<the QP solver's status>)``.
+        """
+        if isinstance(self.solver, _RealTimeIteration):
+            return self.solver.solve(w0, params, self)
+        start = time.perf_counter()
+        solution = self.solver(
+            x0=w0, p=params, lbx=self.lbx, ubx=self.ubx, lbg=self.lbg, ubg=self.ubg
+        )
+        solve_time_s = time.perf_counter() - start
+        stats = self.solver.stats()
+        success = bool(stats.get("success", False))
+        status = str(stats.get("return_status", "unknown"))
+        if self.solver_name == "fatrop":
+            status = "Solve_Succeeded" if success else f"fatrop_flag_{status}"
+        return _Solution(np.asarray(solution["x"], dtype=float).ravel(),
+                         float(solution["f"]), status, int(stats.get("iter_count", 0)),
+                         success, solve_time_s)
+
+
+@dataclass(frozen=True)
+class _StagedProblem:
+    """The NLP posed stage by stage (:meth:`Nmpc._staged_problem`), before a solver."""
+
+    nlp: Mapping[str, ca.SX]
+    """CasADi's NLP: variables ``x``, parameters ``p``, cost ``f``, constraints ``g``."""
+    residuals: ca.SX
+    """``r`` with ``f = |r|^2``: the weighted errors, for a Gauss-Newton Hessian."""
+    structure: Mapping[str, object]
+    """The stages' sizes as fatrop and hpipm take them: ``N``, ``nx``, ``nu``, ``ng``."""
+    layout: Mapping[str, np.ndarray]
+    """The :class:`_Nlp` fields other than the solver: indices and bounds."""
+
+    def with_solver(self, solver_name: str,
+                    solver: ca.Function | _RealTimeIteration) -> _Nlp:
+        return _Nlp(solver_name, solver, **self.layout)
+
+
+@dataclass(frozen=True)
 class _Trajectory:
     """States (N+1 rows) and inputs (N rows) over the horizon starting at ``t_s``."""
 
@@ -178,7 +381,8 @@ class _Trajectory:
 
 
 class Nmpc:
-    """Nonlinear MPC path tracker with IPOPT on any :class:`NmpcModel` (seed section 1).
+    """Nonlinear MPC path tracker on any :class:`NmpcModel` (seed section 1), solved by
+    ``config.solver`` (IPOPT, fatrop or a real-time iteration; module docstring).
 
     Args:
       config: the tracker configuration (horizon, cost, bounds, solver, latency).
@@ -202,12 +406,6 @@ class Nmpc:
         self._n_x = len(model.state_names)
         n = config.horizon
         self._n = n
-        self._variables = _Layout(
-            (
-                ("states", self._n_x * (n + 1)),
-                ("inputs", len(INPUT_NAMES) * n),
-            )
-        )
         self._params = _Layout(
             (
                 ("state0", self._n_x),
@@ -216,33 +414,95 @@ class Nmpc:
                 ("ref_y_m", n),
                 ("ref_yaw_rad", n),
                 ("ref_speed_mps", n),
+                ("ref_steer_rad", n),
             )
         )
-        self._constraints = _Layout(
-            (
-                ("initial_state", self._n_x),
-                ("dynamics", self._n_x * n),
-                ("steer_rate", n),
-            )
-        )
-        self._solver = self._build_solver()
-        self._lbx, self._ubx = self._variable_bounds()
-        self._lbg, self._ubg = self._constraint_bounds()
+        builders = {
+            "ipopt": self._build_ipopt,
+            "fatrop": self._build_fatrop,
+            "sqp-rti": self._build_sqp_rti,
+        }
+        if config.solver not in builders:
+            raise ConfigError(f"tracker.solver = {config.solver!r}: expected one of "
+                              f"{', '.join(repr(name) for name in builders)}")
+        self._nlp = builders[config.solver]()
+        latency_s = config.latency_s if config.latency_compensation else 0.0
+        self._issued = IssuedInputs(latency_s + model.unmodelled_lag_s,
+                                    np.zeros(len(INPUT_NAMES)))
+        self._failures = FailureClock(config.fallback_time_s)
         self.reset()
 
     # ------------------------------------------------------------------ construction
 
-    def _build_solver(self) -> ca.Function:
-        """The multiple-shooting NLP, built once (section 1's cost and model)."""
+    def _stage_terms(
+        self, u: ca.SX, previous: ca.SX, x: ca.SX, par: Mapping[str, ca.SX], k: int
+    ) -> tuple[list[tuple[float, ca.SX]], list[tuple[float, ca.SX]], ca.SX | None]:
+        """Section 1's cost of stage ``k``, as ``(weight per second, error)`` pairs.
+
+        Returns the input terms (``u`` = u_k against ``previous`` = u_{k-1}), the tracking
+        terms (``x`` = node k + 1 against reference point k) and the soft limits' excess
+        at node k + 1 (None for a model without limits). Every solver's cost is
+        ``dt * sum weight * error^2`` over them, plus ``dt * weights.limit_excess *
+        |excess|^2``; the Gauss-Newton Hessian of the real-time iteration uses the errors.
+        """
+        w = self.config.weights
+        dt = self.config.dt_s
+        index = self._state
+        accel_rate = (u[INPUT["accel_mps2"]] - previous[INPUT["accel_mps2"]]) / dt
+        steer_rate_radps = (u[INPUT["steer_rad"]] - previous[INPUT["steer_rad"]]) / dt
+        input_terms = [
+            (w.accel, u[INPUT["accel_mps2"]]),
+            (w.steer, u[INPUT["steer_rad"]] - par["ref_steer_rad"][k]),
+            (w.accel_rate, accel_rate),
+            (w.steer_rate, steer_rate_radps),
+        ]
+        ref_yaw = par["ref_yaw_rad"][k]
+        dx = x[index["x_m"]] - par["ref_x_m"][k]
+        dy = x[index["y_m"]] - par["ref_y_m"][k]
+        cte = -ca.sin(ref_yaw) * dx + ca.cos(ref_yaw) * dy
+        heading_error = x[index["yaw_rad"]] - ref_yaw
+        speed_error = x[index["vx_mps"]] - par["ref_speed_mps"][k]
+        tracking_terms = [(w.cte, cte), (w.heading, heading_error), (w.speed, speed_error)]
+        excess = None
+        if self.model.limits is not None:
+            h = self.model.limits(x)
+            excess = ca.fmax(ca.fabs(h) - ca.DM(list(self.model.limit_bounds)), 0.0)
+        return input_terms, tracking_terms, excess
+
+    def _input_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds of one stage's inputs (seed section 1: steering, acceleration)."""
+        cfg = self.config
+        low = np.empty(len(INPUT_NAMES))
+        high = np.empty(len(INPUT_NAMES))
+        low[INPUT["accel_mps2"]] = cfg.accel_min_mps2
+        high[INPUT["accel_mps2"]] = cfg.accel_max_mps2
+        low[INPUT["steer_rad"]] = -cfg.max_steer_rad
+        high[INPUT["steer_rad"]] = cfg.max_steer_rad
+        return low, high
+
+    def _variable_bounds(self, size: int, input_index: np.ndarray
+                         ) -> tuple[np.ndarray, np.ndarray]:
+        """Box bounds on the inputs; every other variable is free."""
+        low_input, high_input = self._input_bounds()
+        lbx, ubx = np.full(size, -np.inf), np.full(size, np.inf)
+        lbx[input_index] = low_input
+        ubx[input_index] = high_input
+        return lbx, ubx
+
+    def _build_ipopt(self) -> _Nlp:
+        """The multiple-shooting NLP for IPOPT (section 1's cost and model).
+
+        Variables ``[x_0 .. x_N, u_0 .. u_{N-1}]``; constraints: the initial state, the
+        dynamics, the steering rate against the previous input (``input_prev`` for u_0).
+        """
         cfg = self.config
         w = cfg.weights
         n, dt = self._n, cfg.dt_s
-        index = self._state
+        n_u = len(INPUT_NAMES)
         states = ca.SX.sym("states", self._n_x, n + 1)
-        inputs = ca.SX.sym("inputs", len(INPUT_NAMES), n)
+        inputs = ca.SX.sym("inputs", n_u, n)
         p = ca.SX.sym("p", self._params.size)
         par = self._params.split(p)
-        limit_bounds = ca.DM(list(self.model.limit_bounds))
 
         cost = 0
         dynamics = []
@@ -252,39 +512,29 @@ class Nmpc:
             u = inputs[:, k]
             dynamics.append(states[:, k + 1] - self.model.step(states[:, k], u))
             steer_rate.append(u[INPUT["steer_rad"]] - previous[INPUT["steer_rad"]])
-            accel_rate = (u[INPUT["accel_mps2"]] - previous[INPUT["accel_mps2"]]) / dt
-            steer_rate_radps = (u[INPUT["steer_rad"]] - previous[INPUT["steer_rad"]]) / dt
-            cost += dt * (
-                w.accel * u[INPUT["accel_mps2"]] ** 2
-                + w.steer * u[INPUT["steer_rad"]] ** 2
-                + w.accel_rate * accel_rate**2
-                + w.steer_rate * steer_rate_radps**2
-            )
+            input_terms, tracking_terms, excess = self._stage_terms(
+                u, previous, states[:, k + 1], par, k)
+            cost += dt * _weighted_squares(input_terms)
             # Tracking terms at node k + 1 against reference point k (nodes 1..N).
-            x = states[:, k + 1]
-            ref_yaw = par["ref_yaw_rad"][k]
-            dx = x[index["x_m"]] - par["ref_x_m"][k]
-            dy = x[index["y_m"]] - par["ref_y_m"][k]
-            cte = -ca.sin(ref_yaw) * dx + ca.cos(ref_yaw) * dy
-            heading_error = x[index["yaw_rad"]] - ref_yaw
-            speed_error = x[index["vx_mps"]] - par["ref_speed_mps"][k]
-            cost += dt * (
-                w.cte * cte**2 + w.heading * heading_error**2 + w.speed * speed_error**2
-            )
-            if self.model.limits is not None:
-                h = self.model.limits(x)
-                excess = ca.fmax(ca.fabs(h) - limit_bounds, 0.0)
+            cost += dt * _weighted_squares(tracking_terms)
+            if excess is not None:
                 cost += dt * w.limit_excess * ca.sumsqr(excess)
             previous = u
 
+        constraints = _Layout(
+            (
+                ("initial_state", self._n_x),
+                ("dynamics", self._n_x * n),
+                ("steer_rate", n),
+            )
+        )
         constraint_blocks = {
             "initial_state": states[:, 0] - par["state0"],
             "dynamics": ca.vertcat(*dynamics),
             "steer_rate": ca.vertcat(*steer_rate),
         }
-        g = ca.vertcat(*(constraint_blocks[name] for name in self._constraints.slices))
-        variable_blocks = {"states": ca.vec(states), "inputs": ca.vec(inputs)}
-        variables = ca.vertcat(*(variable_blocks[name] for name in self._variables.slices))
+        g = ca.vertcat(*(constraint_blocks[name] for name in constraints.slices))
+        variables = ca.vertcat(ca.vec(states), ca.vec(inputs))
         options = {
             "print_time": False,
             "error_on_fail": False,
@@ -293,34 +543,171 @@ class Nmpc:
             "ipopt.max_iter": cfg.max_iterations,
             "ipopt.tol": cfg.tolerance,
         }
-        return ca.nlpsol(
+        solver = ca.nlpsol(
             self.model.name.replace("-", "_"), "ipopt",
             {"x": variables, "p": p, "f": cost, "g": g}, options,
         )
+        n_states = self._n_x * (n + 1)
+        state_index = np.arange(n_states).reshape(n + 1, self._n_x)
+        input_index = n_states + np.arange(n_u * n).reshape(n, n_u)
+        lbx, ubx = self._variable_bounds(variables.size1(), input_index)
 
-    def _variable_bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        cfg = self.config
-        n_states = self._n_x * (self._n + 1)
-        low_input = np.empty(len(INPUT_NAMES))
-        high_input = np.empty(len(INPUT_NAMES))
-        low_input[INPUT["accel_mps2"]] = cfg.accel_min_mps2
-        high_input[INPUT["accel_mps2"]] = cfg.accel_max_mps2
-        low_input[INPUT["steer_rad"]] = -cfg.max_steer_rad
-        high_input[INPUT["steer_rad"]] = cfg.max_steer_rad
-        low = {"states": np.full(n_states, -np.inf), "inputs": np.tile(low_input, self._n)}
-        high = {"states": np.full(n_states, np.inf), "inputs": np.tile(high_input, self._n)}
-        return self._variables.pack(low), self._variables.pack(high)
-
-    def _constraint_bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        rate_step = self.config.max_steer_rate_radps * self.config.dt_s
-        sizes = {name: s.stop - s.start for name, s in self._constraints.slices.items()}
+        rate_step = cfg.max_steer_rate_radps * dt
+        sizes = {name: s.stop - s.start for name, s in constraints.slices.items()}
         low = {
             "initial_state": np.zeros(sizes["initial_state"]),
             "dynamics": np.zeros(sizes["dynamics"]),
             "steer_rate": np.full(sizes["steer_rate"], -rate_step),
         }
         high = dict(low, steer_rate=np.full(sizes["steer_rate"], rate_step))
-        return self._constraints.pack(low), self._constraints.pack(high)
+        return _Nlp(cfg.solver, solver, state_index, input_index,
+                    np.empty((0, n_u), dtype=int), lbx, ubx,
+                    constraints.pack(low), constraints.pack(high))
+
+    def _staged_problem(self) -> _StagedProblem:
+        """The same NLP posed stage by stage, for the structure-exploiting solvers.
+
+        Stage ``k`` holds ``z_k = [x_k, c_k]`` and ``u_k`` (``z_N`` alone), where
+        ``c_k = u_{k-1}`` carries the previous input as a state (``c_0 = input_prev``), so
+        the steering-rate bound ``|delta_k - c_k[delta]| <= rate dt`` and the rate costs
+        involve one stage only. Variables ``[z_0, u_0, z_1, u_1, .., z_N]``; constraint
+        rows, stage by stage, the dynamics ``z_{k+1} - [F(x_k, u_k), u_k]`` (the identity
+        on ``z_{k+1}`` fatrop and hpipm look for), then the stage's own constraints: the
+        initial state ``z_0 = [state0, input_prev]`` (stage 0), the steering rate.
+
+        The cost is the same sum of stage terms as IPOPT's (:meth:`_stage_terms`), so
+        the optimum is the same; only the variables' order and two extra states per stage
+        differ, which :class:`_Nlp` hides from the rest of the tracker.
+        """
+        cfg = self.config
+        w = cfg.weights
+        n, dt, n_x = self._n, cfg.dt_s, self._n_x
+        n_u = len(INPUT_NAMES)
+        n_z = n_x + n_u
+        carried = slice(n_x, n_z)
+        steer_carried = n_x + INPUT["steer_rad"]
+        p = ca.SX.sym("p", self._params.size)
+        par = self._params.split(p)
+        z = [ca.SX.sym(f"z{k}", n_z) for k in range(n + 1)]
+        u = [ca.SX.sym(f"u{k}", n_u) for k in range(n)]
+        rate_step = cfg.max_steer_rate_radps * dt
+
+        variables, rows, lbg, ubg, residuals = [], [], [], [], []
+        cost = 0
+        for k in range(n):
+            variables += [z[k], u[k]]
+            stage_rows = [
+                (z[k + 1] - ca.vertcat(self.model.step(z[k][:n_x], u[k]), u[k]), 0.0, 0.0),
+            ]
+            if k == 0:
+                stage_rows.append(
+                    (z[0] - ca.vertcat(par["state0"], par["input_prev"]), 0.0, 0.0))
+            stage_rows.append((u[k][INPUT["steer_rad"]] - z[k][steer_carried],
+                               -rate_step, rate_step))
+            for row, low, high in stage_rows:
+                rows.append(row)
+                lbg.append(np.full(row.size1(), low))
+                ubg.append(np.full(row.size1(), high))
+            input_terms, tracking_terms, excess = self._stage_terms(
+                u[k], z[k][carried], z[k + 1][:n_x], par, k)
+            cost += dt * _weighted_squares(input_terms)
+            cost += dt * _weighted_squares(tracking_terms)
+            residuals += [math.sqrt(dt * weight) * error
+                          for weight, error in input_terms + tracking_terms]
+            if excess is not None:
+                cost += dt * w.limit_excess * ca.sumsqr(excess)
+                residuals.append(math.sqrt(dt * w.limit_excess) * excess)
+        variables.append(z[n])
+        x = ca.vertcat(*variables)
+        nlp = {"x": x, "p": p, "f": cost, "g": ca.vertcat(*rows)}
+
+        stage_size = n_z + n_u
+        starts = stage_size * np.arange(n + 1)
+        state_index = starts[:, None] + np.arange(n_x)
+        carried_index = starts[:, None] + np.arange(n_x, n_z)
+        input_index = starts[:-1, None] + np.arange(n_z, stage_size)
+        lbx, ubx = self._variable_bounds(x.size1(), input_index)
+        structure = MappingProxyType({
+            "N": n,
+            "nx": [n_z] * (n + 1),
+            "nu": [n_u] * n + [0],
+            "ng": [n_z + 1] + [1] * (n - 1) + [0],
+        })
+        layout = MappingProxyType({
+            "state_index": state_index, "input_index": input_index,
+            "carried_index": carried_index, "lbx": lbx, "ubx": ubx,
+            "lbg": np.concatenate(lbg), "ubg": np.concatenate(ubg),
+        })
+        return _StagedProblem(MappingProxyType(nlp), ca.vertcat(*residuals), structure,
+                              layout)
+
+    def _build_fatrop(self) -> _Nlp:
+        """The stage-wise NLP (:meth:`_staged_problem`) for fatrop, a structure-exploiting
+        interior-point method: the same optimum as IPOPT, each iteration a Riccati
+        recursion over the stages instead of a general sparse factorisation."""
+        cfg = self.config
+        problem = self._staged_problem()
+        # The warm start (the previous plan shifted) is near the optimum, so the barrier
+        # starts small: mu_init = 1e-3 instead of fatrop's 0.1 takes 3 iterations instead
+        # of 5 (median, lane change) to the same optimum. Its warm_start_init_point (the
+        # multipliers too) failed a solve on the bench.
+        options = {
+            "print_time": False,
+            "error_on_fail": False,
+            "structure_detection": "manual",
+            **problem.structure,
+            "fatrop": {"print_level": 0, "max_iter": cfg.max_iterations,
+                       "tol": cfg.tolerance, "mu_init": 1e-3},
+        }
+        solver = ca.nlpsol(self.model.name.replace("-", "_"), "fatrop", dict(problem.nlp),
+                           options)
+        return problem.with_solver(cfg.solver, solver)
+
+    def _build_sqp_rti(self) -> _Nlp:
+        """The stage-wise NLP (:meth:`_staged_problem`) for a real-time iteration.
+
+        Exactly ``rti_iterations`` full Gauss-Newton SQP steps (no line search) from the
+        warm start, the previous plan shifted (:class:`_RealTimeIteration`). Each step
+        solves one QP with the model linearised along the current iterate and the
+        Hessian ``2 J_r' J_r`` of the cost's residuals: positive semi-definite, block
+        diagonal by stage, no multipliers needed. One step does not converge the NLP;
+        the iterate converges over successive control steps instead, as the warm start
+        carries it forward.
+        """
+        cfg = self.config
+        problem = self._staged_problem()
+        w, p, cost, g = (problem.nlp[key] for key in ("x", "p", "f", "g"))
+        residual_jacobian = ca.jacobian(problem.residuals, w)
+        hessian = 2.0 * ca.mtimes(residual_jacobian.T, residual_jacobian)
+        constraint_jacobian = ca.jacobian(g, w)
+        qp_data = ca.Function(
+            "rti_qp_data", [w, p],
+            [hessian, ca.gradient(cost, w), g, constraint_jacobian],
+        )
+        # hpipm: CasADi gives every variable a box, an infinite bound becoming 1e8, and
+        # then the relative stopping tests of hpipm's modes speed/balance never pass (50
+        # iterations); speed_abs stops on the absolute complementarity and matches qrqp's
+        # step to 6e-9 in 5-8 iterations. osqp's default tolerance (1e-3) left 1.2 cm of
+        # steady error on the dynamic bench; 1e-6 leaves none.
+        options: dict[str, object] = {"error_on_fail": False}
+        if cfg.rti_qp_solver == "hpipm":
+            options.update(problem.structure)
+            options["hpipm"] = {"mode": "speed_abs", "iter_max": 50}
+        elif cfg.rti_qp_solver == "qrqp":
+            options.update(print_iter=False, print_header=False, print_info=False)
+        elif cfg.rti_qp_solver == "osqp":
+            options["osqp"] = {"verbose": False, "eps_abs": 1e-6, "eps_rel": 1e-6,
+                               "max_iter": 10000}
+        else:
+            raise ConfigError(f"tracker.rti_qp_solver = {cfg.rti_qp_solver!r}: expected "
+                              "one of 'hpipm', 'qrqp', 'osqp'")
+        qp = ca.conic(
+            "rti_qp", cfg.rti_qp_solver,
+            {"h": hessian.sparsity(), "a": constraint_jacobian.sparsity()}, options,
+        )
+        rti = _RealTimeIteration(qp_data, qp, ca.Function("rti_cost", [w, p], [cost]),
+                                 cfg.rti_iterations)
+        return problem.with_solver(cfg.solver, rti)
 
     # ------------------------------------------------------------------ public API
 
@@ -340,8 +727,9 @@ class Nmpc:
         self._previous_t_s: float | None = None
         self._warm: _Trajectory | None = None
         self._last_good: _Trajectory | None = None
-        self._failing_since_t_s: float | None = None
         self._last_state: tuple[float, np.ndarray] | None = None
+        self._issued.reset(previous)
+        self._failures.reset()
 
     def step(
         self, t_s: float, estimate: Estimate, reference: ReferencePath
@@ -356,54 +744,50 @@ class Nmpc:
         blocks["state0"] = state0
         blocks["input_prev"] = self._previous_input
         params = self._params.pack(blocks)
-        w0 = self._variables.pack({"states": guess.states.ravel(),
-                                   "inputs": guess.inputs.ravel()})
+        nlp = self._nlp
+        w0 = nlp.pack(guess.states, guess.inputs, self._previous_input)
 
         start = time.perf_counter()
         try:
-            solution = self._solver(
-                x0=w0, p=params, lbx=self._lbx, ubx=self._ubx, lbg=self._lbg, ubg=self._ubg
-            )
-            stats = self._solver.stats()
+            solution = nlp.solve(w0, params)
         except RuntimeError as error:  # CasADi evaluation errors: treat as a failed solve.
             solve_time_s = time.perf_counter() - start
             return self._fallback(t_s, state0, f"error: {error}", 0, solve_time_s)
-        solve_time_s = time.perf_counter() - start
+        w, cost = solution.w, solution.cost
+        if not (solution.success and np.all(np.isfinite(w)) and math.isfinite(cost)):
+            return self._fallback(t_s, state0, solution.status, solution.iterations,
+                                  solution.solve_time_s)
 
-        status = str(stats.get("return_status", "unknown"))
-        iterations = int(stats.get("iter_count", 0))
-        w = np.asarray(solution["x"], dtype=float).ravel()
-        cost = float(solution["f"])
-        if not (stats.get("success", False) and np.all(np.isfinite(w)) and math.isfinite(cost)):
-            return self._fallback(t_s, state0, status, iterations, solve_time_s)
-
-        blocks_out = {name: w[s] for name, s in self._variables.slices.items()}
-        states = blocks_out["states"].reshape(self._n + 1, self._n_x)
-        inputs = self._clip_inputs(blocks_out["inputs"].reshape(self._n, len(INPUT_NAMES)))
+        states = w[nlp.state_index]
+        inputs = self._clip_inputs(w[nlp.input_index])
         trajectory = _Trajectory(t_s, states, inputs)
         self._last_good = trajectory
-        self._failing_since_t_s = None
-        plan = self._plan(trajectory, cost, solve_time_s, iterations, status, True, False)
+        self._failures.reset()
+        plan = self._plan(trajectory, cost, solution.solve_time_s, solution.iterations,
+                          solution.status, True, False)
         return self._commit(trajectory), plan
 
     # ------------------------------------------------------------------ helpers
 
-    def _predict(self, state: np.ndarray, inputs: np.ndarray, duration_s: float) -> np.ndarray:
-        return np.asarray(self.model.predict(state, inputs, duration_s), dtype=float).ravel()
+    def _predict(self, state: np.ndarray, start_s: float, end_s: float) -> np.ndarray:
+        """``state`` at ``start_s`` moved to ``end_s`` with the commands the car applies."""
+        for duration_s, inputs in self._issued.segments(start_s, end_s):
+            state = np.asarray(self.model.predict(state, inputs, duration_s),
+                               dtype=float).ravel()
+        return state
 
     def _internal_states(self, t_s: float) -> dict[str, float]:
-        """The internal states at ``t_s``: last step's state propagated with the command
-        applied since (exact for an actuator it drives), else at rest at that command."""
-        rest = {name: float(self._previous_input[INPUT[input_name]])
+        """The internal states at ``t_s``: last step's state propagated with the commands
+        applied since (exact for an actuator they drive), else at rest at the command
+        applied now."""
+        applied = self._issued.applied_at(t_s)
+        rest = {name: float(applied[INPUT[input_name]])
                 for name, input_name in self.model.internal_rest_inputs.items()}
         if not rest or self._last_state is None:
             return rest
         last_t_s, last_state = self._last_state
-        elapsed_s = t_s - last_t_s
-        state = last_state
-        if elapsed_s > 0.0:
-            filled = np.where(np.isfinite(last_state), last_state, 0.0)
-            state = self._predict(filled, self._previous_input, elapsed_s)
+        filled = np.where(np.isfinite(last_state), last_state, 0.0)
+        state = self._predict(filled, last_t_s, t_s)
         values = {name: float(state[self._state[name]]) for name in rest}
         return values if all(math.isfinite(v) for v in values.values()) else rest
 
@@ -420,10 +804,10 @@ class Nmpc:
         for name, value in self._internal_states(estimate.t_s).items():
             state[self._state[name]] = value
         self._last_state = (estimate.t_s, state.copy())
-        duration_s = (self.config.latency_s + self.model.unmodelled_lag_s
-                      + max(0.0, t_s - estimate.t_s))
-        if duration_s > 0.0 and np.all(np.isfinite(state)):
-            state = self._predict(state, self._previous_input, duration_s)
+        self._issued.forget_before(estimate.t_s)
+        if np.all(np.isfinite(state)):
+            state = self._predict(state, estimate.t_s,
+                                  max(t_s, estimate.t_s) + self._issued.delay_s)
         return state
 
     def _rollout(self, state0: np.ndarray, inputs: np.ndarray) -> np.ndarray:
@@ -432,12 +816,6 @@ class Nmpc:
         for k, u in enumerate(inputs):
             states[k + 1] = np.asarray(self.model.step(states[k], u), dtype=float).ravel()
         return states
-
-    def _shifted_inputs(self, trajectory: _Trajectory, t_s: float) -> np.ndarray:
-        """The inputs of ``trajectory`` from ``t_s`` on, the last one held past its end."""
-        shift = max(0, int(round((t_s - trajectory.t_s) / self.config.dt_s)))
-        index = np.minimum(np.arange(self._n) + shift, self._n - 1)
-        return trajectory.inputs[index]
 
     def _initial_guess(self, t_s: float, state0: np.ndarray) -> _Trajectory:
         """Previous solution shifted by the elapsed time, else the last command held.
@@ -449,7 +827,7 @@ class Nmpc:
             return _Trajectory(t_s, self._rollout(state0, inputs), inputs)
         warm = self._warm
         shift = max(0, int(round((t_s - warm.t_s) / self.config.dt_s)))
-        inputs = self._shifted_inputs(warm, t_s)
+        inputs = shifted_inputs(warm.inputs, warm.t_s, t_s, self.config.dt_s)
         states = np.empty((self._n + 1, self._n_x))
         keep = max(0, self._n + 1 - shift)
         states[:keep] = warm.states[shift : shift + keep]
@@ -466,28 +844,30 @@ class Nmpc:
     def _reference_blocks(
         self, reference: ReferencePath, state0: np.ndarray, guess_states: np.ndarray
     ) -> dict[str, np.ndarray]:
-        """Reference points at the arc lengths the warm start expects to cover."""
-        dt = self.config.dt_s
+        """Reference points at the arc lengths the warm start expects to cover
+        (:mod:`tracker.horizon_reference`), and the steering they need in a steady turn."""
+        cfg = self.config
         index = self._state
-        projection = reference.project(state0[index["x_m"]], state0[index["y_m"]])
-        speed = np.maximum(guess_states[:, index["vx_mps"]], 0.0)
-        s = projection.s_m + np.cumsum(0.5 * (speed[:-1] + speed[1:]) * dt)
-        samples = reference.sample(s)
-        yaw = np.unwrap(np.concatenate(([projection.path_yaw_rad], samples["yaw_rad"])))
-        turns = np.round((state0[index["yaw_rad"]] - yaw[0]) / (2.0 * np.pi))
-        yaw = yaw[1:] + 2.0 * np.pi * turns
+        speed = guess_states[:, index["vx_mps"]]
+        points = horizon_reference(cfg.reference, reference, state0[index["x_m"]],
+                                   state0[index["y_m"]], state0[index["yaw_rad"]], speed,
+                                   cfg.dt_s)
+        steer = np.zeros(self._n)
+        if cfg.curvature_feedforward:
+            kappa = points.curvature_1pm
+            steer = (np.arctan(cfg.model.wheelbase_m * kappa)
+                     + self.model.understeer_gradient_radpmps2 * speed[1:] ** 2 * kappa)
         return {
-            "ref_x_m": samples["x_m"],
-            "ref_y_m": samples["y_m"],
-            "ref_yaw_rad": yaw,
+            "ref_x_m": points.x_m,
+            "ref_y_m": points.y_m,
+            "ref_yaw_rad": points.yaw_rad,
             "ref_speed_mps": np.full(self._n, reference.speed_mps),
+            "ref_steer_rad": steer,
         }
 
     def _clip_inputs(self, inputs: np.ndarray) -> np.ndarray:
-        """IPOPT may end a hair outside a bound; the command never does."""
-        s = self._variables.slices["inputs"]
-        low = self._lbx[s].reshape(self._n, len(INPUT_NAMES))
-        high = self._ubx[s].reshape(self._n, len(INPUT_NAMES))
+        """A solver may end a hair outside a bound; the command never does."""
+        low, high = self._input_bounds()
         return np.clip(inputs, low, high)
 
     def _commit(self, trajectory: _Trajectory) -> Command:
@@ -495,6 +875,7 @@ class Nmpc:
         first = trajectory.inputs[0]
         self._previous_input = first.copy()
         self._previous_t_s = trajectory.t_s
+        self._issued.record(trajectory.t_s, first)
         self._warm = trajectory
         return Command(
             t_s=trajectory.t_s,
@@ -506,14 +887,20 @@ class Nmpc:
         self, t_s: float, state0: np.ndarray, status: str, iterations: int, solve_time_s: float
     ) -> tuple[Command, Plan]:
         """Replay the last good plan shifted; after ``fallback_time_s``, a safe stop."""
-        if self._failing_since_t_s is None:
-            self._failing_since_t_s = t_s
-        failing_for_s = t_s - self._failing_since_t_s
-        if failing_for_s > self.config.fallback_time_s + _TIME_EPS_S:
-            inputs = self._safe_stop_inputs(t_s, state0)
+        if self._failures.fail(t_s):
+            cfg = self.config
+            first_period_s = cfg.dt_s if self._previous_t_s is None else t_s - self._previous_t_s
+            inputs = safe_stop_inputs(
+                self._n, cfg.dt_s, first_period_s,
+                steer_rad=float(self._previous_input[INPUT["steer_rad"]]),
+                speed_mps=float(state0[self._state["vx_mps"]]),
+                max_steer_rate_radps=cfg.max_steer_rate_radps,
+                accel_mps2=cfg.safe_stop_accel_mps2,
+            )
             status = f"safe_stop ({status})"
         elif self._last_good is not None:
-            inputs = self._shifted_inputs(self._last_good, t_s)
+            inputs = shifted_inputs(self._last_good.inputs, self._last_good.t_s, t_s,
+                                    self.config.dt_s)
             status = f"fallback ({status})"
         else:
             inputs = np.tile(self._previous_input, (self._n, 1))
@@ -529,26 +916,6 @@ class Nmpc:
         if not np.all(np.isfinite(states)):
             self._warm = None  # never warm-start from a non-finite guess
         return command, plan
-
-    def _safe_stop_inputs(self, t_s: float, state0: np.ndarray) -> np.ndarray:
-        """Steering to zero at the rate limit, then held; braking until standstill."""
-        cfg = self.config
-        first_period_s = cfg.dt_s if self._previous_t_s is None else t_s - self._previous_t_s
-        steer_step = cfg.max_steer_rate_radps * np.concatenate(
-            ([max(first_period_s, 0.0)], np.full(self._n - 1, cfg.dt_s))
-        )
-        steer0 = self._previous_input[INPUT["steer_rad"]]
-        steer = np.sign(steer0) * np.maximum(abs(steer0) - np.cumsum(steer_step), 0.0)
-        speed = state0[self._state["vx_mps"]]
-        speed = speed if np.isfinite(speed) else 0.0
-        inputs = np.zeros((self._n, len(INPUT_NAMES)))
-        inputs[:, INPUT["steer_rad"]] = steer
-        for k in range(self._n):
-            # Brake no further than to standstill within the stage.
-            accel = max(cfg.safe_stop_accel_mps2, -max(speed, 0.0) / cfg.dt_s)
-            inputs[k, INPUT["accel_mps2"]] = accel
-            speed += accel * cfg.dt_s
-        return inputs
 
     def _plan(
         self,

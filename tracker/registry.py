@@ -12,8 +12,10 @@ from types import MappingProxyType
 from cosim.exceptions import ConfigError
 from cosim.protocols import Tracker
 from tracker.config import TrackerConfig
+from tracker.dynamic_mpc import DynamicMpc
 from tracker.dynamic_nmpc import DynamicNmpc
 from tracker.kinematic_nmpc import KinematicNmpc
+from tracker.ltv_mpc import LtvMpc
 from tracker.maneuver import ManeuverConfig
 from tracker.open_loop import OpenLoopTracker
 
@@ -23,6 +25,8 @@ _CONSTRUCTORS: MappingProxyType[
     {
         "kinematic-nmpc": lambda config, maneuver: KinematicNmpc(config),
         "dynamic-nmpc": lambda config, maneuver: DynamicNmpc(config),
+        "dynamic-mpc": lambda config, maneuver: DynamicMpc(config),
+        "ltv-mpc": lambda config, maneuver: LtvMpc(config),
         "open-loop": OpenLoopTracker,
     }
 )

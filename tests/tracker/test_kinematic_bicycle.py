@@ -145,3 +145,29 @@ def test_bad_step_is_refused() -> None:
         discrete_function(PARAMS, 0.0)
     with pytest.raises(ConfigError, match="substeps"):
         discrete_function(PARAMS, 0.05, substeps=0)
+
+
+def test_understeer_variant_turns_at_the_linear_tyres_steady_state() -> None:
+    """(U1)-(U2) against the steady state of the linear-tyre dynamic bicycle, computed here
+    from its 2x2 lateral equations (seed section 2) with plain numpy."""
+    params = VehicleParams()
+    m, iz = params.mass_kg, params.yaw_inertia_kgm2
+    lf, lr = params.cog_front_m, params.cog_rear_m
+    cf, cr = params.cornering_stiffness_front_npr, params.cornering_stiffness_rear_npr
+    speed, steer = 20.0, 0.03
+    # v_y' = a11 v_y + a12 r + b1 delta, r' = a21 v_y + a22 r + b2 delta = 0 in the steady turn.
+    a = np.array([
+        [-(cf + cr) / (m * speed), (lr * cr - lf * cf) / (m * speed) - speed],
+        [(lr * cr - lf * cf) / (iz * speed), -(lf**2 * cf + lr**2 * cr) / (iz * speed)],
+    ])
+    b = np.array([cf / m, lf * cf / iz])
+    vy, r = np.linalg.solve(a, -b * steer)
+    state = np.array([0.0, 0.0, 0.3, speed])
+    rate = np.asarray(continuous_function(params, understeer=True)(state, [0.0, steer])).ravel()
+    assert rate[STATE["yaw_rad"]] == pytest.approx(r, rel=2e-3)  # tan(delta) vs delta
+    course = math.atan2(rate[STATE["y_m"]], rate[STATE["x_m"]]) - 0.3
+    assert course == pytest.approx(math.atan2(vy, speed), rel=5e-3)
+    # The understeering car turns less than the kinematic one.
+    kinematic = np.asarray(continuous_function(params)(state, [0.0, steer])).ravel()
+    assert rate[STATE["yaw_rad"]] < 0.9 * kinematic[STATE["yaw_rad"]]
+

@@ -32,9 +32,10 @@ from tracker.kinematic_nmpc import KinematicNmpc
 from tracker.reference_path import ReferencePath
 
 CONFIG = from_dict(TrackerConfig, {"name": "kinematic-nmpc", "latency_s": 0.0,
+                                   "kinematic_understeer": False,
                                    "model": {"steer_time_constant_s": 0.0}})
-"""The default tuning; the kinematic bench acts instantly (no transport delay, no steering
-lag), so there is no latency to predict over."""
+"""The default tuning on seed section 1's kinematic model, the bench's own; the bench acts
+instantly (no transport delay, no steering lag), so there is no latency to predict over."""
 LANE_CHANGE = double_lane_change(20.0, 1.5)
 
 
@@ -122,7 +123,8 @@ def test_heading_across_the_angle_wrap() -> None:
 
 
 def test_forced_solver_failure_falls_back_then_stops_safely() -> None:
-    config = from_dict(TrackerConfig, {"name": "kinematic-nmpc", "max_iterations": 1})
+    config = from_dict(TrackerConfig, {"name": "kinematic-nmpc", "max_iterations": 1,
+                                       "kinematic_understeer": False})
     tracker = KinematicNmpc(config)
     tracker.reset(Command(t_s=0.0, accel_mps2=0.0, steer_rad=0.05))
     state = CarState(0.0, 0.5, 0.0, 15.0)

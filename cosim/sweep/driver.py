@@ -1,0 +1,191 @@
+"""``cosim sweep``: read the spec, run the missing runs on a backend, write the results.
+
+:func:`run_sweep` is the whole command minus argument parsing:
+
+1. :func:`cosim.sweep.spec.load_spec` validates the spec (bad input raises before any run);
+2. :meth:`cosim.sweep.results.SweepDir.prepare` starts the output directory or, with
+   ``resume``, checks that it holds a sweep of the same spec (same hash);
+3. the runs whose ids are not yet in ``results.jsonl`` go to the backend; each finished row
+   is appended to ``results.jsonl`` at once, so a kill loses only the runs in flight;
+4. from every row: ``results.csv``, ``results.json``, ``summary.md`` and the plots.
+
+An interrupt (Ctrl-C, SIGTERM) lets the running runs finish or stop, keeps every finished
+row, writes the partial tables and re-raises ``KeyboardInterrupt`` for the CLI (exit 130).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime
+import signal
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from cosim.sweep.execute import make_backend
+from cosim.sweep.plots import heat_map, metric_plots
+from cosim.sweep.results import (
+    SweepDir,
+    append_row,
+    failures,
+    summary_markdown,
+    write_tables,
+)
+from cosim.sweep.spec import SweepSpec, load_spec
+
+
+@dataclass(frozen=True)
+class SweepOutcome:
+    """What a sweep invocation did and where its files are."""
+
+    out_dir: Path
+    runs: int
+    """Runs in the spec."""
+    finished: int
+    """Runs with a row (this invocation's and earlier ones')."""
+    ran: int
+    """Runs this invocation finished."""
+    passed: int
+    errors: int
+    files: tuple[Path, ...]
+    wall_time_s: float
+
+
+def default_out_dir(spec_path: Path) -> Path:
+    """``logs/sweep-<spec stem>-<time>``."""
+    stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+    return Path("logs") / f"sweep-{spec_path.stem}-{stamp}"
+
+
+@contextlib.contextmanager
+def _sigterm_as_interrupt() -> Iterator[None]:
+    """SIGTERM behaves like Ctrl-C while the sweep runs (finish cleanly, keep the rows)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum: int, frame: Any) -> None:
+        del signum, frame
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+class _Progress:
+    """Progress with ETA: a rich bar on a terminal, else one line per finished run."""
+
+    def __init__(self, total: int, done: int, spec: SweepSpec) -> None:
+        self.total, self.done, self.spec = total, done, spec
+        self.start = time.perf_counter()
+        self.ran = 0
+        self.bar: Any = None
+        self.task: Any = None
+
+    def __enter__(self) -> _Progress:
+        if sys.stderr.isatty():
+            from rich.console import Console
+            from rich.progress import (
+                BarColumn,
+                MofNCompleteColumn,
+                Progress,
+                TextColumn,
+                TimeElapsedColumn,
+                TimeRemainingColumn,
+            )
+
+            self.bar = Progress(TextColumn(f"sweep {self.spec.name}"), BarColumn(),
+                                MofNCompleteColumn(), TimeElapsedColumn(),
+                                TextColumn("eta"), TimeRemainingColumn(),
+                                console=Console(stderr=True), transient=True)
+            self.bar.__enter__()
+            self.task = self.bar.add_task("runs", total=self.total, completed=self.done)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self.bar is not None:
+            self.bar.__exit__(None, None, None)
+
+    def update(self, row: dict[str, Any], verdict: str) -> None:
+        self.done += 1
+        self.ran += 1
+        if self.bar is not None:
+            self.bar.update(self.task, completed=self.done)
+            return
+        elapsed = time.perf_counter() - self.start
+        eta = elapsed / self.ran * (self.total - self.done)
+        params = " ".join(f"{k}={v}" for k, v in row["params"].items())
+        print(f"[{self.done}/{self.total}] run {row['run_id']} {params} seed {row['seed']}: "
+              f"{verdict} (eta {eta:.0f} s)", file=sys.stderr, flush=True)
+
+
+def run_sweep(spec_path: str | Path, out_dir: str | Path | None = None,
+              workers: int | None = None, backend: str = "process",
+              keep_logs: bool = False, resume: bool = False,
+              on_row: Callable[[dict[str, Any]], None] | None = None) -> SweepOutcome:
+    """Run (or finish, with ``resume``) the sweep of ``spec_path`` into ``out_dir``.
+
+    ``workers``: processes (``process``) or tasks in flight (``ray``); default: the cores
+    this process may use (``process``), Ray's own scheduling (``ray``). ``on_row`` is called
+    with each raw row as it lands (tests use it). Raises :class:`cosim.exceptions.CosimError`
+    on bad input, ``KeyboardInterrupt`` after an interrupt (rows kept, tables written).
+    """
+    start = time.perf_counter()
+    spec_path = Path(spec_path)
+    spec = load_spec(spec_path)
+    runner = make_backend(backend, workers, spec.ray_address)
+    directory = SweepDir(Path(out_dir) if out_dir is not None else default_out_dir(spec_path))
+    tasks = spec.tasks(directory.log_dir if keep_logs else None)
+    directory.prepare(spec, spec_path.read_text(), resume, len(tasks))
+    rows = {run_id: row for run_id, row in directory.read_rows().items()
+            if run_id < len(tasks)}
+    missing = [task for task in tasks if task.run_id not in rows]
+    ran = 0
+    interrupted = False
+    with directory.open_rows() as handle, _Progress(len(tasks), len(rows), spec) as progress:
+
+        def land(row: dict[str, Any]) -> None:
+            nonlocal ran
+            if row.get("interrupted"):
+                return  # not a result: --resume runs it again
+            append_row(handle, row)
+            rows[row["run_id"]] = row
+            ran += 1
+            why = failures(row, spec)
+            progress.update(row, "pass" if not why else "FAIL " + why[0])
+            if on_row is not None:
+                on_row(row)
+
+        try:
+            with _sigterm_as_interrupt():
+                runner.run(missing, land)
+        except KeyboardInterrupt:
+            interrupted = True
+    files = _write_outputs(directory, spec, list(rows.values()), len(tasks),
+                           time.perf_counter() - start)
+    if interrupted:
+        raise KeyboardInterrupt
+    flat_pass = [not failures(r, spec) for r in rows.values()]
+    return SweepOutcome(
+        out_dir=directory.root, runs=len(tasks), finished=len(rows), ran=ran,
+        passed=sum(flat_pass), errors=sum(bool(r.get("error")) for r in rows.values()),
+        files=files, wall_time_s=time.perf_counter() - start)
+
+
+def _write_outputs(directory: SweepDir, spec: SweepSpec, rows: list[dict[str, Any]],
+                   n_runs: int, wall_time_s: float) -> tuple[Path, ...]:
+    flat = write_tables(directory, spec, rows, n_runs)
+    plots: list[Path] = []
+    if flat:
+        heat = heat_map(spec, flat, directory.root / f"heatmap-{spec.metric}.png")
+        plots = ([heat] if heat is not None else []) + metric_plots(spec, flat, directory.root)
+    summary = directory.root / "summary.md"
+    summary.write_text(summary_markdown(spec, flat, n_runs, plots, wall_time_s))
+    return (directory.root / "results.csv", directory.root / "results.json", summary, *plots)

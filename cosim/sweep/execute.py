@@ -1,0 +1,261 @@
+"""Running a sweep's tasks: one run as a function of plain data, and backends that run many.
+
+:func:`execute_task` is the unit of work: it builds the run's configuration with
+:func:`cosim.scenario_config.load_config` from the task's overrides and seed, calls
+:func:`cosim.runner.run` and returns the row as a plain dictionary (no numpy, no paths), so
+it crosses process and machine boundaries unchanged. It never raises for a failed run: an
+exception or a diverging plant becomes a row with ``error`` set, and the sweep goes on. Only
+an interrupted run (SIGINT/SIGTERM inside the worker) is not a result: its row has
+``interrupted: true`` and the driver drops it, so ``--resume`` runs it again.
+
+Two backends run a list of tasks and hand each row to a callback as it finishes, in
+completion order (the driver sorts by run id, so the order never shows in the results):
+
+* :class:`ProcessBackend`: ``concurrent.futures.ProcessPoolExecutor`` with the ``spawn``
+  start method. MuJoCo and CasADi hold threads and native state that a ``fork`` copies
+  half-way; a spawned worker imports everything afresh.
+* :class:`RayBackend`: the same function as a Ray task, on a local Ray or the cluster at
+  ``ray_address`` (or the ``RAY_ADDRESS`` environment variable). Ray is an optional extra
+  (``pip install .[ray]``), imported only here, only when asked for.
+
+A run's result depends on its task only (seed and overrides from the spec, never from the
+worker), so every backend and worker count gives the same rows.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import datetime
+import math
+import multiprocessing
+import os
+import signal
+import tempfile
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from cosim.exceptions import CosimError
+from cosim.sweep.spec import RunTask
+
+THREAD_LIMITS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+"""Environment variables that keep a worker's numeric libraries to one thread each: the
+pool already uses every core, and oversubscribed cores make every run slower."""
+
+
+def default_workers() -> int:
+    """The cores this process may use (affinity-aware where the platform tells)."""
+    if hasattr(os, "sched_getaffinity"):
+        return max(1, len(os.sched_getaffinity(0)))
+    return max(1, os.cpu_count() or 1)
+
+
+def _plain(value: Any) -> Any:
+    """A metric value as JSON-ready Python: non-finite floats become ``None``."""
+    if isinstance(value, bool) or value is None or isinstance(value, (int, str)):
+        return value
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        return str(value)
+    return number if math.isfinite(number) else None
+
+
+def _now() -> str:
+    return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="milliseconds")
+
+
+def execute_task(task: RunTask) -> dict[str, Any]:
+    """Run one task and return its row: ids, varied values, seed, metrics, error, times.
+
+    The row's ``metrics`` holds every metric the run produced (non-finite values as
+    ``None``); ``error`` is ``""`` for a run that completed, else the exception or the abort
+    reason. ``started_at``/``finished_at`` are UTC wall-clock stamps.
+    """
+    from cosim.runner import run
+    from cosim.scenario_config import load_config
+
+    row: dict[str, Any] = {
+        "run_id": task.run_id, "point": task.point, "seed": task.seed,
+        "params": dict(task.params), "metrics": {}, "error": "", "interrupted": False,
+        "log": task.log_path or "", "started_at": _now(),
+    }
+    start = time.perf_counter()
+    try:
+        config = load_config(task.scenario, None, list(task.overrides), task.seed,
+                             task.duration_s, task.tracker, task.estimator)
+        if task.log_path is None:
+            with tempfile.TemporaryDirectory(prefix="cosim-sweep-") as tmp:
+                result = run(config, Path(tmp) / "run.mcap")
+        else:
+            Path(task.log_path).parent.mkdir(parents=True, exist_ok=True)
+            result = run(config, Path(task.log_path))
+        row["metrics"] = {k: _plain(v) for k, v in result.metrics.items()}
+        if result.abort_reason == "interrupted":
+            row["interrupted"] = True
+        if not result.completed:
+            row["error"] = result.abort_reason or "run did not complete"
+    except KeyboardInterrupt:
+        row["interrupted"] = True
+        row["error"] = "interrupted"
+    except Exception as error:  # a failed run is a row, never the end of the sweep
+        message = " ".join(str(error).split())
+        row["error"] = f"{type(error).__name__}: {message}"
+    row["task_wall_s"] = time.perf_counter() - start
+    row["finished_at"] = _now()
+    return row
+
+
+def _init_worker() -> None:
+    """Pool worker start-up: one thread per numeric library; Ctrl-C is the parent's to handle.
+
+    A terminal's Ctrl-C reaches every process of the group. An idle worker ignores it (no
+    traceback from a worker waiting for work); a running run still stops on it, because
+    :func:`cosim.runner.run` installs its own handler while it runs, and that row is then
+    dropped as interrupted.
+    """
+    for name in THREAD_LIMITS:
+        os.environ.setdefault(name, "1")
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+class WorkerCrashError(CosimError):
+    """A worker process died (not a failed run: the process itself); finished rows are kept."""
+
+
+RowSink = Callable[[dict[str, Any]], None]
+"""Where a backend hands each finished row (the driver appends it to results.jsonl)."""
+
+
+@dataclass(frozen=True)
+class ProcessBackend:
+    """Runs tasks on a pool of ``workers`` spawned processes on this machine."""
+
+    workers: int
+
+    def run(self, tasks: Sequence[RunTask], on_row: RowSink) -> None:
+        """Run every task, calling ``on_row`` with each row as it finishes.
+
+        On ``KeyboardInterrupt`` (Ctrl-C, or SIGTERM as the driver maps it) no further task
+        is handed to the pool, the running ones are waited for and their rows still handed
+        over (a run the interrupt stopped says so in its row), then the interrupt goes on.
+        No worker outlives the call.
+        """
+        if not tasks:
+            return
+        context = multiprocessing.get_context("spawn")
+        workers = max(1, min(self.workers, len(tasks)))
+        executor = concurrent.futures.ProcessPoolExecutor(
+            max_workers=workers, mp_context=context, initializer=_init_worker)
+        # At most one task per worker is handed to the pool: a task in the pool's queue can
+        # no longer be cancelled, so a deeper queue would run on after an interrupt.
+        pending = list(tasks)
+        running: set[concurrent.futures.Future[dict[str, Any]]] = set()
+        try:
+            try:
+                while pending or running:
+                    while pending and len(running) < workers:
+                        running.add(executor.submit(execute_task, pending.pop(0)))
+                    done, running = concurrent.futures.wait(
+                        running, return_when=concurrent.futures.FIRST_COMPLETED)
+                    for future in done:
+                        on_row(_result(future))
+            except KeyboardInterrupt:
+                for future in concurrent.futures.as_completed(running):
+                    if future.exception() is None:
+                        on_row(future.result())
+                raise
+        finally:
+            executor.shutdown(wait=True, cancel_futures=True)
+
+
+def _result(future: concurrent.futures.Future[dict[str, Any]]) -> dict[str, Any]:
+    try:
+        return future.result()
+    except concurrent.futures.process.BrokenProcessPool:
+        raise WorkerCrashError(
+            "a sweep worker process died (killed, out of memory or a crash in native "
+            "code); the rows finished so far are kept: run again with --resume") from None
+
+
+@dataclass(frozen=True)
+class RayBackend:
+    """Runs tasks as Ray tasks (one CPU each) on a local Ray or a cluster.
+
+    ``address``: the cluster to join (``ray://host:10001`` or ``host:6379``); ``None`` uses
+    ``RAY_ADDRESS`` if set, else starts a local Ray. ``workers`` caps the tasks in flight
+    (``None``: as many as Ray schedules). Every node needs cosim installed in the same
+    version: a task imports :mod:`cosim` on the node that runs it.
+    """
+
+    address: str | None
+    workers: int | None
+
+    def run(self, tasks: Sequence[RunTask], on_row: RowSink) -> None:
+        """Run every task, calling ``on_row`` with each row as it finishes.
+
+        A task whose worker dies becomes a row with its error. On ``KeyboardInterrupt`` the
+        tasks in flight are cancelled and the interrupt goes on.
+        """
+        ray = import_ray()
+        if not tasks:
+            return
+        address = self.address or os.environ.get("RAY_ADDRESS") or None
+        started_here = not ray.is_initialized()
+        if started_here:
+            ray.init(address=address, logging_level="ERROR", log_to_driver=False)
+        remote = ray.remote(num_cpus=1, max_retries=0)(execute_task)
+        pending = list(tasks)
+        limit = len(pending) if self.workers is None else self.workers
+        in_flight: dict[Any, RunTask] = {}
+        try:
+            while pending or in_flight:
+                while pending and len(in_flight) < limit:
+                    task = pending.pop(0)
+                    in_flight[remote.remote(task)] = task
+                done, _ = ray.wait(list(in_flight), num_returns=1)
+                for ref in done:
+                    task = in_flight.pop(ref)
+                    try:
+                        row = ray.get(ref)
+                    except ray.exceptions.RayError as error:
+                        row = _crashed_row(task, error)
+                    on_row(row)
+        finally:
+            for ref in in_flight:
+                ray.cancel(ref, force=True)
+            if started_here:
+                ray.shutdown()
+
+
+def _crashed_row(task: RunTask, error: Exception) -> dict[str, Any]:
+    first_line = (str(error).strip().splitlines() or [""])[0]
+    return {"run_id": task.run_id, "point": task.point, "seed": task.seed,
+            "params": dict(task.params), "metrics": {}, "interrupted": False,
+            "error": f"{type(error).__name__}: {first_line}", "log": task.log_path or "",
+            "started_at": _now(), "task_wall_s": None, "finished_at": _now()}
+
+
+def import_ray() -> Any:
+    """The ``ray`` module, or a :class:`CosimError` saying how to install it."""
+    try:
+        import ray
+    except ImportError:
+        raise CosimError("--backend ray: Ray is not installed: expected it from "
+                         "`pip install '.[ray]'` (or `pip install ray`)") from None
+    return ray
+
+
+def make_backend(name: str, workers: int | None, ray_address: str | None
+                 ) -> ProcessBackend | RayBackend:
+    """The backend called ``name`` (``process`` or ``ray``)."""
+    if workers is not None and workers < 1:
+        raise CosimError(f"--workers {workers}: expected a count >= 1")
+    if name == "process":
+        return ProcessBackend(workers if workers is not None else default_workers())
+    if name == "ray":
+        import_ray()  # fail before any work, with the install hint
+        return RayBackend(ray_address, workers)
+    raise CosimError(f"--backend {name!r}: expected process or ray")

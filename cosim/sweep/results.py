@@ -1,0 +1,370 @@
+"""A sweep's output directory: the append-only row log, resume, tables and the summary.
+
+Layout of ``--out DIR``::
+
+    sweep.json      the spec as resolved, its hash, cosim's version, the number of runs
+    spec.yaml       the spec file as given
+    results.jsonl   one raw row per finished run, appended (and flushed) as each finishes
+    results.csv     one flat row per run, sorted by run id
+    results.json    the same rows plus the sweep's description, pass rate and headline metric
+    summary.md      what was varied, pass rate, worst cases, per-value aggregates, plots
+    *.png           plots (:mod:`cosim.sweep.plots`)
+    logs/           run-NNNN.mcap, one per run, with --keep-logs
+
+``results.jsonl`` is the record of truth: a killed sweep loses at most the runs in flight,
+and ``--resume`` reads it back (a half-written last line is ignored) and runs only the
+missing run ids. The other files are derived from it and rewritten at the end.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import statistics
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import IO, Any
+
+from cosim.exceptions import CosimError
+from cosim.metrics import METRIC_KEYS
+from cosim.sweep.spec import Parameter, SweepSpec, axis_label, unit_of
+
+SWEEP_FILE = "sweep.json"
+ROWS_FILE = "results.jsonl"
+WORST_CASES = 10
+"""Rows in the summary's worst-case table."""
+RANDOM_BINS = 4
+"""A random sweep's per-parameter aggregates group the values into this many equal bins."""
+
+
+@dataclass(frozen=True)
+class SweepDir:
+    """The paths of one sweep's output directory."""
+
+    root: Path
+
+    @property
+    def sweep_file(self) -> Path:
+        return self.root / SWEEP_FILE
+
+    @property
+    def rows_file(self) -> Path:
+        return self.root / ROWS_FILE
+
+    @property
+    def log_dir(self) -> Path:
+        return self.root / "logs"
+
+    def prepare(self, spec: SweepSpec, spec_text: str, resume: bool, n_runs: int) -> None:
+        """Start a new sweep here, or check that ``--resume`` continues the same spec.
+
+        A directory that already holds a sweep is never overwritten: without ``--resume``
+        it is refused, with ``--resume`` its spec hash must match this spec's.
+        """
+        digest = spec.digest()
+        if self.sweep_file.is_file():
+            if not resume:
+                raise CosimError(
+                    f"--out {str(self.root)!r}: already holds a sweep ({SWEEP_FILE}): expected "
+                    "a new directory, or --resume to finish that sweep")
+            try:
+                stored = json.loads(self.sweep_file.read_text())["spec_hash"]
+            except (OSError, ValueError, KeyError, TypeError):
+                raise CosimError(f"--resume: {str(self.sweep_file)!r} is unreadable: expected "
+                                 "the sweep.json a sweep writes") from None
+            if stored != digest:
+                raise CosimError(
+                    f"--resume: the spec changed since the sweep in {str(self.root)!r} started "
+                    f"(spec hash {stored[:12]}, now {digest[:12]}): expected the same spec, "
+                    "or a new --out")
+            return
+        if resume:
+            raise CosimError(f"--resume: {str(self.root)!r} holds no sweep to resume (no "
+                             f"{SWEEP_FILE}): expected the --out of an interrupted sweep")
+        from cosim import __version__
+
+        self.root.mkdir(parents=True, exist_ok=True)
+        (self.root / "spec.yaml").write_text(spec_text)
+        document = {"spec_hash": digest, "cosim_version": __version__, "runs": n_runs,
+                    "spec": spec.to_dict()}
+        self.sweep_file.write_text(json.dumps(document, indent=2) + "\n")
+
+    def read_rows(self) -> dict[int, dict[str, Any]]:
+        """The finished rows of ``results.jsonl`` by run id (a torn last line is skipped)."""
+        rows: dict[int, dict[str, Any]] = {}
+        if not self.rows_file.is_file():
+            return rows
+        for line in self.rows_file.read_text().splitlines():
+            try:
+                row = json.loads(line)
+            except ValueError:
+                continue  # the line a kill cut short; its run is redone
+            if isinstance(row, dict) and isinstance(row.get("run_id"), int) \
+                    and not row.get("interrupted"):
+                rows[row["run_id"]] = row
+        return rows
+
+    def open_rows(self) -> IO[str]:
+        """``results.jsonl`` for appending; a torn last line is ended first."""
+        handle = self.rows_file.open("a+")
+        handle.seek(0, os.SEEK_END)
+        if handle.tell() > 0:
+            handle.seek(handle.tell() - 1)
+            if handle.read(1) != "\n":
+                handle.write("\n")
+        return handle
+
+
+def append_row(handle: IO[str], row: dict[str, Any]) -> None:
+    """Append one row as a JSON line and push it to the disk before the next run ends."""
+    handle.write(json.dumps(row, allow_nan=False) + "\n")
+    handle.flush()
+    os.fsync(handle.fileno())
+
+
+def failures(row: dict[str, Any], spec: SweepSpec) -> list[str]:
+    """Why a row fails: its error, or each criterion it misses (empty: it passes)."""
+    if row.get("error"):
+        return [str(row["error"])]
+    return [f for c in spec.criteria if (f := c.failure(row.get("metrics", {}))) is not None]
+
+
+def flat_row(row: dict[str, Any], spec: SweepSpec, metric_keys: Sequence[str]
+             ) -> dict[str, Any]:
+    """One table row: run id, point, seed, varied values, pass, why not, error, metrics."""
+    why = failures(row, spec)
+    flat: dict[str, Any] = {"run_id": row["run_id"], "point": row["point"], "seed": row["seed"]}
+    flat.update({p.path: row["params"].get(p.path) for p in spec.parameters})
+    flat["pass"] = not why
+    flat["failed"] = "" if row.get("error") else "; ".join(why)
+    flat["error"] = row.get("error", "")
+    metrics = row.get("metrics", {})
+    flat.update({key: _finite_or_none(metrics.get(key)) for key in metric_keys})
+    flat.update({key: row.get(key, "") for key in ("log", "started_at", "finished_at")})
+    return flat
+
+
+def metric_columns(rows: Iterable[dict[str, Any]]) -> list[str]:
+    """Every metric any row holds: the contract's keys first, then the others sorted."""
+    extra = sorted({k for r in rows for k in r.get("metrics", {})} - set(METRIC_KEYS))
+    return [*METRIC_KEYS, *extra]
+
+
+def write_tables(directory: SweepDir, spec: SweepSpec, rows: Sequence[dict[str, Any]],
+                 n_runs: int) -> list[dict[str, Any]]:
+    """``results.csv`` and ``results.json`` from the raw rows; returns the flat rows."""
+    columns = metric_columns(rows)
+    flat = [flat_row(r, spec, columns) for r in sorted(rows, key=lambda r: r["run_id"])]
+    header = list(flat[0]) if flat else ["run_id", "point", "seed",
+                                         *[p.path for p in spec.parameters], "pass"]
+    with (directory.root / "results.csv").open("w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=header)
+        writer.writeheader()
+        writer.writerows({k: _csv_value(v) for k, v in r.items()} for r in flat)
+    passed = sum(r["pass"] for r in flat)
+    document = {
+        "sweep": spec.name, "spec_hash": spec.digest(), "scenario": spec.scenario,
+        "parameters": [{"path": p.path, "unit": p.unit, "nominal": p.nominal}
+                       for p in spec.parameters],
+        "criteria": [c.describe() for c in spec.criteria], "metric": spec.metric,
+        "runs": n_runs, "finished": len(flat), "passed": passed, "rows": flat,
+    }
+    (directory.root / "results.json").write_text(
+        json.dumps(document, indent=1, allow_nan=False) + "\n")
+    return flat
+
+
+def _finite_or_none(value: Any) -> Any:
+    """JSON has no NaN: a non-finite metric is ``None`` (empty in the CSV)."""
+    return None if isinstance(value, float) and not math.isfinite(value) else value
+
+
+def _csv_value(value: Any) -> Any:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return "" if value is None else value
+
+
+def as_number(value: Any) -> float:
+    """A metric as a float; missing or non-numeric values are NaN."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return math.nan
+    return float(value)
+
+
+def worst(values: Iterable[float]) -> float:
+    """The largest value, NaN if any is NaN (an errored run is the worst case)."""
+    values = list(values)
+    if not values or any(math.isnan(v) for v in values):
+        return math.nan
+    return max(values)
+
+
+@dataclass(frozen=True)
+class GridCells:
+    """A two-parameter grid reduced over seeds: ``value[j][i]`` is the worst metric at
+    ``(x_values[i], y_values[j])``; ``passed`` true if every seed passed; ``errors`` the
+    number of runs that ended in an error; ``runs`` the runs finished in the cell."""
+
+    x: Parameter
+    y: Parameter
+    value: list[list[float]]
+    passed: list[list[bool]]
+    errors: list[list[int]]
+    runs: list[list[int]]
+
+
+def grid_cells(spec: SweepSpec, flat: Sequence[dict[str, Any]]) -> GridCells | None:
+    """The heat map's cells, or ``None`` unless the sweep is a grid over two parameters."""
+    if spec.mode != "grid" or len(spec.parameters) != 2:
+        return None
+    x, y = spec.parameters
+    value, passed, errors, runs = [], [], [], []
+    for yv in y.values:
+        row_value, row_passed, row_errors, row_runs = [], [], [], []
+        for xv in x.values:
+            members = [r for r in flat if r[x.path] == xv and r[y.path] == yv]
+            row_value.append(worst(as_number(r[spec.metric]) for r in members)
+                             if members else math.nan)
+            row_passed.append(bool(members) and all(r["pass"] for r in members))
+            row_errors.append(sum(bool(r["error"]) for r in members))
+            row_runs.append(len(members))
+        value.append(row_value)
+        passed.append(row_passed)
+        errors.append(row_errors)
+        runs.append(row_runs)
+    return GridCells(x, y, value, passed, errors, runs)
+
+
+def _cell(value: Any) -> str:
+    if isinstance(value, bool):
+        return "pass" if value else "**FAIL**"
+    if isinstance(value, float):
+        return f"{value:.4g}" if math.isfinite(value) else "n/a"
+    if value is None:
+        return "n/a"
+    return str(value).replace("|", "\\|")
+
+
+def _table(header: Sequence[str], rows: Iterable[Sequence[Any]]) -> list[str]:
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(_cell(v) for v in row) + " |" for row in rows]
+    return lines
+
+
+def _groups(flat: Sequence[dict[str, Any]], spec: SweepSpec, index: int
+            ) -> list[tuple[str, list[dict[str, Any]]]]:
+    """Rows grouped by one parameter: by value (grid) or in equal-width bins (random)."""
+    parameter = spec.parameters[index]
+    if parameter.values:
+        return [(_cell(v), [r for r in flat if r[parameter.path] == v])
+                for v in parameter.values]
+    low, high = float(parameter.low or 0.0), float(parameter.high or 0.0)
+    width = (high - low) / RANDOM_BINS or 1.0
+    groups = []
+    for b in range(RANDOM_BINS):
+        a, z = low + b * width, low + (b + 1) * width
+        members = [r for r in flat if a <= r[parameter.path] < z
+                   or (b == RANDOM_BINS - 1 and r[parameter.path] == z)]
+        groups.append((f"[{a:.4g}, {z:.4g}{']' if b == RANDOM_BINS - 1 else ')'}", members))
+    return groups
+
+
+def summary_markdown(spec: SweepSpec, flat: Sequence[dict[str, Any]], n_runs: int,
+                     plots: Sequence[Path], wall_time_s: float | None) -> str:
+    """The Markdown summary of a sweep (``summary.md``)."""
+    metric, unit = spec.metric, unit_of(spec.metric)
+    passed = sum(r["pass"] for r in flat)
+    errors = sum(bool(r["error"]) for r in flat)
+    lines = [f"# Sweep {spec.name}", ""]
+    if spec.description:
+        lines += [spec.description, ""]
+    scenario = Path(spec.scenario).name if spec.scenario_text else spec.scenario
+    lines += [
+        f"- scenario `{scenario}`, tracker `{spec.tracker_name}`, "
+        f"estimator `{spec.estimator_name}`"
+        + (f", {spec.duration_s:g} s" if spec.duration_s is not None else ""),
+        f"- seeds {', '.join(str(s) for s in spec.seeds)}; "
+        + {"grid": "full factorial grid", "random": f"{spec.random_n} uniform samples "
+           f"(sampling seed {spec.random_seed})", "seeds": "nothing varied but the seed"}
+        [spec.mode] + f"; {n_runs} runs",
+    ]
+    if spec.fixed:
+        lines.append("- fixed: " + ", ".join(f"`{k}={v}`" for k, v in spec.fixed))
+    if wall_time_s is not None:
+        lines.append(f"- wall time of this invocation {wall_time_s:.1f} s")
+    lines.append("")
+    if spec.parameters:
+        lines += ["## What was varied", ""]
+        lines += _table(
+            ["parameter", "unit", "nominal", "values", "other side of the mismatch"],
+            [[f"`{p.path}`", p.unit, _cell(p.nominal), p.describe_values(),
+              f"`{p.counterpart}` = {_cell(p.counterpart_value)} (held)" if p.counterpart
+              else ""] for p in spec.parameters])
+        lines.append("")
+    criteria = ", ".join(c.describe() for c in spec.criteria) or "the run completes"
+    share = f"{100.0 * passed / len(flat):.1f} %" if flat else "n/a"
+    lines += ["## Pass rate", "",
+              f"**{passed} of {len(flat)} runs pass ({share})**; criteria: {criteria}."
+              + (f" {errors} run(s) ended in an error." if errors else ""),
+              ]
+    if len(flat) < n_runs:
+        lines.append(f"Only {len(flat)} of {n_runs} runs are finished: resume with "
+                     "`--resume`.")
+    lines.append("")
+
+    key = [(-as_number(r[metric]) if not math.isnan(as_number(r[metric])) else -math.inf)
+           for r in flat]
+    order = sorted(range(len(flat)), key=lambda i: (key[i], flat[i]["run_id"]))
+    lines += [f"## Worst cases by `{metric}`", ""]
+    lines += _table(
+        ["run", *[f"`{p.path}`" for p in spec.parameters], "seed", f"{metric} [{unit}]",
+         "result", "why"],
+        [[flat[i]["run_id"], *[flat[i][p.path] for p in spec.parameters], flat[i]["seed"],
+          as_number(flat[i][metric]), flat[i]["pass"],
+          flat[i]["failed"] or flat[i]["error"]] for i in order[:WORST_CASES]])
+    lines.append("")
+
+    cells = grid_cells(spec, flat)
+    if cells is not None:
+        lines += [f"## Worst `{metric}` per grid point (over the seeds)", "",
+                  f"Rows: `{cells.y.path}`; columns: `{cells.x.path}`; FAIL marks a point "
+                  "where any seed fails.", ""]
+        header = [f"{axis_label(cells.y.path)} \\ {axis_label(cells.x.path)}",
+                  *[_cell(v) for v in cells.x.values]]
+        body = []
+        for j, yv in enumerate(cells.y.values):
+            body.append([yv, *[
+                "not run" if not cells.runs[j][i] else "error" if cells.errors[j][i] else
+                f"{_cell(cells.value[j][i])}" + ("" if cells.passed[j][i] else " FAIL")
+                for i in range(len(cells.x.values))]])
+        lines += [*_table(header, body), ""]
+
+    if spec.parameters:
+        lines += ["## Per parameter value", "",
+                  f"Over every run with that value (all seeds, all other parameters); "
+                  f"`{metric}` in {unit}.", ""]
+        for index, parameter in enumerate(spec.parameters):
+            lines += [f"### `{parameter.path}`", ""]
+            rows = []
+            for label, members in _groups(flat, spec, index):
+                values = [as_number(r[metric]) for r in members]
+                finite = [v for v in values if not math.isnan(v)]
+                good = sum(r["pass"] for r in members)
+                errored = sum(bool(r["error"]) for r in members)
+                rows.append([label, len(members),
+                             f"{good}/{len(members)}" if members else "-",
+                             statistics.fmean(finite) if finite else math.nan,
+                             f"error ({errored} run(s))" if errored else
+                             worst(values) if members else math.nan])
+            lines += _table([axis_label(parameter.path), "runs", "pass",
+                             f"mean {metric} (finished runs)", f"worst {metric}"], rows)
+            lines.append("")
+    if plots:
+        lines += ["## Plots", ""]
+        lines += [f"![{p.stem}]({p.name})" for p in plots]
+        lines.append("")
+    return "\n".join(lines)

@@ -1,0 +1,128 @@
+"""Robustness envelope of the default tracker on the double lane change at 20 m/s.
+
+The default loop (``dynamic-nmpc`` with the EKF, RTK sensors) on the full 15 s
+``lane-change`` scenario (peak 0.5 g), seed 0, with one thing wrong at a time: the real car
+(``plant.*``) or the sensors differ from what the controller believes (``tracker.model.*``,
+held at the nominal sedan: 1575 kg, friction 1.0). Each case states what the loop must still
+achieve, or, beyond the envelope, that the run completes and the metrics show the failure.
+
+How the bounds were set (measured with ``cosim run lane-change --seed S --set ...`` for
+seeds 0, 1, 2 on the code of issue 6; the nominal run gives a max CTE of 0.058 / 0.046 /
+0.047 m): an upper bound is 1.5 times the worst of the three seeds, rounded up to the next
+0.05 m, so seed noise and small tuning changes pass while a real loss of robustness (the
+failures below are metres, not centimetres) does not. Every in-envelope run measured needed
+no solver fallback, so none is allowed.
+
+About 8 runs of 6-8 s each: marked ``slow`` (``make test`` runs them, ``make test-fast``
+does not) and ``mismatch`` (``pytest -m mismatch`` runs this suite alone).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from cosim.runner import RunResult
+from cosim.scenario_config import load_config
+from tests.conftest import run_scenario
+
+pytestmark = [pytest.mark.mismatch, pytest.mark.slow]
+
+NOMINAL_MASS_KG = 1575.0
+"""The sedan's mass, the plant's default and the controller's belief."""
+
+
+def lane_change(tmp_path: Path, *overrides: str) -> RunResult:
+    """The full lane change, seed 0, with ``overrides`` on top of the defaults."""
+    return run_scenario(tmp_path, "lane-change", *overrides)
+
+
+def assert_tracks(result: RunResult, cte_bound_m: float) -> None:
+    metrics = result.metrics
+    assert result.completed and metrics["completed"] is True
+    assert metrics["solver_failures"] == 0
+    assert metrics["cte_max_m"] <= cte_bound_m, metrics["cte_max_m"]
+
+
+def test_car_30_percent_heavier_than_believed(tmp_path: Path) -> None:
+    """Plant 2047.5 kg (+30 %), belief 1575 kg: max CTE <= 0.20 m.
+
+    Measured 0.124 / 0.109 / 0.088 m (seeds 0/1/2): the low-level layer converts the
+    demanded acceleration into torque with the believed mass, so the heavier car accelerates
+    30 % less than planned and corners with more inertia; the MPC's feedback absorbs it.
+    Bound 1.5 x 0.124 = 0.19 -> 0.20 m.
+    """
+    result = lane_change(tmp_path, f"plant.mass_kg={NOMINAL_MASS_KG * 1.3}")
+    assert_tracks(result, cte_bound_m=0.20)
+
+
+def test_car_30_percent_lighter_than_believed(tmp_path: Path) -> None:
+    """Plant 1102.5 kg (-30 %), belief 1575 kg, dry road: max CTE <= 0.20 m.
+
+    Measured 0.087 / 0.091 / 0.114 m. Bound 1.5 x 0.114 = 0.17 -> 0.20 m. (On a slippery
+    road this is the dangerous direction: the believed mass makes the drive torque 43 % too
+    large on the rear axle; ``examples/mass-friction.yaml`` shows the 1100 kg car spinning at
+    friction 0.7 and 0.8, where the nominal car does not.)
+    """
+    result = lane_change(tmp_path, f"plant.mass_kg={NOMINAL_MASS_KG * 0.7}")
+    assert_tracks(result, cte_bound_m=0.20)
+
+
+def test_tyre_road_friction_0_7(tmp_path: Path) -> None:
+    """``plant.tire_friction=0.7`` (nominal 1.0, belief 1.0): max CTE <= 0.15 m.
+
+    Measured 0.095 / 0.075 / 0.062 m (0.8: 0.075 / 0.057 / 0.052 m). Bound 1.5 x 0.095 =
+    0.14 -> 0.15 m. 0.7 is the lowest friction inside the envelope: at 0.65 and 0.6 the
+    car spins (see :func:`test_friction_0_6_is_beyond_the_envelope`), so the issue's hoped-for
+    "down to 0.6" does not hold at 20 m/s with the default tracker.
+    """
+    result = lane_change(tmp_path, "plant.tire_friction=0.7")
+    assert_tracks(result, cte_bound_m=0.15)
+
+
+def test_actuator_delay_150_ms(tmp_path: Path) -> None:
+    """``plant.actuator_delay_s=0.15``: the tracker believes it and predicts over it.
+
+    With no ``tracker.latency_s`` given, the config makes the tracker believe the plant's
+    delay (``tracker.latency_compensation`` is on by default), so the MPC plans from the
+    state the car will be in when the command lands. Measured 0.082 / 0.062 / 0.063 m, barely
+    above nominal. Bound 1.5 x 0.082 = 0.12 -> 0.15 m.
+    """
+    overrides = ("plant.actuator_delay_s=0.15",)
+    config = load_config("lane-change", overrides=list(overrides))
+    assert config.tracker.latency_s == 0.15 and config.tracker.latency_compensation
+    result = lane_change(tmp_path, *overrides)
+    assert_tracks(result, cte_bound_m=0.15)
+
+
+def test_gnss_sigma_0_5_m(tmp_path: Path) -> None:
+    """``sensors.gnss.sigma_m=0.5`` (RTK's is 0.02 m): max CTE <= 0.75 m, position RMSE
+    <= 0.35 m.
+
+    The filter fuses 10 Hz fixes 25 times noisier than RTK with the IMU and wheel speeds;
+    the tracker follows the estimate, so the estimate's error is the tracking error's floor.
+    Measured max CTE 0.349 / 0.499 / 0.271 m and estimate position RMSE 0.205 / 0.226 /
+    0.177 m. Bounds 1.5 x 0.499 = 0.75 m and 1.5 x 0.226 = 0.34 -> 0.35 m.
+    """
+    result = lane_change(tmp_path, "sensors.gnss.sigma_m=0.5")
+    assert_tracks(result, cte_bound_m=0.75)
+    assert result.metrics["est_pos_rmse_m"] <= 0.35, result.metrics["est_pos_rmse_m"]
+
+
+@pytest.mark.parametrize("friction", [0.6, 0.3])
+def test_friction_beyond_the_envelope_fails_visibly(tmp_path: Path, friction: float) -> None:
+    """Friction 0.6 and 0.3 at 20 m/s: tracking must fail, and the metrics must say so.
+
+    The lane change asks 0.5 g while the rear-driven car also accelerates from 15 to 20 m/s;
+    with friction 0.6 (measured also 0.65) the combined demand saturates the rear tyres and
+    the car spins: max CTE 10.7 / 11.1 / 11.0 m, heading error pi (0.6, seeds 0/1/2;
+    11.4-11.8 m even when the belief knows the friction), 12.2 / 12.5 / 12.4 m at 0.3. The
+    run still completes (no abort: the physics is sound, the car just leaves the road), and
+    the failure shows in max CTE > 1 m and max heading error > 1.5 rad (the car turned
+    around). Thresholds are a tenth of the measured failure, far above any in-envelope run.
+    """
+    result = lane_change(tmp_path, f"plant.tire_friction={friction}")
+    assert result.completed and result.metrics["completed"] is True
+    assert result.metrics["cte_max_m"] > 1.0, result.metrics["cte_max_m"]
+    assert result.metrics["heading_err_max_rad"] > 1.5, result.metrics["heading_err_max_rad"]

@@ -1,0 +1,150 @@
+"""`cosim sweep` as users call it: bad specs, worker counts, kill and resume, Ray."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from cosim.exceptions import CosimError
+from cosim.sweep.execute import make_backend
+
+COSIM = str(Path(sys.executable).with_name("cosim"))
+
+TINY_SPEC = """
+scenario: lane-change
+duration_s: 1
+seeds: [0, 1]
+grid: {plant.mass_kg: [1400, 1800]}
+pass: {cte_max_m: 0.3, completed: true}
+"""
+"""Four 1 s runs: two masses, two seeds."""
+
+WALL_CLOCK = ("wall_time_s", "realtime_factor", "solve_ms_p50", "solve_ms_p99",
+              "solve_ms_max", "started_at", "finished_at", "log")
+"""Row fields that measure the machine, not the run."""
+
+
+def cosim(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+    env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "disable")}
+    return subprocess.run([COSIM, *args], capture_output=True, text=True, cwd=cwd, env=env,
+                          timeout=900, check=False)
+
+
+def comparable_rows(out: Path) -> list[dict]:
+    rows = json.loads((out / "results.json").read_text())["rows"]
+    return [{k: v for k, v in row.items() if k not in WALL_CLOCK} for row in rows]
+
+
+@pytest.fixture(scope="module")
+def tiny_spec(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("spec") / "tiny.yaml"
+    path.write_text(TINY_SPEC)
+    return path
+
+
+@pytest.fixture(scope="module")
+def one_worker(tiny_spec: Path) -> Path:
+    """The tiny sweep on one worker: the reference the other ways of running it must match."""
+    out = tiny_spec.parent / "one-worker"
+    result = cosim("sweep", str(tiny_spec), "--out", str(out), "--workers", "1")
+    assert result.returncode == 0, result.stderr
+    return out
+
+
+@pytest.mark.parametrize(
+    ("spec", "fragment"),
+    [
+        ("scenario: lane-change\ngrid: {plant.mas_kg: [1200, 1500]}",
+         "grid: 'plant.mas_kg': unknown dotted path"),
+        ("scenario: lane-change\ngrid: {}", "grid: empty"),
+        ("scenario: lane-change\nrandom: {n: 4, plant.tire_friction: [1.0, 0.5]}",
+         "'plant.tire_friction': [1.0, 0.5]: expected low <= high"),
+        ("scenario: lane-change\ngrid: {plant.mass_kg: [1200]}\npass: {cte_mx_m: 0.3}",
+         "pass: unknown metric 'cte_mx_m'"),
+    ],
+)
+def test_bad_spec_is_one_line_and_exit_code_2(spec: str, fragment: str, tmp_path: Path) -> None:
+    path = tmp_path / "bad.yaml"
+    path.write_text(spec)
+    result = cosim("sweep", str(path), "--out", str(tmp_path / "out"), cwd=tmp_path)
+    assert result.returncode == 2, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr
+    assert fragment in lines[0]
+    assert "Traceback" not in result.stderr
+    assert not (tmp_path / "out").exists()  # refused before any run
+
+
+def test_resume_without_a_sweep_is_refused(tiny_spec: Path, tmp_path: Path) -> None:
+    result = cosim("sweep", str(tiny_spec), "--out", str(tmp_path / "none"), "--resume")
+    assert result.returncode == 2
+    assert "holds no sweep to resume" in result.stderr
+
+
+def test_missing_ray_is_one_clear_error(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setitem(sys.modules, "ray", None)  # import ray -> ImportError
+    with pytest.raises(CosimError, match=r"pip install '\.\[ray\]'"):
+        make_backend("ray", None, None)
+
+
+@pytest.mark.slow
+def test_one_and_two_workers_give_identical_results(one_worker: Path, tiny_spec: Path) -> None:
+    out = tiny_spec.parent / "two-workers"
+    result = cosim("sweep", str(tiny_spec), "--out", str(out), "--workers", "2")
+    assert result.returncode == 0, result.stderr
+    reference = comparable_rows(one_worker)
+    assert [row["run_id"] for row in reference] == [0, 1, 2, 3]
+    assert all(row["completed"] is True and not row["error"] for row in reference)
+    assert comparable_rows(out) == reference
+    summary = (out / "summary.md").read_text()
+    assert "## Worst cases by `cte_max_m`" in summary
+
+
+@pytest.mark.slow
+def test_resume_after_a_kill_runs_only_the_missing_runs(one_worker: Path, tiny_spec: Path
+                                                        ) -> None:
+    out = tiny_spec.parent / "killed"
+    rows_file = out / "results.jsonl"
+    env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "disable")}
+    process = subprocess.Popen([COSIM, "sweep", str(tiny_spec), "--out", str(out),
+                                "--workers", "1"], env=env, start_new_session=True,
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 600
+    try:
+        while not (rows_file.is_file() and rows_file.read_text().count("\n") >= 1):
+            assert process.poll() is None, "the sweep ended before it could be killed"
+            assert time.monotonic() < deadline, "no row landed in time"
+            time.sleep(0.05)
+    finally:
+        os.killpg(process.pid, signal.SIGKILL)  # the CLI and its workers, no clean-up
+        process.wait()
+    before = [json.loads(line) for line in rows_file.read_text().splitlines()]
+    assert 1 <= len(before) < 4
+
+    result = cosim("sweep", str(tiny_spec), "--out", str(out), "--resume")
+    assert result.returncode == 0, result.stderr
+    assert f"(ran {4 - len(before)} now, {len(before)} from before)" in result.stdout
+    after = [json.loads(line) for line in rows_file.read_text().splitlines()]
+    assert sorted(row["run_id"] for row in after) == [0, 1, 2, 3]  # each exactly once
+    assert after[:len(before)] == before  # the finished rows were not redone
+    finished = {row["run_id"]: row["finished_at"]
+                for row in json.loads((out / "results.json").read_text())["rows"]}
+    assert all(finished[row["run_id"]] == row["finished_at"] for row in before)
+    assert comparable_rows(out) == comparable_rows(one_worker)
+
+
+@pytest.mark.slow
+def test_ray_backend_gives_the_same_results(one_worker: Path, tiny_spec: Path) -> None:
+    pytest.importorskip("ray")
+    out = tiny_spec.parent / "ray"
+    result = cosim("sweep", str(tiny_spec), "--out", str(out), "--backend", "ray",
+                   "--workers", "2")
+    assert result.returncode == 0, result.stderr
+    assert comparable_rows(out) == comparable_rows(one_worker)
