@@ -63,7 +63,8 @@ class DynamicMpcConfig:
         1e5,
         low=0.0,
         high=1e12,
-        doc="slack of each soft limit, squared and linear (its own SI unit) [1]",
+        doc="slack of each soft limit at each node, squared plus linear, in the limit's "
+        "SI unit (m, rad, m/s)",
     )
     max_lateral_error_m: float = setting(
         0.5, low=0.01, high=100.0, doc="soft limit |e1| (paper: 0.5 m, lane 4 m, car 2 m)"
@@ -81,7 +82,13 @@ class DynamicMpcConfig:
     min_speed_mps: float = setting(0.0, low=0.0, high=100.0, doc="soft lower speed limit")
     max_speed_mps: float = setting(30.0, low=0.1, high=100.0, doc="soft upper speed limit")
     qp_solver: str = setting("highs", choices=QP_SOLVERS, doc="CasADi QP back-end")
-    max_iterations: int = setting(100, low=1, high=10000, doc="QP iteration limit")
+    max_iterations: int = setting(
+        1000,
+        low=1,
+        high=100000,
+        doc="QP iteration limit (HiGHS counts every bound it fixes: about 40 per step at "
+        "Np = 10, growing with the 3 Np slacks)",
+    )
 
     def __post_init__(self) -> None:
         if self.control_horizon > self.prediction_horizon:

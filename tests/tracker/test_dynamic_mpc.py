@@ -174,8 +174,7 @@ def lane_change() -> ClosedLoopResult:
 
 def test_lane_change_beats_the_paper_on_its_own_model(lane_change: ClosedLoopResult) -> None:
     # The paper: max lateral deviation 88 mm on its model; here 64 mm (84 mm without the
-    # bench's steering lag: what limits it is the paper's two moves, Nc = 2, over a 1 s
-    # horizon). The errors converge to zero on the straight after the curve.
+    # bench's steering lag). The errors converge to zero on the straight after the curve.
     assert np.max(np.abs(lane_change.cte_m)) < 0.07
     assert np.max(np.abs(lane_change.cte_m[-1000:])) < 1e-4
     assert lane_change.final.x_m > 250.0
