@@ -135,6 +135,7 @@ from tracker.delay_line import IssuedInputs
 from tracker.dynamic_mpc_config import DynamicMpcConfig
 from tracker.fallback import INPUT, INPUT_NAMES, FailureClock, safe_stop_inputs, shifted_inputs
 from tracker.reference_path import Projection, ReferencePath, wrap_angle
+from tracker.vector_layout import VectorLayout
 
 TRACKER_NAME = "dynamic-mpc"
 """``tracker.name`` of this tracker."""
@@ -173,32 +174,6 @@ _BACKENDS: Mapping[str, _Backend] = MappingProxyType({
                           -6: "overdetermined_initial"})),
 })
 """The back-ends ``tracker.dynamic_mpc.qp_solver`` can name."""
-
-
-class _Layout:
-    """Named blocks of a flat vector (variables, parameters, constraints), in order."""
-
-    def __init__(self, sizes: tuple[tuple[str, int], ...]) -> None:
-        slices: dict[str, slice] = {}
-        start = 0
-        for name, size in sizes:
-            slices[name] = slice(start, start + size)
-            start += size
-        self.slices: Mapping[str, slice] = MappingProxyType(slices)
-        self.size = start
-
-    def split(self, vector: ca.SX) -> dict[str, ca.SX]:
-        """Symbolic blocks of ``vector`` by name."""
-        return {name: vector[s] for name, s in self.slices.items()}
-
-    def pack(self, blocks: Mapping[str, np.ndarray | float]) -> np.ndarray:
-        """One flat vector from every named block (each of its declared size)."""
-        if set(blocks) != set(self.slices):
-            raise ValueError(f"expected blocks {sorted(self.slices)}, got {sorted(blocks)}")
-        out = np.empty(self.size)
-        for name, s in self.slices.items():
-            out[s] = np.asarray(blocks[name], dtype=float).ravel()
-        return out
 
 
 @dataclass(frozen=True)
@@ -243,9 +218,9 @@ class _Qp:
     solver: ca.Function
     trajectory: ca.Function
     """``(z, p) -> (states (Np+1)x6, inputs Np x2)``: the plan the QP's variables mean."""
-    variables: _Layout
-    params: _Layout
-    constraints: _Layout
+    variables: VectorLayout
+    params: VectorLayout
+    constraints: VectorLayout
     lbg: np.ndarray
     ubg: np.ndarray
 
@@ -297,16 +272,16 @@ class DynamicMpc:
         n_p, n_c = self._n_p, self._n_c
         n_x, n_u = len(path_model.STATE_NAMES), len(INPUT_NAMES)
         state = path_model.STATE
-        variables = _Layout((("increments", n_c * n_u),
+        variables = VectorLayout((("increments", n_c * n_u),
                              ("slacks", len(SOFT_LIMIT_NAMES) * n_p)))
-        params = _Layout((
+        params = VectorLayout((
             ("state0", n_x),
             ("input_prev", n_u),
             ("speed_lin_mps", 1),
             ("yaw_rate_ref_radps", n_p),
             ("speed_ref_mps", 1),
         ))
-        constraints = _Layout(
+        constraints = VectorLayout(
             (("inputs", n_c * n_u),)
             + tuple((f"{name}_{side}", n_p) for name in SOFT_LIMIT_NAMES
                     for side in ("upper", "lower"))

@@ -1,4 +1,4 @@
-"""What every MPC tracker does when its solver fails (issue 5, item 5).
+"""What every MPC tracker does when its solver fails, and how it reuses its last plan.
 
 A failed or non-finite solve never stops a run. The tracker replays its last good plan,
 shifted by the time elapsed since it was made (:func:`shifted_inputs`); once failures have
@@ -12,6 +12,7 @@ Inputs are ``(N, 2)`` arrays with columns :data:`INPUT_NAMES`.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from types import MappingProxyType
 
 import numpy as np
@@ -83,3 +84,34 @@ def safe_stop_inputs(
         inputs[k, INPUT["accel_mps2"]] = accel
         speed += accel * dt_s
     return inputs
+
+
+def shifted_states(
+    states: np.ndarray,
+    inputs: np.ndarray,
+    plan_t_s: float,
+    t_s: float,
+    dt_s: float,
+    step: Callable[[np.ndarray, np.ndarray], np.ndarray],
+    state0: np.ndarray,
+    yaw_index: int,
+) -> np.ndarray:
+    """The states of a plan made at ``plan_t_s``, from ``t_s`` on (the warm start).
+
+    Nodes past the plan's end are rolled out with ``step`` (one stage of the model) and the
+    held inputs of :func:`shifted_inputs`; the yaw is moved by whole turns onto
+    ``state0``'s and node 0 pinned to ``state0``, the state the new plan starts from.
+    """
+    n = inputs.shape[0]
+    shift = max(0, int(round((t_s - plan_t_s) / dt_s)))
+    held = shifted_inputs(inputs, plan_t_s, t_s, dt_s)
+    out = np.empty_like(states)
+    keep = max(0, n + 1 - shift)
+    out[:keep] = states[shift:shift + keep]
+    for k in range(keep, n + 1):
+        source = out[k - 1] if k > 0 else states[-1]
+        out[k] = np.asarray(step(source, held[k - 1]), dtype=float).ravel()
+    turns = np.round((state0[yaw_index] - out[0, yaw_index]) / (2.0 * np.pi))
+    out[:, yaw_index] += 2.0 * np.pi * turns
+    out[0] = state0
+    return out

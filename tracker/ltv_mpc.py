@@ -105,6 +105,7 @@ from tracker.fallback import (
     FailureClock,
     safe_stop_inputs,
     shifted_inputs,
+    shifted_states,
 )
 from tracker.horizon_reference import horizon_reference
 from tracker.ltv_qp import REFERENCE_NAMES, Linearisation, LtvQp, QpProblem, QpResult
@@ -301,22 +302,10 @@ class LtvMpc:
         if self._warm is None:
             inputs = np.tile(self._previous_input, (self._n, 1))
             return _Trajectory(t_s, self._rollout(state0, inputs), inputs)
-        warm = self._warm
-        shift = max(0, int(round((t_s - warm.t_s) / self.config.dt_s)))
-        inputs = shifted_inputs(warm.inputs, warm.t_s, t_s, self.config.dt_s)
-        states = np.empty((self._n + 1, self._n_x))
-        keep = max(0, self._n + 1 - shift)
-        states[:keep] = warm.states[shift:shift + keep]
-        for k in range(keep, self._n + 1):
-            source = states[k - 1] if k > 0 else warm.states[-1]
-            states[k] = np.asarray(self._step_function(source, inputs[k - 1]),
-                                   dtype=float).ravel()
-        # Rebase the yaw by whole turns onto the current yaw, then pin node 0.
-        yaw = STATE["yaw_rad"]
-        turns = np.round((state0[yaw] - states[0, yaw]) / (2.0 * np.pi))
-        states[:, yaw] += 2.0 * np.pi * turns
-        states[0] = state0
-        return _Trajectory(t_s, states, inputs)
+        warm, dt_s = self._warm, self.config.dt_s
+        states = shifted_states(warm.states, warm.inputs, warm.t_s, t_s, dt_s,
+                                self._step_function, state0, STATE["yaw_rad"])
+        return _Trajectory(t_s, states, shifted_inputs(warm.inputs, warm.t_s, t_s, dt_s))
 
     def _reference(self, reference: ReferencePath, state0: np.ndarray,
                    warm_states: np.ndarray) -> dict[str, np.ndarray]:

@@ -82,6 +82,7 @@ from cosim.exceptions import ConfigError
 from tracker.config import TrackerConfig
 from tracker.fallback import INPUT, INPUT_NAMES
 from tracker.ltv_mpc_config import QP_SOLVERS
+from tracker.vector_layout import VectorLayout
 
 TRACKING_STATE_NAMES: tuple[str, ...] = ("x_m", "y_m", "yaw_rad", "vx_mps")
 """States the tracking cost reads: CoG position (world frame), yaw, forward speed."""
@@ -245,27 +246,6 @@ class _Stack:
         return ca.vertcat(*self._parts)
 
 
-class _Layout:
-    """Named blocks of a flat parameter vector, in declaration order."""
-
-    def __init__(self, sizes: tuple[tuple[str, int], ...]) -> None:
-        slices: dict[str, slice] = {}
-        start = 0
-        for name, size in sizes:
-            slices[name] = slice(start, start + size)
-            start += size
-        self.slices: Mapping[str, slice] = MappingProxyType(slices)
-        self.size = start
-
-    def pack(self, blocks: Mapping[str, np.ndarray]) -> np.ndarray:
-        if set(blocks) != set(self.slices):
-            raise ValueError(f"expected blocks {sorted(self.slices)}, got {sorted(blocks)}")
-        out = np.empty(self.size)
-        for name, s in self.slices.items():
-            out[s] = np.asarray(blocks[name], dtype=float).ravel()
-        return out
-
-
 def _solver_options(plugin: str, config: TrackerConfig) -> dict[str, Any]:
     """Each back-end's options: quiet, no exception on failure, ``qp_tolerance`` and
     ``qp_max_iterations`` in its own terms.
@@ -333,7 +313,7 @@ class LtvQp:
         n, n_x, n_u = config.horizon, len(state_names), len(INPUT_NAMES)
         self._n, self._n_x, self._n_u = n, n_x, n_u
         self._n_z = n_x + n_u
-        self._params = _Layout((
+        self._params = VectorLayout((
             ("a_nonzeros", linearisation.a_sparsity.nnz() * n),
             ("b_nonzeros", linearisation.b_sparsity.nnz() * n),
             ("limit_jacobian_nonzeros", linearisation.limit_sparsity.nnz() * n),

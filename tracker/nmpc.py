@@ -126,9 +126,11 @@ from tracker.fallback import (
     FailureClock,
     safe_stop_inputs,
     shifted_inputs,
+    shifted_states,
 )
 from tracker.horizon_reference import horizon_reference
 from tracker.reference_path import ReferencePath
+from tracker.vector_layout import VectorLayout
 
 REQUIRED_STATE_NAMES: tuple[str, ...] = ("x_m", "y_m", "yaw_rad", "vx_mps")
 """States the cost and the safe stop read: CoG position (world frame), yaw, forward speed."""
@@ -212,32 +214,6 @@ def _weighted_squares(terms: list[tuple[float, ca.SX]]) -> ca.SX:
         term = weight * error**2
         total = term if total is None else total + term
     return total
-
-
-class _Layout:
-    """Named blocks of a flat vector (parameters or constraints), in declaration order."""
-
-    def __init__(self, sizes: tuple[tuple[str, int], ...]) -> None:
-        slices: dict[str, slice] = {}
-        start = 0
-        for name, size in sizes:
-            slices[name] = slice(start, start + size)
-            start += size
-        self.slices: Mapping[str, slice] = MappingProxyType(slices)
-        self.size = start
-
-    def split(self, vector: ca.SX) -> dict[str, ca.SX]:
-        """Symbolic blocks of ``vector`` by name."""
-        return {name: vector[s] for name, s in self.slices.items()}
-
-    def pack(self, blocks: Mapping[str, np.ndarray]) -> np.ndarray:
-        """One flat vector from every named block (each must have its declared size)."""
-        if set(blocks) != set(self.slices):
-            raise ValueError(f"expected blocks {sorted(self.slices)}, got {sorted(blocks)}")
-        out = np.empty(self.size)
-        for name, s in self.slices.items():
-            out[s] = np.asarray(blocks[name], dtype=float).ravel()
-        return out
 
 
 @dataclass(frozen=True)
@@ -406,7 +382,7 @@ class Nmpc:
         self._n_x = len(model.state_names)
         n = config.horizon
         self._n = n
-        self._params = _Layout(
+        self._params = VectorLayout(
             (
                 ("state0", self._n_x),
                 ("input_prev", len(INPUT_NAMES)),
@@ -521,7 +497,7 @@ class Nmpc:
                 cost += dt * w.limit_excess * ca.sumsqr(excess)
             previous = u
 
-        constraints = _Layout(
+        constraints = VectorLayout(
             (
                 ("initial_state", self._n_x),
                 ("dynamics", self._n_x * n),
@@ -825,21 +801,10 @@ class Nmpc:
         if self._warm is None:
             inputs = np.tile(self._previous_input, (self._n, 1))
             return _Trajectory(t_s, self._rollout(state0, inputs), inputs)
-        warm = self._warm
-        shift = max(0, int(round((t_s - warm.t_s) / self.config.dt_s)))
-        inputs = shifted_inputs(warm.inputs, warm.t_s, t_s, self.config.dt_s)
-        states = np.empty((self._n + 1, self._n_x))
-        keep = max(0, self._n + 1 - shift)
-        states[:keep] = warm.states[shift : shift + keep]
-        for k in range(keep, self._n + 1):
-            source = states[k - 1] if k > 0 else warm.states[-1]
-            states[k] = np.asarray(self.model.step(source, inputs[k - 1]), dtype=float).ravel()
-        # Rebase the yaw by whole turns onto the current yaw, then pin node 0.
-        yaw = self._state["yaw_rad"]
-        turns = np.round((state0[yaw] - states[0, yaw]) / (2.0 * np.pi))
-        states[:, yaw] += 2.0 * np.pi * turns
-        states[0] = state0
-        return _Trajectory(t_s, states, inputs)
+        warm, dt_s = self._warm, self.config.dt_s
+        states = shifted_states(warm.states, warm.inputs, warm.t_s, t_s, dt_s,
+                                self.model.step, state0, self._state["yaw_rad"])
+        return _Trajectory(t_s, states, shifted_inputs(warm.inputs, warm.t_s, t_s, dt_s))
 
     def _reference_blocks(
         self, reference: ReferencePath, state0: np.ndarray, guess_states: np.ndarray
