@@ -17,6 +17,8 @@ from types import MappingProxyType
 
 import numpy as np
 
+from cosim.records import Command
+
 INPUT_NAMES: tuple[str, ...] = ("accel_mps2", "steer_rad")
 """Inputs of every MPC tracker: the :class:`cosim.records.Command` fields, in vector order."""
 
@@ -115,3 +117,9 @@ def shifted_states(
     out[:, yaw_index] += 2.0 * np.pi * turns
     out[0] = state0
     return out
+
+
+def first_command(t_s: float, inputs: np.ndarray) -> Command:
+    """The command a plan applies now: its first row of inputs."""
+    return Command(t_s=t_s, accel_mps2=float(inputs[0, INPUT["accel_mps2"]]),
+                   steer_rad=float(inputs[0, INPUT["steer_rad"]]))

@@ -103,6 +103,7 @@ from tracker.fallback import (
     INPUT,
     INPUT_NAMES,
     FailureClock,
+    first_command,
     safe_stop_inputs,
     shifted_inputs,
     shifted_states,
@@ -374,11 +375,7 @@ class LtvMpc:
         self._previous_t_s = trajectory.t_s
         self._issued.record(trajectory.t_s, first)
         self._warm = trajectory
-        return Command(
-            t_s=trajectory.t_s,
-            accel_mps2=float(first[INPUT["accel_mps2"]]),
-            steer_rad=float(first[INPUT["steer_rad"]]),
-        )
+        return first_command(trajectory.t_s, trajectory.inputs)
 
     def _fallback(self, t_s: float, state0: np.ndarray, status: str, iterations: int,
                   solve_time_s: float, start: float, linearise_s: float = 0.0,
