@@ -2,11 +2,15 @@
 
     cosim run SCENARIO [--config FILE.yaml] [--tracker NAME] [--estimator NAME]
                        [--seed N] [--duration S] [--set key.path=value ...] [--out FILE.mcap]
-    cosim inspect FILE.mcap [--json] [--topic T [--head N]]
+                       [--video FILE.mp4]
+    cosim inspect FILE.mcap [--json] [--topic T [--head N]] [--csv DIR]
+    cosim plot FILE.mcap [FILE2.mcap] [--out DIR]
     cosim scenarios
     cosim identify [--config FILE.yaml] [--set key.path=value ...] [--json]
     cosim sweep SPEC.yaml [--workers N] [--backend process|ray] [--out DIR] [--keep-logs]
                           [--resume]
+    cosim render FILE.mcap [--out VIDEO.mp4] [--fps N] [--width W] [--height H]
+                           [--start S] [--duration S] [--gl osmesa|egl|glfw]
 
 Bad input: one line on stderr naming the bad value and what was expected, exit code 2.
 A run that aborts exits 1 (its log is complete up to the abort); an interrupt exits 130.
@@ -53,12 +57,22 @@ def _build_parser() -> argparse.ArgumentParser:
     run.add_argument("--out", metavar="FILE.mcap",
                      help="log file (default logs/<scenario>-<time>.mcap)")
     run.add_argument("--json", action="store_true", help="print the metrics as JSON")
+    run.add_argument("--video", metavar="FILE.mp4",
+                     help="also render the run to this video (see `cosim render`)")
 
     inspect = commands.add_parser("inspect", help="summarise an MCAP log")
     inspect.add_argument("file", metavar="FILE.mcap")
     inspect.add_argument("--json", action="store_true", help="print one JSON object")
     inspect.add_argument("--topic", metavar="T", help="print this topic's messages (JSON lines)")
     inspect.add_argument("--head", type=int, metavar="N", help="only the first N messages")
+    inspect.add_argument("--csv", metavar="DIR",
+                         help="write each topic (or only --topic) as DIR/<topic>.csv")
+
+    plot = commands.add_parser("plot", help="PNG figures of a log (or two logs overlaid)")
+    plot.add_argument("file", metavar="FILE.mcap")
+    plot.add_argument("file2", metavar="FILE2.mcap", nargs="?", help="a second log to overlay")
+    plot.add_argument("--out", metavar="DIR",
+                      help="output directory (default <log>-plots beside the log)")
 
     commands.add_parser("scenarios", help="list the built-in scenarios")
 
@@ -83,6 +97,20 @@ def _build_parser() -> argparse.ArgumentParser:
                        help="keep every run's MCAP log under DIR/logs")
     sweep.add_argument("--resume", action="store_true",
                        help="finish the interrupted sweep in --out DIR (same spec)")
+
+    render = commands.add_parser(
+        "render", help="render a log to a video from a chase camera (MuJoCo, offscreen)")
+    render.add_argument("file", metavar="FILE.mcap")
+    render.add_argument("--out", metavar="VIDEO.mp4", help="video file (default FILE.mp4)")
+    render.add_argument("--fps", type=float, default=30.0, metavar="N",
+                        help="frames per second (default 30)")
+    render.add_argument("--width", type=int, default=640, metavar="W", help="pixels (640)")
+    render.add_argument("--height", type=int, default=360, metavar="H", help="pixels (360)")
+    render.add_argument("--start", type=float, default=0.0, metavar="S",
+                        help="first frame at S seconds into the log")
+    render.add_argument("--duration", type=float, metavar="S", help="seconds of video")
+    render.add_argument("--gl", choices=("osmesa", "egl", "glfw"),
+                        help="OpenGL back-end (default MUJOCO_GL, else osmesa: software)")
     return parser
 
 
@@ -121,6 +149,10 @@ def _command_run(args: argparse.Namespace) -> int:
     from cosim.runner import run
     from cosim.scenario_config import load_config
 
+    if args.video is not None:
+        from cosim.render import check_video_path
+
+        check_video_path(args.video, "--video")
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration >= 0):
         raise CosimError(f"--duration {args.duration}: expected a number of seconds >= 0")
     config = load_config(args.scenario, args.config, args.overrides, args.seed,
@@ -147,6 +179,11 @@ def _command_run(args: argparse.Namespace) -> int:
         print(f"cosim: interrupted; log written up to the interrupt: {result.log_path}",
               file=sys.stderr)
         return 130
+    if args.video is not None:
+        from cosim.render import RenderOptions, describe, render_for_cli
+
+        print(describe(render_for_cli(result.log_path, args.video, RenderOptions())),
+              file=sys.stderr if args.json else sys.stdout)
     if not result.completed:
         print(f"cosim: run aborted: {result.abort_reason}; log: {result.log_path}",
               file=sys.stderr)
@@ -155,12 +192,15 @@ def _command_run(args: argparse.Namespace) -> int:
 
 
 def _command_inspect(args: argparse.Namespace) -> int:
+    from cosim.inspect_export import csv_command, log_warnings
     from cosim.log_reader import iter_messages, read_summary
 
     path = Path(args.file)
     if not path.is_file():
         raise CosimError(f"{args.file!r}: no such file (expected an MCAP log)")
     summary = read_summary(path)
+    if args.csv is not None:
+        return csv_command(summary, args.csv, args.topic, args.head)
     if args.topic is not None:
         topics = [c.topic for c in summary.channels]
         if args.topic not in topics:
@@ -186,6 +226,7 @@ def _command_inspect(args: argparse.Namespace) -> int:
         "versions": summary.versions,
         "config": summary.config,
         "metrics": summary.metrics or {},
+        "warnings": log_warnings(summary),
     }
     if args.json:
         print(json.dumps(document))
@@ -202,11 +243,19 @@ def _command_inspect(args: argparse.Namespace) -> int:
               f"{config.get('estimator', {}).get('name')}")
     if summary.versions:
         print("versions " + "  ".join(f"{k} {v}" for k, v in summary.versions.items()))
+    for warning in document["warnings"]:
+        print(f"WARNING: {warning}")
     if summary.metrics:
         _print_table("metrics", [(k, _format_value(v)) for k, v in summary.metrics.items()])
     else:
         print("metrics: none (the run did not finish)")
     return 0
+
+
+def _command_plot(args: argparse.Namespace) -> int:
+    from cosim.plots import plot_command
+
+    return plot_command(args.file, args.file2, args.out)
 
 
 def _command_scenarios(args: argparse.Namespace) -> int:
@@ -284,12 +333,21 @@ def _command_sweep(args: argparse.Namespace) -> int:
     return 0
 
 
+def _command_render(args: argparse.Namespace) -> int:
+    from cosim.render import RenderOptions, describe, render_for_cli
+
+    options = RenderOptions(args.fps, args.width, args.height, args.start, args.duration,
+                            args.gl)
+    print(describe(render_for_cli(args.file, args.out, options)))
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``cosim`` console script."""
     args = _build_parser().parse_args(argv)
-    handlers = {"run": _command_run, "inspect": _command_inspect,
+    handlers = {"run": _command_run, "inspect": _command_inspect, "plot": _command_plot,
                 "scenarios": _command_scenarios, "identify": _command_identify,
-                "sweep": _command_sweep}
+                "sweep": _command_sweep, "render": _command_render}
     try:
         return handlers[args.command](args)
     except CosimError as error:

@@ -29,3 +29,11 @@ class SolverError(CosimError):
 
 class LogReadError(CosimError):
     """An MCAP file cannot be read or lacks what cosim wrote into it."""
+
+
+class RenderError(CosimError):
+    """A video cannot be made: bad render option, unusable log, or the encoder failed."""
+
+
+class GlBackendError(RenderError):
+    """The OpenGL back-end MuJoCo renders with (MUJOCO_GL) is missing or does not start."""

@@ -8,6 +8,7 @@ complete record and reported as truncated.
 from __future__ import annotations
 
 import json
+import struct
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -78,7 +79,7 @@ def _records(path: Path) -> Iterator[Any]:
                 if isinstance(record, Footer):
                     saw_footer = True
                 yield record
-        except (McapError, EOFError, ValueError, OSError) as error:
+        except (McapError, EOFError, ValueError, OSError, struct.error) as error:
             if not saw_footer and stream.tell() <= 8:
                 raise LogReadError(
                     f"{str(path)!r}: not an MCAP file ({error})"
@@ -141,3 +142,25 @@ def iter_messages(path: Path | str, topic: str) -> Iterator[tuple[int, dict[str,
             wanted.add(record.id)
         elif isinstance(record, Message) and record.channel_id in wanted:
             yield record.log_time, json.loads(record.data)
+
+
+def iter_topics(path: Path | str, topics: set[str] | None = None
+                ) -> Iterator[tuple[str, int, dict[str, Any]]]:
+    """``(topic, log_time_ns, message)`` of several topics (all when ``topics`` is None) in
+    one pass, in file order (JSON-decoded); a truncated file ends at its last complete
+    record."""
+    names: dict[int, str] = {}
+    for record in _records(Path(path)):
+        if isinstance(record, Channel) and (topics is None or record.topic in topics):
+            names[record.id] = record.topic
+        elif isinstance(record, Message) and record.channel_id in names:
+            yield names[record.channel_id], record.log_time, json.loads(record.data)
+
+
+def read_attachment(path: Path | str, name: str) -> bytes | None:
+    """The data of the first attachment called ``name`` (e.g. ``sedan.xml``, the MJCF
+    actually simulated), or None if the log has none (or was cut off before it)."""
+    for record in _records(Path(path)):
+        if isinstance(record, Attachment) and record.name == name:
+            return bytes(record.data)
+    return None

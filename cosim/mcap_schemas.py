@@ -2,8 +2,9 @@
 
 Plain, plottable fields for cosim's own topics; Foxglove's well-known schemas (by their
 exact names ``foxglove.FrameTransform``, ``foxglove.SceneUpdate``, ``foxglove.LocationFix``;
-field names from docs.foxglove.dev message-schemas) so Foxglove shows the run in 3D and on
-a map without set-up. Foxglove encodes a time in JSON as ``{"sec": int, "nsec": int}``.
+field names and constraints from docs.foxglove.dev message-schemas and the JSON schemas of
+github.com/foxglove/schemas) so Foxglove shows the run in 3D and on a map without set-up.
+Foxglove encodes a time or a duration in JSON as ``{"sec": int, "nsec": int}``.
 """
 
 from __future__ import annotations
@@ -30,7 +31,9 @@ def object_schema(title: str, properties: dict[str, Any], description: str = "")
     }
 
 
-TIME = object_schema("time", {"sec": INTEGER, "nsec": INTEGER})
+NSEC = {"type": "integer", "minimum": 0, "maximum": 999_999_999}
+TIME = object_schema("time", {"sec": {"type": "integer", "minimum": 0}, "nsec": NSEC})
+DURATION = object_schema("duration", {"sec": INTEGER, "nsec": NSEC})
 VECTOR3 = object_schema("foxglove.Vector3", {"x": NUMBER, "y": NUMBER, "z": NUMBER})
 QUATERNION = object_schema(
     "foxglove.Quaternion", {"x": NUMBER, "y": NUMBER, "z": NUMBER, "w": NUMBER}
@@ -90,6 +93,15 @@ DISTURBANCE = object_schema(
     "An unmeasured disturbance applied to the plant (scenario `disturbances`).",
 )
 
+TRACKING_ERRORS = object_schema(
+    "cosim.TrackingErrors",
+    {"t_s": NUMBER, "cte_m": NUMBER, "heading_err_rad": NUMBER, "speed_err_mps": NUMBER,
+     "speed_mps": NUMBER, "ref_speed_mps": NUMBER},
+    "Tracking errors of the true CoG at each log step, as the metrics compute them: "
+    "cross-track error (positive left of the path), heading error (true yaw minus the "
+    "path's yaw at the projection), speed minus the reference speed.",
+)
+
 REFERENCE_PATH = object_schema(
     "cosim.ReferencePath",
     {"s_m": NUMBERS, "x_m": NUMBERS, "y_m": NUMBERS, "yaw_rad": NUMBERS,
@@ -109,19 +121,35 @@ FRAME_TRANSFORM = object_schema(
      "translation": VECTOR3, "rotation": QUATERNION},
 )
 
+_ARROW = object_schema(
+    "foxglove.ArrowPrimitive",
+    {"pose": POSE, "shaft_length": NUMBER, "shaft_diameter": NUMBER, "head_length": NUMBER,
+     "head_diameter": NUMBER, "color": COLOR},
+)
 _CUBE = object_schema("foxglove.CubePrimitive", {"pose": POSE, "size": VECTOR3, "color": COLOR})
+_SPHERE = object_schema(
+    "foxglove.SpherePrimitive", {"pose": POSE, "size": VECTOR3, "color": COLOR}
+)
+_CYLINDER = object_schema(
+    "foxglove.CylinderPrimitive",
+    {"pose": POSE, "size": VECTOR3, "bottom_scale": NUMBER, "top_scale": NUMBER,
+     "color": COLOR},
+)
 _LINE = object_schema(
     "foxglove.LinePrimitive",
-    {"type": INTEGER, "pose": POSE, "thickness": NUMBER, "scale_invariant": BOOLEAN,
+    {"type": {"type": "integer", "enum": [0, 1, 2]},  # LINE_STRIP, LINE_LOOP, LINE_LIST
+     "pose": POSE, "thickness": NUMBER, "scale_invariant": BOOLEAN,
      "points": {"type": "array", "items": VECTOR3}, "color": COLOR,
      "colors": {"type": "array", "items": COLOR}, "indices": {"type": "array", "items": INTEGER}},
 )
 _ENTITY = object_schema(
     "foxglove.SceneEntity",
-    {"timestamp": TIME, "frame_id": STRING, "id": STRING, "lifetime": TIME,
+    {"timestamp": TIME, "frame_id": STRING, "id": STRING, "lifetime": DURATION,
      "frame_locked": BOOLEAN, "metadata": {"type": "array"},
-     "arrows": {"type": "array"}, "cubes": {"type": "array", "items": _CUBE},
-     "spheres": {"type": "array"}, "cylinders": {"type": "array"},
+     "arrows": {"type": "array", "items": _ARROW},
+     "cubes": {"type": "array", "items": _CUBE},
+     "spheres": {"type": "array", "items": _SPHERE},
+     "cylinders": {"type": "array", "items": _CYLINDER},
      "lines": {"type": "array", "items": _LINE}, "triangles": {"type": "array"},
      "texts": {"type": "array"}, "models": {"type": "array"}},
 )
@@ -133,5 +161,7 @@ SCENE_UPDATE = object_schema(
 LOCATION_FIX = object_schema(
     "foxglove.LocationFix",
     {"timestamp": TIME, "frame_id": STRING, "latitude": NUMBER, "longitude": NUMBER,
-     "altitude": NUMBER, "position_covariance": NUMBERS, "position_covariance_type": INTEGER},
+     "altitude": NUMBER,
+     "position_covariance": {**NUMBERS, "minItems": 9, "maxItems": 9},
+     "position_covariance_type": {"type": "integer", "enum": [0, 1, 2, 3]}},
 )

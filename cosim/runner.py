@@ -2,7 +2,8 @@
 
 Clock at the physics step (``sim.physics_dt_s``). At each step k, at time t = k dt:
 
-1. log the truth and the estimate (every ``sim.log_period_s``);
+1. log the truth, the estimate, the tracking errors and the Foxglove scene (every
+   ``sim.log_period_s``);
 2. each sensor whose period is due samples the truth; the estimator fuses it;
 3. every ``sim.control_period_s``: the tracker plans from the estimate; its command enters
    the actuator delay line (``plant.actuator_delay_s``);
@@ -41,7 +42,7 @@ from cosim.low_level import AccelToTorque
 from cosim.metrics import MetricsAccumulator
 from cosim.plant import MujocoPlant
 from cosim.recorder import McapRecorder
-from cosim.records import Command, Estimate
+from cosim.records import Command, Estimate, Plan
 from cosim.scenario_config import ScenarioConfig, steps_per_period
 from cosim.sensors import TruthSensor, make_sensors
 from estimation.registry import make_estimator
@@ -127,8 +128,11 @@ def _register_topics(recorder: McapRecorder, sensor_names: list[str],
     recorder.register("/control/plan", mcap_schemas.PLAN)
     recorder.register("/reference/path", mcap_schemas.REFERENCE_PATH)
     recorder.register("/metrics", mcap_schemas.METRICS)
+    recorder.register("/control/errors", mcap_schemas.TRACKING_ERRORS)
     recorder.register("/tf", mcap_schemas.FRAME_TRANSFORM)
     recorder.register("/scene", mcap_schemas.SCENE_UPDATE)
+    recorder.register("/scene/car", mcap_schemas.SCENE_UPDATE)
+    recorder.register("/scene/estimate", mcap_schemas.SCENE_UPDATE)
     recorder.register("/gnss/fix", mcap_schemas.LOCATION_FIX)
     if disturbed:  # a channel exists only when it will carry messages
         recorder.register("/plant/disturbance", mcap_schemas.DISTURBANCE)
@@ -191,6 +195,8 @@ class _Run:
             config.disturbances, self.clock.dt_s, component_rng(config.seed, "disturbances")))
         self.truth = self.plant.state()
         self.estimated_speed_mps = config.initial.speed_mps
+        self.plan_scene_registered = False
+        """``/scene/plan`` is registered with the first plan that has world positions."""
 
     def write_header(self) -> None:
         """Channels, the run's metadata, the simulated MJCF, the path and the static scene."""
@@ -213,8 +219,7 @@ class _Run:
             **{k: [float(v) for v in samples[k]] for k in samples},
             "speed_mps": self.reference.speed_mps,
         })
-        recorder.write("/scene", 0.0, foxglove.static_scene(
-            samples["x_m"], samples["y_m"], config.plant))
+        recorder.write("/scene", 0.0, foxglove.static_scene(samples["x_m"], samples["y_m"]))
 
     def current_estimate(self, t_s: float) -> Estimate:
         self.estimator.predict(t_s)
@@ -227,8 +232,16 @@ class _Run:
         self.recorder.write_finite("/vehicle/truth", t_s, self.truth.to_message())
         self.recorder.write_finite("/vehicle/estimate", t_s, estimate.to_message())
         self.recorder.write("/tf", t_s, foxglove.frame_transform(self.truth))
-        self.metrics.add_truth(self.truth)
-        self.metrics.add_estimate(estimate, self.truth)
+        self.recorder.write("/scene/car", t_s, foxglove.car_scene(self.truth, self.config.plant))
+        self.recorder.write("/scene/estimate", t_s, foxglove.estimate_scene(estimate))
+        metrics = self.metrics
+        metrics.add_truth(self.truth)
+        metrics.add_estimate(estimate, self.truth)
+        self.recorder.write_finite("/control/errors", t_s, {
+            "t_s": t_s, "cte_m": metrics.cte_m[-1], "heading_err_rad": metrics.heading_err_rad[-1],
+            "speed_err_mps": metrics.speed_err_mps[-1], "speed_mps": self.truth.speed_mps,
+            "ref_speed_mps": self.reference.speed_mps,
+        })
 
     def sense(self, k: int, t_s: float) -> None:
         for sensor, steps in zip(self.sensors, self.sensor_steps, strict=True):
@@ -239,7 +252,7 @@ class _Run:
             if measurement is None:  # a dropout: nothing is delivered
                 continue
             self.recorder.write_finite(f"/sensors/{sensor.name}", t_s, measurement.to_message())
-            if sensor.name == "gnss":
+            if sensor.name == "gnss" and np.all(np.isfinite(measurement.values)):
                 self.recorder.write("/gnss/fix", t_s, foxglove.location_fix(
                     measurement["x_m"], measurement["y_m"], t_s,
                     self.config.sensors.gnss.sigma_m, self.config.geo))
@@ -250,8 +263,18 @@ class _Run:
     def control(self, k: int, t_s: float) -> None:
         command, plan = self.tracker.step(t_s, self.current_estimate(t_s), self.reference)
         self.recorder.write_finite("/control/plan", t_s, plan.to_message())
+        self.write_plan_scene(t_s, plan)
         self.metrics.add_plan(plan)
         self.delay_line.append((k + self.clock.delay_steps, command))
+
+    def write_plan_scene(self, t_s: float, plan: Plan) -> None:
+        scene = foxglove.plan_scene(plan)
+        if scene is None:  # no world positions in this tracker's plans
+            return
+        if not self.plan_scene_registered:
+            self.recorder.register("/scene/plan", mcap_schemas.SCENE_UPDATE)
+            self.plan_scene_registered = True
+        self.recorder.write("/scene/plan", t_s, scene)
 
     def actuate(self, k: int, t_s: float) -> None:
         """Apply the commands that leave the delay line at step ``k``."""

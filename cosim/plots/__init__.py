@@ -1,0 +1,68 @@
+"""`cosim plot`: PNG figures of one run, or of two runs overlaid.
+
+``data`` reads a log into typed arrays; one module per figure group:
+
+=====================  ==========================================================
+``top_view.png``       path vs reference: true scale with footprints, the manoeuvre
+                       stretched laterally, deviation in path coordinates, zooms;
+                       the MPC's predicted paths (``top_view``)
+``tracking.png``       CTE, heading error, speed vs reference over time (``tracking``)
+``commands.png``       steering, steering rate, acceleration with the tracker's limits
+                       (``commands``)
+``estimation.png``     estimate - truth with +-3 sigma, NEES (``estimation``)
+``solver.png``         solve-time histogram with p50/p99, over time, fallbacks
+                       (``solver``)
+=====================  ==========================================================
+
+matplotlib is used through ``Figure`` objects on their own Agg canvas (no pyplot state).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+from cosim.exceptions import CosimError
+
+FIGURES = ("top_view", "tracking", "commands", "estimation", "solver")
+"""The PNG files written, in this order (``<name>.png``)."""
+
+
+def default_out_dir(paths: Sequence[Path]) -> Path:
+    """Beside the first log: ``<stem>-plots`` or ``<stem>-vs-<stem2>-plots``."""
+    stem = "-vs-".join(p.stem for p in paths)
+    return paths[0].parent / f"{stem}-plots"
+
+
+def plot_logs(paths: Sequence[Path | str], out_dir: Path | str | None = None) -> list[Path]:
+    """Write every figure of one log, or of two logs overlaid; returns the PNG paths."""
+    from cosim.plots.commands import commands_figure
+    from cosim.plots.data import distinct_labels, load_run
+    from cosim.plots.estimation import estimation_figure
+    from cosim.plots.solver import solver_figure
+    from cosim.plots.top_view import top_view_figure
+    from cosim.plots.tracking import tracking_figure
+
+    paths = [Path(p) for p in paths]
+    if not 1 <= len(paths) <= 2:
+        raise CosimError(f"{len(paths)} logs: expected one log, or two to overlay")
+    runs = distinct_labels([load_run(p) for p in paths])
+    out = Path(out_dir) if out_dir is not None else default_out_dir(paths)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise CosimError(f"--out {str(out)!r}: cannot create the directory "
+                         f"({error.strerror})") from None
+    makers: dict[str, Callable] = {
+        "top_view": top_view_figure, "tracking": tracking_figure,
+        "commands": commands_figure, "estimation": estimation_figure,
+        "solver": solver_figure,
+    }
+    return [makers[name](runs, out / f"{name}.png") for name in FIGURES]
+
+
+def plot_command(file: str, file2: str | None, out_dir: str | None) -> int:
+    """`cosim plot FILE [FILE2] [--out DIR]`: write the PNGs and print their paths."""
+    for written in plot_logs([file] if file2 is None else [file, file2], out_dir):
+        print(written)
+    return 0

@@ -1,0 +1,321 @@
+"""A run's log read back into typed arrays for the plots.
+
+One pass over the MCAP file (plus the summary scan for metadata, metrics and truncation)
+gives the truth, the estimate with its covariance, the applied commands, the tracker's
+plans and the reference path. Tracking errors are computed as the metrics compute them: the
+true centre of gravity projected onto the reference path (``ReferencePath.project``, the
+path rebuilt from the logged samples), heading error wrapped to (-pi, pi], speed error as
+the true horizontal speed minus the reference speed.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cosim.exceptions import CosimError, LogReadError
+from cosim.log_reader import iter_topics, read_summary
+from cosim.metrics import NEES_STATES
+from tracker.reference_path import ReferencePath, wrap_angle
+
+TOPICS = {"/vehicle/truth", "/vehicle/estimate", "/control/command", "/control/plan",
+          "/reference/path"}
+
+
+@dataclass(frozen=True)
+class Truth:
+    """``/vehicle/truth``: the true state at each log time (world frame, SI)."""
+
+    log_time_ns: np.ndarray
+    t_s: np.ndarray
+    x_m: np.ndarray
+    y_m: np.ndarray
+    yaw_rad: np.ndarray
+    vx_mps: np.ndarray
+    vy_mps: np.ndarray
+    yaw_rate_radps: np.ndarray
+    ax_mps2: np.ndarray
+    steer_rad: np.ndarray
+    """Road-wheel angle of the front axle (the steering actuator's output)."""
+
+    @property
+    def speed_mps(self) -> np.ndarray:
+        return np.hypot(self.vx_mps, self.vy_mps)
+
+
+@dataclass(frozen=True)
+class EstimateLog:
+    """``/vehicle/estimate``: the filter's mean and covariance over ``state_names``."""
+
+    log_time_ns: np.ndarray
+    t_s: np.ndarray
+    state_names: tuple[str, ...]
+    mean: np.ndarray
+    """Shape (samples, states)."""
+    covariance: np.ndarray
+    """Shape (samples, states, states)."""
+
+    def column(self, name: str) -> np.ndarray:
+        return self.mean[:, self.state_names.index(name)]
+
+    def sigma(self, name: str) -> np.ndarray:
+        i = self.state_names.index(name)
+        return np.sqrt(np.clip(self.covariance[:, i, i], 0.0, None))
+
+
+@dataclass(frozen=True)
+class Commands:
+    """``/control/command``: the commands as applied to the plant (after the delay line)."""
+
+    t_s: np.ndarray
+    accel_mps2: np.ndarray
+    steer_rad: np.ndarray
+
+
+@dataclass(frozen=True)
+class Plans:
+    """``/control/plan``: one entry per control step."""
+
+    t_s: np.ndarray
+    dt_s: np.ndarray
+    solve_time_s: np.ndarray
+    status: tuple[str, ...]
+    success: np.ndarray
+    fallback: np.ndarray
+    predicted: tuple[dict[str, np.ndarray], ...]
+    """Per plan, each predicted state and input over the horizon, by name (no prefix)."""
+
+    @property
+    def has_positions(self) -> bool:
+        """Whether the plans predict world-frame ``x_m`` and ``y_m`` (not every MPC's
+        states do: dynamic-mpc predicts path errors)."""
+        return bool(self.predicted) and {"x_m", "y_m"} <= set(self.predicted[0])
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        return tuple(self.predicted[0]) if self.predicted else ()
+
+
+@dataclass(frozen=True)
+class Reference:
+    """``/reference/path`` and the path rebuilt from it."""
+
+    x_m: np.ndarray
+    y_m: np.ndarray
+    speed_mps: float
+    path: ReferencePath
+
+
+@dataclass(frozen=True)
+class TrackingErrors:
+    """Truth against the reference at each truth sample."""
+
+    t_s: np.ndarray
+    s_m: np.ndarray
+    """Arc length of the projection of the CoG onto the path."""
+    cte_m: np.ndarray
+    """Signed lateral error, positive left of the path."""
+    heading_err_rad: np.ndarray
+    speed_err_mps: np.ndarray
+
+
+@dataclass(frozen=True)
+class EstimationErrors:
+    """Estimate minus truth at the log times both have."""
+
+    t_s: np.ndarray
+    error: dict[str, np.ndarray]
+    """Per state in both truth and estimate (yaw wrapped)."""
+    sigma: dict[str, np.ndarray]
+    nees: np.ndarray | None
+    """Per-sample NEES over ``nees_states`` (None when the covariance is singular, e.g. the
+    `truth` estimator)."""
+    nees_states: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class RunLog:
+    """Everything the plots need from one log."""
+
+    path: Path
+    label: str
+    config: dict[str, Any]
+    metrics: dict[str, Any] | None
+    truncated: bool
+    truth: Truth
+    estimate: EstimateLog | None
+    commands: Commands | None
+    plans: Plans | None
+    reference: Reference | None
+    tracking: TrackingErrors | None
+    estimation: EstimationErrors | None
+
+    @property
+    def tracker_name(self) -> str:
+        return str(self.config.get("tracker", {}).get("name", "?"))
+
+    @property
+    def scenario_name(self) -> str:
+        return str(self.config.get("name", self.path.stem))
+
+
+def _floats(values: list[Any]) -> np.ndarray:
+    return np.array([math.nan if v is None else float(v) for v in values], dtype=float)
+
+
+def _column(messages: list[tuple[int, dict[str, Any]]], name: str) -> np.ndarray:
+    return _floats([m.get(name) for _, m in messages])
+
+
+def _truth(messages: list[tuple[int, dict[str, Any]]]) -> Truth:
+    return Truth(
+        log_time_ns=np.array([t for t, _ in messages], dtype=np.int64),
+        **{name: _column(messages, name)
+           for name in ("t_s", "x_m", "y_m", "yaw_rad", "vx_mps", "vy_mps",
+                        "yaw_rate_radps", "ax_mps2", "steer_rad")},
+    )
+
+
+def _estimate(messages: list[tuple[int, dict[str, Any]]]) -> EstimateLog | None:
+    if not messages:
+        return None
+    names = tuple(messages[0][1]["state_names"])
+    messages = [(t, m) for t, m in messages if tuple(m["state_names"]) == names]
+    k = len(names)
+    covariance = np.array([_floats(m["covariance"]) for _, m in messages]).reshape(-1, k, k)
+    return EstimateLog(
+        log_time_ns=np.array([t for t, _ in messages], dtype=np.int64),
+        t_s=_column(messages, "t_s"),
+        state_names=names,
+        mean=np.array([[math.nan if m.get(n) is None else m[n] for n in names]
+                       for _, m in messages], dtype=float),
+        covariance=covariance,
+    )
+
+
+def _commands(messages: list[tuple[int, dict[str, Any]]]) -> Commands | None:
+    if not messages:
+        return None
+    return Commands(*(_column(messages, n) for n in ("t_s", "accel_mps2", "steer_rad")))
+
+
+def _plans(messages: list[tuple[int, dict[str, Any]]]) -> Plans | None:
+    if not messages:
+        return None
+    predicted = tuple(
+        {key.removeprefix("predicted_"): _floats(value) for key, value in m.items()
+         if key.startswith("predicted_") and isinstance(value, list)}
+        for _, m in messages)
+    return Plans(
+        t_s=_column(messages, "t_s"),
+        dt_s=_column(messages, "dt_s"),
+        solve_time_s=_column(messages, "solve_time_s"),
+        status=tuple(str(m.get("status", "?")) for _, m in messages),
+        success=np.array([bool(m.get("success", True)) for _, m in messages]),
+        fallback=np.array([bool(m.get("fallback", False)) for _, m in messages]),
+        predicted=predicted,
+    )
+
+
+def _reference(messages: list[tuple[int, dict[str, Any]]]) -> Reference | None:
+    if not messages:
+        return None
+    message = messages[0][1]
+    x, y = _floats(message["x_m"]), _floats(message["y_m"])
+    try:
+        path = ReferencePath(x, y, float(message["speed_mps"]))
+    except CosimError:
+        return None
+    return Reference(x, y, float(message["speed_mps"]), path)
+
+
+def _tracking(truth: Truth, reference: Reference | None) -> TrackingErrors | None:
+    if reference is None:
+        return None
+    projections = [reference.path.project(x, y) for x, y in zip(truth.x_m, truth.y_m,
+                                                                  strict=True)]
+    path_yaw = np.array([p.path_yaw_rad for p in projections])
+    return TrackingErrors(
+        t_s=truth.t_s,
+        s_m=np.array([p.s_m for p in projections]),
+        cte_m=np.array([p.lateral_error_m for p in projections]),
+        heading_err_rad=np.asarray(wrap_angle(truth.yaw_rad - path_yaw)),
+        speed_err_mps=truth.speed_mps - reference.speed_mps,
+    )
+
+
+def _estimation(truth: Truth, estimate: EstimateLog | None) -> EstimationErrors | None:
+    if estimate is None:
+        return None
+    common_ns, in_truth, in_estimate = np.intersect1d(
+        truth.log_time_ns, estimate.log_time_ns, assume_unique=False, return_indices=True)
+    if common_ns.size == 0:
+        return None
+    errors: dict[str, np.ndarray] = {}
+    sigmas: dict[str, np.ndarray] = {}
+    for name in ("x_m", "y_m", "yaw_rad", "vx_mps", "vy_mps", "yaw_rate_radps", "steer_rad"):
+        if name not in estimate.state_names:
+            continue
+        error = estimate.column(name)[in_estimate] - getattr(truth, name)[in_truth]
+        errors[name] = np.asarray(wrap_angle(error)) if name == "yaw_rad" else error
+        sigmas[name] = estimate.sigma(name)[in_estimate]
+    nees_states = tuple(n for n in NEES_STATES if n in errors)
+    nees = None
+    if nees_states:
+        idx = [estimate.state_names.index(n) for n in nees_states]
+        block = estimate.covariance[np.ix_(in_estimate, idx, idx)]
+        stacked = np.stack([errors[n] for n in nees_states], axis=1)
+        usable = np.all(np.isfinite(block), axis=(1, 2)) & np.all(np.isfinite(stacked), axis=1)
+        usable[usable] &= np.linalg.det(block[usable]) > 0.0
+        if np.any(usable):
+            nees = np.full(common_ns.size, math.nan)
+            nees[usable] = np.einsum("ni,ni->n", stacked[usable],
+                                     np.linalg.solve(block[usable],
+                                                     stacked[usable][..., None])[..., 0])
+    return EstimationErrors(truth.t_s[in_truth], errors, sigmas, nees, nees_states)
+
+
+def load_run(path: Path | str) -> RunLog:
+    """Read a log for plotting (a truncated log gives what it holds)."""
+    path = Path(path)
+    if not path.is_file():
+        raise CosimError(f"{str(path)!r}: no such file (expected an MCAP log)")
+    summary = read_summary(path)
+    messages: dict[str, list[tuple[int, dict[str, Any]]]] = {topic: [] for topic in TOPICS}
+    for topic, log_time_ns, message in iter_topics(path, TOPICS):
+        messages[topic].append((log_time_ns, message))
+    if not messages["/vehicle/truth"]:
+        raise LogReadError(f"{str(path)!r}: no /vehicle/truth messages (nothing to plot)")
+    truth = _truth(messages["/vehicle/truth"])
+    estimate = _estimate(messages["/vehicle/estimate"])
+    reference = _reference(messages["/reference/path"])
+    config = summary.config
+    label = f"{config.get('name', path.stem)} / {config.get('tracker', {}).get('name', '?')}"
+    return RunLog(
+        path=path, label=label, config=config, metrics=summary.metrics,
+        truncated=summary.truncated, truth=truth, estimate=estimate,
+        commands=_commands(messages["/control/command"]),
+        plans=_plans(messages["/control/plan"]), reference=reference,
+        tracking=_tracking(truth, reference), estimation=_estimation(truth, estimate),
+    )
+
+
+def distinct_labels(runs: list[RunLog]) -> list[RunLog]:
+    """The runs with labels that tell them apart (the file name added where two agree)."""
+    from dataclasses import replace
+
+    labels = [run.label for run in runs]
+    if len(set(labels)) == len(labels):
+        return runs
+    estimators = [str(run.config.get("estimator", {}).get("name", "?")) for run in runs]
+    if len(set(estimators)) == len(estimators):
+        return [replace(run, label=f"{run.label} + {e}") for run, e in zip(runs, estimators,
+                                                                            strict=True)]
+    stems = [run.path.stem for run in runs]
+    if len(set(stems)) == len(stems):
+        return [replace(run, label=f"{run.label} ({run.path.stem})") for run in runs]
+    return [replace(run, label=f"run {n}: {run.label}") for n, run in enumerate(runs, 1)]

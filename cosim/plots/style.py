@@ -1,0 +1,117 @@
+"""What every figure of `cosim plot` shares: the canvas, colours, titles and notes.
+
+Figures are ``matplotlib.figure.Figure`` objects on their own Agg canvas: no pyplot, no
+global state, no display needed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from cosim.plots.data import RunLog
+
+DPI = 130
+RUN_COLOURS = ("tab:blue", "tab:orange")
+"""Run A, run B."""
+REFERENCE_COLOUR = "0.25"
+ESTIMATE_COLOUR = "tab:green"
+LIMIT_COLOUR = "tab:red"
+FONT_SIZE = 9
+
+
+def new_figure(width_in: float, height_in: float) -> Any:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    figure = Figure(figsize=(width_in, height_in), dpi=DPI, layout="constrained")
+    FigureCanvasAgg(figure)
+    return figure
+
+
+def style_axes(ax: Any) -> None:
+    ax.grid(True, alpha=0.35, linewidth=0.6)
+    ax.tick_params(labelsize=FONT_SIZE)
+    ax.xaxis.label.set_size(FONT_SIZE + 1)
+    ax.yaxis.label.set_size(FONT_SIZE + 1)
+
+
+def run_colour(index: int) -> str:
+    return RUN_COLOURS[index % len(RUN_COLOURS)]
+
+
+def suptitle(figure: Any, what: str, runs: Sequence[RunLog]) -> None:
+    """``what``, then the runs: label, seed, and TRUNCATED / not completed marks."""
+    parts = []
+    for run in runs:
+        marks = []
+        if run.truncated:
+            marks.append("TRUNCATED log")
+        if run.metrics is not None and run.metrics.get("completed") is False:
+            marks.append(f"aborted: {run.metrics.get('abort_reason', '?')}")
+        seed = run.config.get("seed")
+        text = run.label + (f", seed {seed}" if seed is not None else "")
+        parts.append(text + (f" ({'; '.join(marks)})" if marks else ""))
+    figure.suptitle(f"{what}\n" + "  vs  ".join(parts), fontsize=FONT_SIZE + 3)
+
+
+def note(ax: Any, text: str, loc: str = "lower right") -> None:
+    """A boxed remark inside the axes (what is missing, and why)."""
+    from matplotlib.offsetbox import AnchoredText
+
+    box = AnchoredText(text, loc=loc, prop={"size": FONT_SIZE - 0.5}, frameon=True)
+    box.patch.set_alpha(0.85)
+    box.patch.set_edgecolor("0.6")
+    ax.add_artist(box)
+
+
+_GENERIC = "\x00"
+"""Marks a legend label that names a line style rather than a run (see :func:`generic`)."""
+
+
+def generic(index: int, text: str) -> str | None:
+    """A legend label for what a line style means (not which run): given by the first run
+    only, and drawn grey by :func:`legend` when runs are overlaid (colour = run)."""
+    return _GENERIC + text if index == 0 else None
+
+
+def legend(ax: Any, runs: Sequence[RunLog], **kwargs: Any) -> None:
+    """The axes' legend; with two runs, style-only entries are grey."""
+    handles, labels = ax.get_legend_handles_labels()
+    if not handles:
+        return
+    kwargs.setdefault("loc", "best")
+    shown = ax.legend(handles, [label.removeprefix(_GENERIC) for label in labels],
+                      fontsize=FONT_SIZE - 1, framealpha=0.85, **kwargs)
+    if len(runs) < 2:
+        return
+    for handle, label in zip(shown.legend_handles, labels, strict=True):
+        if not label.startswith(_GENERIC) or handle is None:
+            continue
+        if hasattr(handle, "set_facecolor"):
+            handle.set_facecolor("0.75")
+            handle.set_edgecolor("0.4")
+        else:
+            handle.set_color("0.35")
+
+
+def run_legend(figure: Any, runs: Sequence[RunLog]) -> None:
+    """With two runs: one figure legend saying which colour is which run."""
+    if len(runs) < 2:
+        return
+    from matplotlib.lines import Line2D
+
+    handles = [Line2D([], [], color=run_colour(i), linewidth=4.0, label=run.label)
+               for i, run in enumerate(runs)]
+    figure.legend(handles=handles, loc="outside lower center", ncol=len(runs),
+                  fontsize=FONT_SIZE + 1, frameon=False)
+
+
+def save(figure: Any, path: Path) -> Path:
+    figure.savefig(path, dpi=DPI)
+    return path
+
+
+def time_axis(ax: Any) -> None:
+    ax.set_xlabel("simulated time t [s]")

@@ -1,0 +1,393 @@
+"""Top view of the run: the car's path against the reference, at true scale and magnified.
+
+A lane change is hundreds of metres long and a few metres wide, and a good tracker stays
+within centimetres of the path, so one picture cannot show everything. Four panels:
+
+1. true scale (equal aspect): the whole driven stretch and the car's footprint every
+   second;
+2. the manoeuvre (where the reference curves) with the lateral axis stretched (the factor
+   is in the title): reference, true and estimated CoG path, the MPC's predicted paths at
+   a few instants (a dot marks where each starts);
+3. the same stretch in path coordinates: lateral offset from the reference [cm] along x,
+   for the true CoG, the estimate and the predicted paths (each point projected onto the
+   path): this is where centimetre deviations and the predictions' quality show;
+4. at the instant of the largest |CTE| (over the runs): the car at true scale with a few
+   metres around it, and a true-scale close-up in centimetres around the reference point
+   nearest the CoG, with the CTE as an arrow, the estimate and the predicted path.
+
+The footprint is the simulated body's outline (``cosim.sedan_model``): wheelbase plus an
+overhang of ``OVERHANG_M`` at each end, track plus 0.2 m, centred between the axles; its
+front edge is drawn heavier. Plans without world-frame ``x_m``/``y_m`` states (dynamic-mpc
+predicts path errors) have no predicted paths; the panels say so.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cosim.plots.data import Plans, RunLog
+from cosim.plots.style import (
+    ESTIMATE_COLOUR,
+    FONT_SIZE,
+    REFERENCE_COLOUR,
+    generic,
+    legend,
+    new_figure,
+    note,
+    run_colour,
+    run_legend,
+    save,
+    style_axes,
+    suptitle,
+)
+from cosim.sedan_model import OVERHANG_M
+
+FOOTPRINT_PERIOD_S = 1.0
+"""Time between drawn footprints."""
+PREDICTIONS = 6
+"""How many predicted paths are drawn."""
+MANOEUVRE_CURVATURE_SHARE = 0.05
+"""The manoeuvre is where the reference's |curvature| exceeds this share of its largest
+|curvature| over the driven stretch."""
+MANOEUVRE_MARGIN_M = 15.0
+ZOOM_HALF_WIDTH_M = 6.0
+
+
+def footprint(config: dict[str, Any], x_m: float, y_m: float, yaw_rad: float) -> np.ndarray:
+    """Corners (4, 2) of the body outline in the world frame: front-left, front-right,
+    rear-right, rear-left (the front edge is corners 0-1)."""
+    plant = config.get("plant", {})
+    cog_front, cog_rear = plant.get("cog_front_m", 1.2), plant.get("cog_rear_m", 1.6)
+    half_length = 0.5 * (cog_front + cog_rear) + OVERHANG_M
+    half_width = 0.5 * plant.get("track_m", 1.6) + 0.1
+    centre = 0.5 * (cog_front - cog_rear)
+    body = np.array([[centre + half_length, half_width], [centre + half_length, -half_width],
+                     [centre - half_length, -half_width], [centre - half_length, half_width]])
+    c, s = np.cos(yaw_rad), np.sin(yaw_rad)
+    return body @ np.array([[c, s], [-s, c]]) + np.array([x_m, y_m])
+
+
+def _driven_window(run: RunLog) -> tuple[float, float]:
+    return float(np.nanmin(run.truth.x_m)), float(np.nanmax(run.truth.x_m))
+
+
+def _manoeuvre_window(runs: Sequence[RunLog]) -> tuple[float, float]:
+    """x range where the reference curves (with a margin), within the driven range."""
+    low = min(_driven_window(run)[0] for run in runs)
+    high = max(_driven_window(run)[1] for run in runs)
+    reference = runs[0].reference
+    if reference is None:
+        return low, high
+    samples = reference.path.sample(np.arange(0.0, reference.path.length_m, 0.5))
+    inside = (samples["x_m"] >= low) & (samples["x_m"] <= high)
+    curvature = np.abs(samples["curvature_1pm"])
+    if not np.any(inside) or np.max(curvature[inside]) <= 0.0:
+        return low, high
+    curving = inside & (curvature > MANOEUVRE_CURVATURE_SHARE * np.max(curvature[inside]))
+    if not np.any(curving):
+        return low, high
+    x = samples["x_m"][curving]
+    return max(low, float(x.min()) - MANOEUVRE_MARGIN_M), min(high, float(x.max())
+                                                            + MANOEUVRE_MARGIN_M)
+
+
+def _reference_xy(run: RunLog, low: float, high: float) -> tuple[np.ndarray, np.ndarray]:
+    reference = run.reference
+    if reference is None:
+        return np.empty(0), np.empty(0)
+    samples = reference.path.sample(np.arange(0.0, reference.path.length_m, 0.25))
+    keep = (samples["x_m"] >= low - 5.0) & (samples["x_m"] <= high + 5.0)
+    return samples["x_m"][keep], samples["y_m"][keep]
+
+
+def _prediction_indices(plans: Plans, t_low: float, t_high: float) -> list[int]:
+    times = np.linspace(t_low, t_high, PREDICTIONS + 2)[1:-1]
+    return sorted({int(np.argmin(np.abs(plans.t_s - t))) for t in times})
+
+
+def _time_window(run: RunLog, x_low: float, x_high: float) -> tuple[float, float]:
+    inside = (run.truth.x_m >= x_low) & (run.truth.x_m <= x_high)
+    if not np.any(inside):
+        return float(run.truth.t_s[0]), float(run.truth.t_s[-1])
+    return float(run.truth.t_s[inside][0]), float(run.truth.t_s[inside][-1])
+
+
+def _footprint_indices(run: RunLog, x_low: float, x_high: float,
+                       period_s: float = FOOTPRINT_PERIOD_S) -> list[int]:
+    t = run.truth.t_s
+    marks = np.arange(t[0], t[-1] + 1e-9, period_s)
+    indices = {int(np.argmin(np.abs(t - mark))) for mark in marks}
+    return sorted(i for i in indices if x_low - 5.0 <= run.truth.x_m[i] <= x_high + 5.0)
+
+
+def _draw_footprint(ax: Any, run: RunLog, index: int, colour: str, alpha: float,
+                    label: str | None = None) -> None:
+    from matplotlib.patches import Polygon
+
+    corners = footprint(run.config, run.truth.x_m[index], run.truth.y_m[index],
+                        run.truth.yaw_rad[index])
+    ax.add_patch(Polygon(corners, closed=True, facecolor=colour, edgecolor=colour,
+                         alpha=alpha, linewidth=0.8, label=label))
+    ax.plot(corners[:2, 0], corners[:2, 1], color=colour, linewidth=2.0, alpha=0.9)
+
+
+def _clip(x: np.ndarray, y: np.ndarray, low: float, high: float
+          ) -> tuple[np.ndarray, np.ndarray]:
+    """The points with ``low <= x <= high`` (so they do not stretch the y range)."""
+    keep = (x >= low) & (x <= high)
+    return x[keep], y[keep]
+
+
+def _lateral_offsets(run: RunLog, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    reference = run.reference
+    if reference is None:
+        return np.full(x.shape, np.nan)
+    return np.array([reference.path.project(px, py).lateral_error_m
+                     if np.isfinite(px) and np.isfinite(py) else np.nan
+                     for px, py in zip(x, y, strict=True)])
+
+
+def _no_predictions_text(run: RunLog) -> str | None:
+    plans = run.plans
+    if plans is None:
+        return f"{run.label}: no /control/plan messages: no predicted paths"
+    if not plans.has_positions:
+        states = ", ".join(n for n in plans.state_names if n.endswith(("_m", "_rad")))
+        return (f"{run.label}: no predicted paths (the plan predicts {states}; "
+                "no world-frame x_m, y_m)")
+    return None
+
+
+def _true_scale_panel(ax: Any, runs: Sequence[RunLog]) -> None:
+    low = min(_driven_window(run)[0] for run in runs)
+    high = max(_driven_window(run)[1] for run in runs)
+    ref_x, ref_y = _reference_xy(runs[0], low, high)
+    ax.plot(ref_x, ref_y, color=REFERENCE_COLOUR, linestyle="--", linewidth=1.0,
+            label="reference path")
+    for i, run in enumerate(runs):
+        colour = run_colour(i)
+        ax.plot(run.truth.x_m, run.truth.y_m, color=colour, linewidth=1.2,
+                label=generic(i, "true CoG path"))
+        for n, index in enumerate(_footprint_indices(run, low, high)):
+            _draw_footprint(ax, run, index, colour, 0.25,
+                            generic(i, f"footprint every {FOOTPRINT_PERIOD_S:g} s")
+                            if n == 0 else None)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x (east) [m]")
+    ax.set_ylabel("y (north) [m]")
+    ax.set_title("true scale (equal axes)", fontsize=10)
+
+
+def _stretched_panel(ax: Any, runs: Sequence[RunLog], x_low: float, x_high: float) -> None:
+    ref_x, ref_y = _reference_xy(runs[0], x_low, x_high)
+    inside = (ref_x >= x_low) & (ref_x <= x_high)
+    ax.plot(ref_x[inside], ref_y[inside], color=REFERENCE_COLOUR, linestyle="--",
+            linewidth=1.2, label="reference path")
+    missing = []
+    for i, run in enumerate(runs):
+        colour = run_colour(i)
+        ax.plot(*_clip(run.truth.x_m, run.truth.y_m, x_low, x_high), color=colour,
+                linewidth=1.4, label=generic(i, "true CoG path"))
+        if run.estimate is not None:
+            ax.plot(*_clip(run.estimate.column("x_m"), run.estimate.column("y_m"), x_low,
+                           x_high),
+                    color=ESTIMATE_COLOUR if len(runs) == 1 else colour, linewidth=0.9,
+                    linestyle=":", label=generic(i, "estimated CoG path"))
+        text = _no_predictions_text(run)
+        if text:
+            missing.append(text)
+            continue
+        plans = run.plans
+        assert plans is not None
+        t_low, t_high = _time_window(run, x_low, x_high)
+        for n, k in enumerate(_prediction_indices(plans, t_low, t_high)):
+            horizon_s = plans.dt_s[k] * (plans.predicted[k]["x_m"].size - 1)
+            px, py = _clip(plans.predicted[k]["x_m"], plans.predicted[k]["y_m"], x_low,
+                           x_high)
+            ax.plot(px, py, color=colour, linewidth=1.0, linestyle=(0, (4, 2)), alpha=0.9,
+                    label=generic(i, f"MPC predicted path (horizon {horizon_s:.2g} s)")
+                    if n == 0 else None)
+            ax.plot(px[:1], py[:1], marker="o", markersize=3, color=colour)
+    if missing:
+        note(ax, "\n".join(missing), loc="lower left")
+    ax.set_xlim(x_low, x_high)
+    ax.set_xlabel("x (east) [m]")
+    ax.set_ylabel("y (north) [m]")
+
+
+def _path_coordinates_panel(ax: Any, runs: Sequence[RunLog], x_low: float,
+                            x_high: float) -> None:
+    ax.axhline(0.0, color=REFERENCE_COLOUR, linestyle="--", linewidth=1.2,
+               label="reference path")
+    for i, run in enumerate(runs):
+        colour = run_colour(i)
+        keep = (run.truth.x_m >= x_low) & (run.truth.x_m <= x_high)
+        if run.tracking is None:
+            note(ax, f"{run.label}: no reference path in the log")
+            continue
+        ax.plot(run.truth.x_m[keep], run.tracking.cte_m[keep] * 100.0, color=colour,
+                linewidth=1.4, label=generic(i, "true CoG"))
+        if run.estimate is not None:
+            ex, ey = run.estimate.column("x_m"), run.estimate.column("y_m")
+            keep_e = (ex >= x_low) & (ex <= x_high)
+            step = max(1, int(np.sum(keep_e)) // 600)
+            ex, ey = ex[keep_e][::step], ey[keep_e][::step]
+            ax.plot(ex, _lateral_offsets(run, ex, ey) * 100.0,
+                    color=ESTIMATE_COLOUR if len(runs) == 1 else colour, linewidth=0.9,
+                    linestyle=":", label=generic(i, "estimated CoG"))
+        plans = run.plans
+        if plans is None or not plans.has_positions:
+            continue
+        t_low, t_high = _time_window(run, x_low, x_high)
+        for n, k in enumerate(_prediction_indices(plans, t_low, t_high)):
+            px, py = _clip(plans.predicted[k]["x_m"], plans.predicted[k]["y_m"], x_low,
+                           x_high)
+            offsets = _lateral_offsets(run, px, py) * 100.0
+            ax.plot(px, offsets, color=colour, linewidth=1.0, linestyle=(0, (4, 2)),
+                    alpha=0.9, label=generic(i, "MPC predicted path") if n == 0 else None)
+            ax.plot(px[:1], offsets[:1], marker="o", markersize=3, color=colour)
+    ax.set_xlim(x_low, x_high)
+    ax.set_xlabel("x (east) [m]")
+    ax.set_ylabel("lateral offset from\nthe reference [cm] (+ = left)")
+    ax.set_title("deviation from the reference, in path coordinates (projection onto the "
+                 "path)", fontsize=10)
+
+
+def _largest_cte(runs: Sequence[RunLog]) -> tuple[RunLog, float] | None:
+    """The run and time of the largest |CTE| over the runs."""
+    best: tuple[RunLog, float, float] | None = None
+    for run in runs:
+        if run.tracking is None or not np.any(np.isfinite(run.tracking.cte_m)):
+            continue
+        k = int(np.nanargmax(np.abs(run.tracking.cte_m)))
+        value = float(abs(run.tracking.cte_m[k]))
+        if best is None or value > best[2]:
+            best = (run, float(run.tracking.t_s[k]), value)
+    return None if best is None else (best[0], best[1])
+
+
+def _car_zoom_panel(ax: Any, runs: Sequence[RunLog], centre: RunLog, t_s: float) -> None:
+    """True scale, a few car lengths around ``centre``'s car at ``t_s``."""
+    index = int(np.argmin(np.abs(centre.truth.t_s - t_s)))
+    cx, cy = centre.truth.x_m[index], centre.truth.y_m[index]
+    ref_x, ref_y = _reference_xy(centre, cx - 2 * ZOOM_HALF_WIDTH_M,
+                                 cx + 2 * ZOOM_HALF_WIDTH_M)
+    ax.plot(ref_x, ref_y, color=REFERENCE_COLOUR, linestyle="--", linewidth=1.0,
+            label="reference path")
+    for i, run in enumerate(runs):
+        colour = run_colour(i)
+        k = int(np.argmin(np.abs(run.truth.t_s - t_s)))
+        near = np.abs(run.truth.x_m - cx) < 2 * ZOOM_HALF_WIDTH_M
+        ax.plot(run.truth.x_m[near], run.truth.y_m[near], color=colour, linewidth=1.2,
+                label=generic(i, "true CoG path"))
+        _draw_footprint(ax, run, k, colour, 0.2, generic(i, "footprint"))
+        plans = run.plans
+        if plans is not None and plans.has_positions:
+            p = int(np.argmin(np.abs(plans.t_s - t_s)))
+            ax.plot(plans.predicted[p]["x_m"], plans.predicted[p]["y_m"], color=colour,
+                    linestyle=(0, (4, 2)), linewidth=1.0,
+                    label=generic(i, f"MPC predicted path (t = {plans.t_s[p]:.2f} s)"))
+    ax.set_xlim(cx - ZOOM_HALF_WIDTH_M, cx + ZOOM_HALF_WIDTH_M)
+    ax.set_ylim(cy - 0.6 * ZOOM_HALF_WIDTH_M, cy + 0.6 * ZOOM_HALF_WIDTH_M)
+    ax.set_aspect("equal", adjustable="box")
+    ax.set_xlabel("x (east) [m]")
+    ax.set_ylabel("y (north) [m]")
+    ax.set_title(f"true scale around the car at t = {t_s:.2f} s", fontsize=10)
+
+
+def _close_up_panel(ax: Any, runs: Sequence[RunLog], centre: RunLog, t_s: float) -> None:
+    """True scale in centimetres around the reference point nearest to ``centre``'s CoG at
+    ``t_s``: the CTE as an arrow, the estimate, the predicted path's first metres."""
+    assert centre.reference is not None and centre.tracking is not None
+    index = int(np.argmin(np.abs(centre.truth.t_s - t_s)))
+    origin = centre.reference.path.point(float(centre.tracking.s_m[index]))
+    ox, oy = origin.x_m, origin.y_m
+    offsets = []
+    for run in runs:
+        if run.tracking is not None:
+            k = int(np.argmin(np.abs(run.truth.t_s - t_s)))
+            offsets.append(np.hypot(run.truth.x_m[k] - ox, run.truth.y_m[k] - oy))
+    half_cm = max(10.0, 250.0 * max(offsets, default=0.0))
+    half_m = half_cm / 100.0
+    ref = centre.reference.path.sample(np.linspace(origin.s_m - 3 * half_m,
+                                                   origin.s_m + 3 * half_m, 50))
+    ax.plot((ref["x_m"] - ox) * 100, (ref["y_m"] - oy) * 100, color=REFERENCE_COLOUR,
+            linestyle="--", linewidth=1.2, label="reference path")
+    for i, run in enumerate(runs):
+        colour = run_colour(i)
+        k = int(np.argmin(np.abs(run.truth.t_s - t_s)))
+        near = np.hypot(run.truth.x_m - ox, run.truth.y_m - oy) < 4 * half_m
+        ax.plot((run.truth.x_m[near] - ox) * 100, (run.truth.y_m[near] - oy) * 100,
+                color=colour, linewidth=1.2, label=generic(i, "true CoG path"))
+        px, py = (run.truth.x_m[k] - ox) * 100, (run.truth.y_m[k] - oy) * 100
+        cte_text = (f"CTE {run.tracking.cte_m[k] * 100:+.1f} cm"
+                    if run.tracking is not None else "")
+        ax.annotate("", xy=(px, py), xytext=(0.0, 0.0),
+                    arrowprops={"arrowstyle": "->", "color": colour, "linewidth": 1.5})
+        ax.plot(px, py, marker="o", color=colour, markersize=6, linestyle="none",
+                label=generic(i, f"true CoG at t = {t_s:.2f} s"))
+        ax.annotate(cte_text, xy=(0.5 * px, 0.5 * py), xytext=(6, 12 * i),
+                    textcoords="offset points", color=colour, fontsize=FONT_SIZE,
+                    va="center")
+        if run.estimate is not None:
+            e = int(np.argmin(np.abs(run.estimate.t_s - t_s)))
+            ax.plot((run.estimate.column("x_m")[e] - ox) * 100,
+                    (run.estimate.column("y_m")[e] - oy) * 100, marker="x",
+                    color=ESTIMATE_COLOUR if len(runs) == 1 else colour, markersize=8,
+                    markeredgewidth=2, linestyle="none", label=generic(i, "estimated CoG"))
+        plans = run.plans
+        if plans is not None and plans.has_positions:
+            p = int(np.argmin(np.abs(plans.t_s - t_s)))
+            ax.plot((plans.predicted[p]["x_m"] - ox) * 100,
+                    (plans.predicted[p]["y_m"] - oy) * 100, color=colour,
+                    linestyle=(0, (4, 2)), linewidth=1.0, marker=".", markersize=4,
+                    label=generic(i, f"MPC predicted path (t = {plans.t_s[p]:.2f} s)"))
+    ax.set_xlim(-half_cm, half_cm)
+    ax.set_ylim(-0.6 * half_cm, 0.6 * half_cm)
+    ax.set_aspect("equal", adjustable="box")
+    ax.set_xlabel(f"x {'-' if ox >= 0 else '+'} {abs(ox):.2f} m [cm]")
+    ax.set_ylabel(f"y {'-' if oy >= 0 else '+'} {abs(oy):.2f} m [cm]")
+    ax.set_title(f"close-up (true scale, cm) at the largest |CTE|, t = {t_s:.2f} s",
+                 fontsize=10)
+
+
+def _stretch_factor(ax: Any) -> float:
+    """How much more a metre spans vertically than horizontally in ``ax``."""
+    box = ax.get_window_extent()
+    (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+    return float((box.height / abs(y1 - y0)) / (box.width / abs(x1 - x0)))
+
+
+def top_view_figure(runs: Sequence[RunLog], path: Path) -> Path:
+    figure = new_figure(12.0, 15.0)
+    grid = figure.add_gridspec(4, 2, height_ratios=[1.0, 2.4, 2.2, 2.8])
+    true_ax = figure.add_subplot(grid[0, :])
+    stretched_ax = figure.add_subplot(grid[1, :])
+    frenet_ax = figure.add_subplot(grid[2, :], sharex=stretched_ax)
+    car_ax, close_ax = figure.add_subplot(grid[3, 0]), figure.add_subplot(grid[3, 1])
+    x_low, x_high = _manoeuvre_window(runs)
+    _true_scale_panel(true_ax, runs)
+    _stretched_panel(stretched_ax, runs, x_low, x_high)
+    _path_coordinates_panel(frenet_ax, runs, x_low, x_high)
+    largest = _largest_cte(runs)
+    axes = [true_ax, stretched_ax, frenet_ax]
+    if largest is None:
+        car_ax.set_axis_off()
+        close_ax.set_axis_off()
+    else:
+        _car_zoom_panel(car_ax, runs, *largest)
+        _close_up_panel(close_ax, runs, *largest)
+        axes += [car_ax, close_ax]
+    for ax in axes:
+        style_axes(ax)
+        legend(ax, runs, loc="upper right")
+    figure.canvas.draw()
+    stretched_ax.set_title("the manoeuvre, lateral axis stretched "
+                           f"x{_stretch_factor(stretched_ax):.0f}", fontsize=10)
+    suptitle(figure, "Top view: path vs reference", runs)
+    run_legend(figure, runs)
+    return save(figure, path)

@@ -1,0 +1,120 @@
+"""`cosim plot`: every figure is written, is not blank, and overlays two runs; the data the
+figures draw agree with the run's own metrics; bad files are one line and exit code 2."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cosim.cli import main
+from cosim.plots import FIGURES, plot_logs
+from cosim.plots.data import distinct_labels, load_run
+from cosim.runner import RunResult, run
+from cosim.scenario_config import load_config
+
+MIN_PNG_BYTES = 40_000
+"""A figure with axes, lines and text at 130 dpi is well above this; a blank one is not."""
+
+
+@pytest.fixture(scope="module")
+def nmpc_run(tmp_path_factory: pytest.TempPathFactory) -> RunResult:
+    """Three seconds of the lane change with the default tracker (plans with x_m, y_m)."""
+    config = load_config("lane-change", duration_s=3.0)
+    return run(config, tmp_path_factory.mktemp("plot") / "nmpc.mcap")
+
+
+@pytest.fixture(scope="module")
+def path_error_run(tmp_path_factory: pytest.TempPathFactory) -> RunResult:
+    """dynamic-mpc: its plans predict path errors (e1_m, ...), no world-frame x_m, y_m."""
+    config = load_config("lane-change", duration_s=3.0, tracker="dynamic-mpc")
+    return run(config, tmp_path_factory.mktemp("plot") / "dmpc.mcap")
+
+
+def _assert_real_figure(path: Path) -> None:
+    from matplotlib.image import imread
+
+    assert path.is_file(), path
+    assert path.stat().st_size > MIN_PNG_BYTES, (path, path.stat().st_size)
+    pixels = imread(path)
+    assert pixels.ndim == 3 and pixels.shape[0] > 500 and pixels.shape[1] > 500
+    # Not blank: many distinct grey levels and a real spread of them.
+    grey = pixels[..., :3].mean(axis=2)
+    assert float(grey.var()) > 1e-3, path
+    assert np.unique(np.round(grey, 2)).size > 20, path
+
+
+def test_every_figure_of_one_run(nmpc_run: RunResult, tmp_path: Path) -> None:
+    written = plot_logs([nmpc_run.log_path], tmp_path / "one")
+    assert [p.name for p in written] == [f"{name}.png" for name in FIGURES]
+    for path in written:
+        _assert_real_figure(path)
+
+
+def test_overlay_of_two_runs_and_a_plan_without_positions(
+        nmpc_run: RunResult, path_error_run: RunResult, tmp_path: Path) -> None:
+    single = plot_logs([nmpc_run.log_path], tmp_path / "single")
+    overlay = plot_logs([nmpc_run.log_path, path_error_run.log_path], tmp_path / "overlay")
+    assert [p.name for p in overlay] == [p.name for p in single]
+    for alone, both in zip(single, overlay, strict=True):
+        _assert_real_figure(both)
+        assert alone.read_bytes() != both.read_bytes(), both.name
+    runs = distinct_labels([load_run(nmpc_run.log_path), load_run(path_error_run.log_path)])
+    assert [r.label for r in runs] == ["lane-change / dynamic-nmpc", "lane-change / dynamic-mpc"]
+    assert runs[0].plans is not None and runs[0].plans.has_positions
+    assert runs[1].plans is not None and not runs[1].plans.has_positions
+    assert "e1_m" in runs[1].plans.state_names
+
+
+def test_the_plotted_errors_are_the_metrics(nmpc_run: RunResult) -> None:
+    """CTE by projection and NEES per sample, recomputed from the log, give the metrics."""
+    data = load_run(nmpc_run.log_path)
+    metrics = nmpc_run.metrics
+    assert data.tracking is not None and data.estimation is not None
+    assert float(np.max(np.abs(data.tracking.cte_m))) == pytest.approx(
+        metrics["cte_max_m"], rel=0.02, abs=1e-3)
+    heading_rms = float(np.sqrt(np.mean(data.tracking.heading_err_rad**2)))
+    assert heading_rms == pytest.approx(metrics["heading_err_rms_rad"], rel=0.02)
+    assert data.estimation.nees is not None
+    assert data.estimation.nees_states == ("x_m", "y_m", "yaw_rad", "vx_mps")
+    assert float(np.nanmean(data.estimation.nees)) == pytest.approx(metrics["nees_mean"],
+                                                                    rel=1e-6)
+    assert data.truth.t_s.size == data.estimation.t_s.size == 301
+
+
+def test_a_truncated_log_is_plotted_and_marked(nmpc_run: RunResult, tmp_path: Path) -> None:
+    content = nmpc_run.log_path.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(content[: len(content) * 2 // 3])
+    data = load_run(cut)
+    assert data.truncated and data.metrics is None
+    assert 0 < data.truth.t_s.size < 301
+    for path in plot_logs([cut], tmp_path / "cut"):
+        _assert_real_figure(path)
+
+
+def test_cli_prints_the_paths(nmpc_run: RunResult, tmp_path: Path,
+                              capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "cli"
+    assert main(["plot", str(nmpc_run.log_path), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out.split()
+    assert printed == [str(out / f"{name}.png") for name in FIGURES]
+
+
+@pytest.mark.parametrize(("content", "fragment"), [
+    (None, "no such file"),
+    (b"hello", "not an MCAP file"),
+    (b"\x89MCAP0\r\n" + b"\x00" * 40, "MCAP"),
+])
+def test_bad_files_are_one_line_and_exit_code_2(
+        content: bytes | None, fragment: str, tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "bad.mcap"
+    if content is not None:
+        path.write_bytes(content)
+    assert main(["plot", str(path)]) == 2
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and fragment in lines[0], captured.err
+    assert captured.out == ""
