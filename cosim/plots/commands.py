@@ -20,15 +20,11 @@ import numpy as np
 from cosim.plots.data import RunLog
 from cosim.plots.style import (
     LIMIT_COLOUR,
+    finish,
     generic,
-    legend,
     new_figure,
     note,
     run_colour,
-    run_legend,
-    save,
-    style_axes,
-    suptitle,
     time_axis,
 )
 
@@ -122,9 +118,5 @@ def commands_figure(runs: Sequence[RunLog], path: Path) -> Path:
     accel_ax.set_ylabel("acceleration [m/s²]")
     accel_ax.set_title("longitudinal acceleration command", fontsize=10)
     time_axis(accel_ax)
-    for ax in (steer_ax, rate_ax, accel_ax):
-        style_axes(ax)
-        legend(ax, runs)
-    suptitle(figure, "Commands and their limits", runs)
-    run_legend(figure, runs)
-    return save(figure, path)
+    return finish(figure, (steer_ax, rate_ax, accel_ax), runs, "Commands and their limits",
+                  path)

@@ -115,3 +115,14 @@ def save(figure: Any, path: Path) -> Path:
 
 def time_axis(ax: Any) -> None:
     ax.set_xlabel("simulated time t [s]")
+
+
+def finish(figure: Any, axes: Sequence[Any], runs: Sequence[RunLog], what: str,
+           path: Path) -> Path:
+    """Style and label every panel, title the figure, add the run legend, save it."""
+    for ax in axes:
+        style_axes(ax)
+        legend(ax, runs)
+    suptitle(figure, what, runs)
+    run_legend(figure, runs)
+    return save(figure, path)

@@ -15,14 +15,10 @@ import numpy as np
 from cosim.plots.data import RunLog
 from cosim.plots.style import (
     REFERENCE_COLOUR,
-    legend,
+    finish,
     new_figure,
     note,
     run_colour,
-    run_legend,
-    save,
-    style_axes,
-    suptitle,
     time_axis,
 )
 
@@ -67,9 +63,4 @@ def tracking_figure(runs: Sequence[RunLog], path: Path) -> Path:
     speed_ax.set_ylabel("speed [m/s]")
     speed_ax.set_title("speed: true horizontal speed of the CoG vs reference", fontsize=10)
     time_axis(speed_ax)
-    for ax in (cte_ax, heading_ax, speed_ax):
-        style_axes(ax)
-        legend(ax, runs)
-    suptitle(figure, "Path tracking errors", runs)
-    run_legend(figure, runs)
-    return save(figure, path)
+    return finish(figure, (cte_ax, heading_ax, speed_ax), runs, "Path tracking errors", path)
