@@ -25,3 +25,13 @@ def assert_commands_within_bounds(commands: Sequence[Command], config: TrackerCo
     # The first command is rate-limited against the zero command of reset().
     steer_steps = np.abs(np.diff(np.concatenate(([0.0], steer))))
     assert np.all(steer_steps <= config.max_steer_rate_radps * config.dt_s + 1e-9)
+
+
+def assert_reaches_speed(speed_mps: np.ndarray, target_mps: float, within_s: float,
+                         step_s: float = 0.002, tolerance_mps: float = 0.2) -> None:
+    """The speed (one sample per physics step) comes within 0.1 m/s of ``target_mps`` by
+    ``within_s`` and then stays within ``tolerance_mps`` of it."""
+    reached = np.flatnonzero(speed_mps > target_mps - 0.1)
+    assert reached.size > 0
+    assert reached[0] * step_s < within_s
+    assert np.max(np.abs(speed_mps[reached[0]:] - target_mps)) < tolerance_mps

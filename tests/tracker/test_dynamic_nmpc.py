@@ -21,6 +21,7 @@ from cosim.records import Command, Estimate
 from tests.tracker.contract import (
     assert_commands_within_bounds,
     assert_every_solve_succeeded,
+    assert_reaches_speed,
 )
 from tests.tracker.dynamic_closed_loop import (
     ESTIMATE_NAMES,
@@ -66,10 +67,7 @@ def test_lane_change_is_tracked_within_centimetres(lane_change: ClosedLoopResult
 
 
 def test_lane_change_reaches_reference_speed(lane_change: ClosedLoopResult) -> None:
-    reached = np.flatnonzero(lane_change.vx_mps > 19.9)
-    assert reached.size > 0
-    assert reached[0] * 0.002 < 4.0
-    assert np.max(np.abs(lane_change.vx_mps[reached[0]:] - 20.0)) < 0.2
+    assert_reaches_speed(lane_change.vx_mps, 20.0, within_s=4.0)
 
 
 def test_lane_change_has_no_solver_failures(lane_change: ClosedLoopResult) -> None:

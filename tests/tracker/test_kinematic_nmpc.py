@@ -25,6 +25,7 @@ from tests.tracker.closed_loop import (
 from tests.tracker.contract import (
     assert_commands_within_bounds,
     assert_every_solve_succeeded,
+    assert_reaches_speed,
 )
 from tracker.config import TrackerConfig
 from tracker.double_lane_change import double_lane_change
@@ -56,10 +57,7 @@ def test_lane_change_is_tracked_within_centimetres(lane_change: ClosedLoopResult
 
 
 def test_lane_change_reaches_reference_speed(lane_change: ClosedLoopResult) -> None:
-    reached = np.flatnonzero(lane_change.speed_mps > 19.9)
-    assert reached.size > 0
-    assert reached[0] * 0.002 < 4.0
-    assert np.max(np.abs(lane_change.speed_mps[reached[0]:] - 20.0)) < 0.2
+    assert_reaches_speed(lane_change.speed_mps, 20.0, within_s=4.0)
 
 
 def test_lane_change_has_no_solver_failures(lane_change: ClosedLoopResult) -> None:
