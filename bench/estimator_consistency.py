@@ -24,10 +24,10 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.log_reader import iter_messages
+from cosim.log.reader import iter_messages
 from cosim.records import Measurement
-from cosim.runner import run
-from cosim.scenario_config import ScenarioConfig, load_config
+from cosim.simulation.runner import run
+from cosim.simulation.scenario_config import ScenarioConfig, load_config
 from estimation.consistency import summarise
 from estimation.registry import make_estimator
 

@@ -18,8 +18,8 @@ import time
 import mujoco
 
 from cosim.initial_state import InitialState
-from cosim.low_level import ActuatorCommand
-from cosim.plant import MujocoPlant
+from cosim.plant.car import MujocoPlant
+from cosim.records import ActuatorCommand
 from cosim.vehicle_params import PlantConfig
 
 

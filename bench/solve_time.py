@@ -29,8 +29,8 @@ import statistics
 import tempfile
 from pathlib import Path
 
-from cosim.runner import run
-from cosim.scenario_config import load_config
+from cosim.simulation.runner import run
+from cosim.simulation.scenario_config import load_config
 from tracker.config import TrackerConfig
 from tracker.registry import TRACKER_NAMES
 

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import yaml
 
-from cosim.sweep.driver import run_sweep
+from cosim.sweeps.driver import run_sweep
 
 
 def spec_text(runs: int, duration_s: float) -> str:

@@ -18,9 +18,9 @@ import tempfile
 from pathlib import Path
 
 from cosim.exceptions import CosimError
-from cosim.log_reader import iter_messages
-from cosim.runner import run
-from cosim.scenario_config import load_config
+from cosim.log.reader import iter_messages
+from cosim.simulation.runner import run
+from cosim.simulation.scenario_config import load_config
 
 DEFAULT_TRACKERS: tuple[str, ...] = ("dynamic-nmpc", "ltv-mpc", "dynamic-mpc", "kinematic-nmpc")
 

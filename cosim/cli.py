@@ -86,7 +86,7 @@ def _build_parser() -> argparse.ArgumentParser:
 
     sweep = commands.add_parser(
         "sweep", help="run a scenario over a grid or random sample of parameters and seeds")
-    sweep.add_argument("spec", metavar="SPEC.yaml", help="the sweep spec (see cosim.sweep.spec)")
+    sweep.add_argument("spec", metavar="SPEC.yaml", help="the sweep spec (see cosim.sweeps.spec)")
     sweep.add_argument("--workers", type=int, metavar="N",
                        help="parallel runs (default: the number of cores)")
     sweep.add_argument("--backend", choices=("process", "ray"), default="process",
@@ -146,11 +146,11 @@ def _json_ready(values: dict[str, Any]) -> dict[str, Any]:
 
 
 def _command_run(args: argparse.Namespace) -> int:
-    from cosim.runner import run
-    from cosim.scenario_config import load_config
+    from cosim.simulation.runner import run
+    from cosim.simulation.scenario_config import load_config
 
     if args.video is not None:
-        from cosim.render import check_video_path
+        from cosim.plots.render import check_video_path
 
         check_video_path(args.video, "--video")
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration >= 0):
@@ -180,7 +180,7 @@ def _command_run(args: argparse.Namespace) -> int:
               file=sys.stderr)
         return 130
     if args.video is not None:
-        from cosim.render import RenderOptions, describe, render_for_cli
+        from cosim.plots.render import RenderOptions, describe, render_for_cli
 
         print(describe(render_for_cli(result.log_path, args.video, RenderOptions())),
               file=sys.stderr if args.json else sys.stdout)
@@ -192,8 +192,8 @@ def _command_run(args: argparse.Namespace) -> int:
 
 
 def _command_inspect(args: argparse.Namespace) -> int:
-    from cosim.inspect_export import csv_command, log_warnings
-    from cosim.log_reader import iter_messages, read_summary
+    from cosim.log.export import csv_command, log_warnings
+    from cosim.log.reader import iter_messages, read_summary
 
     path = Path(args.file)
     if not path.is_file():
@@ -259,7 +259,7 @@ def _command_plot(args: argparse.Namespace) -> int:
 
 
 def _command_scenarios(args: argparse.Namespace) -> int:
-    from cosim.scenario_config import builtin_scenarios
+    from cosim.simulation.scenario_config import builtin_scenarios
 
     del args
     for name, description in builtin_scenarios().items():
@@ -273,7 +273,7 @@ IDENTIFY_SCENARIO = "lane-change"
 
 def _command_identify(args: argparse.Namespace) -> int:
     from cosim.identification import identify
-    from cosim.scenario_config import load_config
+    from cosim.simulation.scenario_config import load_config
 
     config = load_config(IDENTIFY_SCENARIO, args.config, args.overrides)
     model = identify(config.plant, config.tracker.model, config.sim.physics_dt_s)
@@ -304,8 +304,8 @@ def _command_identify(args: argparse.Namespace) -> int:
 
 
 def _command_sweep(args: argparse.Namespace) -> int:
-    from cosim.sweep.driver import default_out_dir, run_sweep
-    from cosim.sweep.execute import WorkerCrashError
+    from cosim.sweeps.driver import default_out_dir, run_sweep
+    from cosim.sweeps.execute import WorkerCrashError
 
     if args.resume and args.out is None:
         raise CosimError("--resume: expected --out DIR, the directory of the sweep to finish")
@@ -334,7 +334,7 @@ def _command_sweep(args: argparse.Namespace) -> int:
 
 
 def _command_render(args: argparse.Namespace) -> int:
-    from cosim.render import RenderOptions, describe, render_for_cli
+    from cosim.plots.render import RenderOptions, describe, render_for_cli
 
     options = RenderOptions(args.fps, args.width, args.height, args.start, args.duration,
                             args.gl)

@@ -1,4 +1,4 @@
-"""The four component interfaces of a run (see docs/architecture.md).
+"""The plant, sensor and estimator interfaces of a run (the tracker's: tracker/protocol.py).
 
 A tracker never sees the plant; an estimator never sees the truth (the debugging estimator
 ``truth`` receives it as a noise-free measurement from the ``truth`` sensor).
@@ -10,9 +10,7 @@ from typing import Protocol
 
 import numpy as np
 
-from cosim.low_level import ActuatorCommand
-from cosim.records import Command, Estimate, Measurement, Plan, VehicleState
-from tracker.reference_path import ReferencePath
+from cosim.records import ActuatorCommand, Estimate, Measurement, VehicleState
 
 
 class Plant(Protocol):
@@ -25,7 +23,7 @@ class Plant(Protocol):
     def apply(self, actuator: ActuatorCommand) -> None:
         """Set the actuators' targets (wheel torques, road-wheel angle); they act from the
         next :meth:`advance` on. The tracker's :class:`Command` reaches the plant through
-        the delay line and the low-level layer (:mod:`cosim.low_level`)."""
+        the delay line and the low-level layer (:mod:`cosim.plant.low_level`)."""
 
     def advance(self) -> None:
         """Advance the physics by one step of ``physics_dt_s``."""
@@ -58,11 +56,3 @@ class Estimator(Protocol):
         """Fuse one measurement (predicting to its time first)."""
 
     def estimate(self) -> Estimate: ...
-
-
-class Tracker(Protocol):
-    """A path tracker: one control step from the estimate and the reference."""
-
-    def step(
-        self, t_s: float, estimate: Estimate, reference: ReferencePath
-    ) -> tuple[Command, Plan]: ...

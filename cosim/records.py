@@ -8,6 +8,7 @@ positive to the left, SI units with the unit in every name.
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -163,3 +164,35 @@ def _json_float(value: float) -> float | None:
     """JSON has no NaN: a non-finite value is logged as null."""
     value = float(value)
     return value if np.isfinite(value) else None
+
+
+@dataclass(frozen=True)
+class ActuatorCommand:
+    """What the low-level layer asks of the plant's actuators, valid from ``t_s`` on.
+
+    ``drive_torque_nm`` is the total drive torque at the wheels (>= 0), ``brake_torque_nm``
+    the total brake torque of all four wheels (>= 0), ``steer_rad`` the road-wheel angle of
+    the bicycle model (positive left) that the steering actuator is asked to reach.
+    """
+
+    t_s: float
+    drive_torque_nm: float
+    brake_torque_nm: float
+    steer_rad: float
+
+    def __post_init__(self) -> None:
+        for name in ("t_s", "drive_torque_nm", "brake_torque_nm", "steer_rad"):
+            value = getattr(self, name)
+            if not math.isfinite(value):
+                raise ValueError(f"ActuatorCommand.{name} = {value!r}: expected a finite number")
+        if self.drive_torque_nm < 0.0:
+            raise ValueError(
+                f"ActuatorCommand.drive_torque_nm = {self.drive_torque_nm}: expected >= 0"
+            )
+        if self.brake_torque_nm < 0.0:
+            raise ValueError(
+                f"ActuatorCommand.brake_torque_nm = {self.brake_torque_nm}: expected >= 0"
+            )
+
+    def to_message(self) -> dict[str, object]:
+        return dataclasses.asdict(self)

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 from cosim.config_fields import section, setting
 from cosim.exceptions import ConfigError
-from cosim.tire_model import TyreParams
+from cosim.tyre_params import TyreParams
 
 
 @dataclass(frozen=True)
@@ -87,7 +87,7 @@ class PlantConfig(VehicleParams):
     tire_model: str = setting(
         "pacejka",
         choices=("pacejka", "contact"),
-        doc="pacejka: Magic Formula tyres (cosim.tire_model) on frictionless wheel contacts; "
+        doc="pacejka: Magic Formula tyres (cosim.plant.tire_model) on frictionless wheel contacts; "
         "contact: MuJoCo's contact friction as the tyres (no cornering stiffness)",
     )
     tyre: TyreParams = section(TyreParams)

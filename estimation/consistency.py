@@ -6,7 +6,7 @@ independent runs, ``N`` times the average is chi-square with ``N n`` degrees of 
 the average lies, with probability ``p``, in ``[chi2_(1-p)/2 (N n), chi2_(1+p)/2 (N n)] / N``
 (Bar-Shalom, Li, Kirubarajan, "Estimation with Applications to Tracking and Navigation",
 2001, section 5.4.2, eq. 5.4.2-5). The runs' ``nees_mean`` metric (the time average over a
-run, :mod:`cosim.metrics`) is what is averaged here.
+run, :mod:`cosim.simulation.metrics`) is what is averaged here.
 """
 
 from __future__ import annotations
@@ -19,7 +19,8 @@ import numpy as np
 from scipy.stats import chi2
 
 NEES_DOF = 4
-"""Degrees of freedom of the runs' NEES: x, y, yaw, vx (:data:`cosim.metrics.NEES_STATES`)."""
+"""Degrees of freedom of the runs' NEES: x, y, yaw, vx
+(:data:`cosim.simulation.metrics.NEES_STATES`)."""
 
 
 def nees_band(dof: int, runs: int, probability: float = 0.95) -> tuple[float, float]:

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from cosim.runner import RunResult, run
-from cosim.scenario_config import load_config
+from cosim.simulation.runner import RunResult, run
+from cosim.simulation.scenario_config import load_config
 
 
 def run_scenario(tmp_dir: Path, name: str, *overrides: str, seed: int = 0,

@@ -11,9 +11,9 @@ from pathlib import Path
 
 import pytest
 
-from cosim.log_reader import read_summary
-from cosim.metrics import METRIC_KEYS
-from cosim.runner import RunResult
+from cosim.log.reader import read_summary
+from cosim.simulation.metrics import METRIC_KEYS
+from cosim.simulation.runner import RunResult
 
 COSIM = str(Path(sys.executable).with_name("cosim"))
 

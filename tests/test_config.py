@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from cosim.exceptions import ConfigError, RateError
-from cosim.scenario_config import builtin_scenarios, load_config
+from cosim.simulation.scenario_config import builtin_scenarios, load_config
 
 
 def test_builtin_lane_change_matches_the_seed_digest() -> None:

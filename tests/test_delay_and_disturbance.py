@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cosim.disturbances import DisturbanceConfig, schedule
-from cosim.log_reader import iter_messages
-from cosim.runner import RunResult, component_rng
-from cosim.scenario_config import load_config
+from cosim.log.reader import iter_messages
+from cosim.plant.disturbances import DisturbanceConfig, schedule
+from cosim.simulation.runner import RunResult, component_rng
+from cosim.simulation.scenario_config import load_config
 from tests.conftest import run_scenario
 from tracker.reference_path import ReferencePath
 

@@ -10,11 +10,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cosim import foxglove
-from cosim.log_reader import iter_messages, iter_topics, read_summary
-from cosim.plant import _quat_zyx
+from cosim.log import foxglove
+from cosim.log.reader import iter_messages, iter_topics, read_summary
+from cosim.plant.car import _quat_zyx
 from cosim.records import Estimate, Plan, VehicleState
-from cosim.runner import RunResult
+from cosim.simulation.runner import RunResult
 from cosim.vehicle_params import VehicleParams
 from tests.conftest import run_scenario
 

@@ -13,8 +13,8 @@ from pathlib import Path
 
 import pytest
 
-from cosim.log_reader import read_summary
-from cosim.runner import RunResult
+from cosim.log.reader import read_summary
+from cosim.simulation.runner import RunResult
 
 JS_DIR = Path(__file__).resolve().parent / "js"
 

@@ -10,11 +10,11 @@ import pytest
 from mcap.writer import Writer
 
 from cosim.cli import main
-from cosim.inspect_export import csv_name, export_csv, log_warnings
-from cosim.log_reader import read_summary
-from cosim.metrics import METRIC_KEYS
-from cosim.runner import RunResult, run
-from cosim.scenario_config import load_config
+from cosim.log.export import csv_name, export_csv, log_warnings
+from cosim.log.reader import read_summary
+from cosim.simulation.metrics import METRIC_KEYS
+from cosim.simulation.runner import RunResult, run
+from cosim.simulation.scenario_config import load_config
 
 
 @pytest.fixture(scope="module")

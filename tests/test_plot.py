@@ -11,8 +11,8 @@ import pytest
 from cosim.cli import main
 from cosim.plots import FIGURES, plot_logs
 from cosim.plots.data import distinct_labels, load_run
-from cosim.runner import RunResult, run
-from cosim.scenario_config import load_config
+from cosim.simulation.runner import RunResult, run
+from cosim.simulation.scenario_config import load_config
 
 MIN_PNG_BYTES = 40_000
 """A figure with axes, lines and text at 130 dpi is well above this; a blank one is not."""

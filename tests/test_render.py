@@ -1,4 +1,4 @@
-"""`cosim render`: the chase-camera video of a log (cosim.render).
+"""`cosim render`: the chase-camera video of a log (cosim.plots.render).
 
 The geometry and timing tests need no OpenGL. The video tests render the session's short
 lane change in software (OSMesa; `.ci/run` installs libosmesa6) and read the MP4 back with
@@ -14,11 +14,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cosim import render
 from cosim.cli import main
 from cosim.exceptions import GlBackendError, RenderError
-from cosim.render import RenderOptions
-from cosim.runner import RunResult
+from cosim.plots import render
+from cosim.plots.render import RenderOptions
+from cosim.simulation.runner import RunResult
 
 WIDTH, HEIGHT = 480, 270
 
@@ -150,7 +150,7 @@ def test_scene_comes_from_the_log(short_run: RunResult, monkeypatch: pytest.Monk
     assert scene.truth.at(1.0).x_m > 10.0  # 15 m/s for a second
     assert scene.path_xy_m is not None and scene.path_xy_m.shape[1] == 2
     # A log without the attachment: the model is rebuilt from the logged config.
-    monkeypatch.setattr("cosim.log_reader.read_attachment", lambda path, name: None)
+    monkeypatch.setattr("cosim.log.reader.read_attachment", lambda path, name: None)
     rebuilt = render.read_logged_scene(short_run.log_path)
     assert rebuilt.model_source == "rebuilt from the config"
     assert rebuilt.mjcf_xml == scene.mjcf_xml

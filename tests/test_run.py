@@ -10,9 +10,9 @@ import jsonschema
 import pytest
 from mcap.reader import make_reader
 
-from cosim.log_reader import iter_messages, read_summary
-from cosim.metrics import METRIC_KEYS
-from cosim.runner import RunResult
+from cosim.log.reader import iter_messages, read_summary
+from cosim.simulation.metrics import METRIC_KEYS
+from cosim.simulation.runner import RunResult
 from tests.conftest import run_scenario
 
 DESIGN_TOPICS = {

@@ -8,11 +8,9 @@ import numpy as np
 import pytest
 
 from cosim.exceptions import ConfigError
-from cosim.faults import FaultConfig, FaultInjector
 from cosim.records import Measurement, VehicleState
-from cosim.runner import component_rng
-from cosim.scenario_config import load_config
-from cosim.sensors import (
+from cosim.sensing.faults import FaultConfig, FaultInjector
+from cosim.sensing.sensors import (
     GnssConfig,
     GnssSensor,
     HeadingConfig,
@@ -22,6 +20,8 @@ from cosim.sensors import (
     WheelSpeedConfig,
     WheelSpeedSensor,
 )
+from cosim.simulation.runner import component_rng
+from cosim.simulation.scenario_config import load_config
 
 
 def _truth(t_s: float = 0.0, yaw_rad: float = 0.0) -> VehicleState:

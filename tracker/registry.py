@@ -10,7 +10,6 @@ from collections.abc import Callable
 from types import MappingProxyType
 
 from cosim.exceptions import ConfigError
-from cosim.protocols import Tracker
 from tracker.config import TrackerConfig
 from tracker.dynamic_mpc import DynamicMpc
 from tracker.dynamic_nmpc import DynamicNmpc
@@ -18,6 +17,7 @@ from tracker.kinematic_nmpc import KinematicNmpc
 from tracker.ltv_mpc import LtvMpc
 from tracker.maneuver import ManeuverConfig
 from tracker.open_loop import OpenLoopTracker
+from tracker.protocol import Tracker
 
 _CONSTRUCTORS: MappingProxyType[
     str, Callable[[TrackerConfig, ManeuverConfig], Tracker]

@@ -3,7 +3,7 @@
 The plant is driven directly (no runner, no sensors, no estimator): every physics step a
 script sets a :class:`~cosim.records.Command`; it passes the plant's transport delay
 (``actuator_delay_s``, in whole physics steps, as in the runner) and
-:class:`~cosim.low_level.AccelToTorque` with the controller's belief, and the plant
+:class:`~cosim.plant.low_level.AccelToTorque` with the controller's belief, and the plant
 advances one step. Measurements are the true :class:`~cosim.records.VehicleState`.
 
 Where the speed must be held (steady turns, step steers, steering steps), a PI loop on the
@@ -27,10 +27,10 @@ from cosim.identification.data import (
     StepResponse,
 )
 from cosim.initial_state import InitialState
-from cosim.low_level import AccelToTorque
-from cosim.plant import MujocoPlant
+from cosim.plant.car import MujocoPlant
+from cosim.plant.low_level import AccelToTorque
 from cosim.records import Command, VehicleState
-from cosim.scenario_config import steps_per_period
+from cosim.simulation.scenario_config import steps_per_period
 from cosim.vehicle_params import PlantConfig, VehicleParams
 
 SPEED_GAIN_PER_S = 1.5

@@ -14,7 +14,7 @@
    rate limit of the steering actuator, from commanded vs measured road-wheel angle.
 4. Acceleration steps, drive then brake, on a straight road (at most
    ``longitudinal_friction_share`` of the friction limit: about half the grip of a driven
-   axle that carries 43 % of the weight), through :class:`~cosim.low_level.AccelToTorque`
+   axle that carries 43 % of the weight), through :class:`~cosim.plant.low_level.AccelToTorque`
    with the controller's belief -> gain, offset, time constant and dead time from
    commanded ``accel_mps2`` to measured ``ax_mps2``.
 
@@ -38,7 +38,7 @@ from cosim.identification.manoeuvres import (
     step_steer,
 )
 from cosim.identification.model import IdentifiedModel
-from cosim.low_level import GRAVITY_MPS2
+from cosim.plant.low_level import GRAVITY_MPS2
 from cosim.vehicle_params import PlantConfig, VehicleParams
 
 STEER_LIMIT_SHARE = 0.8

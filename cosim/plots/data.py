@@ -18,8 +18,8 @@ from typing import Any
 import numpy as np
 
 from cosim.exceptions import CosimError, LogReadError
-from cosim.log_reader import iter_topics, read_summary
-from cosim.metrics import NEES_STATES
+from cosim.log.reader import iter_topics, read_summary
+from cosim.simulation.metrics import NEES_STATES
 from tracker.reference_path import ReferencePath, wrap_angle
 
 TOPICS = {"/vehicle/truth", "/vehicle/estimate", "/control/command", "/control/plan",

@@ -15,7 +15,7 @@ within centimetres of the path, so one picture cannot show everything. Four pane
    metres around it, and a true-scale close-up in centimetres around the reference point
    nearest the CoG, with the CTE as an arrow, the estimate and the predicted path.
 
-The footprint is the simulated body's outline (``cosim.sedan_model``): wheelbase plus an
+The footprint is the simulated body's outline (``cosim.plant.sedan_model``): wheelbase plus an
 overhang of ``OVERHANG_M`` at each end, track plus 0.2 m, centred between the axles; its
 front edge is drawn heavier. Plans without world-frame ``x_m``/``y_m`` states (dynamic-mpc
 predicts path errors) have no predicted paths; the panels say so.
@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from cosim.plant.sedan_model import OVERHANG_M
 from cosim.plots.data import Plans, RunLog
 from cosim.plots.style import (
     ESTIMATE_COLOUR,
@@ -44,7 +45,6 @@ from cosim.plots.style import (
     style_axes,
     suptitle,
 )
-from cosim.sedan_model import OVERHANG_M
 
 FOOTPRINT_PERIOD_S = 1.0
 """Time between drawn footprints."""

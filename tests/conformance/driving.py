@@ -11,9 +11,9 @@ from collections.abc import Callable
 import numpy as np
 
 from cosim.initial_state import InitialState
-from cosim.low_level import AccelToTorque, ActuatorCommand
-from cosim.plant import MujocoPlant
-from cosim.records import Command, VehicleState
+from cosim.plant.car import MujocoPlant
+from cosim.plant.low_level import AccelToTorque
+from cosim.records import ActuatorCommand, Command, VehicleState
 from cosim.vehicle_params import PlantConfig, VehicleParams
 
 DT_S = 0.002

@@ -1,6 +1,6 @@
 """Conformance in a straight line: the acceleration demand through the low-level layer.
 
-:class:`cosim.low_level.AccelToTorque` turns a demand into wheel torque with a belief about
+:class:`cosim.plant.low_level.AccelToTorque` turns a demand into wheel torque with a belief about
 the car (Gillespie 1992, ch. 2 and 4): ``T = R (m_eff a + 1/2 rho C_d A v^2 + C_rr m g)``,
 ``m_eff = m + 4 I_w / R^2``. With the nominal belief the plant achieves the demand; with
 a belief 20 % lighter (m = 1260 kg, m_eff = 1260 + 41.6 = 1301.6 kg, rolling resistance

@@ -12,8 +12,8 @@ import mujoco
 import pytest
 
 from cosim.initial_state import InitialState
-from cosim.lead_car import LeadCarConfig
-from cosim.plant import MujocoPlant
+from cosim.plant.car import MujocoPlant
+from cosim.plant.lead_car import LeadCarConfig
 from cosim.records import VehicleState
 from cosim.vehicle_params import PlantConfig
 from tests.conformance.driving import DT_S, drive, plant_at, speed_loop

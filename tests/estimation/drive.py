@@ -22,8 +22,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cosim.initial_state import InitialState
+from cosim.plant.sedan_model import ackermann_angles
 from cosim.records import WHEEL_NAMES, Measurement
-from cosim.sedan_model import ackermann_angles
 from cosim.vehicle_params import VehicleParams
 from estimation.config import EstimatorConfig
 from estimation.models import (

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from cosim.runner import run
-from cosim.scenario_config import load_config
+from cosim.simulation.runner import run
+from cosim.simulation.scenario_config import load_config
 from estimation.consistency import NEES_DOF, nees_band, summarise
 
 

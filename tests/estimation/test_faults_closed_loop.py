@@ -1,6 +1,6 @@
 """Sensor faults in the closed loop: the real plant, sensors, tracker and runner, both filters.
 
-Each fault of the issue's list is injected as data (``faults:``, cosim/faults.py) into the
+Each fault of the issue's list is injected as data (``faults:``, cosim/sensing/faults.py) into the
 lane change with the default (RTK) suite, shortened to 11 s (every fault and its recovery
 lie inside). The figures come from the run's log (truth and estimate at 100 Hz) and
 metrics; each faulty run is compared with the same seed's run without the fault.
@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
-from cosim.log_reader import iter_messages
-from cosim.runner import RunResult, run
-from cosim.scenario_config import load_config
+from cosim.log.reader import iter_messages
+from cosim.simulation.runner import RunResult, run
+from cosim.simulation.scenario_config import load_config
 
 pytestmark = pytest.mark.slow
 

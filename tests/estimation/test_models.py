@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from cosim.sedan_model import ackermann_angles
+from cosim.plant.sedan_model import ackermann_angles
 from cosim.vehicle_params import VehicleParams
 from estimation.config import EstimatorConfig
 from estimation.fusion import process_noise, roll_params

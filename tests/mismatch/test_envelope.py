@@ -23,8 +23,8 @@ from pathlib import Path
 
 import pytest
 
-from cosim.runner import RunResult
-from cosim.scenario_config import load_config
+from cosim.simulation.runner import RunResult
+from cosim.simulation.scenario_config import load_config
 from tests.conftest import run_scenario
 
 pytestmark = [pytest.mark.mismatch, pytest.mark.slow]

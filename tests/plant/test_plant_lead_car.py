@@ -14,9 +14,9 @@ import pytest
 
 from cosim.exceptions import ConfigError
 from cosim.initial_state import InitialState
-from cosim.lead_car import LeadCarConfig
-from cosim.low_level import ActuatorCommand
-from cosim.plant import MujocoPlant
+from cosim.plant.car import MujocoPlant
+from cosim.plant.lead_car import LeadCarConfig
+from cosim.records import ActuatorCommand
 from cosim.vehicle_params import PlantConfig
 
 DT_S = 0.002

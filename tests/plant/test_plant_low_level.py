@@ -11,8 +11,8 @@ import math
 
 import pytest
 
-from cosim.low_level import AccelToTorque, ActuatorCommand, effective_mass_kg
-from cosim.records import Command
+from cosim.plant.low_level import AccelToTorque, effective_mass_kg
+from cosim.records import ActuatorCommand, Command
 from cosim.vehicle_params import VehicleParams
 
 BELIEF = VehicleParams()

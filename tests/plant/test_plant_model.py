@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from cosim.exceptions import ConfigError
-from cosim.sedan_model import (
+from cosim.plant.sedan_model import (
     ackermann_angles,
     build_sedan,
     import_mjcf,

@@ -15,10 +15,10 @@ import pytest
 
 from cosim.exceptions import PhysicsDivergenceError
 from cosim.initial_state import InitialState
-from cosim.low_level import AccelToTorque, ActuatorCommand
-from cosim.plant import MujocoPlant
-from cosim.records import Command, VehicleState
-from cosim.sedan_model import ackermann_angles
+from cosim.plant.car import MujocoPlant
+from cosim.plant.low_level import AccelToTorque
+from cosim.plant.sedan_model import ackermann_angles
+from cosim.records import ActuatorCommand, Command, VehicleState
 from cosim.vehicle_params import PlantConfig, VehicleParams
 
 DT_S = 0.002

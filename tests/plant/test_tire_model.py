@@ -14,10 +14,9 @@ import math
 import numpy as np
 import pytest
 
-from cosim.tire_model import (
+from cosim.plant.tire_model import (
     PATCH_AT_REST,
     PatchState,
-    TyreParams,
     combined_forces_n,
     cornering_stiffness_nprad,
     patch_step,
@@ -26,6 +25,7 @@ from cosim.tire_model import (
     relaxation_lengths_m,
     slip_stiffness_n,
 )
+from cosim.tyre_params import TyreParams
 
 TYRE = TyreParams()
 LOADS_N = (1000.0, 3300.0, 4000.0, 4400.0, 7000.0)

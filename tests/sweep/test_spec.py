@@ -9,11 +9,11 @@ from pathlib import Path
 import pytest
 
 from cosim.exceptions import ConfigError, CosimError
-from cosim.scenario_config import parse_override
-from cosim.sweep.execute import execute_task
-from cosim.sweep.plots import heat_map, metric_plots
-from cosim.sweep.results import SweepDir, summary_markdown, write_tables
-from cosim.sweep.spec import load_spec, override_text, unit_of
+from cosim.simulation.scenario_config import parse_override
+from cosim.sweeps.execute import execute_task
+from cosim.sweeps.plots import heat_map, metric_plots
+from cosim.sweeps.results import SweepDir, summary_markdown, write_tables
+from cosim.sweeps.spec import load_spec, override_text, unit_of
 
 
 def write_spec(tmp_path: Path, text: str, name: str = "spec.yaml") -> Path:

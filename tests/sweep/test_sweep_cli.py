@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from cosim.exceptions import CosimError
-from cosim.sweep.execute import make_backend
+from cosim.sweeps.execute import make_backend
 
 COSIM = str(Path(sys.executable).with_name("cosim"))
 

@@ -6,7 +6,7 @@ The car is integrated independently of the CasADi model in
 ``[vy, r]' = A(vx) [vy, r] + B delta`` (seed digest section 2, a11 ... b21, from
 :meth:`tracker.dynamic_bicycle.DynamicBicycleParams.lateral_state_space`), the pose is
 integrated from the body velocities, ``vx' = a``, all by RK4 at the physics step (2 ms).
-The steering actuator is the plant's (:mod:`cosim.plant`): a first-order lag of the command,
+The steering actuator is the plant's (:mod:`cosim.plant.car`): a first-order lag of the command,
 exactly discretised, then a rate limit.
 """
 

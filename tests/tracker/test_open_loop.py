@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from cosim.exceptions import ConfigError
-from cosim.maneuver_metrics import maneuver_metrics
 from cosim.records import Estimate
-from cosim.runner import run
-from cosim.scenario_config import load_config
+from cosim.simulation.maneuver_metrics import maneuver_metrics
+from cosim.simulation.runner import run
+from cosim.simulation.scenario_config import load_config
 from tracker.config import TrackerConfig
 from tracker.double_lane_change import double_lane_change
 from tracker.maneuver import ManeuverConfig

@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from cosim.exceptions import CosimError
-from cosim.log_reader import LogSummary, iter_messages, iter_topics
+from cosim.log.reader import LogSummary, iter_messages, iter_topics
 
 PLAN_TOPIC = "/control/plan"
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from cosim.sensors import TRUTH_FIELDS
+from cosim.sensing.sensors import TRUTH_FIELDS
 
 NUMBER = {"type": "number"}
 NUMBER_OR_NULL = {"type": ["number", "null"]}

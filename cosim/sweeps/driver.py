@@ -2,8 +2,8 @@
 
 :func:`run_sweep` is the whole command minus argument parsing:
 
-1. :func:`cosim.sweep.spec.load_spec` validates the spec (bad input raises before any run);
-2. :meth:`cosim.sweep.results.SweepDir.prepare` starts the output directory or, with
+1. :func:`cosim.sweeps.spec.load_spec` validates the spec (bad input raises before any run);
+2. :meth:`cosim.sweeps.results.SweepDir.prepare` starts the output directory or, with
    ``resume``, checks that it holds a sweep of the same spec (same hash);
 3. the runs whose ids are not yet in ``results.jsonl`` go to the backend; each finished row
    is appended to ``results.jsonl`` at once, so a kill loses only the runs in flight;
@@ -26,16 +26,16 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from cosim.sweep.execute import make_backend
-from cosim.sweep.plots import heat_map, metric_plots
-from cosim.sweep.results import (
+from cosim.sweeps.execute import make_backend
+from cosim.sweeps.plots import heat_map, metric_plots
+from cosim.sweeps.results import (
     SweepDir,
     append_row,
     failures,
     summary_markdown,
     write_tables,
 )
-from cosim.sweep.spec import SweepSpec, load_spec
+from cosim.sweeps.spec import SweepSpec, load_spec
 
 
 @dataclass(frozen=True)

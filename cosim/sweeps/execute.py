@@ -1,10 +1,10 @@
 """Running a sweep's tasks: one run as a function of plain data, and backends that run many.
 
 :func:`execute_task` is the unit of work: it builds the run's configuration with
-:func:`cosim.scenario_config.load_config` from the task's overrides and seed, calls
-:func:`cosim.runner.run` and returns the row as a plain dictionary (no numpy, no paths), so
-it crosses process and machine boundaries unchanged. It never raises for a failed run: an
-exception or a diverging plant becomes a row with ``error`` set, and the sweep goes on. Only
+:func:`cosim.simulation.scenario_config.load_config` from the task's overrides and seed,
+calls :func:`cosim.simulation.runner.run` and returns the row as a plain dictionary (no numpy,
+no paths), so it crosses process and machine boundaries unchanged. It never raises for a failed
+run: an exception or a diverging plant becomes a row with ``error`` set, and the sweep goes on. Only
 an interrupted run (SIGINT/SIGTERM inside the worker) is not a result: its row has
 ``interrupted: true`` and the driver drops it, so ``--resume`` runs it again.
 
@@ -38,7 +38,7 @@ from pathlib import Path
 from typing import Any
 
 from cosim.exceptions import CosimError
-from cosim.sweep.spec import RunTask
+from cosim.sweeps.spec import RunTask
 
 THREAD_LIMITS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 """Environment variables that keep a worker's numeric libraries to one thread each: the
@@ -74,8 +74,8 @@ def execute_task(task: RunTask) -> dict[str, Any]:
     ``None``); ``error`` is ``""`` for a run that completed, else the exception or the abort
     reason. ``started_at``/``finished_at`` are UTC wall-clock stamps.
     """
-    from cosim.runner import run
-    from cosim.scenario_config import load_config
+    from cosim.simulation.runner import run
+    from cosim.simulation.scenario_config import load_config
 
     row: dict[str, Any] = {
         "run_id": task.run_id, "point": task.point, "seed": task.seed,
@@ -113,7 +113,7 @@ def _init_worker() -> None:
 
     A terminal's Ctrl-C reaches every process of the group. An idle worker ignores it (no
     traceback from a worker waiting for work); a running run still stops on it, because
-    :func:`cosim.runner.run` installs its own handler while it runs, and that row is then
+    :func:`cosim.simulation.runner.run` installs its own handler while it runs, and that row is then
     dropped as interrupted.
     """
     for name in THREAD_LIMITS:

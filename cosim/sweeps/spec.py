@@ -30,7 +30,7 @@ a model mismatch; the summary shows both sides.
 Validation happens here, before any run: every dotted path must be a key of the scenario's
 configuration, every grid value and both ends of every random range must pass the
 configuration's own checks (``ConfigError`` names the key and the accepted range), and
-every pass criterion must name a metric of :data:`cosim.metrics.METRIC_KEYS`.
+every pass criterion must name a metric of :data:`cosim.simulation.metrics.METRIC_KEYS`.
 
 The list of runs (:meth:`SweepSpec.tasks`) depends on the spec only: per-run seeds are the
 spec's seeds, random values come from a generator seeded by ``random.seed``, and run ids
@@ -52,7 +52,7 @@ from typing import Any
 import yaml
 
 from cosim.exceptions import ConfigError
-from cosim.metrics import METRIC_KEYS
+from cosim.simulation.metrics import METRIC_KEYS
 
 Scalar = float | int | bool | str
 """A value a varied parameter can take."""
@@ -94,7 +94,7 @@ def axis_label(key: str) -> str:
 
 
 def override_text(key: str, value: Any) -> str:
-    """``key=value`` as :func:`cosim.scenario_config.parse_override` reads it back exactly.
+    """``key=value`` as :func:`~cosim.simulation.scenario_config.parse_override` reads it back.
 
     The value is written as YAML (PyYAML reads ``1e-05`` as a string, ``1.0e-05`` as a
     float, so plain ``str(value)`` would not do).
@@ -391,7 +391,7 @@ def load_spec(path: str | Path) -> SweepSpec:
     Raises :class:`ConfigError` naming the file, the bad key or value and what was expected.
     """
     from cosim.config_fields import to_dict
-    from cosim.scenario_config import load_config
+    from cosim.simulation.scenario_config import load_config
 
     reader = _SpecReader(Path(path))
     data = reader.read()

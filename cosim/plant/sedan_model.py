@@ -112,7 +112,7 @@ def tyre_contact_dimension(tire_model: str) -> int:
     """``condim`` of the tyre-ground contacts for ``PlantConfig.tire_model``.
 
     ``pacejka``: 1, the contacts carry only the normal force (frictionless) and
-    :mod:`cosim.tire_model` supplies the tyre forces; ``contact``: 3, MuJoCo's friction
+    :mod:`cosim.plant.tire_model` supplies the tyre forces; ``contact``: 3, MuJoCo's friction
     (elliptic cone) is the tyre.
     """
     if tire_model == "pacejka":
@@ -264,7 +264,7 @@ def models_dir() -> Path:
     packaged = importlib.resources.files("cosim") / "models"
     if packaged.is_dir():
         return Path(str(packaged))
-    return Path(__file__).resolve().parent.parent / "models"
+    return Path(__file__).resolve().parents[2] / "models"
 
 
 def sedan_xml_path() -> Path:
@@ -273,7 +273,7 @@ def sedan_xml_path() -> Path:
 
 
 def lead_car_xml_path() -> Path:
-    """Path of the lead car model (:mod:`cosim.lead_car`)."""
+    """Path of the lead car model (:mod:`cosim.plant.lead_car`)."""
     return models_dir() / "lead_car.xml"
 
 

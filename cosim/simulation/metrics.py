@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from cosim.maneuver_metrics import maneuver_metrics
 from cosim.records import Command, Estimate, Plan, VehicleState
+from cosim.simulation.maneuver_metrics import maneuver_metrics
 from tracker.maneuver import ManeuverConfig
 from tracker.reference_path import ReferencePath, wrap_angle
 

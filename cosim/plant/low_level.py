@@ -10,7 +10,7 @@ Where each conversion happens in a run:
    resistance, and clips it to the believed torque and power limits. If the belief is wrong
    (the real car is heavier, draggier, ...), the car does not get the acceleration the
    tracker asked for: that is a genuine model mismatch, as on a real vehicle.
-3. The plant (:class:`cosim.plant.MujocoPlant`) receives the :class:`ActuatorCommand`, clips
+3. The plant (:class:`cosim.plant.car.MujocoPlant`) receives the :class:`ActuatorCommand`, clips
    it to the *true* limits, splits drive torque over the driven wheels and brake torque over
    all four, and passes the steering angle through its steering-actuator model.
 
@@ -23,11 +23,9 @@ the mass, and ch. 4 "Road loads"):
 
 from __future__ import annotations
 
-import dataclasses
 import math
-from dataclasses import dataclass
 
-from cosim.records import Command
+from cosim.records import ActuatorCommand, Command
 from cosim.vehicle_params import VehicleParams
 
 AIR_DENSITY_KGPM3 = 1.225
@@ -43,38 +41,6 @@ its sign so there is no chatter at standstill [m/s]."""
 MIN_POWER_SPEED_MPS = 0.5
 """Below this speed the power limit is evaluated at this speed (it would be infinite at
 standstill; the torque limit governs there) [m/s]."""
-
-
-@dataclass(frozen=True)
-class ActuatorCommand:
-    """What the low-level layer asks of the plant's actuators, valid from ``t_s`` on.
-
-    ``drive_torque_nm`` is the total drive torque at the wheels (>= 0), ``brake_torque_nm``
-    the total brake torque of all four wheels (>= 0), ``steer_rad`` the road-wheel angle of
-    the bicycle model (positive left) that the steering actuator is asked to reach.
-    """
-
-    t_s: float
-    drive_torque_nm: float
-    brake_torque_nm: float
-    steer_rad: float
-
-    def __post_init__(self) -> None:
-        for name in ("t_s", "drive_torque_nm", "brake_torque_nm", "steer_rad"):
-            value = getattr(self, name)
-            if not math.isfinite(value):
-                raise ValueError(f"ActuatorCommand.{name} = {value!r}: expected a finite number")
-        if self.drive_torque_nm < 0.0:
-            raise ValueError(
-                f"ActuatorCommand.drive_torque_nm = {self.drive_torque_nm}: expected >= 0"
-            )
-        if self.brake_torque_nm < 0.0:
-            raise ValueError(
-                f"ActuatorCommand.brake_torque_nm = {self.brake_torque_nm}: expected >= 0"
-            )
-
-    def to_message(self) -> dict[str, object]:
-        return dataclasses.asdict(self)
 
 
 def resistance_force_n(params: VehicleParams, speed_mps: float) -> float:

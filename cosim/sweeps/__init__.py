@@ -7,11 +7,11 @@ separate keys, so model mismatch is their difference, stated as data.
 
 The modules, in the order a sweep uses them:
 
-* :mod:`cosim.sweep.spec`: the spec as frozen dataclasses, validated; the list of runs.
-* :mod:`cosim.sweep.execute`: one run as a task (plain dict in, plain dict out) and the
+* :mod:`cosim.sweeps.spec`: the spec as frozen dataclasses, validated; the list of runs.
+* :mod:`cosim.sweeps.execute`: one run as a task (plain dict in, plain dict out) and the
   backends that run many (a spawn process pool, or Ray).
-* :mod:`cosim.sweep.results`: the append-only ``results.jsonl``, resume, CSV/JSON and the
+* :mod:`cosim.sweeps.results`: the append-only ``results.jsonl``, resume, CSV/JSON and the
   Markdown summary.
-* :mod:`cosim.sweep.plots`: the heat map and metric-vs-parameter PNGs (matplotlib, Agg).
-* :mod:`cosim.sweep.driver`: :func:`run_sweep`, which ties them together for the CLI.
+* :mod:`cosim.sweeps.plots`: the heat map and metric-vs-parameter PNGs (matplotlib, Agg).
+* :mod:`cosim.sweeps.driver`: :func:`run_sweep`, which ties them together for the CLI.
 """

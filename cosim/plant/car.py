@@ -1,6 +1,6 @@
 """The plant: a MuJoCo multibody sedan stepped with the raw ``mujoco`` bindings.
 
-The model is built once with PyMJCF (:mod:`cosim.sedan_model`) and compiled from its XML
+The model is built once with PyMJCF (:mod:`cosim.plant.sedan_model`) and compiled from its XML
 (``mjcf_xml``, the model actually simulated, for the log); every joint, body and actuator
 address is looked up by name at construction. Per physics step, :meth:`MujocoPlant.advance`
 runs the actuator models in plain Python and then exactly one MuJoCo step:
@@ -8,7 +8,7 @@ runs the actuator models in plain Python and then exactly one MuJoCo step:
 - steering actuator: first-order lag (``steer_time_constant_s``, exact discretisation) with
   a rate limit (``max_steer_rate_radps``) on the bicycle-model angle, clipped to
   ``max_steer_rad``; the left and right wheels get their Ackermann angles
-  (:func:`cosim.sedan_model.ackermann_angles`) through a fast position servo with velocity
+  (:func:`cosim.plant.sedan_model.ackermann_angles`) through a fast position servo with velocity
   and acceleration feed-forward, so the servo adds no lag of its own;
 - drive: the total torque clipped to ``max_drive_torque_nm`` and to the power limit
   ``max_drive_power_w / omega`` (mean spin of the driven wheels), split equally over the
@@ -29,7 +29,7 @@ runs the actuator models in plain Python and then exactly one MuJoCo step:
     loads and collisions. The step is split (``mj_step1``, tyre forces, ``mj_step2``,
     exactly ``mj_step`` for the implicitfast integrator): from each wheel's contact
     point, its slip velocity in the wheel's heading frame and the contact's normal force
-    of the previous step, :func:`cosim.tire_model.patch_step` (Magic Formula with a
+    of the previous step, :func:`cosim.plant.tire_model.patch_step` (Magic Formula with a
     relaxing contact patch) gives the longitudinal and lateral tyre force, applied to
     the wheel body at the contact point (``xfrc_applied``: the force and its moment
     about the wheel centre). ``tire_friction`` is the tyres' peak friction;
@@ -37,7 +37,7 @@ runs the actuator models in plain Python and then exactly one MuJoCo step:
     friction ``tire_friction``): nearly rigid until it slides, so the car steers
     kinematically (no cornering stiffness); kept for comparison.
 
-With ``lead_car`` (:class:`cosim.lead_car.LeadCarConfig`), a kinematic lead car (a mocap
+With ``lead_car`` (:class:`cosim.plant.lead_car.LeadCarConfig`), a kinematic lead car (a mocap
 body without colliding geoms) drives ahead; the plant advances it after each step.
 """
 
@@ -52,23 +52,24 @@ import numpy as np
 
 from cosim.exceptions import PhysicsDivergenceError
 from cosim.initial_state import InitialState
-from cosim.lead_car import (
+from cosim.plant.lead_car import (
     LeadCarConfig,
     LeadCarPath,
     LeadCarState,
     advance_lead_car,
     lead_car_path,
 )
-from cosim.low_level import ActuatorCommand, resistance_force_n
-from cosim.records import WHEEL_NAMES, VehicleState
-from cosim.sedan_model import (
+from cosim.plant.low_level import resistance_force_n
+from cosim.plant.sedan_model import (
     FRONT_WHEELS,
     LEAD_CAR_PREFIX,
     ackermann_angles,
     driven_wheels,
     sedan_xml_and_assets,
 )
-from cosim.tire_model import PATCH_AT_REST, PatchState, TyreParams, patch_step
+from cosim.plant.tire_model import PATCH_AT_REST, PatchState, patch_step
+from cosim.records import WHEEL_NAMES, ActuatorCommand, VehicleState
+from cosim.tyre_params import TyreParams
 from cosim.vehicle_params import PlantConfig
 
 SETTLE_DURATION_S = 1.5
@@ -300,7 +301,7 @@ class MujocoPlant:
 
         The chassis's angular velocity about its own z axis changes; its linear velocity
         does not, so the body turns away from its course and the tyres react
-        (:mod:`cosim.disturbances`).
+        (:mod:`cosim.plant.disturbances`).
         """
         self._data.qvel[self._angvel_slice.start + 2] += delta_radps
         mujoco.mj_forward(self._model, self._data)
@@ -551,7 +552,7 @@ class _MagicFormulaTyres:
     normal x x), the velocity of the wheel's material point at the contact point and of the
     wheel centre (from MuJoCo's ``cvel``: angular velocity and the linear velocity at the
     chassis subtree's centre of mass), and the normal load (the contact's normal force of
-    the previous step) go into :func:`cosim.tire_model.patch_step`; the resulting force acts
+    the previous step) go into :func:`cosim.plant.tire_model.patch_step`; the resulting force acts
     at the contact point: ``xfrc_applied`` of the wheel body holds the force and its moment
     about the wheel's centre of mass (the wheel centre for the sedan).
     """

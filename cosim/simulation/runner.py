@@ -34,17 +34,20 @@ import numpy as np
 import yaml
 from threadpoolctl import threadpool_limits
 
-from cosim import __version__, disturbances, foxglove, mcap_schemas
+from cosim import __version__
 from cosim.config_fields import to_dict
 from cosim.exceptions import PhysicsDivergenceError
-from cosim.faults import FaultInjector
-from cosim.low_level import AccelToTorque
-from cosim.metrics import MetricsAccumulator
-from cosim.plant import MujocoPlant
-from cosim.recorder import McapRecorder
+from cosim.log import foxglove
+from cosim.log import schemas as mcap_schemas
+from cosim.log.recorder import McapRecorder
+from cosim.plant import disturbances
+from cosim.plant.car import MujocoPlant
+from cosim.plant.low_level import AccelToTorque
 from cosim.records import Command, Estimate, Plan
-from cosim.scenario_config import ScenarioConfig, steps_per_period
-from cosim.sensors import TruthSensor, make_sensors
+from cosim.sensing.faults import FaultInjector
+from cosim.sensing.sensors import TruthSensor, make_sensors
+from cosim.simulation.metrics import MetricsAccumulator
+from cosim.simulation.scenario_config import ScenarioConfig, steps_per_period
 from estimation.registry import make_estimator
 from tracker.double_lane_change import double_lane_change
 from tracker.reference_path import ReferencePath
@@ -290,7 +293,7 @@ class _Run:
             })
 
     def disturb(self, k: int, t_s: float) -> None:
-        """Apply the unmeasured disturbances due at step ``k`` (:mod:`cosim.disturbances`)."""
+        """Apply the unmeasured disturbances due at step ``k`` (:mod:`cosim.plant.disturbances`)."""
         while self.yaw_rate_changes and self.yaw_rate_changes[0].step <= k:
             change = self.yaw_rate_changes.popleft()
             self.plant.add_yaw_rate(change.delta_radps)

@@ -8,7 +8,7 @@ How a frame is made:
 1. **The scene comes from the log.** The MJCF attachment ``sedan.xml`` is the model that
    was simulated (its textures are MuJoCo built-ins, so it needs no asset files); a log
    without it gets the model rebuilt from its ``run`` config with
-   :func:`cosim.sedan_model.sedan_xml_and_assets`, the plant's own builder.
+   :func:`cosim.plant.sedan_model.sedan_xml_and_assets`, the plant's own builder.
 2. **The car is posed from the truth.** ``/vehicle/truth`` (100 Hz) is interpolated
    linearly at each frame's time: the free joint gets the CoG position and the orientation
    from yaw, pitch and roll (intrinsic z-y'-x'', ISO 8855); the front wheels get their
@@ -32,7 +32,7 @@ sample), for every such time up to the end of the log or of ``--duration``.
 **The OpenGL back-end.** MuJoCo picks how it gets an OpenGL context from the ``MUJOCO_GL``
 environment variable, once, when ``mujoco`` is first imported; the plant imports it with
 ``MUJOCO_GL=disable`` (the Makefile's setting; no context needed to simulate). So
-:func:`render_log` runs the renderer in a child process (``python -m cosim.render``,
+:func:`render_log` runs the renderer in a child process (``python -m cosim.plots.render``,
 private protocol: one JSON request in argv, JSON lines of progress and result on stdout)
 whose environment sets ``MUJOCO_GL`` and ``PyOpenGL``'s ``PYOPENGL_PLATFORM`` to the chosen
 back-end; the caller may have imported ``mujoco`` any way it liked. Back-ends
@@ -269,7 +269,7 @@ def read_logged_scene(log_path: Path | str) -> LoggedScene:
 
     Raises :class:`RenderError` if the log has no truth or no way to get the model.
     """
-    from cosim.log_reader import iter_messages, read_attachment, read_summary
+    from cosim.log.reader import iter_messages, read_attachment, read_summary
 
     log_path = Path(log_path)
     rows = [message for _, message in iter_messages(log_path, "/vehicle/truth")]
@@ -299,7 +299,7 @@ def read_logged_scene(log_path: Path | str) -> LoggedScene:
         raise RenderError(f"{str(log_path)!r}: neither the attachment sedan.xml nor a run "
                           "config to rebuild the model from")
     from cosim.config_fields import from_dict
-    from cosim.sedan_model import sedan_xml_and_assets
+    from cosim.plant.sedan_model import sedan_xml_and_assets
     from cosim.vehicle_params import PlantConfig
 
     plant = from_dict(PlantConfig, config["plant"], "plant")
@@ -482,7 +482,7 @@ class ChaseRenderer:
 
     def frame(self, t_s: float) -> np.ndarray:
         """The picture at log time ``t_s``: height x width x 3, uint8 RGB."""
-        from cosim.sedan_model import ackermann_angles
+        from cosim.plant.sedan_model import ackermann_angles
 
         mujoco, model, data = self._mujoco, self._model, self._data
         pose = self._scene.truth.at(t_s)
@@ -548,7 +548,7 @@ def _import_mujoco(gl: str) -> Any:
     if requested != gl:
         raise GlBackendError(f"MUJOCO_GL={requested or '(unset)'} in this process, but "
                              f"rendering with {gl} needs MUJOCO_GL={gl} before mujoco is "
-                             "imported (use cosim.render.render_log)")
+                             "imported (use cosim.plots.render.render_log)")
     try:
         import mujoco
     except Exception as error:  # noqa: BLE001 - a broken GL stack fails in many ways
@@ -675,7 +675,7 @@ def render_log(log_path: Path | str, out_path: Path | str,
     check_gl_backend(gl)
     request = {"log": str(log_path), "out": str(out_path),
                "options": dataclasses.asdict(dataclasses.replace(options, gl=gl))}
-    command = [sys.executable, "-m", "cosim.render", json.dumps(request)]
+    command = [sys.executable, "-m", "cosim.plots.render", json.dumps(request)]
     result: dict[str, Any] | None = None
     with tempfile.TemporaryFile(mode="w+") as stderr:
         child = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=stderr, text=True,
@@ -740,7 +740,7 @@ _CHILD_GL_ERROR = 3
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """The child process of :func:`render_log`: ``python -m cosim.render REQUEST_JSON``.
+    """The child process of :func:`render_log`: ``python -m cosim.plots.render REQUEST_JSON``.
 
     Prints ``{"progress": f}`` lines and one ``{"result": {...}}`` line on stdout; a
     :class:`CosimError` is one line on stderr and exit code 2 (3 for a GL back-end error).
@@ -748,7 +748,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = list(sys.argv[1:] if argv is None else argv)
     try:
         if len(args) != 1:
-            raise RenderError("usage: python -m cosim.render REQUEST_JSON (internal: use "
+            raise RenderError("usage: python -m cosim.plots.render REQUEST_JSON (internal: use "
                               "`cosim render`)")
         request = json.loads(args[0])
         options = RenderOptions(**request["options"])

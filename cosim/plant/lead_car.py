@@ -7,9 +7,9 @@ profile: it starts at ``initial_speed_mps`` and follows a piecewise-constant acc
 reverses: a braking lead car stops and stays stopped.
 
 In MuJoCo it is ``models/lead_car.xml`` attached to the sedan (a mocap body without mass
-or colliding geoms, :func:`cosim.sedan_model.build_sedan`); :class:`cosim.plant.MujocoPlant`
-advances :func:`advance_lead_car` every physics step and sets the mocap pose from it. Off
-by default (``MujocoPlant(..., lead_car=None)``).
+or colliding geoms, :func:`cosim.plant.sedan_model.build_sedan`);
+:class:`cosim.plant.car.MujocoPlant` advances :func:`advance_lead_car` every physics step
+and sets the mocap pose from it. Off by default (``MujocoPlant(..., lead_car=None)``).
 """
 
 from __future__ import annotations

@@ -8,7 +8,7 @@ Layout of ``--out DIR``::
     results.csv     one flat row per run, sorted by run id
     results.json    the same rows plus the sweep's description, pass rate and headline metric
     summary.md      what was varied, pass rate, worst cases, per-value aggregates, plots
-    *.png           plots (:mod:`cosim.sweep.plots`)
+    *.png           plots (:mod:`cosim.sweeps.plots`)
     logs/           run-NNNN.mcap, one per run, with --keep-logs
 
 ``results.jsonl`` is the record of truth: a killed sweep loses at most the runs in flight,
@@ -29,8 +29,8 @@ from pathlib import Path
 from typing import IO, Any
 
 from cosim.exceptions import CosimError
-from cosim.metrics import METRIC_KEYS
-from cosim.sweep.spec import Parameter, SweepSpec, axis_label, unit_of
+from cosim.simulation.metrics import METRIC_KEYS
+from cosim.sweeps.spec import Parameter, SweepSpec, axis_label, unit_of
 
 SWEEP_FILE = "sweep.json"
 ROWS_FILE = "results.jsonl"

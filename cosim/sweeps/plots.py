@@ -21,8 +21,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from cosim.sweep.results import as_number, grid_cells
-from cosim.sweep.spec import Parameter, SweepSpec, axis_label, unit_of
+from cosim.sweeps.results import as_number, grid_cells
+from cosim.sweeps.spec import Parameter, SweepSpec, axis_label, unit_of
 
 DPI = 130
 

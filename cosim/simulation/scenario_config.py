@@ -18,12 +18,12 @@ from typing import Any
 import yaml
 
 from cosim.config_fields import from_dict, items, section, set_dotted, setting
-from cosim.disturbances import DisturbanceConfig
 from cosim.exceptions import ConfigError, RateError
-from cosim.faults import FaultConfig
-from cosim.foxglove import GeoOrigin
 from cosim.initial_state import InitialState
-from cosim.sensors import SensorsConfig, suite_preset
+from cosim.log.foxglove import GeoOrigin
+from cosim.plant.disturbances import DisturbanceConfig
+from cosim.sensing.faults import FaultConfig
+from cosim.sensing.sensors import SensorsConfig, suite_preset
 from cosim.vehicle_params import PlantConfig
 from estimation.config import EstimatorConfig
 from tracker.config import TrackerConfig

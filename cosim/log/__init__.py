@@ -1,0 +1,1 @@
+"""The MCAP log: writing, schemas, Foxglove messages, reading back and export."""

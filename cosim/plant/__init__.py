@@ -1,0 +1,1 @@
+"""The truth: the MuJoCo car, its tyres and actuation, traffic and disturbances."""

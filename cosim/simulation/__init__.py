@@ -1,0 +1,1 @@
+"""One run: the loop, its configuration and its metrics."""
