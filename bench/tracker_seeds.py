@@ -1,8 +1,9 @@
-"""Every MPC tracker on the lane change over several seeds, against seed section 2's bar.
+"""Every MPC tracker on the lane change over several seeds, against the delta-u MPC's bar.
 
     .venv/bin/python bench/tracker_seeds.py [--seeds 5] [--tracker NAME ...] [--set k=v ...]
 
-The seed paper reports, on its own linear model without noise: max lateral deviation 88 mm,
+The bar for a delta-u MPC on this path (Rajamani's path-error model, see
+:mod:`tracker.dynamic_mpc`), on its own linear model without noise: max lateral deviation 88 mm,
 heading error under 3 deg, 20 m/s reached by 5.8 s, steering within 15 deg, acceleration
 within 3 m/s^2. Here each tracker drives the MuJoCo sedan with the ``rtk`` suite and the EKF
 (the ``lane-change`` scenario) once per seed; the table prints one row per run and the worst

@@ -2,16 +2,17 @@
 
 The plant is built from ``plant`` (a :class:`PlantConfig`, which is a :class:`VehicleParams`
 plus how the plant is simulated); a tracker's internal model reads ``tracker.model`` (a
-:class:`VehicleParams`). Both default to the seed paper's sedan (seed digest section 2:
-m = 1575 kg, I_z = 2875 kg m^2, l_f = 1.2 m, l_r = 1.6 m). Model mismatch is the difference
+:class:`VehicleParams`). Both default to the sedan of The MathWorks' lane-keeping MPC example
+("Lane Keeping Assist System Using Model Predictive Control", Model Predictive Control
+Toolbox documentation): m = 1575 kg, I_z = 2875 kg m^2, l_f = 1.2 m, l_r = 1.6 m). Model mismatch is the difference
 between the two records, stated as data.
 
 The steering actuator (``steer_time_constant_s``, ``max_steer_rate_radps``) is the plant's
 truth in ``plant`` and a tracker's belief in ``tracker.model``. The axle cornering
 stiffnesses are a belief for dynamic models only (the plant's own tyres are the Pacejka
 model in ``plant.tyre``); their defaults are what ``cosim identify`` finds on the default
-sedan (C_f = 72 550 N/rad, C_r = 79 580 N/rad, understeer gradient 2.2 deg/g), not the seed
-paper's C_f = 19 000 and C_r = 33 000 N/rad (section 2), which a user can still state as a
+sedan (C_f = 72 550 N/rad, C_r = 79 580 N/rad, understeer gradient 2.2 deg/g), not that
+example's C_f = 19 000 and C_r = 33 000 N/rad, which a user can still state as a
 belief (``--set tracker.model.cornering_stiffness_front_npr=19000``).
 """
 

@@ -140,7 +140,7 @@ class EstimatorConfig:
         False,
         doc="gate the IMU too. Off: the IMU is the filter's one direct view of sudden motion "
         "(a yaw kick, a kerb strike), which the process model cannot predict; gated, a 5 deg "
-        "heading step (seed section 2's disturbance) was rejected for gate_release_s and "
+        "heading step (the ``disturbances:`` heading kick) was rejected for gate_release_s and "
         "the car left the path by 1.1 m, against 0.09 m ungated",
     )
     gate_probability: float = setting(

@@ -29,7 +29,7 @@ State (world frame ENU for the pose, vehicle frame ISO 8855 for the rates), name
                                  believed one (tyre deflection, wear); dimensionless, ~1
 ===============================  ============================================================
 
-Process model: the dynamic bicycle (seed digest section 2; Rajamani, "Vehicle Dynamics and
+Process model: the dynamic bicycle (Rajamani, "Vehicle Dynamics and
 Control", 2nd ed., section 2.3; the equations of :mod:`tracker.dynamic_bicycle`, written
 again here so that the filter can guard the slip angles at low speed and add what follows),
 with the measured steering angle as its input through the state ``steer_rad``, a body roll

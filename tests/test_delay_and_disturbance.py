@@ -1,4 +1,4 @@
-"""Seed sections 1 and 2 on the MuJoCo car: actuator delay with and without latency
+"""Latency and disturbances on the MuJoCo car: actuator delay with and without latency
 compensation, and the unmeasured heading step, with the EKF in the loop."""
 
 from __future__ import annotations
@@ -53,7 +53,7 @@ def _cte_after(result: RunResult, t_from_s: float) -> np.ndarray:
 
 @pytest.mark.slow
 def test_an_unmeasured_5_deg_heading_step_is_rejected(tmp_path: Path) -> None:
-    """Seed section 2's disturbance on the straight after the lane change (9 s): the car
+    """The unmeasured heading-step disturbance on the straight after the lane change (9 s): the car
     is kicked 5 deg to the left and steered back; the errors return to zero."""
     result = run_scenario(tmp_path, "lane-change",
                           "disturbances=[{t_s: 9.0, random: false, angle_rad: 0.087}]")

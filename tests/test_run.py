@@ -114,7 +114,7 @@ def test_truth_messages_carry_the_vehicle_state_fields(short_run: RunResult) -> 
 
 @pytest.mark.slow
 def test_lane_change_is_tracked_with_the_ekf_in_the_loop(lane_change_run: RunResult) -> None:
-    """Issue 5's bar, the seed paper's on its own model without noise (section 2): max
+    """Issue 5's bar, a delta-u MPC's on its own model without noise (tracker.dynamic_mpc): max
     lateral deviation 88 mm, heading error under 3 deg, 20 m/s by 5.8 s, steering within
     15 deg and acceleration within 3 m/s^2."""
     metrics = lane_change_run.metrics

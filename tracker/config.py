@@ -4,7 +4,8 @@ Every key is a validated :func:`cosim.config_fields.setting`, so a scenario file
 command line (``--set tracker.horizon=30``, ``--set tracker.weights.cte=5``) is checked by
 :func:`cosim.config_fields.from_dict` and a bad value names its dotted key.
 
-The cost the weights enter (seed digest section 1) is integrated over the horizon::
+The cost the weights enter (a tracking MPC cost: Rawlings, Mayne, Diehl 2017; Kong et al.
+2015) is integrated over the horizon::
 
     J = sum_{k=1..N} dt [ w_cte cte_k^2 + w_heading epsi_k^2 + w_speed (v_k - v_ref)^2 ]
       + sum_{k=0..N-1} dt [ w_accel a_k^2 + w_steer (delta_k - delta_ff,k)^2
@@ -28,16 +29,16 @@ lane change at 20 m/s from 15 m/s, about 0.5 g; max CTE for seeds 0/1/2, ``plant
   the gain is a few millimetres, bought with a jumpier wheel on the straight (RMS steering
   rate from sensor noise 0.048 / 0.032 / 0.020 rad/s) and less margin: with MuJoCo contact
   tyres (a car with no cornering compliance, far from the belief) ``steer_rate = 1``
-  oscillated to 1.96 m, 3 gives 0.37 m (seed lesson: with noisy sensing, moderate weights
+  oscillated to 1.96 m, 3 gives 0.37 m (with noisy sensing, moderate weights
   beat aggressive ones). The kinematic NMPC with these weights: 0.054 / 0.043 m (seeds
-  0/1) with ``kinematic_understeer`` (the default), 0.80 / 0.75 m with seed section 1's
-  pure kinematic model (1.56 m with 20); with contact tyres 0.12 m with the filter that
+  0/1) with ``kinematic_understeer`` (the default), 0.80 / 0.75 m with the
+  pure kinematic model (Kong et al. 2015) (1.56 m with 20); with contact tyres 0.12 m with the filter that
   has no tyre model (0.13 m with 20), 3.0 m with the filter that assumes the belief's
   linear tyres (0.69 m with 20): ``--set tracker.weights.steer_rate=20`` restores its
   earlier tuning.
   The other weights matter little: ``heading`` 0.5 instead of 2 changes nothing; ``speed``
-  against ``accel`` makes the car accelerate at the 3 m/s^2 bound from 15 to 20 m/s, as in
-  the seed paper (section 2).
+  against ``accel`` makes the car accelerate at the 3 m/s^2 bound from 15 to 20 m/s, as the
+  ``dynamic-mpc`` design does.
 * ``limit_excess = 1e4``: the soft limit on the dynamic model's slip angles (the linear
   tyres' range). It never binds at 0.5 g; on Falcone's unstretched path (1.11 g,
   ``lane-change-limit``) it keeps the car from spinning (0.70 m instead of 15.7 m).
@@ -47,14 +48,14 @@ lane change at 20 m/s from 15 m/s, about 0.5 g; max CTE for seeds 0/1/2, ``plant
   delay (seed 0): 0.073 m against 0.057 m without delay; without compensation the car
   spins (8.2 m). The steering actuator's lag is not latency: the dynamic model contains
   it, and the kinematic model, which lacks it, adds ``model.steer_time_constant_s`` to the
-  delay it predicts over (section 1, latency item (a); see :mod:`tracker.kinematic_nmpc`).
-* ``reference = spline`` with ``curvature_feedforward``: the seed's cubic fit
-  (``cubic-polynomial``) gives 0.047 / 0.063 / 0.074 m (seeds 0/1/2, dynamic-nmpc)
+  delay it predicts over (see :mod:`tracker.kinematic_nmpc`).
+* ``reference = spline`` with ``curvature_feedforward``: a cubic fitted in the vehicle
+  frame (``cubic-polynomial``) gives 0.047 / 0.063 / 0.074 m (seeds 0/1/2, dynamic-nmpc)
   against 0.058 / 0.046 / 0.047 m; the feed-forward changes less than a millimetre on
-  the lane change (0.0575 / 0.0462 / 0.0469 m without; seed lesson: it changed little);
+  the lane change (0.0575 / 0.0462 / 0.0469 m without; it changes little);
   on a 40 m circle it removes the steering weight's pull off the path (0.06 mm without).
 * ``horizon = 25`` at ``dt_s = 0.05``: 1.25 s or 25 m of preview at 20 m/s, the length of
-  one steering swing of the lane change (section 1: longer horizons at higher speed). 20
+  one steering swing of the lane change (longer horizons at higher speed). 20
   stages: 0.094 m; 30 stages: 0.052 m at about 15 % more solve time.
 * ``solver = ipopt``: the reference. ``fatrop`` reaches the same optimum 2-3 times faster
   and ``sqp-rti`` (one Gauss-Newton SQP step per control step, hpipm for the QP) gives the
@@ -83,7 +84,7 @@ TRACKER_CHOICES: tuple[str, ...] = (
 
 @dataclass(frozen=True)
 class TrackerWeights:
-    """Weights of the tracking cost (seed digest section 1), per second of horizon."""
+    """Weights of the tracking cost, per second of horizon."""
 
     cte: float = setting(10.0, low=0.0, high=1e6, doc="cross-track error^2 [1/(m^2 s)]")
     heading: float = setting(2.0, low=0.0, high=1e6, doc="heading error^2 [1/(rad^2 s)]")
@@ -116,7 +117,7 @@ class TrackerConfig:
     dt_s: float = setting(0.05, low=0.005, high=1.0, doc="length of one stage [s]")
     weights: TrackerWeights = section(TrackerWeights)
     max_steer_rad: float = setting(
-        math.pi / 8.0, low=0.01, high=1.0, doc="steering bound, |delta| (seed section 1)"
+        math.pi / 8.0, low=0.01, high=1.0, doc="steering bound, |delta|"
     )
     max_steer_rate_radps: float = setting(
         0.8, low=0.01, high=100.0, doc="steering rate bound, |d delta / dt|"
@@ -127,14 +128,14 @@ class TrackerConfig:
         "spline",
         choices=REFERENCE_KINDS,
         doc="reference over the horizon (tracker.horizon_reference): spline, the path "
-        "itself at the arc lengths to be covered; cubic-polynomial, seed section 1's cubic "
+        "itself at the arc lengths to be covered; cubic-polynomial, a cubic "
         "fitted to the waypoints in the vehicle frame",
     )
     kinematic_understeer: bool = setting(
         True,
         doc="kinematic-nmpc: turn at the steady-state yaw rate and slip of the belief's "
         "linear tyres (tracker.kinematic_bicycle (U1)-(U2)) instead of the kinematic ones; "
-        "false is seed section 1's model (max CTE 0.80 m against 0.054 m on the sedan)",
+        "false is the pure kinematic model (max CTE 0.80 m against 0.054 m on the sedan)",
     )
     curvature_feedforward: bool = setting(
         True,
@@ -170,8 +171,7 @@ class TrackerConfig:
     )
     latency_compensation: bool = setting(
         True,
-        doc="predict the estimate over latency_s with the commands in the delay line "
-        "(seed section 1, latency remedy (a))",
+        doc="predict the estimate over latency_s with the commands in the delay line",
     )
     latency_s: float = setting(
         0.0,

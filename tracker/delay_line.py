@@ -1,9 +1,9 @@
-"""What a tracker knows of its own commands on their way to the car (seed digest section 1).
+"""What a tracker knows of its own commands on their way to the car.
 
 The runner holds each command in a delay line for ``plant.actuator_delay_s`` before the car
 receives it. A tracker that knows the delay ``d`` also knows which of its commands the car
 is executing at any time ``tau``: the newest one issued at or before ``tau - d`` (before
-the first, the initial actuation). Section 1's latency remedy (a) predicts the measured
+the first, the initial actuation). Latency compensation predicts the measured
 state forward over the latency "with the previous inputs"; the exact previous inputs are
 these, the commands already in the delay line, not the last one held.
 

@@ -1,10 +1,13 @@
-"""The double-lane-change path (seed digest section 2, eq. 16; Falcone et al. 2007).
+"""The double-lane-change path (Falcone et al. 2007).
+
+Falcone, Borrelli, Asgari, Tseng, Hrovat, "Predictive active steering control for
+autonomous vehicle systems", IEEE Trans. Control Systems Technology 15(3):566-580, 2007:
 
     z1 = a1 (x - b1) - c1,   z2 = a2 (x - b2) - c2
     y  = y1 (1 + tanh z1) - y2 (1 + tanh z2)
 
 Falcone's constants need 1.11 g at 20 m/s; stretched along x by 1.5 the path needs 0.50 g,
-the manoeuvre the seed paper must have driven (its reported 9.5 deg of steering matches).
+the manoeuvre the ``dynamic-mpc`` design targets (9.5 deg of steering on its model).
 ``stretch`` scales the x-constants: a_i -> a_i / stretch, b_i -> b_i * stretch.
 """
 

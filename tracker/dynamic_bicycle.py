@@ -1,4 +1,4 @@
-"""The linear-tyre dynamic bicycle as CasADi expressions (seed digest section 2).
+"""The linear-tyre dynamic bicycle as CasADi expressions (Rajamani 2012, sec. 2.3).
 
 Lateral state ``[vy_mps, yaw_rate_radps]``: lateral velocity of the centre of gravity (CoG)
 and yaw rate, both in the vehicle frame (ISO 8855: x forward, y left, z up; yaw
@@ -6,7 +6,7 @@ counter-clockwise positive). Input ``steer_rad``: front road-wheel angle, positi
 left. The forward speed ``vx_mps`` is a scheduling variable of the lateral model. For
 simulation the state is extended to ``[x_m, y_m, yaw_rad, vx_mps, vy_mps, yaw_rate_radps]``
 (position of the CoG in the world frame, ENU) with the inputs ``[accel_mps2, steer_rad]``,
-where ``accel_mps2`` is ``vx'`` (the seed's longitudinal input).
+where ``accel_mps2`` is ``vx'`` (the longitudinal input).
 
 Parameters ``[mass_kg, yaw_inertia_kgm2, cog_front_m, cog_rear_m,
 cornering_stiffness_front_npr, cornering_stiffness_rear_npr]`` (:data:`PARAM_NAMES`) are an
@@ -14,7 +14,7 @@ input of every Function, so one Function serves a controller (numbers) and syste
 identification (symbols, exact Jacobians). The cornering stiffnesses are per *axle* (both
 tyres): Rajamani writes ``2 C_alpha`` for the same quantity.
 
-Equations (seed digest section 2; Rajamani, "Vehicle Dynamics and Control", 2nd ed., ch. 2,
+Equations (Rajamani, "Vehicle Dynamics and Control", 2nd ed., ch. 2,
 the bicycle model of lateral vehicle dynamics), small angles::
 
     alpha_f = delta - (vy + l_f r) / vx                                   (D1)
@@ -25,7 +25,7 @@ the bicycle model of lateral vehicle dynamics), small angles::
     x' = vx cos(yaw) - vy sin(yaw),  y' = vx sin(yaw) + vy cos(yaw),
     yaw' = r,  vx' = a                                                    (D6)
 
-(D4)-(D5) are the seed's ``vy' = a11 vy + a12 r + b11 delta``, ``r' = a21 vy + a22 r +
+(D4)-(D5) are the state-space form ``vy' = a11 vy + a12 r + b11 delta``, ``r' = a21 vy + a22 r +
 b21 delta`` (:meth:`DynamicBicycleParams.lateral_state_space`).
 
 Steady-state cornering (Rajamani ch. 3, steady-state steering and the understeer gradient):
@@ -37,7 +37,7 @@ gives the steering of a steady turn ``delta = L / R + K a_y`` and hence the yaw-
 
     r / delta = vx / (L + K vx^2) = (vx / L) / (1 + K_g vx^2 / (g L))     (S2)
 
-where ``K_g = K g`` is the same gradient in rad per g (the brief's form of (S2) needs K in
+where ``K_g = K g`` is the same gradient in rad per g (a form of (S2) often printed needs K in
 rad/g, not rad/(m/s^2)). The lateral velocity of the steady turn follows from the rear
 axle's share of the centripetal force, ``F_yr = m vx r l_f / L``, and (D2):
 
@@ -159,7 +159,7 @@ class DynamicBicycleParams:
         return {"vy_mps": vy, "yaw_rate_radps": yaw_rate, "ay_mps2": vx_mps * yaw_rate}
 
     def lateral_state_space(self, vx_mps: float) -> tuple[np.ndarray, np.ndarray]:
-        """``(A, B)`` of ``[vy, r]' = A [vy, r] + B delta`` at ``vx_mps`` (the seed's a11 ...
+        """``(A, B)`` of ``[vy, r]' = A [vy, r] + B delta`` at ``vx_mps`` (a11 ...
         b21), rows and columns in :data:`LATERAL_STATE_NAMES` order."""
         if not (math.isfinite(vx_mps) and vx_mps > 0.0):
             raise ConfigError(f"vx_mps = {vx_mps!r}: expected a positive forward speed")

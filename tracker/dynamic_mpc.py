@@ -1,10 +1,21 @@
-"""Delta-u MPC on the dynamic bicycle in path coordinates (seed digest section 2).
+"""Delta-u MPC on the dynamic bicycle in path coordinates.
 
-The Persian paper's controller (Ghariblu), as a tracker: at every control step
+The model is Rajamani's dynamic bicycle in path-error coordinates ("Vehicle Dynamics and
+Control", 2nd ed., Springer 2012, sec. 2.3 and 2.5); the controller is a delta-u linear
+MPC with prediction horizon ``Np`` and control horizon ``Nc`` (L. Wang, "Model Predictive
+Control System Design and Implementation Using MATLAB", Springer 2009, ch. 1-3; input
+increments as in Falcone et al., IEEE TCST 2007). "The reference design" below is the
+project's target for this controller: ``Np = 10``, ``Nc = 2``, ``Ts = 0.1 s``, steering
+within 15 deg, acceleration within +-3 m/s^2, ``|e1| <= 0.5 m``, ``|e2| <= 3 deg``, and
+the bar it sets on the stretched double lane change at 20 m/s, on its own linear model
+without noise: max lateral deviation 88 mm, max steering 9.5 deg, heading error below
+3 deg, 18.3 m/s reached at 1.1 s.
+
+At every control step
 
 1. **Starting point.** The estimate (``x_m, y_m, yaw_rad, vx_mps, vy_mps,
    yaw_rate_radps``) is predicted forward over its age and the transport delay the tracker
-   believes in (seed section 1, latency remedy (a)) with the world-frame steered dynamic
+   believes in (latency compensation) with the world-frame steered dynamic
    bicycle (:func:`tracker.steered_dynamic_bicycle.predict_function`), piece by piece with
    the commands the car is executing meanwhile (:class:`tracker.delay_line.IssuedInputs`).
    Two actuator states no estimator reports are carried by the tracker itself
@@ -15,12 +26,12 @@ The Persian paper's controller (Ghariblu), as a tracker: at every control step
    ``e2 = yaw - path_yaw``. The path model's state is then
    :data:`tracker.path_error_bicycle.STATE_NAMES`.
 2. **Model.** (P1)-(P7) of :mod:`tracker.path_error_bicycle`, linearised at the starting
-   speed ``v0`` (LPV: the paper re-linearises at the current ``v_x`` every step), RK4
-   instead of the paper's Euler (see there why). The desired yaw rate of each stage is
+   speed ``v0`` (LPV: the reference design re-linearises at the current ``v_x`` every step), RK4
+   instead of the reference design's Euler (see there why). The desired yaw rate of each stage is
    ``psi_D' = v kappa(s)`` at the middle of the stage, with ``s`` the arc length the car
    is expected to reach and ``v`` its expected speed: the speed change the last plan
    predicted, added to ``v0`` (``v0`` held on the first step).
-3. **QP** (the paper's delta-u form). The state is augmented with the previous input, so
+3. **QP** (the reference design's delta-u form). The state is augmented with the previous input, so
    the decision variables are the input increments over the control horizon,
    ``u_k = u_{k-1} + Delta u_k`` for ``k < Nc`` (``u_{-1}`` the command issued last), the
    input held from ``Nc`` on; the predicted states are affine in them (a condensed QP of
@@ -30,10 +41,10 @@ The Persian paper's controller (Ghariblu), as a tracker: at every control step
        J = sum_{j=1..Np} ||Y_j - Y_ref||_Q^2 + sum_{i<Nc} ||Delta u_i||_R^2 + slack terms
 
    with ``Y = [vx, e1, e2]``, ``Y_ref = [v_D, 0, 0]``. Hard bounds: steering within
-   ``min(tracker.max_steer_rad, dynamic_mpc.max_steer_rad)`` (paper: 15 deg),
-   acceleration within ``[tracker.accel_min_mps2, tracker.accel_max_mps2]`` (paper:
+   ``min(tracker.max_steer_rad, dynamic_mpc.max_steer_rad)`` (reference design: 15 deg),
+   acceleration within ``[tracker.accel_min_mps2, tracker.accel_max_mps2]`` (reference design:
    +-3 m/s^2), steering increments within ``max_steer_rate_radps`` times the time they
-   span (the time since the last command for the first). Soft limits (the paper's hard
+   span (the time since the last command for the first). Soft limits (the reference design's hard
    ones, softened so the QP is never infeasible): ``|e1| <= 0.5 m``, ``|e2| <= 3 deg``,
    ``0 <= vx <= 30 m/s``, with one slack per limit and node ``1..Np``, penalised squared
    and linearly with ``weight_slack``. The QP is one ``ca.qpsol`` built in the
@@ -51,11 +62,11 @@ stages; ``dt_s`` is ``Ts``. Nothing depends on wall-clock time but ``solve_time_
 Choices, and the measurements behind them (MuJoCo sedan with Pacejka tyres, EKF in the
 loop, ``lane-change``: the stretched double lane change at 20 m/s from 15 m/s, 0.5 g;
 max CTE for seeds 0-4; on its own model, the bench of the tests, 64 mm against the
-paper's 88 mm):
+reference design's 88 mm):
 
 * **Back-end: HiGHS** (``qp_solver: highs``; its active-set QP solver reports its
   iterations, about 39 per step: it counts every slack bound it fixes). On 4500 QPs
-  logged from 15 plant runs (seeds 0-4: nominal, 100 ms delay uncompensated, the paper's
+  logged from 15 plant runs (seeds 0-4: nominal, 100 ms delay uncompensated, the reference design's
   belief) HiGHS failed once ("claims optimality, but with primal infeasibilities" of
   1e-4; the fallback replays the last plan for that step), 0.8 ms median. DAQP (``daqp``)
   solved all of them in 0.27 ms with the same solutions (within 5e-9) but reports no
@@ -80,13 +91,13 @@ paper's 88 mm):
   ramps the acceleration up over 0.15 s instead of stepping to 3 m/s^2: with 0.1 the
   rear-driven sedan on ``plant.tire_friction=0.7`` spins its wheels at the step, keeps
   accelerating into the lane change and spins out (13-14 m); with 10 it tracks within
-  0.048 m. The paper reaches 18.3 m/s at 1.1 s, this 18.2 m/s.
-* **The paper's heading reference** ``e2 = 0``. In a steady turn the heading differs from
+  0.048 m. The reference design reaches 18.3 m/s at 1.1 s, this 18.2 m/s.
+* **The reference design's heading reference** ``e2 = 0``. In a steady turn the heading differs from
   the path's by the side slip, so the heading weight buys it with a small lateral offset
   (the bench: 8 mm in a steady 0.5 g turn, 0.1 mm with ``weight_heading = 10``). A
   reference of minus the belief's steady side slip (S3) removes it, but did not help the
-  lane change (0.050 m at best, heading weight 300), so the paper's is kept.
-* **No actuator lag in the model** (the paper's): also predicting over the belief's
+  lane change (0.050 m at best, heading weight 300), so the reference design's is kept.
+* **No actuator lag in the model** (the reference design's): also predicting over the belief's
   steering time constant, as :mod:`tracker.kinematic_nmpc` does, made it worse (with
   earlier weights: 0.068 m with 25 ms more, 0.086 m with 50 ms, against 0.055 m). On
   the bench the lag even helps: 84 mm without it (``Nc = 5``: 52 mm).
@@ -101,12 +112,12 @@ with other work)::
       tracker.latency_compensation=false 0.082 0.154 0.123 0.093 0.102   1.02-1.12 / 1.3-1.9
     qp_solver=daqp                       identical                       0.37-0.46 / 0.45-0.80
     control_horizon=5                    0.026 0.046 0.053 0.044 0.044   1.27-1.48 / 1.6-2.6
-    paper's belief (C_f 19000, C_r 33000) 0.562 0.586 0.559 0.553 0.574  0.81-0.86 / 1.1-1.3
+    belief C_f 19000, C_r 33000 N/rad    0.562 0.586 0.559 0.553 0.574  0.81-0.86 / 1.1-1.3
 
 No solver failures in these 30 runs; HiGHS takes 39 iterations median (at most 54).
-Max heading error 0.030-0.032 rad (the paper: < 3 deg = 0.052), max steering 0.066-0.070
-rad. The paper's belief expects 3.8 / 2.4 times softer tyres than the sedan's (15 deg/g
-of understeer against 2.2) and a side slip of 4.6 deg at 0.5 g, beyond its own 3 deg
+Max heading error 0.030-0.032 rad (the reference design: < 3 deg = 0.052), max steering
+0.066-0.070 rad. The reference design's belief (C_f 19000, C_r 33000 N/rad) expects 3.8 /
+2.4 times softer tyres than the sedan's (15 deg/g of understeer against 2.2) and a side slip of 4.6 deg at 0.5 g, beyond its own 3 deg
 heading limit. Other cases: ``plant.mass_kg=2000`` 0.076 / 0.063 / 0.062 m (seeds 0-2),
 ``plant.tire_friction=0.7`` 0.042 / 0.048 / 0.046 m; the model has no tyre limits
 (unlike ``dynamic-nmpc``'s soft slip-angle limits), yet Falcone's unstretched path
@@ -226,7 +237,7 @@ class _Qp:
 
 
 class DynamicMpc:
-    """Delta-u linear MPC on the path-error dynamic bicycle with a CasADi QP (section 2).
+    """Delta-u linear MPC on the path-error dynamic bicycle with a CasADi QP.
 
     Args:
       config: the tracker configuration; ``config.dynamic_mpc`` holds the horizons, the

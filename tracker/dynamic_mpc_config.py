@@ -1,6 +1,9 @@
-"""Settings of the ``dynamic-mpc`` tracker: ``tracker.dynamic_mpc`` (seed digest section 2).
+"""Settings of the ``dynamic-mpc`` tracker: ``tracker.dynamic_mpc``.
 
-The cost is the paper's sum over stages (not an integral over time, unlike
+The defaults are the reference design of :mod:`tracker.dynamic_mpc` (Np = 10, Nc = 2,
+Ts = 0.1 s, its bounds and soft limits).
+
+The cost is the reference design's sum over stages (not an integral over time, unlike
 ``tracker.weights``), so each weight multiplies the square of an SI quantity once per
 stage::
 
@@ -30,7 +33,7 @@ measurements: :mod:`tracker.dynamic_mpc`)."""
 
 @dataclass(frozen=True)
 class DynamicMpcConfig:
-    """The delta-u MPC on the dynamic bicycle with path-error states (seed section 2)."""
+    """The delta-u MPC on the dynamic bicycle with path-error states (:mod:`tracker.dynamic_mpc`)."""
 
     prediction_horizon: int = setting(10, low=1, high=200, doc="Np, stages predicted")
     control_horizon: int = setting(
@@ -41,7 +44,7 @@ class DynamicMpcConfig:
         0.1,
         low=0.001,
         high=5.0,
-        doc="first-order lag of the achieved acceleration behind the command; the paper "
+        doc="first-order lag of the achieved acceleration behind the command; the reference design "
         "ties it to the sample time [s]",
     )
     weight_speed: float = setting(
@@ -67,16 +70,16 @@ class DynamicMpcConfig:
         "SI unit (m, rad, m/s)",
     )
     max_lateral_error_m: float = setting(
-        0.5, low=0.01, high=100.0, doc="soft limit |e1| (paper: 0.5 m, lane 4 m, car 2 m)"
+        0.5, low=0.01, high=100.0, doc="soft limit |e1| (reference design: 0.5 m, lane 4 m, car 2 m)"
     )
     max_heading_error_rad: float = setting(
-        math.radians(3.0), low=0.001, high=math.pi, doc="soft limit |e2| (paper: 3 deg)"
+        math.radians(3.0), low=0.001, high=math.pi, doc="soft limit |e2| (reference design: 3 deg)"
     )
     max_steer_rad: float = setting(
         math.radians(15.0),
         low=0.01,
         high=1.0,
-        doc="steering bound (paper: 15 deg); the tracker uses the smaller of this and "
+        doc="steering bound (reference design: 15 deg); the tracker uses the smaller of this and "
         "tracker.max_steer_rad",
     )
     min_speed_mps: float = setting(0.0, low=0.0, high=100.0, doc="soft lower speed limit")

@@ -3,12 +3,13 @@
 Why: on the default sedan (Pacejka tyres, understeer gradient 2.2 deg/g) the kinematic NMPC
 does not track the stretched double lane change at 20 m/s (max CTE 1.84 m): its model puts
 the CoG velocity into the turn and expects the full kinematic yaw rate, while the car yaws
-about a third less and its velocity points out of the turn (seed lesson: a kinematic MPC
+about a third less and its velocity points out of the turn (a kinematic MPC
 becomes unstable on an understeering car; a dynamic model is needed).
 
-The model is seed digest section 2's dynamic bicycle with the steering actuator as a state
+The model is the dynamic bicycle of Rajamani, "Vehicle Dynamics and Control", 2nd ed.,
+Springer 2012, sec. 2.3, with the steering actuator as a state
 (:mod:`tracker.steered_dynamic_bicycle`); the NLP, cost, bounds, warm start, latency,
-fallback, safe stop and plan are the shared :class:`tracker.nmpc.Nmpc` (seed section 1's
+fallback, safe stop and plan are the shared :class:`tracker.nmpc.Nmpc` (the tracking
 NMPC). The belief is ``tracker.model``: mass, yaw inertia, CoG position, the axle cornering
 stiffnesses (defaults from ``cosim identify``), the steering time constant and the friction.
 
@@ -34,8 +35,8 @@ change, default tuning of :mod:`tracker.config`):
   path (1.11 g) they keep the car from spinning: max CTE 0.70 m, against 15.7 m and a
   heading error of pi without them. A quadratic exterior penalty, not slack variables
   (which doubled IPOPT's iterations).
-* Max CTE 0.056 / 0.062 / 0.054 m for seeds 0 / 1 / 2 (seed paper: 88 mm on its own model
-  without noise), 0.053 m with the true state as the estimate, solve time 5.5 ms median,
+* Max CTE 0.056 / 0.062 / 0.054 m for seeds 0 / 1 / 2 (the bar for an MPC on this path: 88 mm
+  on its own model without noise, see :mod:`tracker.dynamic_mpc`), 0.053 m with the true state as the estimate, solve time 5.5 ms median,
   about 10 ms at the 99th percentile, 5 IPOPT iterations median. On the linear model
   itself (the test bench) 0.045 m, limited by the moderate ``steer_rate`` weight on
   purpose: ``steer_rate = 0.2`` with ``cte = 100`` gives 2 mm on the bench and 19 mm on
@@ -92,7 +93,7 @@ def dynamic_model(config: TrackerConfig) -> NmpcModel:
 
 
 class DynamicNmpc(Nmpc):
-    """Dynamic-bicycle NMPC path tracker (seed digest sections 1 and 2; ``tracker.solver``).
+    """Dynamic-bicycle NMPC path tracker (Rajamani 2012, sec. 2.3; ``tracker.solver``).
 
     Args:
       config: the tracker configuration; ``config.model`` is the controller's belief

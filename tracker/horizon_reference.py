@@ -7,7 +7,7 @@ speeds ``v_j`` of the warm start):
 * ``spline`` (default): the car is projected onto the path, itself a cubic spline in arc
   length (:class:`tracker.reference_path.ReferencePath`), and the points are read off the
   spline, with its exact heading and curvature.
-* ``cubic-polynomial``: seed digest section 1's way. Waypoints of the path around the car
+* ``cubic-polynomial``: the common way of tutorial kinematic MPCs. Waypoints of the path around the car
   (one per metre, from ``BEHIND_M`` behind to the end of the horizon plus ``AHEAD_M``) are
   turned into the vehicle frame and fitted by least squares with one cubic
   ``y = c0 + c1 x + c2 x^2 + c3 x^3``; the points are laid along that cubic at the same
@@ -69,7 +69,7 @@ def spline_reference(path: ReferencePath, s_m: np.ndarray, first_yaw_rad: float,
 
 def polynomial_reference(path: ReferencePath, s0_m: float, distances_m: np.ndarray,
                          x_m: float, y_m: float, yaw_rad: float) -> HorizonReference | None:
-    """Seed section 1's cubic in the vehicle frame, sampled at ``distances_m`` along it
+    """A cubic in the vehicle frame, sampled at ``distances_m`` along it
     from the car's projection; None where the waypoints fold back (no ``y(x)``)."""
     end_m = s0_m + float(distances_m[-1]) + AHEAD_M
     s = np.arange(max(0.0, s0_m - BEHIND_M), min(path.length_m, end_m), _WAYPOINT_SPACING_M)

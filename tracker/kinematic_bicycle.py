@@ -1,4 +1,8 @@
-"""The kinematic bicycle model as CasADi expressions (seed digest section 1).
+"""The kinematic bicycle model as CasADi expressions.
+
+Rajamani, "Vehicle Dynamics and Control", 2nd ed., Springer 2012, sec. 2.2; for MPC, Kong,
+Pfeiffer, Schildbach, Borrelli, "Kinematic and dynamic vehicle models for autonomous driving
+control design", IEEE Intelligent Vehicles Symposium 2015.
 
 State ``[x_m, y_m, yaw_rad, vx_mps]``: position of the centre of gravity (CoG) in the world
 frame (ENU), yaw counter-clockwise positive, speed of the CoG. Inputs
@@ -15,13 +19,13 @@ from the body axis by the kinematic slip angle::
     yaw'  = v cos(beta) tan(delta) / (l_f + l_r)                       (K4)
     v'    = a                                                          (K5)
 
-Relation to the seed's form (section 1): ``x' = v cos(psi)``, ``y' = v sin(psi)``,
+Relation to the rear-axle form common in tutorial MPCs: ``x' = v cos(psi)``, ``y' = v sin(psi)``,
 ``psi' = v / Lf * delta``. That is the same bicycle referenced at the rear axle, where
 ``beta = 0``, with ``Lf`` playing the part of the wheelbase ``l_f + l_r``: for small angles
 ``tan(delta) ~ delta`` and ``cos(beta) ~ 1`` so (K4) becomes ``psi' = v delta / L``. Placed at
 the CoG instead, the path of the point differs by the slip angle (K1), a few hundredths of a
 radian in a lane change at 20 m/s, which is not negligible next to a CTE budget of
-centimetres. The seed calls ``Lf`` "front axle to CoG"; with the seed paper's sedan that is
+centimetres. Tutorials call ``Lf`` "front axle to CoG"; with the default sedan that is
 1.2 m, which would more than double the yaw rate of a 2.8 m car, so the wheelbase reading is
 the consistent one.
 
@@ -70,7 +74,7 @@ def continuous_dynamics(state: Symbolic, inputs: Symbolic, params: VehicleParams
     ``understeer``: the steady-state turn of the linear-tyre dynamic bicycle instead of the
     kinematic one, still with four states (no lateral dynamics). The yaw rate and the CoG
     slip angle are those the car settles to at speed ``v`` and steering ``delta``
-    (seed section 2's tyres; Rajamani, Vehicle Dynamics and Control, 2nd ed., 3.3)::
+    (linear tyres; Rajamani, Vehicle Dynamics and Control, 2nd ed., 3.3)::
 
         r    = v tan(delta) / (L + K v^2)                                   (U1)
         beta = atan(tan(delta) / (L + K v^2) (l_r - m l_f v^2 / (C_r L)))   (U2)
@@ -157,8 +161,8 @@ def predict_function(params: VehicleParams, substeps: int = 4,
                      understeer: bool = False) -> ca.Function:
     """``P(state, inputs, duration_s) -> predicted_state`` after a variable duration (RK4 substeps).
 
-    Used to move an estimate forward over a known latency (seed digest section 1, latency
-    item (a)); ``duration_s = 0`` returns the state unchanged.
+    Used to move an estimate forward over a known latency (latency
+    compensation); ``duration_s = 0`` returns the state unchanged.
     """
     if substeps < 1:
         raise ConfigError(f"substeps = {substeps!r}: expected an integer >= 1")

@@ -1,4 +1,8 @@
-"""Nonlinear MPC on the kinematic bicycle (seed digest section 1).
+"""Nonlinear MPC on the kinematic bicycle.
+
+As in Kong, Pfeiffer, Schildbach, Borrelli, "Kinematic and dynamic vehicle models for
+autonomous driving control design", IEEE Intelligent Vehicles Symposium 2015 (the model:
+Rajamani, "Vehicle Dynamics and Control", 2nd ed., Springer 2012, sec. 2.2).
 
 The shared NLP machinery (reference, cost, bounds, warm start, latency, fallback and safe
 stop, plan) is :class:`tracker.nmpc.Nmpc`; this module supplies the model: the kinematic
@@ -8,16 +12,16 @@ model's speed, the CoG speed; ``vy`` is not read).
 
 The kinematic model has no steering actuator, so its ``unmodelled_lag_s`` is the belief's
 steering time constant ``tracker.model.steer_time_constant_s``: the estimate is predicted
-over it plus ``tracker.latency_s`` (section 1's latency item (a)). This replaces the earlier
+over it plus ``tracker.latency_s``. This replaces the earlier
 fixed ``latency_s = 0.075`` (lag plus half a period) at no measurable cost: max CTE 1.88 m
 instead of 1.84 m on the default sedan and 0.130 m for both with MuJoCo contact tyres
 (``steer_rate = 20``, the filter without a tyre model).
 
 ``tracker.kinematic_understeer`` (the default) keeps the four states but turns at the
 steady-state yaw rate and slip angle of the belief's linear tyres ((U1)-(U2) of
-:mod:`tracker.kinematic_bicycle`). Seed section 1's pure kinematic model cannot track the
-lane change on the understeering Pacejka sedan (seed lesson: a kinematic MPC becomes unstable
-on an understeering car): max CTE 0.80 / 0.75 m for seeds 0 / 1, the car turning about a
+:mod:`tracker.kinematic_bicycle`). The pure kinematic model cannot track the
+lane change on the understeering Pacejka sedan (a kinematic MPC becomes unstable on an
+understeering car): max CTE 0.80 / 0.75 m for seeds 0 / 1, the car turning about a
 third less than the model expects. With the steady-state understeer the same NLP gives
 0.054 / 0.043 m, as close as the dynamic NMPC (0.058 / 0.046 m): at 0.5 g the transient
 lateral dynamics settle within a few tenths of a second and the steering lag is predicted
@@ -58,7 +62,7 @@ def kinematic_model(config: TrackerConfig) -> NmpcModel:
 
 
 class KinematicNmpc(Nmpc):
-    """Kinematic-bicycle NMPC path tracker (seed digest section 1; ``tracker.solver``).
+    """Kinematic-bicycle NMPC path tracker (Kong et al. 2015; ``tracker.solver``).
 
     Args:
       config: the tracker configuration; ``config.model`` is the controller's belief

@@ -1,10 +1,12 @@
-"""Linear time-varying MPC on the steered dynamic bicycle, one QP per step (seed section 3).
+"""Linear time-varying MPC on the steered dynamic bicycle, one QP per step.
 
-Seed digest section 3 linearises the model about a trajectory, subtracts it and solves the
-resulting linear time-varying MPC as a QP; section 1 names the same route as the
-alternative to IPOPT. This tracker does the job of ``dynamic-nmpc`` (:mod:`tracker.nmpc`
+Falcone, Borrelli, Asgari, Tseng, Hrovat ("Predictive active steering control for
+autonomous vehicle systems", IEEE TCST 15(3), 2007, sec. IV) linearise the vehicle model
+about a trajectory, subtract it and solve the resulting linear time-varying MPC as a QP
+(so do Lages and Alves, "Real-time control of a mobile robot using linearized model
+predictive control", IFAC 2006, about the reference trajectory). This tracker does the job of ``dynamic-nmpc`` (:mod:`tracker.nmpc`
 on :mod:`tracker.steered_dynamic_bicycle`) that way: the same model (the linear-tyre
-dynamic bicycle of section 2 with the steering actuator as a state), the same cost and
+dynamic bicycle of Rajamani 2012, sec. 2.3, with the steering actuator as a state), the same cost and
 reference, the same bounds, latency handling, fallback and plan; only the solver differs.
 The QP and the linearisation are :mod:`tracker.ltv_qp`.
 
@@ -14,7 +16,7 @@ Per step:
    the road-wheel angle, which no estimator reports, is an internal state: last step's
    angle propagated through the commands the car has applied since (exact for the lag
    (A2) the actuator is). The state is then predicted from ``estimate.t_s`` to
-   ``max(t_s, estimate.t_s) + latency_s`` (section 1, latency remedy (a); ``latency_s``
+   ``max(t_s, estimate.t_s) + latency_s`` (latency compensation; ``latency_s``
    only with ``latency_compensation``) piece by piece through the commands in the delay
    line (:class:`tracker.delay_line.IssuedInputs`): the estimate's age and the transport
    delay, each with the input the car actually applies then.
@@ -30,7 +32,7 @@ Per step:
    * ``previous-plan`` (default): the warm start itself, the real-time-iteration scheme
      (one SQP iteration per step, the previous solution as the linearisation point). Its
      defects ``c_k`` (L3) are the previous solution's error against the nonlinear model.
-   * ``reference``: seed section 3's ``(X_r, U_r)``. Nodes 1..N sit on the reference
+   * ``reference``: the reference trajectory ``(X_r, U_r)`` of Lages and Alves 2006. Nodes 1..N sit on the reference
      points with the path yaw and the warm start's speeds, in the steady turn of the
      path's curvature ``kappa`` (:mod:`tracker.dynamic_bicycle`, (S1)-(S3))::
 
@@ -275,7 +277,7 @@ class LtvMpc:
 
     def _initial_state(self, t_s: float, estimate: Estimate) -> np.ndarray:
         """The estimate's states and the internal ones at ``estimate.t_s``, predicted to
-        ``t_s`` plus the latency (section 1, latency remedy (a))."""
+        ``t_s`` plus the latency."""
         missing = [name for name in VEHICLE_STATE_NAMES if name not in estimate]
         if missing:
             raise ConfigError(f"tracker {TRACKER_NAME}: the estimate has no "
@@ -326,7 +328,7 @@ class LtvMpc:
 
     def _reference_trajectory(self, t_s: float, state0: np.ndarray, warm: _Trajectory,
                               ref: dict[str, np.ndarray]) -> _Trajectory:
-        """Seed section 3's ``(X_r, U_r)``: the reference points in the steady turn of
+        """The reference trajectory ``(X_r, U_r)``: the reference points in the steady turn of
         the path's curvature at the warm start's speeds (module docstring, item 4)."""
         b = self._bicycle
         speed = warm.states[1:, STATE["vx_mps"]]

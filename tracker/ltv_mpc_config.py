@@ -1,4 +1,4 @@
-"""Settings of the ``ltv-mpc`` tracker: ``tracker.ltv_mpc`` (seed digest section 3).
+"""Settings of the ``ltv-mpc`` tracker: ``tracker.ltv_mpc`` (Falcone et al. 2007, sec. IV).
 
 Defaults, measured on the MuJoCo sedan (stretched lane change, EKF, seeds 0-4) and on the
 QPs of the bench in ``tests/tracker/test_ltv_mpc.py``; details in :mod:`tracker.ltv_mpc`:
@@ -44,7 +44,7 @@ LINEARISATION_POINTS: tuple[str, ...] = ("reference", "previous-plan")
 
 @dataclass(frozen=True)
 class LtvMpcConfig:
-    """The linear time-varying MPC solved as one QP per step (seed section 3)."""
+    """The linear time-varying MPC solved as one QP per step (Falcone et al. 2007)."""
 
     qp_solver: str = setting("hpipm", choices=QP_SOLVERS, doc="CasADi QP back-end")
     formulation: str = setting(
@@ -57,7 +57,7 @@ class LtvMpcConfig:
         "previous-plan",
         choices=LINEARISATION_POINTS,
         doc="trajectory the model is linearised about: the reference path in the steady "
-        "turn of its curvature (seed section 3), or the previous plan shifted (real-time "
+        "turn of its curvature (as Lages and Alves 2006 linearise about the reference), or the previous plan shifted (real-time "
         "iteration)",
     )
     slip_limits: bool = setting(

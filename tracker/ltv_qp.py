@@ -1,6 +1,6 @@
-"""The quadratic programme of one LTV-MPC step (seed digest section 3), built once.
+"""The quadratic programme of one LTV-MPC step, built once.
 
-**Linearisation.** Seed section 3 Taylor-linearises the model about a trajectory
+**Linearisation.** As Falcone et al. (IEEE TCST 2007, sec. IV), Taylor-linearise the model about a trajectory
 ``(xbar_k, ubar_k)``, subtracts it, and obtains a linear time-varying model of the
 deviations ``x~ = x - xbar``, ``u~ = u - ubar``. Here the model is the discrete stage map
 ``F`` itself (RK4, :func:`tracker.steered_dynamic_bicycle.discrete_function`), so nothing
@@ -11,8 +11,8 @@ is lost to a second discretisation::
     c_k = F(xbar_k, ubar_k) - xbar_{k+1}                                     (L3)
 
 ``c_k`` is the defect of the linearisation trajectory: zero for a trajectory of the model,
-non-zero for a reference that is not one (seed section 3 linearises about the reference
-``(X_r, U_r)``, which the car's model does not follow exactly). Limits ``h(x)`` (the
+non-zero for a reference that is not one (Lages and Alves, IFAC 2006, linearise about the
+reference ``(X_r, U_r)``, which the car's model does not follow exactly). Limits ``h(x)`` (the
 tyres' slip angles) are linearised the same way at nodes 1..N::
 
     h(x_k) ~ h(xbar_k) + H_k x~_k,   H_k = dh/dx (xbar_k)                    (L5)
@@ -22,8 +22,8 @@ CasADi Function (exact Jacobians by ``ca.jacobian``, mapped over the horizon), b
 
 **Rates.** The cost penalises input rates and the steering rate is bounded, both against
 the previous input; to keep every constraint and cost term within one stage (the form an
-OCP solver such as HPIPM needs) the state is augmented with the previous input (seed
-section 2 does the same for its ``Delta u`` form)::
+OCP solver such as HPIPM needs) the state is augmented with the previous input (the
+``Delta u`` form of :mod:`tracker.dynamic_mpc` does the same; L. Wang, Springer 2009)::
 
     z_k = [x_k; u_{k-1}],   z_{k+1} = [F(x_k, u_k); u_k],   u_{-1} = applied input   (L4)
 

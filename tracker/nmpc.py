@@ -1,4 +1,9 @@
-"""The NLP machinery every nonlinear MPC path tracker shares (seed digest section 1).
+"""The NLP machinery every nonlinear MPC path tracker shares.
+
+Tracking MPC by multiple shooting as in Rawlings, Mayne, Diehl, "Model Predictive Control:
+Theory, Computation, and Design", 2nd ed., Nob Hill 2017; on a kinematic bicycle as in
+Kong, Pfeiffer, Schildbach, Borrelli, "Kinematic and dynamic vehicle models for autonomous
+driving control design", IEEE Intelligent Vehicles Symposium 2015.
 
 At every control step solve, by multiple shooting with the NLP solver ``tracker.solver``,
 ``min_{x,u} sum_k c_k(x_k, u_k)  s.t.  x_{k+1} = F(x_k, u_k), x_0 = estimated state``,
@@ -9,14 +14,14 @@ apply the first input and keep the rest as the next warm start. A tracker is an
 * Reference: the estimate is projected onto the path; reference points are laid along it
   at the arc lengths the car is expected to cover, ``s_k = s_0 + sum v_j dt`` with ``v_j``
   the speeds of the warm start (the previous plan, or the current speed on the first step).
-  This replaces the seed's cubic fit in the vehicle frame; the path is already a spline.
-* Cost (section 1; the exact form is in :mod:`tracker.config`): cross-track error measured
+  This replaces a cubic fitted to the waypoints in the vehicle frame; the path is already a spline.
+* Cost (the exact form is in :mod:`tracker.config`): cross-track error measured
   from each reference point's tangent, heading error (the path yaw is unwrapped along the
   horizon and shifted by whole turns to within pi of the current yaw, so the difference is
   smooth and needs no wrapping inside the NLP), speed error to ``reference.speed_mps``,
   acceleration and steering, and their rates; the first rate is taken against the
   previously applied command.
-* Bounds: steering ``|delta| <= max_steer_rad`` (pi/8 in section 1), acceleration in
+* Bounds: steering ``|delta| <= max_steer_rad`` (pi/8 by default), acceleration in
   ``[accel_min_mps2, accel_max_mps2]``, steering rate ``|delta_k - delta_{k-1}| <=
   max_steer_rate_radps dt``.
 * Model limits (optional, ``NmpcModel.limits``): ``|h(x_k)| <= h_max`` at nodes 1..N, soft:
@@ -30,7 +35,7 @@ apply the first input and keep the rest as the next warm start. A tracker is an
   actuator's angle, which no estimator reports) are *internal*: the tracker carries them
   itself, propagating last step's state with the command it applied (exact for an
   actuator driven by that command), and starts them at rest at the last applied input.
-* Latency (section 1, item (a)): with ``latency_compensation`` the tracker believes the
+* Latency: with ``latency_compensation`` the tracker believes the
   car receives each command ``latency_s`` after it was issued (the runner's delay line,
   ``plant.actuator_delay_s``), plus the actuator lag the model leaves out
   (``unmodelled_lag_s``, approximated as more delay). The estimate is predicted forward
@@ -358,7 +363,7 @@ class _Trajectory:
 
 
 class Nmpc:
-    """Nonlinear MPC path tracker on any :class:`NmpcModel` (seed section 1), solved by
+    """Nonlinear MPC path tracker on any :class:`NmpcModel` (Kong et al. 2015), solved by
     ``config.solver`` (IPOPT, fatrop or a real-time iteration; module docstring).
 
     Args:
@@ -414,7 +419,7 @@ class Nmpc:
     def _stage_terms(
         self, u: ca.SX, previous: ca.SX, x: ca.SX, par: Mapping[str, ca.SX], k: int
     ) -> tuple[list[tuple[float, ca.SX]], list[tuple[float, ca.SX]], ca.SX | None]:
-        """Section 1's cost of stage ``k``, as ``(weight per second, error)`` pairs.
+        """The tracking cost of stage ``k``, as ``(weight per second, error)`` pairs.
 
         Returns the input terms (``u`` = u_k against ``previous`` = u_{k-1}), the tracking
         terms (``x`` = node k + 1 against reference point k) and the soft limits' excess
@@ -447,7 +452,7 @@ class Nmpc:
         return input_terms, tracking_terms, excess
 
     def _input_bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """Bounds of one stage's inputs (seed section 1: steering, acceleration)."""
+        """Bounds of one stage's inputs (steering, acceleration)."""
         cfg = self.config
         low = np.empty(len(INPUT_NAMES))
         high = np.empty(len(INPUT_NAMES))
@@ -467,7 +472,7 @@ class Nmpc:
         return lbx, ubx
 
     def _build_ipopt(self) -> _Nlp:
-        """The multiple-shooting NLP for IPOPT (section 1's cost and model).
+        """The multiple-shooting NLP for IPOPT (the tracking cost and the model).
 
         Variables ``[x_0 .. x_N, u_0 .. u_{N-1}]``; constraints: the initial state, the
         dynamics, the steering rate against the previous input (``input_prev`` for u_0).
@@ -693,7 +698,7 @@ class Nmpc:
 
         ``previous_command`` is the actuation already applied to the car (default: zero
         acceleration and steering); the first step warm-starts from it held over the
-        horizon, penalises its first input rate against it (seed section 1) and starts
+        horizon, penalises its first input rate against it and starts
         the internal states (the actuator) at rest at it.
         """
         previous = np.zeros(len(INPUT_NAMES))
@@ -770,7 +775,7 @@ class Nmpc:
 
     def _initial_state(self, t_s: float, estimate: Estimate) -> np.ndarray:
         """The estimate's states and the internal ones, predicted over the estimate's age,
-        the latency and the model's unmodelled lag (section 1, item (a))."""
+        the latency and the model's unmodelled lag."""
         missing = [name for name in self.model.estimated_state_names if name not in estimate]
         if missing:
             raise ConfigError(f"tracker model {self.model.name}: the estimate has no "

@@ -1,8 +1,9 @@
 """The linear-tyre dynamic bicycle in path coordinates, for the ``dynamic-mpc`` tracker.
 
-Seed digest section 2 (the Persian paper, Ghariblu) tracks a curved path with a dynamic
-bicycle whose position is expressed as errors from the path, not as world coordinates.
-Its state is ``[v_y, psi, v_x, v_x', e1, e2]``; the digest prints ``psi``, but the
+The ``dynamic-mpc`` design tracks a curved path with a dynamic bicycle whose position is
+expressed as errors from the path, not as world coordinates (Rajamani, "Vehicle Dynamics
+and Control", 2nd ed., Springer 2012, sec. 2.5). Its state is
+``[v_y, psi, v_x, v_x', e1, e2]``; it is often printed with ``psi``, but the
 lateral dynamics and ``e2' = psi_D' - psi'`` need the yaw *rate*, and the yaw angle itself
 enters nothing once the errors are relative to the path, so the state here is
 :data:`STATE_NAMES`::
@@ -11,17 +12,17 @@ enters nothing once the errors are relative to the path, so the state here is
 
 with inputs :data:`INPUT_NAMES` ``[accel_mps2, steer_rad]`` (the commanded longitudinal
 acceleration and front road-wheel angle) and outputs :data:`OUTPUT_NAMES`
-``[vx_mps, e1_m, e2_rad]`` (the paper's ``Y``).
+``[vx_mps, e1_m, e2_rad]`` (the reference design's ``Y``).
 
 Sign conventions (ISO 8855, as everywhere in the testbed): ``e1`` is the lateral offset of
 the centre of gravity from the path, positive when the car is *left* of it (what
 :meth:`tracker.reference_path.ReferencePath.project` returns); ``e2 = yaw - path_yaw`` is
 positive when the car points left of the path's tangent; steering is positive to the left.
-The paper measures both errors the other way (``e1`` positive right, ``e2 = psi_D - psi``),
+The reference design measures both errors the other way (``e1`` positive right, ``e2 = psi_D - psi``),
 hence its ``e1' = v_x e2 - v_y`` and ``e2' = psi_D' - psi'``: negating both errors turns its
 equations into (P5)-(P6) below, nothing else changes.
 
-Equations, at the speed ``v0`` the model is linearised at (the paper's LPV approach: the
+Equations, at the speed ``v0`` the model is linearised at (the reference design's LPV approach: the
 current estimated ``v_x``, held over the horizon), with ``a11 ... b21`` the dynamic
 bicycle's lateral coefficients at ``v0`` (:meth:`tracker.dynamic_bicycle.DynamicBicycleParams.
 lateral_state_space`, built here from :func:`tracker.dynamic_bicycle.lateral_dynamics`, the
@@ -37,9 +38,9 @@ same (D1)-(D5), not re-derived)::
 
 (P5)-(P6) are the small-angle form of the exact path kinematics ``e1' = vx sin e2 +
 vy cos e2``, ``e2' = r - kappa s'`` with ``s' = (vx cos e2 - vy sin e2) / (1 - kappa
-e1)``. (P4) is the paper's first-order lag on the acceleration "with the sample time":
+e1)``. (P4) is the reference design's first-order lag on the acceleration "with the sample time":
 ``tau_a`` is :attr:`PathErrorParams.accel_time_constant_s` (the tracker's default is the
-paper's Ts). (P7), the desired yaw rate, is an input of the model (``yaw_rate_ref_radps``,
+reference design's Ts). (P7), the desired yaw rate, is an input of the model (``yaw_rate_ref_radps``,
 held over a stage): the tracker evaluates it from the path's curvature at the arc lengths
 the car is expected to reach.
 
@@ -49,7 +50,7 @@ angles inside (P1)-(P2) divide by ``v0``; like the world-frame models
 finite and not too stiff at low speed. The model is meant for cruising speeds: below
 ``v_low`` it turns at ``v_low delta / L`` instead of the kinematic ``v0 delta / L``.
 
-Discretisation: the paper uses forward Euler. At ``Ts = 0.1 s`` Euler is unstable for the
+Discretisation: the reference design uses forward Euler. At ``Ts = 0.1 s`` Euler is unstable for the
 default sedan below 5.2 m/s (lateral eigenvalues beyond ``-2/Ts``) and wrong in phase at
 cruising speed (at 20 m/s the lateral modes turn by 0.63 rad per stage instead of the
 exact 0.36); with ``tau_a = Ts`` it also turns (P4) into a pure one-stage delay,
@@ -76,13 +77,13 @@ from tracker import dynamic_bicycle as bicycle
 
 STATE_NAMES: tuple[str, ...] = ("vy_mps", "yaw_rate_radps", "vx_mps", "ax_mps2", "e1_m",
                                 "e2_rad")
-"""State of the path-error model (seed section 2, yaw rate for the paper's psi), in order."""
+"""State of the path-error model (yaw rate for the printed form's psi), in order."""
 
 INPUT_NAMES: tuple[str, ...] = ("accel_mps2", "steer_rad")
 """Inputs: commanded acceleration and front road-wheel angle (the Command fields), in order."""
 
 OUTPUT_NAMES: tuple[str, ...] = ("vx_mps", "e1_m", "e2_rad")
-"""The paper's outputs ``Y = [v_x, e1, e2]``, in order."""
+"""The reference design's outputs ``Y = [v_x, e1, e2]``, in order."""
 
 STATE = MappingProxyType({name: i for i, name in enumerate(STATE_NAMES)})
 """Read-only map from state name to its index in the state vector."""
@@ -156,7 +157,7 @@ def continuous_dynamics(state: Symbolic, inputs: Symbolic, speed_mps: Symbolic,
 
 
 def outputs(state: Symbolic) -> Symbolic:
-    """The paper's outputs ``Y`` (:data:`OUTPUT_NAMES`) of a state, a 3x1 expression."""
+    """The reference design's outputs ``Y`` (:data:`OUTPUT_NAMES`) of a state, a 3x1 expression."""
     return ca.vertcat(*(state[STATE[name]] for name in OUTPUT_NAMES))
 
 

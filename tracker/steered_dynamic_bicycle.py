@@ -1,6 +1,6 @@
 """The linear-tyre dynamic bicycle with its steering actuator, for a controller's model.
 
-The vehicle is seed digest section 2's dynamic bicycle, (D1)-(D6) of
+The vehicle is the dynamic bicycle of Rajamani 2012, sec. 2.3, (D1)-(D6) of
 :mod:`tracker.dynamic_bicycle` (reused, not re-derived). Added here, for the ``dynamic-nmpc``
 tracker:
 
@@ -63,7 +63,7 @@ from cosim.vehicle_params import VehicleParams
 from tracker import dynamic_bicycle as bicycle
 
 VEHICLE_STATE_NAMES: tuple[str, ...] = bicycle.STATE_NAMES
-"""The dynamic bicycle's states (seed section 2), in vector order."""
+"""The dynamic bicycle's states, in vector order."""
 
 STATE_NAMES: tuple[str, ...] = VEHICLE_STATE_NAMES + ("road_wheel_angle_rad",)
 """State of the steered model, in vector order."""

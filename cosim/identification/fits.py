@@ -5,14 +5,14 @@ by the models themselves (tests/test_identify.py). Every fit returns a frozen re
 its parameters, the RMS of its residual in the fitted quantity's units and its number of
 samples.
 
-- :func:`fit_wheelbase`: the kinematic bicycle (seed digest section 1; Rajamani, "Vehicle
+- :func:`fit_wheelbase`: the kinematic bicycle (Rajamani, "Vehicle
   Dynamics and Control", 2nd ed., ch. 2, kinematic model) referenced at the centre of
   gravity (CoG) drives a circle of radius ``R = sqrt(l_r^2 + L^2 cot^2 delta)``; with the
   CoG position known as a share of the wheelbase, ``l_r = q L``, this is linear in ``L``:
   ``R = L sqrt(q^2 + cot^2 delta)`` (W1), solved by linear least squares on the radii of
   low-speed steady circles.
 - :func:`fit_cornering_stiffness`: the linear-tyre dynamic bicycle
-  (:mod:`tracker.dynamic_bicycle`, seed digest section 2) with known mass, yaw inertia and
+  (:mod:`tracker.dynamic_bicycle`; Rajamani 2012, sec. 2.3) with known mass, yaw inertia and
   CoG position; ``C_f``, ``C_r`` by ``scipy.optimize.least_squares`` on steady turns
   (closed forms (S2)-(S3) of yaw rate and lateral velocity) and on transients (the CasADi
   model simulated by RK4 from the measured road-wheel angle and speed), with the exact

@@ -1,9 +1,9 @@
 """Unmeasured disturbances on the plant: the ``disturbances:`` list of a scenario.
 
-Seed digest section 2 tests its controller against "a random step on the heading, held
-for one ``Ts``, amplitude up to 5 deg, unmeasured". On the MuJoCo car the step is a yaw
+The ``dynamic-mpc`` design is tested against an unmeasured step on the heading, held for
+one control period ``Ts``, of up to 5 deg. On the MuJoCo car the step is a yaw
 rate pulse: the chassis's yaw rate is raised by ``angle / duration_s`` for ``duration_s``
-(default the seed's ``Ts`` = 0.1 s; :meth:`cosim.plant.car.MujocoPlant.add_yaw_rate`), so the
+(default that design's ``Ts`` = 0.1 s; :meth:`cosim.plant.car.MujocoPlant.add_yaw_rate`), so the
 body turns by about ``angle`` while its velocity does not follow at once: the car is
 kicked into a side slip, as by a pothole or a gust, and its tyres react. The controller is
 not told (unmeasured); the gyro does see the motion, as on a real car.

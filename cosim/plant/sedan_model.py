@@ -1,7 +1,7 @@
 """The sedan's MuJoCo model: the nominal car in ``models/sedan.xml``, variants made in code.
 
-``models/sedan.xml`` is the seed paper's car (seed digest section 2: m = 1575 kg,
-I_z = 2875 kg m^2, l_f = 1.2 m, l_r = 1.6 m). :func:`build_sedan` loads it with dm_control's
+``models/sedan.xml`` is the sedan of The MathWorks' lane-keeping MPC example
+(m = 1575 kg, I_z = 2875 kg m^2, l_f = 1.2 m, l_r = 1.6 m; see ``models/README.md``). :func:`build_sedan` loads it with dm_control's
 PyMJCF and edits the tree for any :class:`~cosim.vehicle_params.PlantConfig` (the pattern of
 dm_control's ``suite/cartpole.py`` beside ``cartpole.xml``): XML is never copied to make a
 variant. :func:`sedan_layout` derives every number the XML holds (chassis mass and inertia

@@ -1,10 +1,10 @@
 """Physics conformance: the plant against the dynamic bicycle identified from it.
 
-The linear-tyre dynamic bicycle (seed digest section 2) identified by
+The linear-tyre dynamic bicycle (Rajamani 2012, sec. 2.3) identified by
 :func:`cosim.identification.identify` must predict the plant's steady-state yaw-rate gain
 r/delta in the linear range, and a passenger sedan understeers mildly: production cars
 lie between about 0.5 and 4 deg/g (Gillespie, "Fundamentals of Vehicle Dynamics", ch. 6;
-Rajamani, "Vehicle Dynamics and Control", ch. 3). The seed paper's own tyres
+Rajamani, "Vehicle Dynamics and Control", ch. 3). The MathWorks example's tyres
 (C_f = 19000 N/rad, C_r = 33000 N/rad) give 15 deg/g, far beyond that range; the plant is
 not tuned to them.
 

@@ -1,8 +1,7 @@
 """Synthetic drives for the estimator tests: a dynamic-bicycle truth, noisy sensors, a run.
 
 The truth is integrated here in numpy, independently of estimation/models.py, from
-prescribed steering and longitudinal-acceleration profiles: the dynamic bicycle of the seed
-digest (section 2; Rajamani, "Vehicle Dynamics and Control", section 2.3) with the
+prescribed steering and longitudinal-acceleration profiles: the dynamic bicycle (Rajamani, "Vehicle Dynamics and Control", section 2.3) with the
 tyre law ``F = mu F_z tanh(C alpha / (mu F_z))`` (or linear), the belief's mass, inertia,
 CoG position and cornering stiffnesses, for the point on the roll axis below the CoG; and a
 second-order body roll driven by the tyres' lateral acceleration, which sways the CoG

@@ -4,7 +4,7 @@ Driving due east at constant speed with GNSS only, and every measurement error a
 EKF's linearisation point never leaves yaw = yaw rate = vy = steer = 0: the problem is linear
 and time-invariant. Its reference solution is built here independently of
 estimation/models.py: the continuous system matrix by hand with the lateral block of the
-tracker's dynamic bicycle (``DynamicBicycleParams.lateral_state_space``, the seed's a11 ..
+tracker's dynamic bicycle (``DynamicBicycleParams.lateral_state_space``, the textbook a11 ..
 b21), its discretisation over the GNSS period with scipy.linalg.expm (Van Loan 1978 for the
 noise), the steady-state prior covariance from the discrete algebraic Riccati equation, and
 the whole time history from filterpy's plain KalmanFilter. The UKF, whose sigma points see

@@ -54,7 +54,7 @@ def process(request: pytest.FixtureRequest) -> ProcessModel:
 
 @pytest.fixture(scope="module")
 def linear_process() -> ProcessModel:
-    """Linear tyres, no body roll: the seed's dynamic bicycle."""
+    """Linear tyres, no body roll: the textbook dynamic bicycle."""
     return _process("linear", roll=None)
 
 
@@ -206,7 +206,7 @@ def test_straight_line_by_hand(process: ProcessModel) -> None:
 def test_linearised_lateral_dynamics_match_the_trackers_bicycle(
     linear_process: ProcessModel, vx_mps: float
 ) -> None:
-    """d(vy', r')/d(vy, r, delta) at a straight run equals the seed's a11 .. b21 as
+    """d(vy', r')/d(vy, r, delta) at a straight run equals the textbook a11 .. b21 as
     tracker.dynamic_bicycle writes them (an independent implementation of the same model)."""
     reference = DynamicBicycleParams.from_vehicle(BELIEF, 72550.0, 79580.0)
     a_ref, b_ref = reference.lateral_state_space(vx_mps)

@@ -1,7 +1,7 @@
 """A plain-numpy kinematic bicycle and a closed loop around a tracker, for the tests.
 
 The car is integrated independently of the CasADi model in :mod:`tracker.kinematic_bicycle`
-(same equations, seed digest section 1 at the centre of gravity, fine RK4 at the physics
+(same equations, Rajamani 2012 sec. 2.2 at the centre of gravity, fine RK4 at the physics
 step), so the tests compare the controller's model against a plain reference.
 """
 

@@ -2,8 +2,8 @@
 around a tracker, for the tests.
 
 The car is integrated independently of the CasADi model in
-:mod:`tracker.steered_dynamic_bicycle`: the lateral dynamics are the seed's state-space form
-``[vy, r]' = A(vx) [vy, r] + B delta`` (seed digest section 2, a11 ... b21, from
+:mod:`tracker.steered_dynamic_bicycle`: the lateral dynamics are the state-space form
+``[vy, r]' = A(vx) [vy, r] + B delta`` (Rajamani 2012, sec. 2.3, a11 ... b21, from
 :meth:`tracker.dynamic_bicycle.DynamicBicycleParams.lateral_state_space`), the pose is
 integrated from the body velocities, ``vx' = a``, all by RK4 at the physics step (2 ms).
 The steering actuator is the plant's (:mod:`cosim.plant.car`): a first-order lag of the command,
@@ -48,7 +48,7 @@ class Actuator:
 
 def _derivative(car: np.ndarray, accel_mps2: float, steer_rad: float,
                 params: DynamicBicycleParams) -> np.ndarray:
-    """``[x, y, yaw, vx, vy, r]'`` of the dynamic bicycle (seed section 2)."""
+    """``[x, y, yaw, vx, vy, r]'`` of the dynamic bicycle (Rajamani 2012, sec. 2.3)."""
     _, yaw, vx, vy, r = car[1], car[2], car[3], car[4], car[5]
     a, b = params.lateral_state_space(vx)
     lateral = a @ np.array([vy, r]) + b[:, 0] * steer_rad

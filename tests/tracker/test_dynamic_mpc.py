@@ -1,6 +1,6 @@
-"""The ``dynamic-mpc`` tracker (seed digest section 2) and its path-error model.
+"""The ``dynamic-mpc`` tracker (a delta-u MPC on Rajamani's path-error model) and its path-error model.
 
-The model is checked against independent numpy code (the seed's state-space coefficients
+The model is checked against independent numpy code (the state-space coefficients of Rajamani 2012, sec. 2.5,
 written out here, discretised exactly with ``scipy.linalg.expm``) and against the
 world-frame bicycle projected onto a path (the sign conventions). The tracker runs alone on
 its own model: the plain-numpy linear-tyre bicycle of :mod:`tests.tracker.dynamic_closed_loop`
@@ -49,7 +49,7 @@ from tracker.reference_path import ReferencePath, wrap_angle
 from tracker.registry import make_tracker
 
 CONFIG = from_dict(TrackerConfig, {"name": "dynamic-mpc"})
-"""The defaults: the paper's Np = 10, Nc = 2, Ts = 0.1 s, the tuned weights."""
+"""The defaults: the reference design's Np = 10, Nc = 2, Ts = 0.1 s, the tuned weights."""
 SETTINGS = CONFIG.dynamic_mpc
 MODEL = PathErrorParams.from_vehicle(CONFIG.model, SETTINGS.accel_time_constant_s)
 CAR = DynamicBicycleParams.from_vehicle(CONFIG.model, CONFIG.model.cornering_stiffness_front_npr,
@@ -74,8 +74,8 @@ def seconds(result: ClosedLoopResult) -> np.ndarray:
 # ---------------------------------------------------------------------------- the model
 
 
-def paper_matrices(speed_mps: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``x' = A x + B u + E psi_D'`` written out from the seed's coefficients (section 2:
+def textbook_matrices(speed_mps: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``x' = A x + B u + E psi_D'`` written out from the textbook coefficients (Rajamani 2012, sec. 2.5:
     a11 ... b21 of the linear-tyre bicycle), with the ISO 8855 errors of (P5)-(P6)."""
     m, i_z = CAR.mass_kg, CAR.yaw_inertia_kgm2
     l_f, l_r = CAR.cog_front_m, CAR.cog_rear_m
@@ -103,7 +103,7 @@ def paper_matrices(speed_mps: float) -> tuple[np.ndarray, np.ndarray, np.ndarray
 
 @pytest.mark.parametrize("speed_mps", [8.0, 15.0, 25.0])
 def test_continuous_model_is_the_seed_state_space(speed_mps: float) -> None:
-    a, b, e = paper_matrices(speed_mps)
+    a, b, e = textbook_matrices(speed_mps)
     f = continuous_function(MODEL)
     rng = np.random.default_rng(1)
     for _ in range(5):
@@ -117,7 +117,7 @@ def test_discrete_model_is_the_exact_zero_order_hold(speed_mps: float) -> None:
     # exp([[A, B, E], [0, 0, 0]] Ts) holds the inputs and the desired yaw rate over Ts.
     # RK4 with h |lambda| <= 0.5 errs by at most (0.5)^5 / 120 = 2.6e-4 per substep in
     # the fastest mode (reached at v_low = 4 m/s: 1.1e-4 measured; 3e-6 at 25 m/s).
-    a, b, e = paper_matrices(speed_mps)
+    a, b, e = textbook_matrices(speed_mps)
     ts = SETTINGS.sample_time_s
     n_x, n_w = 6, 3
     augmented = np.zeros((n_x + n_w, n_x + n_w))
@@ -168,24 +168,24 @@ def test_errors_follow_the_world_frame_car_projected_on_the_path() -> None:
 
 @pytest.fixture(scope="module")
 def lane_change() -> ClosedLoopResult:
-    """The stretched double lane change at 20 m/s from 15 m/s, 15 s (seed section 2)."""
+    """The stretched double lane change at 20 m/s from 15 m/s, 15 s (Falcone et al. 2007, stretched by 1.5)."""
     return run_closed_loop(DynamicMpc(CONFIG), LANE_CHANGE, Car(0.0, 0.0, 0.0, 15.0), 15.0, CAR)
 
 
-def test_lane_change_beats_the_paper_on_its_own_model(lane_change: ClosedLoopResult) -> None:
-    # The paper: max lateral deviation 88 mm on its model; here 64 mm (84 mm without the
+def test_lane_change_beats_the_bar_on_its_own_model(lane_change: ClosedLoopResult) -> None:
+    # The reference design: max lateral deviation 88 mm on its model; here 64 mm (84 mm without the
     # bench's steering lag). The errors converge to zero on the straight after the curve.
     assert np.max(np.abs(lane_change.cte_m)) < 0.07
     assert np.max(np.abs(lane_change.cte_m[-1000:])) < 1e-4
     assert lane_change.final.x_m > 250.0
-    # Max steering: the paper reports 9.5 deg with its softer tyres; this belief's
+    # Max steering: the reference design reports 9.5 deg with its softer tyres; this belief's
     # understeer is 2.2 deg/g, so about 4 deg.
     assert np.max(np.abs(lane_change.steer_rad)) < math.radians(5.0)
 
 
-def test_lane_change_accelerates_as_the_paper(lane_change: ClosedLoopResult) -> None:
+def test_lane_change_accelerates_as_the_reference_design(lane_change: ClosedLoopResult) -> None:
     # 15 -> 18.2 m/s in the first 1.1 s, at the 3 m/s^2 bound after a ramp of 0.15 s (the
-    # paper: 18.3 m/s, at the bound from the start; the ramp, weight_accel_increment,
+    # reference design: 18.3 m/s, at the bound from the start; the ramp, weight_accel_increment,
     # keeps a rear-driven sedan on a 0.7-friction road from spinning its wheels), then
     # held at the reference speed.
     assert lane_change.vx_mps[int(1.1 / 0.002)] == pytest.approx(18.2, abs=0.05)
@@ -198,7 +198,7 @@ def test_lane_change_solves_every_step_within_bounds(lane_change: ClosedLoopResu
     assert_commands_within_bounds(lane_change.commands, CONFIG)
     steer = np.array([c.steer_rad for c in lane_change.commands])
     accel = np.array([c.accel_mps2 for c in lane_change.commands])
-    assert np.all(np.abs(steer) <= MAX_STEER_RAD)  # the paper's 15 deg
+    assert np.all(np.abs(steer) <= MAX_STEER_RAD)  # the reference design's 15 deg
     assert np.max(accel) == CONFIG.accel_max_mps2  # the bound is reached, never exceeded
     assert all(plan.status == "Optimal" for plan in lane_change.plans)
 
@@ -247,7 +247,7 @@ def test_circle_is_tracked_to_a_fraction_of_a_millimetre() -> None:
     # R = 100 m at 15 m/s (0.23 g), starting on the path with the wheel straight: a
     # transient of 47 mm (the car has to build up its yaw rate), then the steady turn
     # with a constant offset of 0.25 mm (measured from 4 s on). The offset is the
-    # paper's heading reference e2 = 0: in a steady turn the car's heading differs from
+    # the reference design's heading reference e2 = 0: in a steady turn the car's heading differs from
     # the path's by its side slip (3 mrad here), and the cost trades that heading error
     # against a little lateral error (8 mm at 0.5 g; 0.1 mm with weight_heading = 10).
     # A wrong sign or a missing curvature feed-forward would leave centimetres.
@@ -256,13 +256,13 @@ def test_circle_is_tracked_to_a_fraction_of_a_millimetre() -> None:
     t = seconds(result)
     assert np.max(np.abs(result.cte_m)) < 0.06
     assert np.max(np.abs(result.cte_m[t > 4.0])) < 5e-4
-    # The steady steering is the belief's: delta = L / R + K a_y (seed section 2).
+    # The steady steering is the belief's: delta = L / R + K a_y (Rajamani 2012, sec. 3.5).
     steady = CAR.wheelbase_m / 100.0 + CAR.understeer_gradient_radpmps2 * 15.0**2 / 100.0
     assert result.steer_rad[-1] == pytest.approx(steady, rel=1e-3)
 
 
 def test_soft_limits_keep_the_qp_feasible_two_metres_off() -> None:
-    # 2 m off the path, four times the paper's |e1| <= 0.5 m: every QP still solves (the
+    # 2 m off the path, four times the reference design's |e1| <= 0.5 m: every QP still solves (the
     # limits are soft, one slack per node) and the car comes back with one overshoot
     # (measured 0.15 m; 0.48 m with one slack over the whole horizon), 0.7 mm at 3 s.
     result = run_closed_loop(DynamicMpc(CONFIG), STRAIGHT, Car(0.0, 2.0, 0.0, 20.0), 8.0, CAR)

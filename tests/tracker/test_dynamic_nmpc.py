@@ -1,10 +1,10 @@
-"""Closed-loop checks of the dynamic NMPC on its own model (seed digest sections 1-2).
+"""Closed-loop checks of the dynamic NMPC on its own model.
 
 The car is the plain-numpy linear-tyre dynamic bicycle of
 :mod:`tests.tracker.dynamic_closed_loop` at 2 ms with the plant's steering actuator (50 ms
 lag, 0.8 rad/s); the controller runs every 50 ms on a perfect estimate (which, like the
 EKF's, carries no steering angle). On its own model the NMPC must do far better than the
-seed paper's 88 mm on the stretched double lane change.
+88 mm bar of a delta-u MPC (see tracker.dynamic_mpc) on the stretched double lane change.
 """
 
 from __future__ import annotations
@@ -55,7 +55,7 @@ PERIOD_STEPS = 25
 
 @pytest.fixture(scope="module")
 def lane_change() -> ClosedLoopResult:
-    """The stretched double lane change at 20 m/s from 15 m/s, 15 s (seed section 2)."""
+    """The stretched double lane change at 20 m/s from 15 m/s, 15 s (Falcone et al. 2007, stretched by 1.5)."""
     return run_closed_loop(DynamicNmpc(CONFIG), LANE_CHANGE, Car(0.0, 0.0, 0.0, 15.0), 15.0, CAR)
 
 

@@ -1,4 +1,4 @@
-"""Reference points over the horizon: the path spline and seed section 1's cubic fit."""
+"""Reference points over the horizon: the path spline and a cubic fitted in the vehicle frame."""
 
 from __future__ import annotations
 

@@ -149,7 +149,7 @@ def test_bad_step_is_refused() -> None:
 
 def test_understeer_variant_turns_at_the_linear_tyres_steady_state() -> None:
     """(U1)-(U2) against the steady state of the linear-tyre dynamic bicycle, computed here
-    from its 2x2 lateral equations (seed section 2) with plain numpy."""
+    from its 2x2 lateral equations (Rajamani 2012, sec. 2.3) with plain numpy."""
     params = VehicleParams()
     m, iz = params.mass_kg, params.yaw_inertia_kgm2
     lf, lr = params.cog_front_m, params.cog_rear_m

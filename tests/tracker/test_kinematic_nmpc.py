@@ -1,8 +1,8 @@
-"""Closed-loop checks of the kinematic NMPC on its own model (seed digest sections 1-2).
+"""Closed-loop checks of the kinematic NMPC on its own model.
 
 The car is the plain-numpy kinematic bicycle of :mod:`tests.tracker.closed_loop` at 2 ms,
 the controller runs every 50 ms on a perfect estimate. On its own model the NMPC must do
-better than the seed paper's 88 mm on the stretched double lane change.
+better than the 88 mm bar of a delta-u MPC (see tracker.dynamic_mpc) on the stretched double lane change.
 """
 
 from __future__ import annotations
@@ -35,14 +35,14 @@ from tracker.reference_path import ReferencePath
 CONFIG = from_dict(TrackerConfig, {"name": "kinematic-nmpc", "latency_s": 0.0,
                                    "kinematic_understeer": False,
                                    "model": {"steer_time_constant_s": 0.0}})
-"""The default tuning on seed section 1's kinematic model, the bench's own; the bench acts
+"""The default tuning on the kinematic model, the bench's own; the bench acts
 instantly (no transport delay, no steering lag), so there is no latency to predict over."""
 LANE_CHANGE = double_lane_change(20.0, 1.5)
 
 
 @pytest.fixture(scope="module")
 def lane_change() -> ClosedLoopResult:
-    """The stretched double lane change at 20 m/s from 15 m/s, 15 s (seed section 2)."""
+    """The stretched double lane change at 20 m/s from 15 m/s, 15 s (Falcone et al. 2007, stretched by 1.5)."""
     tracker = KinematicNmpc(CONFIG)
     return run_closed_loop(tracker, LANE_CHANGE, CarState(0.0, 0.0, 0.0, 15.0), 15.0,
                            CONFIG.model)

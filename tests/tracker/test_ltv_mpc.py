@@ -1,4 +1,4 @@
-"""Checks of the LTV-MPC tracker (seed digest section 3) and its QP.
+"""Checks of the LTV-MPC tracker (Falcone et al. 2007, sec. IV) and its QP.
 
 The linearisation is checked against finite differences of the discrete model; the
 tracker on its own model, the plain-numpy dynamic bicycle of
@@ -138,13 +138,13 @@ def test_linearisation_checks_its_inputs() -> None:
 
 @pytest.fixture(scope="module")
 def lane_change() -> ClosedLoopResult:
-    """The stretched double lane change at 20 m/s from 15 m/s, 15 s (seed section 2)."""
+    """The stretched double lane change at 20 m/s from 15 m/s, 15 s (Falcone et al. 2007, stretched by 1.5)."""
     return run_closed_loop(LtvMpc(CONFIG), LANE_CHANGE, Car(0.0, 0.0, 0.0, 15.0), 15.0, CAR)
 
 
 def test_lane_change_is_tracked_within_centimetres(lane_change: ClosedLoopResult) -> None:
     # 0.045 m, as dynamic-nmpc's on the same bench (its test: < 0.06 m); on the plant both
-    # give 0.057 m for seed 0. The seed paper reports 88 mm on its own model.
+    # give 0.057 m for seed 0. The bar for a delta-u MPC is 88 mm on its own model.
     assert np.max(np.abs(lane_change.cte_m)) < 0.05
     assert lane_change.final.x_m > 250.0
     # Converged to the path on the straight after the lane change.
@@ -207,7 +207,7 @@ def test_internal_steering_angle_follows_the_actuator(lane_change: ClosedLoopRes
 
 
 def test_linearising_about_the_reference_tracks_as_well() -> None:
-    # Seed section 3's linearisation point: the path in the steady turn of its curvature.
+    # The linearisation point of Lages and Alves 2006: the path in the steady turn of its curvature.
     # On the 0.5 g lane change it tracks exactly as well (0.045 m); with a 0.3 rad heading
     # error it is slightly worse (max CTE 2.63 m against 2.57 m; see tracker.ltv_mpc).
     config = _config(linearize_about="reference")

@@ -1,6 +1,6 @@
 """Every NLP solver of the shared NMPC (``tracker.solver``) on both models.
 
-The options pose the same NLP (seed digest section 1): ``ipopt`` on the variables in
+The options pose the same NLP: ``ipopt`` on the variables in
 blocks, ``fatrop`` and ``sqp-rti`` stage by stage with the previous input carried as a
 state. Converged solvers must agree with IPOPT on the first command; the real-time
 iteration (one Gauss-Newton SQP step per control step) must agree once iterated to

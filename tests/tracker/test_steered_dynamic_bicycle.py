@@ -1,5 +1,5 @@
 """The steered dynamic bicycle against the closed-form steady state and numbers a reader can
-check by hand (seed digest section 2; (A1)-(A2), (B1)-(B4) of the module)."""
+check by hand (Rajamani 2012, sec. 2.3; (A1)-(A2), (B1)-(B4) of the module)."""
 
 from __future__ import annotations
 
@@ -29,9 +29,9 @@ from tracker.steered_dynamic_bicycle import (
 )
 
 PARAMS = SteeredBicycleParams.from_vehicle(VehicleParams())
-SEED_PAPER = SteeredBicycleParams.from_vehicle(VehicleParams(
+MATHWORKS_TYRES = SteeredBicycleParams.from_vehicle(VehicleParams(
     cornering_stiffness_front_npr=19000.0, cornering_stiffness_rear_npr=33000.0))
-"""The seed paper's tyres (section 2): an understeer gradient of about 15 deg/g."""
+"""The MathWorks lane-keeping example's tyres (C_f 19000, C_r 33000 N/rad): an understeer gradient of about 15 deg/g."""
 
 
 def _state(**values: float) -> np.ndarray:
@@ -61,7 +61,7 @@ def test_defaults_are_the_identified_sedan() -> None:
     assert PARAMS.bicycle.cornering_stiffness_rear_npr == 79580.0
     assert PARAMS.steer_time_constant_s == 0.05
     assert PARAMS.bicycle.understeer_gradient_degpg == pytest.approx(2.2, abs=0.05)
-    assert SEED_PAPER.bicycle.understeer_gradient_degpg == pytest.approx(15.0, abs=0.5)
+    assert MATHWORKS_TYRES.bicycle.understeer_gradient_degpg == pytest.approx(15.0, abs=0.5)
 
 
 def test_straight_line_20_mps_for_2_s_is_40_m() -> None:
@@ -89,7 +89,7 @@ def test_actuator_is_a_first_order_lag() -> None:
     assert end[STATE["road_wheel_angle_rad"]] == 0.1
 
 
-@pytest.mark.parametrize("params", [PARAMS, SEED_PAPER], ids=["identified", "seed-paper"])
+@pytest.mark.parametrize("params", [PARAMS, MATHWORKS_TYRES], ids=["identified", "mathworks-tyres"])
 @pytest.mark.parametrize("vx_mps", [10.0, 20.0, 30.0])
 def test_steady_turn_matches_the_closed_form(params: SteeredBicycleParams,
                                              vx_mps: float) -> None:
@@ -169,7 +169,7 @@ def test_standstill_is_finite_and_still() -> None:
 
 def test_rk4_substeps_keep_the_step_within_the_stability_limit() -> None:
     assert rk4_substeps(PARAMS, 0.05) == 1
-    for params in (PARAMS, SEED_PAPER):
+    for params in (PARAMS, MATHWORKS_TYRES):
         for dt_s in (0.05, 0.1, 0.3):
             h = dt_s / rk4_substeps(params, dt_s)
             eigenvalues = np.linalg.eigvals(

@@ -22,7 +22,7 @@ def test_defaults() -> None:
     assert config.name == "dynamic-nmpc"
     assert 20 <= config.horizon <= 30
     assert config.dt_s == 0.05
-    assert config.max_steer_rad == pytest.approx(math.pi / 8)  # seed digest section 1
+    assert config.max_steer_rad == pytest.approx(math.pi / 8)  # the default bound, 22.5 deg
     assert (config.accel_min_mps2, config.accel_max_mps2) == (-3.0, 3.0)
     assert config.model == VehicleParams()
     assert config.latency_s == 0.0  # the default plant has no transport delay
@@ -104,7 +104,7 @@ def test_registry_knows_every_configurable_name() -> None:
     assert isinstance(make_tracker(kinematic), KinematicNmpc)
 
 
-def test_the_seed_papers_tyres_are_a_belief_one_can_state() -> None:
+def test_the_mathworks_example_tyres_are_a_belief_one_can_state() -> None:
     config = from_dict(TrackerConfig, {"model": {"cornering_stiffness_front_npr": 19000,
                                                  "cornering_stiffness_rear_npr": 33000}},
                        "tracker")
