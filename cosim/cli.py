@@ -1,4 +1,8 @@
-"""The ``cosim`` command line (a contract: outside tests depend on it).
+"""The ``cosim`` command line.
+
+cosim simulates a car (MuJoCo, Magic Formula tyres) driven by an MPC path tracker that sees
+only a Kalman filter's estimate from noisy sensors, and logs every signal to one MCAP file.
+Start with `cosim run lane-change`, then `cosim plot` or `cosim inspect` on the log it names.
 
     cosim run SCENARIO [--config FILE.yaml] [--tracker NAME] [--estimator NAME]
                        [--seed N] [--duration S] [--set key.path=value ...] [--out FILE.mcap]
@@ -11,6 +15,11 @@
                           [--resume]
     cosim render FILE.mcap [--out VIDEO.mp4] [--fps N] [--width W] [--height H]
                            [--start S] [--duration S] [--gl osmesa|egl|glfw]
+    cosim config show SCENARIO [--config FILE.yaml] [--set key.path=value ...] [...]
+    cosim config keys [PREFIX]
+    cosim --version
+
+The options and exit codes are a stable interface: scripts and outside tests rely on them.
 
 Bad input: one line on stderr naming the bad value and what was expected, exit code 2.
 A run that aborts exits 1 (its log is complete up to the abort); an interrupt exits 130.
@@ -42,20 +51,31 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="cosim", description=__doc__.split("\n\n")[0])
-    commands = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    from cosim import __version__, config_cli
+
+    parser = _Parser(
+        prog="cosim", formatter_class=argparse.RawDescriptionHelpFormatter,
+        description=__doc__.split("\n\n")[1],
+        epilog="Every command has its own --help. Configuration keys and their units: "
+        "`cosim config keys`; what a run would use: `cosim config show SCENARIO`.")
+    parser.add_argument("--version", action="version", version=f"cosim {__version__}")
+    commands = parser.add_subparsers(dest="command", required=True, parser_class=_Parser,
+                                     metavar="COMMAND")
 
     run = commands.add_parser("run", help="run a scenario and log it to MCAP")
     run.add_argument("scenario", help="built-in scenario name (see `cosim scenarios`) or YAML")
     run.add_argument("--config", metavar="FILE.yaml", help="YAML merged over the scenario")
-    run.add_argument("--tracker", metavar="NAME")
-    run.add_argument("--estimator", metavar="NAME")
-    run.add_argument("--seed", type=int, metavar="N")
+    run.add_argument("--tracker", metavar="NAME",
+                     help="path tracker: dynamic-nmpc (default), kinematic-nmpc, ltv-mpc, "
+                     "dynamic-mpc, open-loop")
+    run.add_argument("--estimator", metavar="NAME",
+                     help="state estimator: ekf (default), ukf, truth (debugging)")
+    run.add_argument("--seed", type=int, metavar="N", help="seed of every noise source")
     run.add_argument("--duration", type=float, metavar="S", help="simulated seconds")
     run.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                      dest="overrides", help="override a config key, e.g. tracker.horizon=30")
     run.add_argument("--out", metavar="FILE.mcap",
-                     help="log file (default logs/<scenario>-<time>.mcap)")
+                     help="log file (default logs/<scenario>[-<overrides>]-<time>.mcap)")
     run.add_argument("--json", action="store_true", help="print the metrics as JSON")
     run.add_argument("--video", metavar="FILE.mp4",
                      help="also render the run to this video (see `cosim render`)")
@@ -111,6 +131,7 @@ def _build_parser() -> argparse.ArgumentParser:
     render.add_argument("--duration", type=float, metavar="S", help="seconds of video")
     render.add_argument("--gl", choices=("osmesa", "egl", "glfw"),
                         help="OpenGL back-end (default MUJOCO_GL, else osmesa: software)")
+    config_cli.add_parser(commands, _Parser)
     return parser
 
 
@@ -342,12 +363,19 @@ def _command_render(args: argparse.Namespace) -> int:
     return 0
 
 
+def _command_config(args: argparse.Namespace) -> int:
+    from cosim import config_cli
+
+    return config_cli.command(args)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``cosim`` console script."""
     args = _build_parser().parse_args(argv)
     handlers = {"run": _command_run, "inspect": _command_inspect, "plot": _command_plot,
                 "scenarios": _command_scenarios, "identify": _command_identify,
-                "sweep": _command_sweep, "render": _command_render}
+                "sweep": _command_sweep, "render": _command_render,
+                "config": _command_config}
     try:
         return handlers[args.command](args)
     except CosimError as error:

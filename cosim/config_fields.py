@@ -185,3 +185,65 @@ def describe(cls: type, prefix: str = "") -> list[tuple[str, str, str]]:
         kind = {bool: "true/false", int: "an integer", float: "a number", str: "a string"}[hint]
         rows.append((key, repr(f.default), _expected(dict(f.metadata), kind)))
     return rows
+
+
+UNIT_SUFFIXES: dict[str, str] = {
+    "s": "s", "ms": "ms", "ns": "ns", "m": "m", "m2": "m^2", "rad": "rad", "deg": "deg",
+    "kg": "kg", "kgm2": "kg m^2", "n": "N", "nm": "N m", "w": "W", "hz": "Hz", "g": "g",
+    "mps": "m/s", "mps2": "m/s^2", "radps": "rad/s", "1ps": "1/s", "1pm": "1/m",
+    "npr": "N/rad", "npm": "N/m", "nspm": "N s/m", "nmprad": "N m/rad", "prad": "1/rad",
+    "degpg": "deg/g", "radpmps2": "rad/(m/s^2)", "rad2ps": "rad^2/s", "rad2ps3": "rad^2/s^3",
+    "m2ps": "m^2/s", "m2ps3": "m^2/s^3", "m2ps5": "m^2/s^5",
+}
+"""The unit each name suffix stands for (``speed_mps`` -> m/s): the naming convention of
+the records and the config, read back. A name without one of these suffixes is unitless,
+or names its unit in its doc (a trailing ``[unit]``)."""
+
+
+def unit_of(name: str, doc: str = "") -> str:
+    """The unit of a config key from its name's suffix, else a trailing ``[unit]`` of its
+    doc, else ``-``."""
+    stem, sep, suffix = name.rpartition("_")
+    if sep and stem and suffix in UNIT_SUFFIXES:
+        return UNIT_SUFFIXES[suffix]
+    text = doc.rstrip()
+    if text.endswith("]") and "[" in text:
+        return text[text.rindex("[") + 1:-1]
+    return "-"
+
+
+@dataclasses.dataclass(frozen=True)
+class KeyInfo:
+    """One leaf key of a configuration: what ``cosim config keys`` prints."""
+
+    key: str
+    """Dotted path, ``[]`` marking a list of sections (``faults[].sensor``)."""
+    kind: str
+    """``bool``, ``int``, ``float`` or ``str``."""
+    unit: str
+    """From the name's suffix (:func:`unit_of`); ``-`` when unitless."""
+    default: Any
+    expected: str
+    """The accepted values, as the validation's error messages state them."""
+    doc: str
+
+
+def key_infos(cls: type, prefix: str = "") -> list[KeyInfo]:
+    """Every leaf key of ``cls`` (recursively), in declaration order."""
+    rows: list[KeyInfo] = []
+    hints = typing.get_type_hints(cls)
+    for f in dataclasses.fields(cls):
+        key = f"{prefix}.{f.name}" if prefix else f.name
+        hint = hints[f.name]
+        if dataclasses.is_dataclass(hint):
+            rows.extend(key_infos(hint, key))
+            continue
+        if typing.get_origin(hint) is tuple:
+            rows.extend(key_infos(typing.get_args(hint)[0], f"{key}[]"))
+            continue
+        kind = {bool: "a boolean", int: "an integer", float: "a number", str: "a string"}[hint]
+        meta = dict(f.metadata)
+        doc = str(meta.get("doc") or "")
+        rows.append(KeyInfo(key, hint.__name__, unit_of(f.name, doc), f.default,
+                            _expected(meta, kind), doc))
+    return rows

@@ -4,8 +4,8 @@ The plant is built from ``plant`` (a :class:`PlantConfig`, which is a :class:`Ve
 plus how the plant is simulated); a tracker's internal model reads ``tracker.model`` (a
 :class:`VehicleParams`). Both default to the sedan of The MathWorks' lane-keeping MPC example
 ("Lane Keeping Assist System Using Model Predictive Control", Model Predictive Control
-Toolbox documentation): m = 1575 kg, I_z = 2875 kg m^2, l_f = 1.2 m, l_r = 1.6 m). Model mismatch is the difference
-between the two records, stated as data.
+Toolbox documentation): m = 1575 kg, I_z = 2875 kg m^2, l_f = 1.2 m, l_r = 1.6 m). Model mismatch
+is the difference between the two records, stated as data.
 
 The steering actuator (``steer_time_constant_s``, ``max_steer_rate_radps``) is the plant's
 truth in ``plant`` and a tracker's belief in ``tracker.model``. The axle cornering

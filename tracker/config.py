@@ -32,8 +32,8 @@ lane change at 20 m/s from 15 m/s, about 0.5 g; max CTE for seeds 0/1/2, ``plant
   oscillated to 1.96 m, 3 gives 0.37 m (with noisy sensing, moderate weights
   beat aggressive ones). The kinematic NMPC with these weights: 0.054 / 0.043 m (seeds
   0/1) with ``kinematic_understeer`` (the default), 0.80 / 0.75 m with the
-  pure kinematic model (Kong et al. 2015) (1.56 m with 20); with contact tyres 0.12 m with the filter that
-  has no tyre model (0.13 m with 20), 3.0 m with the filter that assumes the belief's
+  pure kinematic model (Kong et al. 2015) (1.56 m with 20); with contact tyres 0.12 m with the
+  filter that has no tyre model (0.13 m with 20), 3.0 m with the filter that assumes the belief's
   linear tyres (0.69 m with 20): ``--set tracker.weights.steer_rate=20`` restores its
   earlier tuning.
   The other weights matter little: ``heading`` 0.5 instead of 2 changes nothing; ``speed``

@@ -117,10 +117,11 @@ with other work)::
 No solver failures in these 30 runs; HiGHS takes 39 iterations median (at most 54).
 Max heading error 0.030-0.032 rad (the reference design: < 3 deg = 0.052), max steering
 0.066-0.070 rad. The reference design's belief (C_f 19000, C_r 33000 N/rad) expects 3.8 /
-2.4 times softer tyres than the sedan's (15 deg/g of understeer against 2.2) and a side slip of 4.6 deg at 0.5 g, beyond its own 3 deg
-heading limit. Other cases: ``plant.mass_kg=2000`` 0.076 / 0.063 / 0.062 m (seeds 0-2),
-``plant.tire_friction=0.7`` 0.042 / 0.048 / 0.046 m; the model has no tyre limits
-(unlike ``dynamic-nmpc``'s soft slip-angle limits), yet Falcone's unstretched path
+2.4 times softer tyres than the sedan's (15 deg/g of understeer against 2.2) and a side
+slip of 4.6 deg at 0.5 g, beyond its own 3 deg heading limit. Other cases:
+``plant.mass_kg=2000`` 0.076 / 0.063 / 0.062 m (seeds 0-2), ``plant.tire_friction=0.7``
+0.042 / 0.048 / 0.046 m; the model has no tyre limits (unlike ``dynamic-nmpc``'s soft
+slip-angle limits), yet Falcone's unstretched path
 (``lane-change-limit``, 1.11 g) ends at 0.44 / 0.48 m (seeds 0 / 1), held by the 15 deg
 steering bound and the heading limit; MuJoCo contact tyres (``plant.tire_model=contact``,
 no cornering compliance at all) 0.54-0.67 m.

@@ -33,7 +33,8 @@ measurements: :mod:`tracker.dynamic_mpc`)."""
 
 @dataclass(frozen=True)
 class DynamicMpcConfig:
-    """The delta-u MPC on the dynamic bicycle with path-error states (:mod:`tracker.dynamic_mpc`)."""
+    """The delta-u MPC on the dynamic bicycle with path-error states
+    (:mod:`tracker.dynamic_mpc`)."""
 
     prediction_horizon: int = setting(10, low=1, high=200, doc="Np, stages predicted")
     control_horizon: int = setting(
@@ -70,7 +71,8 @@ class DynamicMpcConfig:
         "SI unit (m, rad, m/s)",
     )
     max_lateral_error_m: float = setting(
-        0.5, low=0.01, high=100.0, doc="soft limit |e1| (reference design: 0.5 m, lane 4 m, car 2 m)"
+        0.5, low=0.01, high=100.0,
+        doc="soft limit |e1| (reference design: 0.5 m; lane 4 m, car 2 m)",
     )
     max_heading_error_rad: float = setting(
         math.radians(3.0), low=0.001, high=math.pi, doc="soft limit |e2| (reference design: 3 deg)"

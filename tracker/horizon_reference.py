@@ -7,7 +7,8 @@ speeds ``v_j`` of the warm start):
 * ``spline`` (default): the car is projected onto the path, itself a cubic spline in arc
   length (:class:`tracker.reference_path.ReferencePath`), and the points are read off the
   spline, with its exact heading and curvature.
-* ``cubic-polynomial``: the common way of tutorial kinematic MPCs. Waypoints of the path around the car
+* ``cubic-polynomial``: the common way of tutorial kinematic MPCs. Waypoints of the path around the
+car
   (one per metre, from ``BEHIND_M`` behind to the end of the horizon plus ``AHEAD_M``) are
   turned into the vehicle frame and fitted by least squares with one cubic
   ``y = c0 + c1 x + c2 x^2 + c3 x^3``; the points are laid along that cubic at the same

@@ -4,11 +4,11 @@ Falcone, Borrelli, Asgari, Tseng, Hrovat ("Predictive active steering control fo
 autonomous vehicle systems", IEEE TCST 15(3), 2007, sec. IV) linearise the vehicle model
 about a trajectory, subtract it and solve the resulting linear time-varying MPC as a QP
 (so do Lages and Alves, "Real-time control of a mobile robot using linearized model
-predictive control", IFAC 2006, about the reference trajectory). This tracker does the job of ``dynamic-nmpc`` (:mod:`tracker.nmpc`
-on :mod:`tracker.steered_dynamic_bicycle`) that way: the same model (the linear-tyre
-dynamic bicycle of Rajamani 2012, sec. 2.3, with the steering actuator as a state), the same cost and
-reference, the same bounds, latency handling, fallback and plan; only the solver differs.
-The QP and the linearisation are :mod:`tracker.ltv_qp`.
+predictive control", IFAC 2006, about the reference trajectory). This tracker does the job of
+``dynamic-nmpc`` (:mod:`tracker.nmpc` on :mod:`tracker.steered_dynamic_bicycle`) that way: the same
+model (the linear-tyre dynamic bicycle of Rajamani 2012, sec. 2.3, with the steering actuator as a
+state), the same cost and reference, the same bounds, latency handling, fallback and plan; only the
+solver differs. The QP and the linearisation are :mod:`tracker.ltv_qp`.
 
 Per step:
 
@@ -32,7 +32,8 @@ Per step:
    * ``previous-plan`` (default): the warm start itself, the real-time-iteration scheme
      (one SQP iteration per step, the previous solution as the linearisation point). Its
      defects ``c_k`` (L3) are the previous solution's error against the nonlinear model.
-   * ``reference``: the reference trajectory ``(X_r, U_r)`` of Lages and Alves 2006. Nodes 1..N sit on the reference
+   * ``reference``: the reference trajectory ``(X_r, U_r)`` of Lages and Alves 2006. Nodes 1..N sit
+   on the reference
      points with the path yaw and the warm start's speeds, in the steady turn of the
      path's curvature ``kappa`` (:mod:`tracker.dynamic_bicycle`, (S1)-(S3))::
 

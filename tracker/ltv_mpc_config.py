@@ -57,8 +57,8 @@ class LtvMpcConfig:
         "previous-plan",
         choices=LINEARISATION_POINTS,
         doc="trajectory the model is linearised about: the reference path in the steady "
-        "turn of its curvature (as Lages and Alves 2006 linearise about the reference), or the previous plan shifted (real-time "
-        "iteration)",
+        "turn of its curvature (as Lages and Alves 2006 linearise about the reference), or "
+        "the previous plan shifted (real-time iteration)",
     )
     slip_limits: bool = setting(
         True,

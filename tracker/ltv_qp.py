@@ -1,7 +1,7 @@
 """The quadratic programme of one LTV-MPC step, built once.
 
-**Linearisation.** As Falcone et al. (IEEE TCST 2007, sec. IV), Taylor-linearise the model about a trajectory
-``(xbar_k, ubar_k)``, subtracts it, and obtains a linear time-varying model of the
+**Linearisation.** As Falcone et al. (IEEE TCST 2007, sec. IV), Taylor-linearise the model about a
+trajectory ``(xbar_k, ubar_k)``, subtracts it, and obtains a linear time-varying model of the
 deviations ``x~ = x - xbar``, ``u~ = u - ubar``. Here the model is the discrete stage map
 ``F`` itself (RK4, :func:`tracker.steered_dynamic_bicycle.discrete_function`), so nothing
 is lost to a second discretisation::

@@ -18,8 +18,8 @@ Sign conventions (ISO 8855, as everywhere in the testbed): ``e1`` is the lateral
 the centre of gravity from the path, positive when the car is *left* of it (what
 :meth:`tracker.reference_path.ReferencePath.project` returns); ``e2 = yaw - path_yaw`` is
 positive when the car points left of the path's tangent; steering is positive to the left.
-The reference design measures both errors the other way (``e1`` positive right, ``e2 = psi_D - psi``),
-hence its ``e1' = v_x e2 - v_y`` and ``e2' = psi_D' - psi'``: negating both errors turns its
+The reference design measures both errors the other way (``e1`` positive right, ``e2 = psi_D -
+psi``), hence its ``e1' = v_x e2 - v_y`` and ``e2' = psi_D' - psi'``: negating both errors turns its
 equations into (P5)-(P6) below, nothing else changes.
 
 Equations, at the speed ``v0`` the model is linearised at (the reference design's LPV approach: the
@@ -40,9 +40,9 @@ same (D1)-(D5), not re-derived)::
 vy cos e2``, ``e2' = r - kappa s'`` with ``s' = (vx cos e2 - vy sin e2) / (1 - kappa
 e1)``. (P4) is the reference design's first-order lag on the acceleration "with the sample time":
 ``tau_a`` is :attr:`PathErrorParams.accel_time_constant_s` (the tracker's default is the
-reference design's Ts). (P7), the desired yaw rate, is an input of the model (``yaw_rate_ref_radps``,
-held over a stage): the tracker evaluates it from the path's curvature at the arc lengths
-the car is expected to reach.
+reference design's Ts). (P7), the desired yaw rate, is an input of the model
+(``yaw_rate_ref_radps``, held over a stage): the tracker evaluates it from the path's curvature at
+the arc lengths the car is expected to reach.
 
 For a given ``v0`` the model is linear: ``x' = A(v0) x + B(v0) u + E psi_D'``. The slip
 angles inside (P1)-(P2) divide by ``v0``; like the world-frame models

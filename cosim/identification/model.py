@@ -64,7 +64,8 @@ class IdentifiedModel:
 
     @property
     def understeer_gradient_radpmps2(self) -> float:
-        """The understeer gradient in rad per m/s^2 ((S1) of :mod:`tracker.dynamic_bicycle`; Rajamani 2012, sec. 3.5)."""
+        """The understeer gradient in rad per m/s^2 ((S1) of :mod:`tracker.dynamic_bicycle`;
+        Rajamani 2012, sec. 3.5)."""
         return self.dynamic_bicycle().understeer_gradient_radpmps2
 
     def dynamic_bicycle(self) -> DynamicBicycleParams:

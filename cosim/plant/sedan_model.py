@@ -1,13 +1,14 @@
 """The sedan's MuJoCo model: the nominal car in ``models/sedan.xml``, variants made in code.
 
 ``models/sedan.xml`` is the sedan of The MathWorks' lane-keeping MPC example
-(m = 1575 kg, I_z = 2875 kg m^2, l_f = 1.2 m, l_r = 1.6 m; see ``models/README.md``). :func:`build_sedan` loads it with dm_control's
-PyMJCF and edits the tree for any :class:`~cosim.vehicle_params.PlantConfig` (the pattern of
-dm_control's ``suite/cartpole.py`` beside ``cartpole.xml``): XML is never copied to make a
-variant. :func:`sedan_layout` derives every number the XML holds (chassis mass and inertia
-so that the *total* car has the configured mass, CoG and yaw inertia; suspension springs for
-the configured ride frequencies at the static corner loads; steering limits), so the nominal
-XML and a variant built from the nominal config agree (tests/plant checks this).
+(m = 1575 kg, I_z = 2875 kg m^2, l_f = 1.2 m, l_r = 1.6 m; see ``models/README.md``).
+:func:`build_sedan` loads it with dm_control's PyMJCF and edits the tree for any
+:class:`~cosim.vehicle_params.PlantConfig` (the pattern of dm_control's ``suite/cartpole.py``
+beside ``cartpole.xml``): XML is never copied to make a variant. :func:`sedan_layout` derives every
+number the XML holds (chassis mass and inertia so that the *total* car has the configured mass, CoG
+and yaw inertia; suspension springs for the configured ride frequencies at the static corner loads;
+steering limits), so the nominal XML and a variant built from the nominal config agree (tests/plant
+checks this).
 
 Model structure (all names are fixed; the plant looks everything up by name)::
 

@@ -1,6 +1,7 @@
 """Drive the plant directly for the conformance tests: speed loop, steering profile, fits.
 
-Nominal car (The MathWorks' lane-keeping MPC example): m = 1575 kg, l_f = 1.2 m, l_r = 1.6 m, L = 2.8 m.
+Nominal car (The MathWorks' lane-keeping MPC example): m = 1575 kg, l_f = 1.2 m, l_r = 1.6 m, L =
+2.8 m.
 """
 
 from __future__ import annotations

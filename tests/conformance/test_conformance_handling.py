@@ -9,7 +9,8 @@ of Vehicle Dynamics", 1992, eq. 6.15; Rajamani, "Vehicle Dynamics and Control", 
 so ``K = (v / (L gain) - 1) g L / v^2``. Numbers a reader can check: the kinematic gain
 v / L is 3.57, 7.14 and 10.71 1/s at 10, 20 and 30 m/s; with K = 2 deg/g = 0.0349 rad/g
 it falls to 3.16, 4.72 and 5.00 1/s. A passenger sedan lies at about 1.5-3 deg/g; the
-MathWorks lane-keeping example's C_f = 19000, C_r = 33000 N/rad would give 15 deg/g (models/README.md).
+MathWorks lane-keeping example's C_f = 19000, C_r = 33000 N/rad would give 15 deg/g
+(models/README.md).
 
 At the limit, a car whose tyres all peak at mu F_z corners at about mu g: 9.8 m/s^2 on a
 dry road (mu = 1), 4.9 m/s^2 on a wet one (mu = 0.5).

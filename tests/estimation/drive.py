@@ -1,14 +1,14 @@
 """Synthetic drives for the estimator tests: a dynamic-bicycle truth, noisy sensors, a run.
 
 The truth is integrated here in numpy, independently of estimation/models.py, from
-prescribed steering and longitudinal-acceleration profiles: the dynamic bicycle (Rajamani, "Vehicle Dynamics and Control", section 2.3) with the
-tyre law ``F = mu F_z tanh(C alpha / (mu F_z))`` (or linear), the belief's mass, inertia,
-CoG position and cornering stiffnesses, for the point on the roll axis below the CoG; and a
-second-order body roll driven by the tyres' lateral acceleration, which sways the CoG
-sideways by ``h phi`` (the MuJoCo sedan's numbers: :data:`ROLL_GRADIENT_RADPMPS2` ...).
-Sensors sample it on an integer-millisecond clock with a seeded numpy Generator: GNSS at
-10 Hz, IMU and steering at 100 Hz, wheel speeds at 100 Hz offset by 5 ms, so the filter
-sees measurements out of one common rhythm.
+prescribed steering and longitudinal-acceleration profiles: the dynamic bicycle (Rajamani, "Vehicle
+Dynamics and Control", section 2.3) with the tyre law ``F = mu F_z tanh(C alpha / (mu F_z))`` (or
+linear), the belief's mass, inertia, CoG position and cornering stiffnesses, for the point on the
+roll axis below the CoG; and a second-order body roll driven by the tyres' lateral acceleration,
+which sways the CoG sideways by ``h phi`` (the MuJoCo sedan's numbers:
+:data:`ROLL_GRADIENT_RADPMPS2` ...). Sensors sample it on an integer-millisecond clock with a
+seeded numpy Generator: GNSS at 10 Hz, IMU and steering at 100 Hz, wheel speeds at 100 Hz offset by
+5 ms, so the filter sees measurements out of one common rhythm.
 """
 
 from __future__ import annotations

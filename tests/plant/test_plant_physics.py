@@ -1,7 +1,7 @@
 """Physics conformance of the MuJoCo sedan, with numbers a reader can check by hand.
 
-Nominal car (The MathWorks' lane-keeping MPC example): m = 1575 kg, l_f = 1.2 m, l_r = 1.6 m, L = 2.8 m,
-R = 0.31 m, four wheels of 1 kg m^2, C_d A = 0.66 m^2, C_rr = 0.012. Effective mass for
+Nominal car (The MathWorks' lane-keeping MPC example): m = 1575 kg, l_f = 1.2 m, l_r = 1.6 m, L =
+2.8 m, R = 0.31 m, four wheels of 1 kg m^2, C_d A = 0.66 m^2, C_rr = 0.012. Effective mass for
 longitudinal motion m + 4 I_w / R^2 = 1575 + 4 / 0.0961 = 1616.6 kg.
 """
 

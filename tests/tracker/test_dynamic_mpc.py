@@ -1,7 +1,8 @@
-"""The ``dynamic-mpc`` tracker (a delta-u MPC on Rajamani's path-error model) and its path-error model.
+"""The ``dynamic-mpc`` tracker (a delta-u MPC on Rajamani's path-error model) and its path-error
+model.
 
-The model is checked against independent numpy code (the state-space coefficients of Rajamani 2012, sec. 2.5,
-written out here, discretised exactly with ``scipy.linalg.expm``) and against the
+The model is checked against independent numpy code (the state-space coefficients of Rajamani 2012,
+sec. 2.5, written out here, discretised exactly with ``scipy.linalg.expm``) and against the
 world-frame bicycle projected onto a path (the sign conventions). The tracker runs alone on
 its own model: the plain-numpy linear-tyre bicycle of :mod:`tests.tracker.dynamic_closed_loop`
 at 2 ms with the plant's steering actuator (50 ms lag, 0.8 rad/s), a perfect estimate every
@@ -75,7 +76,8 @@ def seconds(result: ClosedLoopResult) -> np.ndarray:
 
 
 def textbook_matrices(speed_mps: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``x' = A x + B u + E psi_D'`` written out from the textbook coefficients (Rajamani 2012, sec. 2.5:
+    """``x' = A x + B u + E psi_D'`` written out from the textbook coefficients (Rajamani 2012,
+    sec. 2.5:
     a11 ... b21 of the linear-tyre bicycle), with the ISO 8855 errors of (P5)-(P6)."""
     m, i_z = CAR.mass_kg, CAR.yaw_inertia_kgm2
     l_f, l_r = CAR.cog_front_m, CAR.cog_rear_m
@@ -168,7 +170,8 @@ def test_errors_follow_the_world_frame_car_projected_on_the_path() -> None:
 
 @pytest.fixture(scope="module")
 def lane_change() -> ClosedLoopResult:
-    """The stretched double lane change at 20 m/s from 15 m/s, 15 s (Falcone et al. 2007, stretched by 1.5)."""
+    """The stretched double lane change at 20 m/s from 15 m/s, 15 s (Falcone et al. 2007, stretched
+    by 1.5)."""
     return run_closed_loop(DynamicMpc(CONFIG), LANE_CHANGE, Car(0.0, 0.0, 0.0, 15.0), 15.0, CAR)
 
 
@@ -247,8 +250,8 @@ def test_circle_is_tracked_to_a_fraction_of_a_millimetre() -> None:
     # R = 100 m at 15 m/s (0.23 g), starting on the path with the wheel straight: a
     # transient of 47 mm (the car has to build up its yaw rate), then the steady turn
     # with a constant offset of 0.25 mm (measured from 4 s on). The offset is the
-    # the reference design's heading reference e2 = 0: in a steady turn the car's heading differs from
-    # the path's by its side slip (3 mrad here), and the cost trades that heading error
+    # the reference design's heading reference e2 = 0: in a steady turn the car's heading differs
+    # from the path's by its side slip (3 mrad here), and the cost trades that heading error
     # against a little lateral error (8 mm at 0.5 g; 0.1 mm with weight_heading = 10).
     # A wrong sign or a missing curvature feed-forward would leave centimetres.
     result = run_closed_loop(DynamicMpc(CONFIG), circle(100.0, 15.0), Car(0.0, 0.0, 0.0, 15.0),

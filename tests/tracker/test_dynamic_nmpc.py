@@ -55,7 +55,8 @@ PERIOD_STEPS = 25
 
 @pytest.fixture(scope="module")
 def lane_change() -> ClosedLoopResult:
-    """The stretched double lane change at 20 m/s from 15 m/s, 15 s (Falcone et al. 2007, stretched by 1.5)."""
+    """The stretched double lane change at 20 m/s from 15 m/s, 15 s (Falcone et al. 2007, stretched
+    by 1.5)."""
     return run_closed_loop(DynamicNmpc(CONFIG), LANE_CHANGE, Car(0.0, 0.0, 0.0, 15.0), 15.0, CAR)
 
 

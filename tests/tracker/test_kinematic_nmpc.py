@@ -2,7 +2,8 @@
 
 The car is the plain-numpy kinematic bicycle of :mod:`tests.tracker.closed_loop` at 2 ms,
 the controller runs every 50 ms on a perfect estimate. On its own model the NMPC must do
-better than the 88 mm bar of a delta-u MPC (see tracker.dynamic_mpc) on the stretched double lane change.
+better than the 88 mm bar of a delta-u MPC (see tracker.dynamic_mpc) on the stretched double lane
+change.
 """
 
 from __future__ import annotations
@@ -42,7 +43,8 @@ LANE_CHANGE = double_lane_change(20.0, 1.5)
 
 @pytest.fixture(scope="module")
 def lane_change() -> ClosedLoopResult:
-    """The stretched double lane change at 20 m/s from 15 m/s, 15 s (Falcone et al. 2007, stretched by 1.5)."""
+    """The stretched double lane change at 20 m/s from 15 m/s, 15 s (Falcone et al. 2007, stretched
+    by 1.5)."""
     tracker = KinematicNmpc(CONFIG)
     return run_closed_loop(tracker, LANE_CHANGE, CarState(0.0, 0.0, 0.0, 15.0), 15.0,
                            CONFIG.model)

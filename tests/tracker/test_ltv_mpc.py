@@ -138,7 +138,8 @@ def test_linearisation_checks_its_inputs() -> None:
 
 @pytest.fixture(scope="module")
 def lane_change() -> ClosedLoopResult:
-    """The stretched double lane change at 20 m/s from 15 m/s, 15 s (Falcone et al. 2007, stretched by 1.5)."""
+    """The stretched double lane change at 20 m/s from 15 m/s, 15 s (Falcone et al. 2007, stretched
+    by 1.5)."""
     return run_closed_loop(LtvMpc(CONFIG), LANE_CHANGE, Car(0.0, 0.0, 0.0, 15.0), 15.0, CAR)
 
 

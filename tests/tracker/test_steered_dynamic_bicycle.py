@@ -31,7 +31,8 @@ from tracker.steered_dynamic_bicycle import (
 PARAMS = SteeredBicycleParams.from_vehicle(VehicleParams())
 MATHWORKS_TYRES = SteeredBicycleParams.from_vehicle(VehicleParams(
     cornering_stiffness_front_npr=19000.0, cornering_stiffness_rear_npr=33000.0))
-"""The MathWorks lane-keeping example's tyres (C_f 19000, C_r 33000 N/rad): an understeer gradient of about 15 deg/g."""
+"""The MathWorks lane-keeping example's tyres (C_f 19000, C_r 33000 N/rad): an understeer gradient
+of about 15 deg/g."""
 
 
 def _state(**values: float) -> np.ndarray:

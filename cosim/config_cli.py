@@ -1,0 +1,95 @@
+"""``cosim config``: what a run would use, and which keys exist.
+
+    cosim config show SCENARIO [--config FILE.yaml] [--tracker NAME] [--estimator NAME]
+                               [--seed N] [--duration S] [--set key.path=value ...]
+    cosim config keys [PREFIX]
+
+``show`` resolves the configuration exactly as ``cosim run`` would (same sources, same
+order, same validation) and prints it as YAML; that YAML is itself a scenario file, which
+runs the same configuration. ``keys`` lists every key with its type, unit (from the
+name's suffix: ``_s`` seconds, ``_mps`` m/s ...), default, accepted values and a line of
+documentation, read from the config dataclasses themselves (:func:`cosim.config_fields.
+key_infos`), so the list cannot drift from what the validation accepts.
+"""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from cosim.exceptions import ConfigError
+
+
+def add_parser(commands: Any, parser_class: type[argparse.ArgumentParser]) -> None:
+    """Add ``config show`` and ``config keys`` to the ``cosim`` sub-commands."""
+    config = commands.add_parser(
+        "config", help="print the resolved configuration of a run, or the list of keys",
+        description="Print the resolved configuration of a run (show), or every "
+        "configuration key with its unit, default and accepted values (keys).")
+    actions = config.add_subparsers(dest="config_command", required=True,
+                                    parser_class=parser_class)
+    show = actions.add_parser(
+        "show", help="the configuration a run would use, as YAML (a valid scenario file)")
+    show.add_argument("scenario", help="built-in scenario name (see `cosim scenarios`) or YAML")
+    show.add_argument("--config", metavar="FILE.yaml", help="YAML merged over the scenario")
+    show.add_argument("--tracker", metavar="NAME", help="tracker.name")
+    show.add_argument("--estimator", metavar="NAME", help="estimator.name")
+    show.add_argument("--seed", type=int, metavar="N", help="the run's seed")
+    show.add_argument("--duration", type=float, metavar="S", help="sim.duration_s")
+    show.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                      dest="overrides", help="override a config key, e.g. tracker.horizon=30")
+    keys = actions.add_parser(
+        "keys", help="every configuration key: unit, default, accepted values, meaning")
+    keys.add_argument("prefix", nargs="?", default="",
+                      help="only keys starting with this, e.g. tracker or plant.tyre")
+
+
+def resolved_yaml(config: Any) -> str:
+    """The configuration as the YAML a run logs (metadata ``run``, ``config_yaml``)."""
+    import yaml
+
+    from cosim.config_fields import to_dict
+
+    return yaml.safe_dump(to_dict(config), sort_keys=False)
+
+
+def _format_default(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return value if value else '""'
+    return repr(value)
+
+
+def keys_table(prefix: str = "") -> list[tuple[str, str, str, str, str]]:
+    """``(key, unit, default, accepted values, doc)`` rows of every key starting with
+    ``prefix``; an unknown prefix is a :class:`ConfigError` naming the sections."""
+    from cosim.config_fields import key_infos
+    from cosim.simulation.scenario_config import ScenarioConfig
+
+    infos = key_infos(ScenarioConfig)
+    rows = [(i.key, i.unit, _format_default(i.default), i.expected, i.doc)
+            for i in infos if i.key.startswith(prefix)]
+    if not rows:
+        sections = sorted({i.key.split(".")[0].removesuffix("[]") for i in infos})
+        raise ConfigError(f"config keys {prefix!r}: no key starts with it; expected a prefix "
+                          f"such as one of {', '.join(sections)}")
+    return rows
+
+
+def command(args: argparse.Namespace) -> int:
+    """``cosim config show|keys``."""
+    if args.config_command == "show":
+        from cosim.simulation.scenario_config import load_config
+
+        config = load_config(args.scenario, args.config, args.overrides, args.seed,
+                             args.duration, args.tracker, args.estimator)
+        print(resolved_yaml(config), end="")
+        return 0
+    rows = keys_table(args.prefix)
+    header = ("key", "unit", "default", "accepted", "meaning")
+    widths = [max(len(row[i]) for row in [header, *rows]) for i in range(4)]
+    for row in [header, *rows]:
+        cells = [f"{cell:<{width}}" for cell, width in zip(row[:4], widths, strict=True)]
+        print(("  ".join([*cells, row[4]])).rstrip())
+    return 0
