@@ -17,7 +17,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 LAYERS: dict[str, int] = {
     "cosim.cli": 6,
-    "cosim.config_cli": 6,
+    "cosim.config_cli": 5,
     "cosim.identification": 5,
     "cosim.sweeps": 5,
     "cosim.plots": 5,
