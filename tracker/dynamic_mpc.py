@@ -200,6 +200,10 @@ class ActuatorBelief:
     """Achieved longitudinal acceleration, ``ax`` of (P4) [m/s^2]."""
 
 
+PLAN_WORLD_NAMES: tuple[str, ...] = ("x_m", "y_m")
+"""World positions appended to the plan's path-model states (not part of the model)."""
+
+
 @dataclass(frozen=True)
 class StartingPoint:
     """Where the optimisation starts: the estimate predicted over its age and the latency."""
@@ -378,6 +382,8 @@ class DynamicMpc:
         self._clock.reset()
         self._actuator: ActuatorBelief | None = None
         self._last_good: _Trajectory | None = None
+        self._reference: ReferencePath | None = None
+        """The path of the last step: the plan's world positions are laid along it."""
         self._last_speed_mps = math.nan
 
     def step(
@@ -385,6 +391,7 @@ class DynamicMpc:
     ) -> tuple[Command, Plan]:
         """One control step: the command to apply at ``t_s`` and the plan behind it."""
         start = self._starting_point(t_s, estimate, reference)
+        self._reference = reference
         if not np.all(np.isfinite(start.state)):
             return self._fallback(t_s, start, None, "non_finite_estimate", 0, 0.0)
         yaw_rate_ref = self._yaw_rate_reference(reference, start)
@@ -415,7 +422,8 @@ class DynamicMpc:
         trajectory = _Trajectory(t_s, start.t_s, states, self._clip(inputs))
         self._last_good = trajectory
         self._clock.reset()
-        plan = self._plan(trajectory, cost, solve_time_s, iterations, status, True, False)
+        plan = self._plan(trajectory, cost, solve_time_s, iterations, status, True, False,
+                          start.s_m)
         return self._commit(trajectory), plan
 
     # ------------------------------------------------------------------ starting point
@@ -575,8 +583,24 @@ class DynamicMpc:
         inputs = self._clip(inputs)
         trajectory = _Trajectory(t_s, start.t_s, self._rollout(start, yaw_rate_ref, inputs),
                                  inputs)
-        plan = self._plan(trajectory, math.nan, solve_time_s, iterations, status, False, True)
+        plan = self._plan(trajectory, math.nan, solve_time_s, iterations, status, False, True,
+                          start.s_m)
         return self._commit(trajectory), plan
+
+    def _world_positions(self, trajectory: _Trajectory, s0_m: float) -> np.ndarray:
+        """``[x_m, y_m]`` of every node: the path point at the arc length the node is
+        expected to reach (``s0`` plus the trapezoid of ``vx Ts``, the small-angle (P5)-(P6)
+        reading of ``s'``), moved by ``e1`` along the path's left normal. NaN without a path
+        or a starting arc length."""
+        states = trajectory.states
+        if self._reference is None or not math.isfinite(s0_m):
+            return np.full((states.shape[0], len(PLAN_WORLD_NAMES)), np.nan)
+        speed = np.maximum(states[:, path_model.STATE["vx_mps"]], 0.0)
+        s = s0_m + np.concatenate(([0.0], np.cumsum(0.5 * (speed[:-1] + speed[1:]) * self._ts)))
+        path = self._reference.sample(s)
+        e1 = states[:, path_model.STATE["e1_m"]]
+        return np.column_stack((path["x_m"] - e1 * np.sin(path["yaw_rad"]),
+                                path["y_m"] + e1 * np.cos(path["yaw_rad"])))
 
     def _safe_stop_speed_mps(self) -> float:
         """The speed a safe stop brakes from: the last finite starting speed, else (never
@@ -586,12 +610,15 @@ class DynamicMpc:
         return self.settings.max_speed_mps
 
     def _plan(self, trajectory: _Trajectory, cost: float, solve_time_s: float,
-              iterations: int, status: str, success: bool, fallback: bool) -> Plan:
+              iterations: int, status: str, success: bool, fallback: bool,
+              s0_m: float) -> Plan:
+        """The plan: the path-model states plus the world positions they stand for
+        (:meth:`_world_positions`), so that views can draw it like any other plan."""
         return Plan(
             t_s=trajectory.t_s,
             dt_s=self._ts,
-            state_names=self.state_names,
-            states=trajectory.states.copy(),
+            state_names=(*self.state_names, *PLAN_WORLD_NAMES),
+            states=np.column_stack((trajectory.states, self._world_positions(trajectory, s0_m))),
             input_names=self.input_names,
             inputs=trajectory.inputs.copy(),
             cost=cost,

@@ -210,9 +210,9 @@ def test_plan_shapes_and_names(lane_change: ClosedLoopResult) -> None:
     plan = lane_change.plans[100]
     n_p = SETTINGS.prediction_horizon
     assert plan.state_names == ("vy_mps", "yaw_rate_radps", "vx_mps", "ax_mps2", "e1_m",
-                                "e2_rad")
+                                "e2_rad", "x_m", "y_m")
     assert plan.input_names == INPUT_NAMES == ("accel_mps2", "steer_rad")
-    assert plan.states.shape == (n_p + 1, 6)
+    assert plan.states.shape == (n_p + 1, 8)
     assert plan.inputs.shape == (n_p, 2)
     assert plan.dt_s == SETTINGS.sample_time_s
     assert plan.t_s == pytest.approx(100 * 0.05)
@@ -231,6 +231,16 @@ def test_plan_shapes_and_names(lane_change: ClosedLoopResult) -> None:
     for name in ("vy_mps", "yaw_rate_radps", "vx_mps"):
         assert plan.column(name)[0] == pytest.approx(estimate[name], abs=1e-12)
     assert len(plan.to_message()["predicted_e1_m"]) == n_p + 1
+    # The world positions: node 0 is the estimate's position; every node lies e1 off the
+    # path, ahead of the previous one by about vx Ts.
+    assert plan.column("x_m")[0] == pytest.approx(estimate["x_m"], abs=1e-6)
+    assert plan.column("y_m")[0] == pytest.approx(estimate["y_m"], abs=1e-6)
+    for k in range(1, n_p + 1):
+        node = LANE_CHANGE.project(plan.column("x_m")[k], plan.column("y_m")[k])
+        assert node.lateral_error_m == pytest.approx(plan.column("e1_m")[k], abs=1e-3)
+    step_m = np.hypot(np.diff(plan.column("x_m")), np.diff(plan.column("y_m")))
+    speed = plan.column("vx_mps")
+    assert step_m == pytest.approx(0.5 * (speed[:-1] + speed[1:]) * plan.dt_s, rel=0.01)
 
 
 def test_straight_line_from_an_offset() -> None:
