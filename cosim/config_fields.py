@@ -9,6 +9,7 @@ names the dotted key and what was expected. Validation uses ``raise``, never ``a
 from __future__ import annotations
 
 import dataclasses
+import datetime
 import math
 import typing
 from typing import Any, TypeVar
@@ -77,6 +78,8 @@ def _convert(value: Any, hint: Any, meta: dict[str, Any], key: str) -> Any:
             raise ConfigError(f"{key} = {value!r}: expected a finite number")
         value = number
     elif hint is str:
+        if isinstance(value, (datetime.date, datetime.datetime)):
+            value = value.isoformat()  # YAML reads an unquoted date as a timestamp
         if not isinstance(value, str):
             raise ConfigError(f"{key} = {value!r}: expected {_expected(meta, 'a string')}")
         if meta.get("choices") and value not in meta["choices"]:

@@ -244,3 +244,83 @@ def test_the_layout_is_a_foxglove_layout_of_this_logs_topics(short_run: RunResul
         assert plot["paths"]
         for path in plot["paths"]:
             check_path(path["value"])
+
+
+EPOCH_2026_NS = 1_767_225_600 * 1_000_000_000
+"""2026-01-01T00:00:00Z in nanoseconds since 1970 (1767225600 s: 56 years and 14 leap days)."""
+
+
+def _raw_log_times(path: Path) -> dict[str, list[int]]:
+    """Every message's log time as written in the file (no epoch subtracted), per topic."""
+    from mcap.reader import make_reader
+
+    times: dict[str, list[int]] = {}
+    with open(path, "rb") as stream:
+        for _, channel, message in make_reader(stream).iter_messages(log_time_order=False):
+            times.setdefault(channel.topic, []).append(message.log_time)
+    return times
+
+
+def test_log_times_are_the_epoch_plus_sim_time(short_run: RunResult) -> None:
+    summary = read_summary(short_run.log_path)
+    assert summary.metadata["run"]["epoch"] == "2026-01-01T00:00:00Z"
+    assert summary.epoch_ns == EPOCH_2026_NS
+    raw = _raw_log_times(short_run.log_path)
+    assert min(min(times) for times in raw.values()) >= EPOCH_2026_NS
+    truth = [m["t_s"] for _, m in iter_messages(short_run.log_path, "/vehicle/truth")]
+    assert raw["/vehicle/truth"] == [EPOCH_2026_NS + round(t * 1e9) for t in truth]
+    # Readers subtract the epoch: sim time stays sim time.
+    sim_ns = [t for t, _ in iter_messages(short_run.log_path, "/vehicle/truth")]
+    assert sim_ns == [round(t * 1e9) for t in truth]
+    assert sim_ns[0] == 0
+
+
+def test_the_epoch_is_configurable_and_checked(tmp_path: Path) -> None:
+    from cosim.exceptions import ConfigError
+    from cosim.simulation.scenario_config import load_config
+
+    result = run_scenario(tmp_path, "lane-change", "sim.epoch=2030-06-01T12:00:00+02:00",
+                          duration_s=0.1)
+    raw = _raw_log_times(result.log_path)
+    epoch_ns = (1_906_545_600 - 2 * 3600) * 1_000_000_000  # 2030-06-01T10:00:00Z
+    assert min(raw["/vehicle/truth"]) == epoch_ns
+    assert read_summary(result.log_path).epoch_ns == epoch_ns
+    for bad in ("yesterday", "2026-01-01T00:00:00", "1960-01-01T00:00:00Z"):
+        with pytest.raises(ConfigError, match="sim.epoch"):
+            load_config("lane-change", overrides=[f"sim.epoch={bad}"])
+
+
+@pytest.mark.slow
+def test_live_metrics_every_second_end_at_the_final_metrics(lane_change_run: RunResult) -> None:
+    live = list(iter_messages(lane_change_run.log_path, "/metrics/live"))
+    assert len(live) >= 14
+    assert [m["t_s"] for _, m in live] == pytest.approx([float(n + 1) for n in range(len(live))])
+    cte_max = [m["cte_max_m"] for _, m in live]
+    assert cte_max == sorted(cte_max)  # a running maximum never falls
+    final = lane_change_run.metrics
+    for key in ("cte_max_m", "cte_rms_m", "heading_err_max_rad", "speed_err_rms_mps"):
+        assert live[-1][1][key] == pytest.approx(final[key]), key
+
+
+def test_live_metrics_are_running_values(short_run: RunResult) -> None:
+    (live,) = [m for _, m in iter_messages(short_run.log_path, "/metrics/live")][:1]
+    errors = [m for _, m in iter_messages(short_run.log_path, "/control/errors")
+              if m["t_s"] <= live["t_s"] + 1e-9]
+    assert live["cte_max_m"] == pytest.approx(max(abs(m["cte_m"]) for m in errors))
+    assert live["cte_rms_m"] == pytest.approx(
+        math.sqrt(sum(m["cte_m"] ** 2 for m in errors) / len(errors)))
+
+
+def test_dynamic_mpc_has_a_plan_scene(tmp_path: Path) -> None:
+    result = run_scenario(tmp_path, "lane-change", "tracker.name=dynamic-mpc", duration_s=1.0)
+    plans = dict(iter_messages(result.log_path, "/control/plan"))
+    scenes = dict(iter_messages(result.log_path, "/scene/plan"))
+    assert scenes.keys() == plans.keys() and len(scenes) == 20
+    truth = dict(iter_messages(result.log_path, "/vehicle/truth"))
+    for t_ns, scene in scenes.items():
+        (line,) = scene["entities"][0]["lines"]
+        points = np.array([[p["x"], p["y"]] for p in line["points"]])
+        predicted = np.column_stack([plans[t_ns]["predicted_x_m"], plans[t_ns]["predicted_y_m"]])
+        assert points == pytest.approx(predicted, abs=1e-4)
+        # The plan starts where the car is (the estimate, within centimetres of the truth).
+        assert points[0] == pytest.approx([truth[t_ns]["x_m"], truth[t_ns]["y_m"]], abs=0.1)

@@ -3,6 +3,10 @@
 The file is scanned record by record with the ``mcap`` package's stream reader, so a log
 whose writer was killed (no summary section, a cut-off last chunk) is read up to its last
 complete record and reported as truncated.
+
+Log times are ``epoch + sim time`` (``sim.epoch``, so that Foxglove shows real dates); the
+``run`` metadata, written before any message, holds ``epoch_ns``, and every reader here
+subtracts it: the ``log_time_ns`` they yield is sim time, as in logs without an epoch.
 """
 
 from __future__ import annotations
@@ -50,6 +54,11 @@ class LogSummary:
         return (self.end_ns - self.start_ns) / 1e9
 
     @property
+    def epoch_ns(self) -> int:
+        """Log time of sim time 0 [ns since the Unix epoch]; 0 for logs without one."""
+        return _epoch_ns(self.metadata.get("run", {}))
+
+    @property
     def message_count(self) -> int:
         return sum(c.message_count for c in self.channels)
 
@@ -62,6 +71,13 @@ class LogSummary:
     def versions(self) -> dict[str, str]:
         text = self.metadata.get("run", {}).get("versions")
         return json.loads(text) if text else {}
+
+
+def _epoch_ns(run_metadata: dict[str, str]) -> int:
+    try:
+        return int(run_metadata.get("epoch_ns", "0"))
+    except ValueError:
+        return 0
 
 
 def _records(path: Path) -> Iterator[Any]:
@@ -135,13 +151,17 @@ def read_summary(path: Path | str) -> LogSummary:
 
 
 def iter_messages(path: Path | str, topic: str) -> Iterator[tuple[int, dict[str, Any]]]:
-    """``(log_time_ns, message)`` of one topic, in file order (JSON-decoded)."""
+    """``(log_time_ns, message)`` of one topic, in file order (JSON-decoded); the time is
+    sim time (the log's epoch subtracted)."""
     wanted: set[int] = set()
+    epoch = 0
     for record in _records(Path(path)):
         if isinstance(record, Channel) and record.topic == topic:
             wanted.add(record.id)
+        elif isinstance(record, Metadata) and record.name == "run":
+            epoch = _epoch_ns(dict(record.metadata))
         elif isinstance(record, Message) and record.channel_id in wanted:
-            yield record.log_time, json.loads(record.data)
+            yield record.log_time - epoch, json.loads(record.data)
 
 
 def iter_topics(path: Path | str, topics: set[str] | None = None
@@ -150,11 +170,14 @@ def iter_topics(path: Path | str, topics: set[str] | None = None
     one pass, in file order (JSON-decoded); a truncated file ends at its last complete
     record."""
     names: dict[int, str] = {}
+    epoch = 0
     for record in _records(Path(path)):
         if isinstance(record, Channel) and (topics is None or record.topic in topics):
             names[record.id] = record.topic
+        elif isinstance(record, Metadata) and record.name == "run":
+            epoch = _epoch_ns(dict(record.metadata))
         elif isinstance(record, Message) and record.channel_id in names:
-            yield names[record.channel_id], record.log_time, json.loads(record.data)
+            yield names[record.channel_id], record.log_time - epoch, json.loads(record.data)
 
 
 def read_attachment(path: Path | str, name: str) -> bytes | None:

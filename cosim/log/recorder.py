@@ -56,8 +56,13 @@ def _finite(value: Any) -> Any:
 class McapRecorder:
     """Writes a run to an MCAP file. Use as a context manager; it always finishes the file."""
 
-    def __init__(self, path: Path, chunk_size_bytes: int = 256 * 1024) -> None:
+    def __init__(self, path: Path, chunk_size_bytes: int = 256 * 1024,
+                 epoch_ns: int = 0) -> None:
         self.path = Path(path)
+        self.epoch_ns = epoch_ns
+        """Log time of sim time 0 [ns since the Unix epoch]: every message's and
+        attachment's log time is ``epoch_ns`` plus its sim time. Readers subtract it
+        (:mod:`cosim.log.reader`, from the ``run`` metadata's ``epoch_ns``)."""
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             self._file = open(self.path, "wb")  # noqa: SIM115 - closed in close()
@@ -94,7 +99,7 @@ class McapRecorder:
     def write(self, topic: str, t_s: float, message: dict[str, Any]) -> None:
         """Write one message at simulated time ``t_s``."""
         channel_id = self._channels[topic]
-        log_time = seconds_to_ns(t_s)
+        log_time = self.epoch_ns + seconds_to_ns(t_s)
         data = json.dumps(message, allow_nan=False, separators=(",", ":")).encode()
         self._writer.add_message(
             channel_id=channel_id, log_time=log_time, data=data, publish_time=log_time,
@@ -110,7 +115,7 @@ class McapRecorder:
         self._writer.add_metadata(name=name, data=values)
 
     def add_attachment(self, name: str, media_type: str, data: bytes, t_s: float = 0.0) -> None:
-        t_ns = seconds_to_ns(t_s)
+        t_ns = self.epoch_ns + seconds_to_ns(t_s)
         self._writer.add_attachment(
             create_time=t_ns, log_time=t_ns, name=name, media_type=media_type, data=data
         )

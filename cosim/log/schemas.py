@@ -115,6 +115,13 @@ METRICS = {
     "additionalProperties": {"type": ["number", "boolean", "string", "null"]},
 }
 
+LIVE_METRICS = {
+    **object_schema("cosim.LiveMetrics", {"t_s": NUMBER},
+                    "Running metrics over the run so far, once per second of sim time: the "
+                    "keys of /metrics that can be computed before the end, plus cte_m now."),
+    "additionalProperties": {"type": ["number", "null"]},
+}
+
 FRAME_TRANSFORM = object_schema(
     "foxglove.FrameTransform",
     {"timestamp": TIME, "parent_frame_id": STRING, "child_frame_id": STRING,

@@ -126,6 +126,28 @@ class MetricsAccumulator:
         self.steer_rad.append(command.steer_rad)
         self.accel_mps2.append(command.accel_mps2)
 
+    def live(self, t_s: float) -> dict[str, float | int]:
+        """The metrics that can be computed so far, for ``/metrics/live`` at sim time
+        ``t_s`` (same keys and meaning as :meth:`result`'s, over the run up to ``t_s``)."""
+        solve_ms = np.asarray(self.solve_time_s) * 1e3
+        return {
+            "t_s": t_s,
+            "cte_m": self.cte_m[-1] if self.cte_m else float("nan"),
+            "cte_max_m": _max_abs(self.cte_m),
+            "cte_rms_m": _rms(self.cte_m),
+            "heading_err_max_rad": _max_abs(self.heading_err_rad),
+            "heading_err_rms_rad": _rms(self.heading_err_rad),
+            "speed_err_rms_mps": _rms(self.speed_err_mps),
+            "steer_max_rad": _max_abs(self.steer_rad),
+            "solve_ms_p50": float(np.percentile(solve_ms, 50)) if solve_ms.size else float("nan"),
+            "solve_ms_max": float(solve_ms.max()) if solve_ms.size else float("nan"),
+            "solver_failures": self.solver_failures,
+            "est_pos_rmse_m": _rms(self.pos_err_m),
+            "est_yaw_rmse_rad": _rms(self.yaw_err_rad),
+            "nees_mean": float(np.mean(self.nees)) if self.nees else float("nan"),
+            "nis_mean": float(np.mean(self.nis_per_dof)) if self.nis_per_dof else float("nan"),
+        }
+
     def result(self, wall_time_s: float, completed: bool) -> dict[str, float | int | bool]:
         """Every metric; NaN where a quantity has no samples (e.g. NEES of ``truth``)."""
         solve_ms = np.asarray(self.solve_time_s) * 1e3

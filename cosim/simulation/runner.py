@@ -123,6 +123,11 @@ def _stop_on_signals() -> Iterator[_StopRequest]:
             signal.signal(signum, handler)
 
 
+LIVE_METRICS_PERIOD_S = 1.0
+"""``/metrics/live`` carries the running metrics once per second of sim time, so that
+Foxglove's metrics panel fills during playback (``/metrics`` comes only at the end)."""
+
+
 def _register_topics(recorder: McapRecorder, sensor_names: list[str],
                      disturbed: bool) -> None:
     recorder.register("/vehicle/truth", mcap_schemas.VEHICLE_STATE)
@@ -131,6 +136,7 @@ def _register_topics(recorder: McapRecorder, sensor_names: list[str],
     recorder.register("/control/plan", mcap_schemas.PLAN)
     recorder.register("/reference/path", mcap_schemas.REFERENCE_PATH)
     recorder.register("/metrics", mcap_schemas.METRICS)
+    recorder.register("/metrics/live", mcap_schemas.LIVE_METRICS)
     recorder.register("/control/errors", mcap_schemas.TRACKING_ERRORS)
     recorder.register("/tf", mcap_schemas.FRAME_TRANSFORM)
     recorder.register("/scene", mcap_schemas.SCENE_UPDATE)
@@ -199,6 +205,8 @@ class _Run:
         self.truth = self.plant.state()
         self.estimated_speed_mps = config.initial.speed_mps
         self.plan_scene_registered = False
+        self.next_live_metrics_s = LIVE_METRICS_PERIOD_S
+        """Sim time of the next ``/metrics/live`` message."""
         """``/scene/plan`` is registered with the first plan that has world positions."""
 
     def write_header(self) -> None:
@@ -211,6 +219,8 @@ class _Run:
         recorder.add_metadata("run", {
             "scenario": config.name,
             "seed": str(config.seed),
+            "epoch": config.sim.epoch,
+            "epoch_ns": str(config.sim.epoch_ns),
             "config_yaml": yaml.safe_dump(config_dict, sort_keys=False),
             "config_json": json.dumps(config_dict),
             "versions": json.dumps(versions),
@@ -245,6 +255,9 @@ class _Run:
             "speed_err_mps": metrics.speed_err_mps[-1], "speed_mps": self.truth.speed_mps,
             "ref_speed_mps": self.reference.speed_mps,
         })
+        if t_s >= self.next_live_metrics_s - 1e-9:
+            self.recorder.write_finite("/metrics/live", t_s, metrics.live(t_s))
+            self.next_live_metrics_s += LIVE_METRICS_PERIOD_S
 
     def sense(self, k: int, t_s: float) -> None:
         for sensor, steps in zip(self.sensors, self.sensor_steps, strict=True):
@@ -337,7 +350,8 @@ def run(
     completed, abort_reason = False, ""
     # One BLAS thread: the matrices here are small, and an idle BLAS thread spinning on
     # the other core made MPC solve times jitter (ltv-mpc p99 5 ms against 1 ms).
-    with threadpool_limits(limits=1, user_api="blas"), McapRecorder(out_path) as recorder:
+    with threadpool_limits(limits=1, user_api="blas"), McapRecorder(
+            out_path, epoch_ns=config.sim.epoch_ns) as recorder:
         state = _Run(config, recorder)
         state.write_header()
         try:

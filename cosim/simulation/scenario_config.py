@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import datetime
 import importlib.resources
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,6 +30,24 @@ from estimation.config import EstimatorConfig
 from tracker.config import TrackerConfig
 from tracker.maneuver import ManeuverConfig
 
+DEFAULT_EPOCH = "2026-01-01T00:00:00Z"
+"""Log time of sim time 0 unless ``sim.epoch`` says otherwise: a fixed date, so that two
+runs with one seed write the same file, and Foxglove shows a date of this era."""
+
+
+def epoch_ns(text: str) -> int:
+    """An ISO 8601 date and time with a zone (``Z`` or ``+hh:mm``) in nanoseconds since
+    the Unix epoch; a :class:`ConfigError` naming ``sim.epoch`` otherwise."""
+    try:
+        moment = datetime.datetime.fromisoformat(text.strip().replace("Z", "+00:00"))
+    except ValueError:
+        moment = None
+    if moment is None or moment.tzinfo is None or moment.year < 1970:
+        raise ConfigError(f"sim.epoch = {text!r}: expected an ISO 8601 UTC date and time "
+                          "from 1970 on, e.g. 2026-01-01T00:00:00Z")
+    delta = moment - datetime.datetime(1970, 1, 1, tzinfo=datetime.timezone.utc)
+    return (delta.days * 86_400 + delta.seconds) * 1_000_000_000 + delta.microseconds * 1_000
+
 
 @dataclass(frozen=True)
 class SimConfig:
@@ -38,6 +57,18 @@ class SimConfig:
     control_period_s: float = setting(0.05, low=1e-4, high=5.0)
     log_period_s: float = setting(0.01, low=1e-4, high=5.0, doc="truth/estimate log rate")
     duration_s: float = setting(15.0, low=0.0, high=3600.0)
+    epoch: str = setting(
+        DEFAULT_EPOCH,
+        doc="UTC date and time of sim time 0 in the log's timestamps (ISO 8601, e.g. "
+        "2026-01-01T00:00:00Z); fixed, so logs stay deterministic")
+
+    def __post_init__(self) -> None:
+        epoch_ns(self.epoch)  # refuses a malformed or zone-less date
+
+    @property
+    def epoch_ns(self) -> int:
+        """:attr:`epoch` in integer nanoseconds since 1970-01-01T00:00:00Z."""
+        return epoch_ns(self.epoch)
 
 
 @dataclass(frozen=True)
