@@ -52,7 +52,7 @@ def test_every_figure_of_one_run(nmpc_run: RunResult, tmp_path: Path) -> None:
         _assert_real_figure(path)
 
 
-def test_overlay_of_two_runs_and_a_plan_without_positions(
+def test_overlay_of_two_trackers(
         nmpc_run: RunResult, path_error_run: RunResult, tmp_path: Path) -> None:
     single = plot_logs([nmpc_run.log_path], tmp_path / "single")
     overlay = plot_logs([nmpc_run.log_path, path_error_run.log_path], tmp_path / "overlay")
@@ -63,8 +63,62 @@ def test_overlay_of_two_runs_and_a_plan_without_positions(
     runs = distinct_labels([load_run(nmpc_run.log_path), load_run(path_error_run.log_path)])
     assert [r.label for r in runs] == ["lane-change / dynamic-nmpc", "lane-change / dynamic-mpc"]
     assert runs[0].plans is not None and runs[0].plans.has_positions
-    assert runs[1].plans is not None and not runs[1].plans.has_positions
+    # dynamic-mpc predicts path errors and adds the world positions they stand for.
+    assert runs[1].plans is not None and runs[1].plans.has_positions
     assert "e1_m" in runs[1].plans.state_names
+
+
+def test_overlaid_runs_are_named_by_their_difference_and_told_apart_by_style(
+        nmpc_run: RunResult) -> None:
+    from dataclasses import replace
+
+    from cosim.plots.style import RUN_COLOURS
+    from cosim.plots.top_view import top_view
+
+    base = load_run(nmpc_run.log_path)
+    heavy_config = {**base.config, "plant": {**base.config["plant"], "mass_kg": 2000.0}}
+    heavy = replace(base, config=heavy_config)
+    runs = distinct_labels([base, heavy])
+    assert [r.label for r in runs] == ["lane-change / dynamic-nmpc: plant.mass_kg=1575",
+                                       "lane-change / dynamic-nmpc: plant.mass_kg=2000"]
+    # The same configuration twice: named by file, else numbered.
+    assert [r.label for r in distinct_labels([base, base])] == [
+        "run 1: lane-change / dynamic-nmpc", "run 2: lane-change / dynamic-nmpc"]
+    figure = top_view(runs)
+    for ax in figure.axes:
+        styles = {colour: {str(line.get_linestyle()) for line in ax.get_lines()
+                           if line.get_color() == colour and len(line.get_xdata()) > 20
+                           and line.get_linewidth() >= 1.2}  # paths, not footprints
+                  for colour in RUN_COLOURS}
+        if styles[RUN_COLOURS[0]] and styles[RUN_COLOURS[1]]:
+            assert "-" in styles[RUN_COLOURS[0]]
+            assert "-" not in styles[RUN_COLOURS[1]], ax.get_title()
+
+
+@pytest.mark.slow
+def test_a_spin_is_plotted_as_a_spin(tmp_path: Path) -> None:
+    """On a slippery road the car spins metres off the path: the deviation panel's range
+    covers the whole CTE (not a band of centimetres), on both sides."""
+    from cosim.plots.top_view import DEVIATION_TITLE, top_view
+
+    config = load_config("lane-change", overrides=["plant.tire_friction=0.3"], duration_s=10.0)
+    result = run(config, tmp_path / "spin.mcap")
+    data = load_run(result.log_path)
+    assert data.tracking is not None
+    cte_cm = data.tracking.cte_m * 100.0
+    assert np.max(np.abs(cte_cm)) > 300.0  # it did leave the path by metres
+    (deviation,) = [ax for ax in top_view([data]).axes
+                    if ax.get_title().startswith(DEVIATION_TITLE)]
+    low, high = deviation.get_ylim()
+    x_low, x_high = deviation.get_xlim()
+    worst = int(np.argmax(np.abs(cte_cm)))
+    assert x_low <= data.truth.x_m[worst] <= x_high
+    shown = (data.truth.x_m >= x_low) & (data.truth.x_m <= x_high)
+    assert low <= np.min(cte_cm[shown]) and np.max(cte_cm[shown]) <= high
+    assert low <= -abs(cte_cm[worst]) or high >= abs(cte_cm[worst])
+    assert high - low >= np.max(np.abs(cte_cm))
+    for path in plot_logs([result.log_path], tmp_path / "plots"):
+        _assert_real_figure(path)
 
 
 def test_the_plotted_errors_are_the_metrics(nmpc_run: RunResult) -> None:

@@ -122,6 +122,15 @@ LIVE_METRICS = {
     "additionalProperties": {"type": ["number", "null"]},
 }
 
+ESTIMATOR_UPDATE = object_schema(
+    "cosim.EstimatorUpdate",
+    {"t_s": NUMBER, "sensor": STRING, "accepted": BOOLEAN, "nis": NUMBER_OR_NULL,
+     "dof": {"type": "integer"}, "reason": STRING},
+    "One measurement fused (or refused) by the estimator: its normalised innovation squared "
+    "against the prior and its degrees of freedom (NIS / dof is about 1 for a consistent "
+    "filter; Bar-Shalom, Li, Kirubarajan 2001, sec. 5.4).",
+)
+
 FRAME_TRANSFORM = object_schema(
     "foxglove.FrameTransform",
     {"timestamp": TIME, "parent_frame_id": STRING, "child_frame_id": STRING,

@@ -25,6 +25,7 @@ from cosim.plots.style import (
     new_figure,
     note,
     run_colour,
+    run_line,
     time_axis,
 )
 
@@ -96,16 +97,16 @@ def commands_figure(runs: Sequence[RunLog], path: Path) -> Path:
             note(steer_ax, f"{run.label}: no /control/command messages")
             continue
         steer_deg = np.degrees(commands.steer_rad)
-        steer_ax.step(commands.t_s, steer_deg, where="post", color=colour, linewidth=1.3,
+        steer_ax.step(commands.t_s, steer_deg, where="post", **run_line(i), linewidth=1.3,
                       label=f"command (peak |angle| {np.nanmax(np.abs(steer_deg)):.2f} deg)")
         steer_data.append(steer_deg)
         if commands.t_s.size > 1:
             rate = np.diff(steer_deg) / np.diff(commands.t_s)
-            rate_ax.step(commands.t_s[1:], rate, where="pre", color=colour, linewidth=1.2,
+            rate_ax.step(commands.t_s[1:], rate, where="pre", **run_line(i), linewidth=1.2,
                          label=f"command rate (peak |rate| "
                                f"{np.nanmax(np.abs(rate)):.1f} deg/s)")
             rate_data.append(rate)
-        accel_ax.step(commands.t_s, commands.accel_mps2, where="post", color=colour,
+        accel_ax.step(commands.t_s, commands.accel_mps2, where="post", **run_line(i),
                       linewidth=1.3, label=generic(i, "command"))
         accel_data.append(commands.accel_mps2)
     _draw_limits(steer_ax, steer_limits, steer_data, "deg", "tracker limit")

@@ -11,6 +11,7 @@ the true horizontal speed minus the reference speed.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -23,7 +24,13 @@ from cosim.simulation.metrics import NEES_STATES
 from tracker.reference_path import ReferencePath, wrap_angle
 
 TOPICS = {"/vehicle/truth", "/vehicle/estimate", "/control/command", "/control/plan",
-          "/reference/path"}
+          "/reference/path", "/estimator/updates"}
+
+TRUTH_FIELDS = ("x_m", "y_m", "yaw_rad", "vx_mps", "vy_mps", "yaw_rate_radps", "ax_mps2",
+                "steer_rad", "roll_rad")
+"""The ``/vehicle/truth`` fields an estimate's state of the same name is compared with."""
+ANGLES = ("yaw_rad", "roll_rad")
+"""Errors wrapped to (-pi, pi]."""
 
 
 @dataclass(frozen=True)
@@ -41,6 +48,7 @@ class Truth:
     ax_mps2: np.ndarray
     steer_rad: np.ndarray
     """Road-wheel angle of the front axle (the steering actuator's output)."""
+    roll_rad: np.ndarray
 
     @property
     def speed_mps(self) -> np.ndarray:
@@ -138,6 +146,16 @@ class EstimationErrors:
 
 
 @dataclass(frozen=True)
+class SensorNis:
+    """``/estimator/updates`` of one sensor: NIS per degree of freedom of each update the
+    filter tested (accepted or gated)."""
+
+    t_s: np.ndarray
+    nis_per_dof: np.ndarray
+    accepted: np.ndarray
+
+
+@dataclass(frozen=True)
 class RunLog:
     """Everything the plots need from one log."""
 
@@ -153,6 +171,8 @@ class RunLog:
     reference: Reference | None
     tracking: TrackingErrors | None
     estimation: EstimationErrors | None
+    nis: dict[str, SensorNis] | None = None
+    """Per sensor; None for logs without ``/estimator/updates``."""
 
     @property
     def tracker_name(self) -> str:
@@ -175,8 +195,7 @@ def _truth(messages: list[tuple[int, dict[str, Any]]]) -> Truth:
     return Truth(
         log_time_ns=np.array([t for t, _ in messages], dtype=np.int64),
         **{name: _column(messages, name)
-           for name in ("t_s", "x_m", "y_m", "yaw_rad", "vx_mps", "vy_mps",
-                        "yaw_rate_radps", "ax_mps2", "steer_rad")},
+           for name in ("t_s", *TRUTH_FIELDS)},
     )
 
 
@@ -257,11 +276,11 @@ def _estimation(truth: Truth, estimate: EstimateLog | None) -> EstimationErrors 
         return None
     errors: dict[str, np.ndarray] = {}
     sigmas: dict[str, np.ndarray] = {}
-    for name in ("x_m", "y_m", "yaw_rad", "vx_mps", "vy_mps", "yaw_rate_radps", "steer_rad"):
+    for name in TRUTH_FIELDS:
         if name not in estimate.state_names:
             continue
         error = estimate.column(name)[in_estimate] - getattr(truth, name)[in_truth]
-        errors[name] = np.asarray(wrap_angle(error)) if name == "yaw_rad" else error
+        errors[name] = np.asarray(wrap_angle(error)) if name in ANGLES else error
         sigmas[name] = estimate.sigma(name)[in_estimate]
     nees_states = tuple(n for n in NEES_STATES if n in errors)
     nees = None
@@ -301,13 +320,86 @@ def load_run(path: Path | str) -> RunLog:
         commands=_commands(messages["/control/command"]),
         plans=_plans(messages["/control/plan"]), reference=reference,
         tracking=_tracking(truth, reference), estimation=_estimation(truth, estimate),
+        nis=_nis(messages["/estimator/updates"]),
     )
 
 
+def _nis(messages: list[tuple[int, dict[str, Any]]]) -> dict[str, SensorNis] | None:
+    if not messages:
+        return None
+    by_sensor: dict[str, list[dict[str, Any]]] = {}
+    for _, message in messages:
+        if message.get("nis") is not None and message.get("dof", 0) > 0:
+            by_sensor.setdefault(str(message["sensor"]), []).append(message)
+    return {sensor: SensorNis(
+        t_s=np.array([m["t_s"] for m in items], dtype=float),
+        nis_per_dof=np.array([m["nis"] / m["dof"] for m in items], dtype=float),
+        accepted=np.array([bool(m["accepted"]) for m in items]),
+    ) for sensor, items in sorted(by_sensor.items())}
+
+
+MAX_LABEL_DIFFERENCES = 3
+"""A run's label names at most this many configuration differences (then "+n more")."""
+
+
+def flat_config(config: Any, prefix: str = "") -> dict[str, Any]:
+    """The logged configuration as ``dotted.key -> value`` (lists as ``key[i]``)."""
+    if isinstance(config, dict):
+        flat: dict[str, Any] = {}
+        for key, value in config.items():
+            flat.update(flat_config(value, f"{prefix}.{key}" if prefix else str(key)))
+        return flat
+    if isinstance(config, list):
+        flat = {}
+        for i, value in enumerate(config):
+            flat.update(flat_config(value, f"{prefix}[{i}]"))
+        return flat or {prefix: "[]"}
+    return {prefix: config}
+
+
+def config_differences(configs: Sequence[dict[str, Any]]) -> list[str]:
+    """The dotted keys whose values differ between the logged configurations, in the order
+    of the first one (keys only one of them has count as different); ``description`` and
+    a ``tracker.latency_s`` that follows ``plant.actuator_delay_s`` are left out."""
+    flats = [flat_config(config) for config in configs]
+    keys = list(dict.fromkeys(key for flat in flats for key in flat))
+    missing = object()
+    differing = [key for key in keys
+                 if key != "description"
+                 and len({repr(flat.get(key, missing)) for flat in flats}) > 1]
+    if "plant.actuator_delay_s" in differing and "tracker.latency_s" in differing:
+        differing.remove("tracker.latency_s")
+    return differing
+
+
+def _label_value(value: Any) -> str:
+    if isinstance(value, float):
+        return f"{value:g}"
+    return "n/a" if value is None else str(value)
+
+
 def distinct_labels(runs: list[RunLog]) -> list[RunLog]:
-    """The runs with labels that tell them apart (the file name added where two agree)."""
+    """The runs with labels that tell them apart: by what differs in their logged
+    configurations (``plant.mass_kg=1575`` against ``plant.mass_kg=2000``), else by file
+    name, else by number."""
     from dataclasses import replace
 
+    if len(runs) < 2:
+        return runs
+    # The scenario and the tracker are in every label already.
+    differing = [key for key in config_differences([run.config for run in runs])
+                 if key not in ("name", "tracker.name")]
+    if differing:
+        shown, more = differing[:MAX_LABEL_DIFFERENCES], len(differing) - MAX_LABEL_DIFFERENCES
+        labelled = []
+        for run in runs:
+            flat = flat_config(run.config)
+            parts = [f"{key}={_label_value(flat.get(key))}" for key in shown]
+            if more > 0:
+                parts.append(f"+{more} more")
+            labelled.append(replace(run, label=f"{run.label}: {', '.join(parts)}"))
+        if len({run.label for run in labelled}) == len(labelled):
+            return labelled
     labels = [run.label for run in runs]
     if len(set(labels)) == len(labels):
         return runs

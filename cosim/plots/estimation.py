@@ -1,20 +1,31 @@
-"""Estimation errors with the filter's own +-3 sigma, and NEES.
+"""Estimation: every estimated state with the filter's own +-3 sigma, NEES, and NIS per sensor.
 
-Errors are estimate minus truth at the log times both topics share (yaw wrapped); the band
-is +-3 sigma from the diagonal of the logged covariance, so a consistent filter keeps its
-error inside the band almost always. NEES is computed per sample over the states the run
-metrics use (x, y, yaw, v_x: 4 degrees of freedom) with the logged covariance block; the
-shaded band is where 95 % of single-sample NEES values of a consistent filter fall
-(chi-square, 4 dof), the dashed line its mean (4).
+One panel per state the estimator reports, in its order. Where the truth has the same
+quantity (pose, velocities, yaw rate, longitudinal acceleration, road-wheel angle, roll) the
+panel shows the error, estimate minus truth at the log times both topics share (angles
+wrapped), inside the band of +-3 sigma from the diagonal of the logged covariance: a
+consistent filter keeps its error inside the band almost always. States with no logged
+truth (sensor biases, the lateral-force residual, the rolling-radius scale) show the
+estimate itself with its +-3 sigma band: whether it settles, and how sure the filter is.
+
+NEES is computed per sample over the states the run metrics use (x, y, yaw, v_x: 4 degrees
+of freedom) with the logged covariance block; the shaded band is where 95 % of single-sample
+NEES values of a consistent filter fall (chi-square, 4 dof), the dashed line its mean (4).
+NIS per sensor (``/estimator/updates``) is each update's normalised innovation squared per
+degree of freedom, drawn as its running mean over ``NIS_WINDOW_S``: about 1 for a consistent
+filter (Bar-Shalom, Li, Kirubarajan, "Estimation with Applications to Tracking and
+Navigation", Wiley 2001, sec. 5.4).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from cosim.config_fields import unit_of
 from cosim.plots.data import RunLog
 from cosim.plots.style import (
     REFERENCE_COLOUR,
@@ -23,24 +34,26 @@ from cosim.plots.style import (
     note,
     run_colour,
     run_legend,
+    run_line,
     save,
     style_axes,
     suptitle,
     time_axis,
 )
 
-PANELS = (
-    ("x_m", 100.0, "cm", "x error [cm]", "position error, x (east)"),
-    ("y_m", 100.0, "cm", "y error [cm]", "position error, y (north)"),
-    ("yaw_rad", float(np.degrees(1.0)), "deg", "yaw error [deg]", "yaw error"),
-    ("vx_mps", 1.0, "m/s", "v_x error [m/s]", "longitudinal speed error (vehicle frame)"),
-)
-"""(state, scale from SI to the plotted unit, the unit, y label, title)."""
+PLOT_UNITS: dict[str, tuple[float, str]] = {
+    "m": (100.0, "cm"), "rad": (float(np.degrees(1.0)), "deg"),
+    "rad/s": (float(np.degrees(1.0)), "deg/s"),
+}
+"""SI unit of a state -> (scale, unit) it is plotted in; others are plotted in SI."""
 
 SETTLE_S = 1.0
 """The y range is set by the errors and bands after the filter's first second (at most a
 tenth of the run), so the initial convergence from a wide prior does not flatten the rest;
 the title says when the start is off scale."""
+NIS_WINDOW_S = 1.0
+"""Running-mean window of the NIS curves."""
+COLUMNS = 2
 
 
 def _nees_band(dof: int, probability: float = 0.95) -> tuple[float, float]:
@@ -50,80 +63,184 @@ def _nees_band(dof: int, probability: float = 0.95) -> tuple[float, float]:
     return float(chi2.ppf(tail, dof)), float(chi2.ppf(1.0 - tail, dof))
 
 
-def estimation_figure(runs: Sequence[RunLog], path: Path) -> Path:
-    figure = new_figure(11.0, 12.0)
-    axes = figure.subplots(len(PANELS) + 1, 1, sharex=True)
-    nees_ax = axes[-1]
+def _plot_unit(name: str) -> tuple[float, str]:
+    si = unit_of(name)
+    return PLOT_UNITS.get(si, (1.0, "-" if si == "-" else si))
+
+
+def _state_names(runs: Sequence[RunLog]) -> list[str]:
+    """Every state any run estimates, in the first estimator's order."""
+    names: list[str] = []
+    for run in runs:
+        if run.estimate is not None:
+            names += [n for n in run.estimate.state_names if n not in names]
+    return names
+
+
+def _running_mean(t_s: np.ndarray, values: np.ndarray, window_s: float) -> np.ndarray:
+    """Mean of ``values`` over the ``window_s`` up to each sample (time-ordered)."""
+    sums = np.concatenate(([0.0], np.cumsum(values)))
+    first = np.searchsorted(t_s, t_s - window_s, side="right")
+    counts = np.arange(1, t_s.size + 1) - first
+    return (sums[1:] - sums[first]) / np.maximum(counts, 1)
+
+
+class _Range:
+    """The y extent of a panel: over the whole run, and after the filter settled."""
+
+    def __init__(self) -> None:
+        self.settled = 0.0
+        self.extreme = 0.0
+
+    def add(self, values: np.ndarray, after: np.ndarray) -> None:
+        finite = np.isfinite(values)
+        if np.any(finite & after):
+            self.settled = max(self.settled, float(np.max(np.abs(values[finite & after]))))
+        if np.any(finite):
+            self.extreme = max(self.extreme, float(np.max(np.abs(values[finite]))))
+
+
+def _error_panel(ax: Any, run: RunLog, i: int, name: str, extent: _Range) -> bool:
+    """Estimate - truth of ``name`` with +-3 sigma; False when the run has no such error."""
+    errors = run.estimation
+    if errors is None or name not in errors.error:
+        return False
+    scale, unit = _plot_unit(name)
+    error = errors.error[name] * scale
+    sigma3 = 3.0 * errors.sigma[name] * scale
+    after = errors.t_s >= errors.t_s[0] + min(SETTLE_S, 0.1 * np.ptp(errors.t_s))
+    extent.add(error, after)
+    extent.add(sigma3, after)
+    inside = np.mean(np.abs(error) <= sigma3) * 100.0
+    rmse = float(np.sqrt(np.nanmean(error**2)))
+    ax.fill_between(errors.t_s, -sigma3, sigma3, color=run_colour(i), alpha=0.15, linewidth=0,
+                    label=f"±3σ (error inside {inside:.1f} %)")
+    ax.plot(errors.t_s, error, linewidth=1.0, **run_line(i),
+            label=f"estimate - truth (RMS {rmse:.3g} {unit})")
+    ax.axhline(0.0, color=REFERENCE_COLOUR, linewidth=0.6)
+    return True
+
+
+def _estimate_panel(ax: Any, run: RunLog, i: int, name: str, extent: _Range) -> bool:
+    """The estimate of ``name`` (no truth logged) with its +-3 sigma band."""
+    estimate = run.estimate
+    if estimate is None or name not in estimate.state_names:
+        return False
+    scale, unit = _plot_unit(name)
+    mean = estimate.column(name) * scale
+    sigma3 = 3.0 * estimate.sigma(name) * scale
+    after = estimate.t_s >= estimate.t_s[0] + min(SETTLE_S, 0.1 * np.ptp(estimate.t_s))
+    extent.add(mean + sigma3, after)
+    extent.add(mean - sigma3, after)
+    ax.fill_between(estimate.t_s, mean - sigma3, mean + sigma3, color=run_colour(i),
+                    alpha=0.15, linewidth=0, label="±3σ")
+    ax.plot(estimate.t_s, mean, linewidth=1.0, **run_line(i),
+            label=f"estimate (last {mean[-1]:.3g} {unit}; no truth logged)")
+    return True
+
+
+def _nees_panel(ax: Any, runs: Sequence[RunLog]) -> None:
     drawn_bands: set[int] = set()
-    settled = [0.0] * len(PANELS)
-    extreme = [0.0] * len(PANELS)
     nees_values: list[np.ndarray] = []
     for i, run in enumerate(runs):
-        colour = run_colour(i)
         errors = run.estimation
-        if errors is None:
-            note(axes[0], f"{run.label}: no /vehicle/estimate at the truth's log times")
-            continue
-        after = errors.t_s >= errors.t_s[0] + min(SETTLE_S, 0.1 * np.ptp(errors.t_s))
-        for p, (ax, (name, scale, unit, _, _)) in enumerate(zip(axes, PANELS,
-                                                                  strict=False)):
-            if name not in errors.error:
-                note(ax, f"{run.label}: the estimator does not estimate {name}")
-                continue
-            error = errors.error[name] * scale
-            sigma3 = 3.0 * errors.sigma[name] * scale
-            inside = np.mean(np.abs(error) <= sigma3) * 100.0
-            rmse = float(np.sqrt(np.nanmean(error**2)))
-            if np.any(after):
-                settled[p] = max(settled[p], float(np.nanmax(np.abs(error[after]))),
-                                 float(np.nanmax(sigma3[after])))
-            extreme[p] = max(extreme[p], float(np.nanmax(np.abs(error))),
-                             float(np.nanmax(sigma3)))
-            ax.fill_between(errors.t_s, -sigma3, sigma3, color=colour, alpha=0.15,
-                            linewidth=0, label=f"±3σ (error inside {inside:.1f} %)")
-            ax.plot(errors.t_s, error, color=colour, linewidth=1.0,
-                    label=f"estimate - truth (RMS {rmse:.3g} {unit})")
-        if errors.nees is None:
-            note(nees_ax, f"{run.label}: NEES not computable (singular or missing "
-                          "covariance, e.g. the `truth` estimator)")
+        if errors is None or errors.nees is None:
+            note(ax, f"{run.label}: NEES not computable (singular or missing covariance, "
+                     "e.g. the `truth` estimator)")
             continue
         dof = len(errors.nees_states)
         low, high = _nees_band(dof)
         if dof not in drawn_bands:
             drawn_bands.add(dof)
-            nees_ax.axhspan(low, high, color="0.5", alpha=0.15,
-                            label=f"95 % band of one sample, χ²({dof}): "
-                                  f"[{low:.2f}, {high:.2f}]")
-            nees_ax.axhline(dof, color=REFERENCE_COLOUR, linestyle="--", linewidth=1.0,
-                            label=f"consistent mean = {dof}")
+            ax.axhspan(low, high, color="0.5", alpha=0.15,
+                       label=f"95 % band of one sample, χ²({dof}): [{low:.2f}, {high:.2f}]")
+            ax.axhline(dof, color=REFERENCE_COLOUR, linestyle="--", linewidth=1.0,
+                       label=f"consistent mean = {dof}")
         finite = errors.nees[np.isfinite(errors.nees)]
         mean = float(np.mean(finite)) if finite.size else float("nan")
         outside = 100.0 * np.mean((finite < low) | (finite > high)) if finite.size else 0.0
         nees_values.append(finite)
-        nees_ax.plot(errors.t_s, errors.nees, color=colour,
-                     linewidth=0.8,
-                     label=f"NEES over {', '.join(errors.nees_states)}: mean "
-                           f"{mean:.2f}, {outside:.0f} % outside the band")
-    for p, (ax, (_, _, _, ylabel, title)) in enumerate(zip(axes, PANELS, strict=False)):
-        ax.axhline(0.0, color=REFERENCE_COLOUR, linewidth=0.6)
-        ax.set_ylabel(ylabel)
-        if 0.0 < settled[p] < extreme[p] / 1.3:
-            ax.set_ylim(-1.3 * settled[p], 1.3 * settled[p])
-            title += f" (the first {SETTLE_S:g} s, the filter converging, is off scale)"
-        ax.set_title(title, fontsize=10)
-    nees_ax.set_yscale("log")
+        ax.plot(errors.t_s, errors.nees, linewidth=0.8, **run_line(i),
+                label=f"NEES over {', '.join(errors.nees_states)}: mean {mean:.2f}, "
+                      f"{outside:.0f} % outside the band")
+    ax.set_yscale("log")
     positive = np.concatenate([v[v > 0] for v in nees_values]) if nees_values else []
     if len(positive):
-        # Headroom above the data for the legend; the floor ignores the exact zeros and the
-        # lowest percent (NEES of a perfect estimate at t = 0 is 0).
-        nees_ax.set_ylim(max(1e-3, 0.5 * float(np.percentile(positive, 1.0))),
-                         40.0 * float(np.max(positive)))
-    nees_ax.set_ylabel("NEES [-] (log scale)")
-    nees_ax.set_title("normalised estimation error squared (filter consistency)", fontsize=10)
-    time_axis(nees_ax)
-    for ax in axes:
+        # The floor ignores the exact zeros and the lowest percent (NEES of a perfect
+        # estimate at t = 0 is 0).
+        ax.set_ylim(max(1e-3, 0.5 * float(np.percentile(positive, 1.0))),
+                    2.0 * float(np.max(positive)))
+    ax.set_ylabel("NEES [-] (log)")
+    ax.set_title("NEES: normalised estimation error squared", fontsize=10)
+
+
+NIS_MARKERS = ("o", "s", "^", "D", "v", "P")
+
+
+def _nis_panel(ax: Any, runs: Sequence[RunLog]) -> None:
+    ax.axhline(1.0, color=REFERENCE_COLOUR, linestyle="--", linewidth=1.0,
+               label="consistent mean = 1")
+    drew = False
+    for i, run in enumerate(runs):
+        if not run.nis:
+            note(ax, f"{run.label}: no /estimator/updates in the log (older log, or the "
+                     "`truth` estimator)")
+            continue
+        for n, (sensor, nis) in enumerate(run.nis.items()):
+            if nis.t_s.size == 0:
+                continue
+            drew = True
+            mean = _running_mean(nis.t_s, nis.nis_per_dof, NIS_WINDOW_S)
+            gated = int(np.sum(~nis.accepted))
+            ax.plot(nis.t_s, mean, linewidth=1.0, linestyle=run_line(i)["linestyle"],
+                    marker=NIS_MARKERS[n % len(NIS_MARKERS)], markevery=max(1, mean.size // 12),
+                    markersize=4, color=f"C{(n + 2 * i) % 10}",
+                    label=f"{sensor}"
+                          + (f" ({run.label})" if len(runs) > 1 else "")
+                          + f": mean {float(np.mean(nis.nis_per_dof)):.2f}"
+                          + (f", {gated} gated" if gated else ""))
+    if drew:
+        ax.set_yscale("log")
+    ax.set_ylabel("NIS / dof [-] (log)")
+    ax.set_title(f"NIS per sensor, per degree of freedom ({NIS_WINDOW_S:g} s running mean)",
+                 fontsize=10)
+
+
+def estimation_figure(runs: Sequence[RunLog], path: Path) -> Path:
+    names = _state_names(runs)
+    rows = -(-(len(names) + 2) // COLUMNS)
+    figure = new_figure(16.0, 2.3 * rows + 1.5)
+    grid = figure.subplots(rows, COLUMNS, sharex=True, squeeze=False)
+    axes = list(grid.ravel())
+    for ax, name in zip(axes, names, strict=False):
+        extent = _Range()
+        kind = ""
+        for i, run in enumerate(runs):
+            if _error_panel(ax, run, i, name, extent):
+                kind = kind or "error"
+            elif _estimate_panel(ax, run, i, name, extent):
+                kind = kind or "estimate"
+            else:
+                note(ax, f"{run.label}: does not estimate {name}")
+        scale, unit = _plot_unit(name)
+        title = f"{name}: " + ("estimate - truth" if kind == "error" else "estimate")
+        if 0.0 < extent.settled < extent.extreme / 1.3:
+            if kind == "error":
+                ax.set_ylim(-1.3 * extent.settled, 1.3 * extent.settled)
+                title += f" (first {SETTLE_S:g} s off scale)"
+        ax.set_title(title, fontsize=10)
+        ax.set_ylabel(f"[{unit}]")
+    nees_ax, nis_ax = axes[len(names)], axes[len(names) + 1]
+    _nees_panel(nees_ax, runs)
+    _nis_panel(nis_ax, runs)
+    for ax in axes[len(names) + 2:]:
+        ax.set_axis_off()
+    for ax in grid[-1]:
+        time_axis(ax)
+    for ax in axes[:len(names) + 2]:
         style_axes(ax)
-        legend(ax, runs, loc="upper right", ncol=2 if ax is nees_ax else 1)
-    suptitle(figure, "State estimation error (estimate - truth) with the filter's ±3σ", runs)
+        legend(ax, runs, loc="best", bbox_to_anchor=None, fontsize=7)
+    suptitle(figure, "State estimation: every estimated state with the filter's ±3σ, "
+                     "NEES and NIS", runs)
     run_legend(figure, runs)
     return save(figure, path)

@@ -23,6 +23,7 @@ from cosim.plots.style import (
     note,
     run_colour,
     run_legend,
+    run_line,
     save,
     style_axes,
     suptitle,
@@ -64,7 +65,7 @@ def solver_figure(runs: Sequence[RunLog], path: Path) -> Path:
                              xycoords=("data", "axes fraction"), xytext=(-3, 0),
                              textcoords="offset points", ha="right", va="center",
                              rotation=90, fontsize=8, color=colour)
-        time_ax.plot(plans.t_s, solve_ms, color=colour, linewidth=0.9, marker=".",
+        time_ax.plot(plans.t_s, solve_ms, linewidth=0.9, **run_line(i), marker=".",
                      markersize=2.5, label=generic(i, "solve time per control step"))
         if fallbacks:
             statuses = Counter(np.asarray(plans.status)[plans.fallback].tolist())

@@ -37,8 +37,19 @@ def style_axes(ax: Any) -> None:
     ax.yaxis.label.set_size(FONT_SIZE + 1)
 
 
+RUN_LINESTYLES: tuple[Any, ...] = ("-", (0, (7.0, 2.0, 1.5, 2.0)))
+"""Run A solid, run B dash-dot: two nearly equal runs stay apart even where they overlap
+(and in grey print)."""
+
+
 def run_colour(index: int) -> str:
     return RUN_COLOURS[index % len(RUN_COLOURS)]
+
+
+def run_line(index: int) -> dict[str, Any]:
+    """Colour and line style of run ``index``'s main lines (``ax.plot(..., **run_line(i))``)."""
+    return {"color": run_colour(index),
+            "linestyle": RUN_LINESTYLES[index % len(RUN_LINESTYLES)]}
 
 
 def suptitle(figure: Any, what: str, runs: Sequence[RunLog]) -> None:
@@ -77,13 +88,17 @@ def generic(index: int, text: str) -> str | None:
 
 
 def legend(ax: Any, runs: Sequence[RunLog], **kwargs: Any) -> None:
-    """The axes' legend; with two runs, style-only entries are grey."""
+    """The axes' legend, outside the axes on the right (never over the data) unless
+    ``loc``/``bbox_to_anchor`` say otherwise; with two runs, style-only entries are grey."""
     handles, labels = ax.get_legend_handles_labels()
     if not handles:
         return
-    kwargs.setdefault("loc", "best")
+    kwargs.setdefault("loc", "upper left")
+    kwargs.setdefault("bbox_to_anchor", (1.01, 1.0))
+    kwargs.setdefault("borderaxespad", 0.0)
+    kwargs.setdefault("fontsize", FONT_SIZE - 1)
     shown = ax.legend(handles, [label.removeprefix(_GENERIC) for label in labels],
-                      fontsize=FONT_SIZE - 1, framealpha=0.85, **kwargs)
+                      framealpha=0.85, **kwargs)
     if len(runs) < 2:
         return
     for handle, label in zip(shown.legend_handles, labels, strict=True):
@@ -102,7 +117,7 @@ def run_legend(figure: Any, runs: Sequence[RunLog]) -> None:
         return
     from matplotlib.lines import Line2D
 
-    handles = [Line2D([], [], color=run_colour(i), linewidth=4.0, label=run.label)
+    handles = [Line2D([], [], linewidth=2.5, label=run.label, **run_line(i))
                for i, run in enumerate(runs)]
     figure.legend(handles=handles, loc="outside lower center", ncol=len(runs),
                   fontsize=FONT_SIZE + 1, frameon=False)

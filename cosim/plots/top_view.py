@@ -41,6 +41,7 @@ from cosim.plots.style import (
     note,
     run_colour,
     run_legend,
+    run_line,
     save,
     style_axes,
     suptitle,
@@ -55,6 +56,12 @@ MANOEUVRE_CURVATURE_SHARE = 0.05
 |curvature| over the driven stretch."""
 MANOEUVRE_MARGIN_M = 15.0
 ZOOM_HALF_WIDTH_M = 6.0
+DEVIATION_TITLE = "deviation from the reference"
+CLOSE_UP_CM_UP_TO_M = 5.0
+"""The close-up is drawn in centimetres up to this half-width, in metres beyond."""
+LARGE_CTE_SHARE = 0.5
+"""The stretched and deviation panels cover every x where |CTE| reaches this share of its
+largest value (beyond the manoeuvre's curves if need be)."""
 
 
 def footprint(config: dict[str, Any], x_m: float, y_m: float, yaw_rad: float) -> np.ndarray:
@@ -93,6 +100,24 @@ def _manoeuvre_window(runs: Sequence[RunLog]) -> tuple[float, float]:
     x = samples["x_m"][curving]
     return max(low, float(x.min()) - MANOEUVRE_MARGIN_M), min(high, float(x.max())
                                                             + MANOEUVRE_MARGIN_M)
+
+
+def _deviation_window(runs: Sequence[RunLog], x_low: float, x_high: float
+                      ) -> tuple[float, float]:
+    """``[x_low, x_high]`` widened to every x where a run's |CTE| reaches
+    ``LARGE_CTE_SHARE`` of its largest, so the deviation panel shows the worst of the run
+    (a car that spins after the manoeuvre's curves spins in the picture too)."""
+    for run in runs:
+        if run.tracking is None:
+            continue
+        cte = np.abs(run.tracking.cte_m)
+        finite = np.isfinite(cte) & np.isfinite(run.truth.x_m)
+        if not np.any(finite):
+            continue
+        large = finite & (cte >= LARGE_CTE_SHARE * float(np.max(cte[finite])))
+        x_low = min(x_low, float(np.min(run.truth.x_m[large])) - 2.0)
+        x_high = max(x_high, float(np.max(run.truth.x_m[large])) + 2.0)
+    return x_low, x_high
 
 
 def _reference_xy(run: RunLog, low: float, high: float) -> tuple[np.ndarray, np.ndarray]:
@@ -170,7 +195,7 @@ def _true_scale_panel(ax: Any, runs: Sequence[RunLog]) -> None:
             label="reference path")
     for i, run in enumerate(runs):
         colour = run_colour(i)
-        ax.plot(run.truth.x_m, run.truth.y_m, color=colour, linewidth=1.2,
+        ax.plot(run.truth.x_m, run.truth.y_m, linewidth=1.2, **run_line(i),
                 label=generic(i, "true CoG path"))
         for n, index in enumerate(_footprint_indices(run, low, high)):
             _draw_footprint(ax, run, index, colour, 0.25,
@@ -190,7 +215,7 @@ def _stretched_panel(ax: Any, runs: Sequence[RunLog], x_low: float, x_high: floa
     missing = []
     for i, run in enumerate(runs):
         colour = run_colour(i)
-        ax.plot(*_clip(run.truth.x_m, run.truth.y_m, x_low, x_high), color=colour,
+        ax.plot(*_clip(run.truth.x_m, run.truth.y_m, x_low, x_high), **run_line(i),
                 linewidth=1.4, label=generic(i, "true CoG path"))
         if run.estimate is not None:
             ax.plot(*_clip(run.estimate.column("x_m"), run.estimate.column("y_m"), x_low,
@@ -229,7 +254,7 @@ def _path_coordinates_panel(ax: Any, runs: Sequence[RunLog], x_low: float,
         if run.tracking is None:
             note(ax, f"{run.label}: no reference path in the log")
             continue
-        ax.plot(run.truth.x_m[keep], run.tracking.cte_m[keep] * 100.0, color=colour,
+        ax.plot(run.truth.x_m[keep], run.tracking.cte_m[keep] * 100.0, **run_line(i),
                 linewidth=1.4, label=generic(i, "true CoG"))
         if run.estimate is not None:
             ex, ey = run.estimate.column("x_m"), run.estimate.column("y_m")
@@ -253,8 +278,8 @@ def _path_coordinates_panel(ax: Any, runs: Sequence[RunLog], x_low: float,
     ax.set_xlim(x_low, x_high)
     ax.set_xlabel("x (east) [m]")
     ax.set_ylabel("lateral offset from\nthe reference [cm] (+ = left)")
-    ax.set_title("deviation from the reference, in path coordinates (projection onto the "
-                 "path)", fontsize=10)
+    ax.set_title(f"{DEVIATION_TITLE}, in path coordinates (projection onto the path)",
+                 fontsize=10)
 
 
 def _largest_cte(runs: Sequence[RunLog]) -> tuple[RunLog, float] | None:
@@ -282,7 +307,7 @@ def _car_zoom_panel(ax: Any, runs: Sequence[RunLog], centre: RunLog, t_s: float)
         colour = run_colour(i)
         k = int(np.argmin(np.abs(run.truth.t_s - t_s)))
         near = np.abs(run.truth.x_m - cx) < 2 * ZOOM_HALF_WIDTH_M
-        ax.plot(run.truth.x_m[near], run.truth.y_m[near], color=colour, linewidth=1.2,
+        ax.plot(run.truth.x_m[near], run.truth.y_m[near], linewidth=1.2, **run_line(i),
                 label=generic(i, "true CoG path"))
         _draw_footprint(ax, run, k, colour, 0.2, generic(i, "footprint"))
         plans = run.plans
@@ -300,8 +325,9 @@ def _car_zoom_panel(ax: Any, runs: Sequence[RunLog], centre: RunLog, t_s: float)
 
 
 def _close_up_panel(ax: Any, runs: Sequence[RunLog], centre: RunLog, t_s: float) -> None:
-    """True scale in centimetres around the reference point nearest to ``centre``'s CoG at
-    ``t_s``: the CTE as an arrow, the estimate, the predicted path's first metres."""
+    """True scale in centimetres (metres for a car metres off) around the reference point
+    nearest to ``centre``'s CoG at ``t_s``: the CTE as an arrow, the estimate, the
+    predicted path's first metres."""
     assert centre.reference is not None and centre.tracking is not None
     index = int(np.argmin(np.abs(centre.truth.t_s - t_s)))
     origin = centre.reference.path.point(float(centre.tracking.s_m[index]))
@@ -311,20 +337,22 @@ def _close_up_panel(ax: Any, runs: Sequence[RunLog], centre: RunLog, t_s: float)
         if run.tracking is not None:
             k = int(np.argmin(np.abs(run.truth.t_s - t_s)))
             offsets.append(np.hypot(run.truth.x_m[k] - ox, run.truth.y_m[k] - oy))
-    half_cm = max(10.0, 250.0 * max(offsets, default=0.0))
-    half_m = half_cm / 100.0
+    half_m = max(0.1, 2.5 * max(offsets, default=0.0))
+    # Centimetres for a close-up; metres once the car is metres off (a spin).
+    scale, unit = (100.0, "cm") if half_m <= CLOSE_UP_CM_UP_TO_M else (1.0, "m")
+    half = half_m * scale
     ref = centre.reference.path.sample(np.linspace(origin.s_m - 3 * half_m,
                                                    origin.s_m + 3 * half_m, 50))
-    ax.plot((ref["x_m"] - ox) * 100, (ref["y_m"] - oy) * 100, color=REFERENCE_COLOUR,
+    ax.plot((ref["x_m"] - ox) * scale, (ref["y_m"] - oy) * scale, color=REFERENCE_COLOUR,
             linestyle="--", linewidth=1.2, label="reference path")
     for i, run in enumerate(runs):
         colour = run_colour(i)
         k = int(np.argmin(np.abs(run.truth.t_s - t_s)))
         near = np.hypot(run.truth.x_m - ox, run.truth.y_m - oy) < 4 * half_m
-        ax.plot((run.truth.x_m[near] - ox) * 100, (run.truth.y_m[near] - oy) * 100,
-                color=colour, linewidth=1.2, label=generic(i, "true CoG path"))
-        px, py = (run.truth.x_m[k] - ox) * 100, (run.truth.y_m[k] - oy) * 100
-        cte_text = (f"CTE {run.tracking.cte_m[k] * 100:+.1f} cm"
+        ax.plot((run.truth.x_m[near] - ox) * scale, (run.truth.y_m[near] - oy) * scale,
+                linewidth=1.2, **run_line(i), label=generic(i, "true CoG path"))
+        px, py = (run.truth.x_m[k] - ox) * scale, (run.truth.y_m[k] - oy) * scale
+        cte_text = (f"CTE {run.tracking.cte_m[k] * scale:+.{1 if unit == 'cm' else 2}f} {unit}"
                     if run.tracking is not None else "")
         ax.annotate("", xy=(px, py), xytext=(0.0, 0.0),
                     arrowprops={"arrowstyle": "->", "color": colour, "linewidth": 1.5})
@@ -335,23 +363,23 @@ def _close_up_panel(ax: Any, runs: Sequence[RunLog], centre: RunLog, t_s: float)
                     va="center")
         if run.estimate is not None:
             e = int(np.argmin(np.abs(run.estimate.t_s - t_s)))
-            ax.plot((run.estimate.column("x_m")[e] - ox) * 100,
-                    (run.estimate.column("y_m")[e] - oy) * 100, marker="x",
+            ax.plot((run.estimate.column("x_m")[e] - ox) * scale,
+                    (run.estimate.column("y_m")[e] - oy) * scale, marker="x",
                     color=ESTIMATE_COLOUR if len(runs) == 1 else colour, markersize=8,
                     markeredgewidth=2, linestyle="none", label=generic(i, "estimated CoG"))
         plans = run.plans
         if plans is not None and plans.has_positions:
             p = int(np.argmin(np.abs(plans.t_s - t_s)))
-            ax.plot((plans.predicted[p]["x_m"] - ox) * 100,
-                    (plans.predicted[p]["y_m"] - oy) * 100, color=colour,
+            ax.plot((plans.predicted[p]["x_m"] - ox) * scale,
+                    (plans.predicted[p]["y_m"] - oy) * scale, color=colour,
                     linestyle=(0, (4, 2)), linewidth=1.0, marker=".", markersize=4,
                     label=generic(i, f"MPC predicted path (t = {plans.t_s[p]:.2f} s)"))
-    ax.set_xlim(-half_cm, half_cm)
-    ax.set_ylim(-0.6 * half_cm, 0.6 * half_cm)
+    ax.set_xlim(-half, half)
+    ax.set_ylim(-0.6 * half, 0.6 * half)
     ax.set_aspect("equal", adjustable="box")
-    ax.set_xlabel(f"x {'-' if ox >= 0 else '+'} {abs(ox):.2f} m [cm]")
-    ax.set_ylabel(f"y {'-' if oy >= 0 else '+'} {abs(oy):.2f} m [cm]")
-    ax.set_title(f"close-up (true scale, cm) at the largest |CTE|, t = {t_s:.2f} s",
+    ax.set_xlabel(f"x {'-' if ox >= 0 else '+'} {abs(ox):.2f} m [{unit}]")
+    ax.set_ylabel(f"y {'-' if oy >= 0 else '+'} {abs(oy):.2f} m [{unit}]")
+    ax.set_title(f"close-up (true scale, {unit}) at the largest |CTE|, t = {t_s:.2f} s",
                  fontsize=10)
 
 
@@ -363,31 +391,39 @@ def _stretch_factor(ax: Any) -> float:
 
 
 def top_view_figure(runs: Sequence[RunLog], path: Path) -> Path:
+    return save(top_view(runs), path)
+
+
+def top_view(runs: Sequence[RunLog]) -> Any:
+    """The top-view figure (a ``matplotlib.figure.Figure``); the deviation panel's title
+    starts with ``DEVIATION_TITLE``."""
     figure = new_figure(12.0, 15.0)
     grid = figure.add_gridspec(4, 2, height_ratios=[1.0, 2.4, 2.2, 2.8])
     true_ax = figure.add_subplot(grid[0, :])
     stretched_ax = figure.add_subplot(grid[1, :])
     frenet_ax = figure.add_subplot(grid[2, :], sharex=stretched_ax)
     car_ax, close_ax = figure.add_subplot(grid[3, 0]), figure.add_subplot(grid[3, 1])
-    x_low, x_high = _manoeuvre_window(runs)
+    x_low, x_high = _deviation_window(runs, *_manoeuvre_window(runs))
     _true_scale_panel(true_ax, runs)
     _stretched_panel(stretched_ax, runs, x_low, x_high)
     _path_coordinates_panel(frenet_ax, runs, x_low, x_high)
     largest = _largest_cte(runs)
     axes = [true_ax, stretched_ax, frenet_ax]
+    for ax in axes:
+        style_axes(ax)
+        legend(ax, runs)
     if largest is None:
         car_ax.set_axis_off()
         close_ax.set_axis_off()
     else:
         _car_zoom_panel(car_ax, runs, *largest)
         _close_up_panel(close_ax, runs, *largest)
-        axes += [car_ax, close_ax]
-    for ax in axes:
-        style_axes(ax)
-        legend(ax, runs, loc="upper right")
+        for ax in (car_ax, close_ax):
+            style_axes(ax)
+            legend(ax, runs, loc="upper center", bbox_to_anchor=(0.5, -0.24), ncol=2)
     figure.canvas.draw()
     stretched_ax.set_title("the manoeuvre, lateral axis stretched "
                            f"x{_stretch_factor(stretched_ax):.0f}", fontsize=10)
     suptitle(figure, "Top view: path vs reference", runs)
     run_legend(figure, runs)
-    return save(figure, path)
+    return figure

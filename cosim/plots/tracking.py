@@ -18,7 +18,7 @@ from cosim.plots.style import (
     finish,
     new_figure,
     note,
-    run_colour,
+    run_line,
     time_axis,
 )
 
@@ -32,20 +32,19 @@ def tracking_figure(runs: Sequence[RunLog], path: Path) -> Path:
     cte_ax, heading_ax, speed_ax = figure.subplots(3, 1, sharex=True)
     reference_speeds: set[float] = set()
     for i, run in enumerate(runs):
-        colour = run_colour(i)
         errors = run.tracking
         if errors is None:
             note(cte_ax, f"{run.label}: no /reference/path in the log: no tracking errors")
             continue
         cte_cm = errors.cte_m * 100.0
-        cte_ax.plot(errors.t_s, cte_cm, color=colour, linewidth=1.2,
+        cte_ax.plot(errors.t_s, cte_cm, linewidth=1.2, **run_line(i),
                     label=f"max |CTE| {np.nanmax(np.abs(cte_cm)):.1f} cm, "
                           f"RMS {_rms(cte_cm):.1f} cm")
         heading_deg = np.degrees(errors.heading_err_rad)
-        heading_ax.plot(errors.t_s, heading_deg, color=colour, linewidth=1.2,
+        heading_ax.plot(errors.t_s, heading_deg, linewidth=1.2, **run_line(i),
                         label=f"max {np.nanmax(np.abs(heading_deg)):.2f} deg, "
                               f"RMS {_rms(heading_deg):.2f} deg")
-        speed_ax.plot(run.truth.t_s, run.truth.speed_mps, color=colour, linewidth=1.2,
+        speed_ax.plot(run.truth.t_s, run.truth.speed_mps, linewidth=1.2, **run_line(i),
                       label=f"true speed (speed error RMS "
                             f"{_rms(errors.speed_err_mps):.2f} m/s)")
         if run.reference is not None and run.reference.speed_mps not in reference_speeds:

@@ -137,6 +137,7 @@ def _register_topics(recorder: McapRecorder, sensor_names: list[str],
     recorder.register("/reference/path", mcap_schemas.REFERENCE_PATH)
     recorder.register("/metrics", mcap_schemas.METRICS)
     recorder.register("/metrics/live", mcap_schemas.LIVE_METRICS)
+    recorder.register("/estimator/updates", mcap_schemas.ESTIMATOR_UPDATE)
     recorder.register("/control/errors", mcap_schemas.TRACKING_ERRORS)
     recorder.register("/tf", mcap_schemas.FRAME_TRANSFORM)
     recorder.register("/scene", mcap_schemas.SCENE_UPDATE)
@@ -275,6 +276,9 @@ class _Run:
             update = self.estimator.update(measurement)
             if sensor.name != "truth":  # noise-free: NIS is undefined
                 self.metrics.add_update(update.accepted, update.nis, update.dim)
+                self.recorder.write_finite("/estimator/updates", t_s, {
+                    "t_s": t_s, "sensor": sensor.name, "accepted": update.accepted,
+                    "nis": update.nis, "dof": update.dim, "reason": update.reason})
 
     def control(self, k: int, t_s: float) -> None:
         command, plan = self.tracker.step(t_s, self.current_estimate(t_s), self.reference)
