@@ -180,30 +180,52 @@ NIS_MARKERS = ("o", "s", "^", "D", "v", "P")
 def _nis_panel(ax: Any, runs: Sequence[RunLog]) -> None:
     ax.axhline(1.0, color=REFERENCE_COLOUR, linestyle="--", linewidth=1.0,
                label="consistent mean = 1")
-    drew = False
+    sensors = sorted({s for run in runs if run.nis for s in run.nis})
+    summaries: dict[str, list[str]] = {s: [] for s in sensors}
+    lines: dict[str, Any] = {}
+    curves: list[np.ndarray] = []
     for i, run in enumerate(runs):
         if not run.nis:
             note(ax, f"{run.label}: no /estimator/updates in the log (older log, or the "
                      "`truth` estimator)")
             continue
-        for n, (sensor, nis) in enumerate(run.nis.items()):
+        for sensor, nis in run.nis.items():
             if nis.t_s.size == 0:
                 continue
-            drew = True
+            n = sensors.index(sensor)
             mean = _running_mean(nis.t_s, nis.nis_per_dof, NIS_WINDOW_S)
+            curves.append(mean)
             gated = int(np.sum(~nis.accepted))
-            ax.plot(nis.t_s, mean, linewidth=1.0, linestyle=run_line(i)["linestyle"],
-                    marker=NIS_MARKERS[n % len(NIS_MARKERS)], markevery=max(1, mean.size // 12),
-                    markersize=4, color=f"C{(n + 2 * i) % 10}",
-                    label=f"{sensor}"
-                          + (f" ({run.label})" if len(runs) > 1 else "")
-                          + f": mean {float(np.mean(nis.nis_per_dof)):.2f}"
-                          + (f", {gated} gated" if gated else ""))
-    if drew:
+            summaries[sensor].append(f"{float(np.mean(nis.nis_per_dof)):.2f}"
+                                     + (f" ({gated} gated)" if gated else ""))
+            (line,) = ax.plot(nis.t_s, mean, linewidth=1.0, linestyle=run_line(i)["linestyle"],
+                              marker=NIS_MARKERS[n % len(NIS_MARKERS)],
+                              markevery=max(1, mean.size // 12), markersize=4,
+                              color=f"C{n + 2}")
+            lines.setdefault(sensor, line)
+    # One entry per sensor (colour and marker); the runs are the line styles.
+    for sensor, line in lines.items():
+        line.set_label(f"{sensor}: mean " + " vs ".join(summaries[sensor]))
+    positive = np.concatenate([c[c > 0] for c in curves]) if curves else np.empty(0)
+    if positive.size:
         ax.set_yscale("log")
+        ax.set_ylim(0.5 * float(np.percentile(positive, 1.0)), 2.0 * float(np.max(positive)))
     ax.set_ylabel("NIS / dof [-] (log)")
     ax.set_title(f"NIS per sensor, per degree of freedom ({NIS_WINDOW_S:g} s running mean)",
                  fontsize=10)
+
+
+LEGEND_HEADROOM = 0.7
+"""Room added above the data for the legend, as a share of the panel's data range (every
+panel is full of data from end to end, so the legend goes above it)."""
+
+
+def _headroom(ax: Any) -> None:
+    low, high = ax.get_ylim()
+    if ax.get_yscale() == "log":
+        ax.set_ylim(low, high * (high / low) ** LEGEND_HEADROOM)
+    else:
+        ax.set_ylim(low, high + LEGEND_HEADROOM * (high - low))
 
 
 def estimation_figure(runs: Sequence[RunLog], path: Path) -> Path:
@@ -238,8 +260,10 @@ def estimation_figure(runs: Sequence[RunLog], path: Path) -> Path:
     for ax in grid[-1]:
         time_axis(ax)
     for ax in axes[:len(names) + 2]:
+        _headroom(ax)
         style_axes(ax)
-        legend(ax, runs, loc="best", bbox_to_anchor=None, fontsize=7)
+        legend(ax, runs, loc="upper right", bbox_to_anchor=None, fontsize=7,
+               ncol=2 if len(runs) > 1 else 1)
     suptitle(figure, "State estimation: every estimated state with the filter's ±3σ, "
                      "NEES and NIS", runs)
     run_legend(figure, runs)

@@ -22,6 +22,9 @@ from cosim.plots.style import (
     time_axis,
 )
 
+CTE_CM_UP_TO_M = 2.0
+"""The cross-track error is drawn in centimetres up to this largest |CTE|, in metres beyond."""
+
 
 def _rms(values: np.ndarray) -> float:
     return float(np.sqrt(np.nanmean(values**2))) if values.size else float("nan")
@@ -31,15 +34,20 @@ def tracking_figure(runs: Sequence[RunLog], path: Path) -> Path:
     figure = new_figure(11.0, 8.5)
     cte_ax, heading_ax, speed_ax = figure.subplots(3, 1, sharex=True)
     reference_speeds: set[float] = set()
+    largest_m = max((float(np.nanmax(np.abs(run.tracking.cte_m))) for run in runs
+                     if run.tracking is not None and np.any(np.isfinite(run.tracking.cte_m))),
+                    default=0.0)
+    # Centimetres, unless a run left the path by metres (a spin reads better in metres).
+    scale, unit = (100.0, "cm") if largest_m <= CTE_CM_UP_TO_M else (1.0, "m")
     for i, run in enumerate(runs):
         errors = run.tracking
         if errors is None:
             note(cte_ax, f"{run.label}: no /reference/path in the log: no tracking errors")
             continue
-        cte_cm = errors.cte_m * 100.0
-        cte_ax.plot(errors.t_s, cte_cm, linewidth=1.2, **run_line(i),
-                    label=f"max |CTE| {np.nanmax(np.abs(cte_cm)):.1f} cm, "
-                          f"RMS {_rms(cte_cm):.1f} cm")
+        cte = errors.cte_m * scale
+        cte_ax.plot(errors.t_s, cte, linewidth=1.2, **run_line(i),
+                    label=f"max |CTE| {np.nanmax(np.abs(cte)):.3g} {unit}, "
+                          f"RMS {_rms(cte):.3g} {unit}")
         heading_deg = np.degrees(errors.heading_err_rad)
         heading_ax.plot(errors.t_s, heading_deg, linewidth=1.2, **run_line(i),
                         label=f"max {np.nanmax(np.abs(heading_deg)):.2f} deg, "
@@ -54,7 +62,7 @@ def tracking_figure(runs: Sequence[RunLog], path: Path) -> Path:
                              label=f"reference speed {run.reference.speed_mps:g} m/s")
     for ax in (cte_ax, heading_ax):
         ax.axhline(0.0, color=REFERENCE_COLOUR, linewidth=0.8)
-    cte_ax.set_ylabel("cross-track error [cm]\n(+ = left of path)")
+    cte_ax.set_ylabel(f"cross-track error [{unit}]\n(+ = left of path)")
     cte_ax.set_title("cross-track error of the true CoG (projection onto the reference path)",
                      fontsize=10)
     heading_ax.set_ylabel("heading error [deg]")
