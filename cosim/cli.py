@@ -121,7 +121,8 @@ def _build_parser() -> argparse.ArgumentParser:
     render = commands.add_parser(
         "render", help="render a log to a video from a chase camera (MuJoCo, offscreen)")
     render.add_argument("file", metavar="FILE.mcap")
-    render.add_argument("--out", metavar="VIDEO.mp4", help="video file (default FILE.mp4)")
+    render.add_argument("--out", metavar="VIDEO.mp4",
+                        help="video file (default: beside the log, logs/x.mcap -> logs/x.mp4)")
     render.add_argument("--fps", type=float, default=30.0, metavar="N",
                         help="frames per second (default 30)")
     render.add_argument("--width", type=int, default=640, metavar="W", help="pixels (640)")
@@ -179,8 +180,12 @@ def _command_run(args: argparse.Namespace) -> int:
     config = load_config(args.scenario, args.config, args.overrides, args.seed,
                          args.duration, args.tracker, args.estimator)
     if args.out is None:
+        from cosim.log_names import default_log_name, override_tag
+
         stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
-        out = Path("logs") / f"{config.name}-{stamp}.mcap"
+        tag = override_tag(args.overrides, args.tracker, args.estimator, args.seed,
+                           args.duration, args.config)
+        out = Path("logs") / default_log_name(config.name, tag, stamp)
     else:
         out = Path(args.out)
     if sys.stderr.isatty():

@@ -11,7 +11,7 @@ from mcap.writer import Writer
 
 from cosim.cli import main
 from cosim.log.export import csv_name, export_csv, log_warnings
-from cosim.log.reader import read_summary
+from cosim.log.reader import iter_messages, read_summary
 from cosim.simulation.metrics import METRIC_KEYS
 from cosim.simulation.runner import RunResult, run
 from cosim.simulation.scenario_config import load_config
@@ -100,9 +100,21 @@ def test_csv_export_of_every_topic(good_run: RunResult, tmp_path: Path,
                       "yaw_rad", "vx_mps", "vy_mps", "yaw_rate_radps", "ax_mps2", "ay_mps2",
                       "steer_rad", *(f"wheel_speed_radps[{i}]" for i in range(4))]
     assert rows[1][0] == "10000000" and float(rows[1][1]) == pytest.approx(0.01)
-    header, _ = _rows(out_dir / "vehicle_estimate.csv")
-    states = len([h for h in header if h.startswith("state_names[")])
-    assert states > 4 and f"covariance[{states * states - 1}]" in header
+    # The state names appear once, in the header: no state_names column in the rows; the
+    # covariance's columns are named by them (upper triangle, the matrix is symmetric).
+    header, rows = _rows(out_dir / "vehicle_estimate.csv")
+    (estimate,) = [m for _, m in iter_messages(good_run.log_path, "/vehicle/estimate")][:1]
+    names = estimate["state_names"]
+    assert not any(h.startswith("state_names") for h in header)
+    assert not any(name in cell for row in rows[:3] for cell in row for name in names)
+    covariance = [h for h in header if h.startswith("covariance[")]
+    assert len(covariance) == len(names) * (len(names) + 1) // 2
+    n = len(names)
+    for row in range(n):
+        for col in range(row, n):
+            cell = rows[0][header.index(f"covariance[{names[row]}][{names[col]}]")]
+            assert float(cell) == estimate["covariance"][row * n + col]
+    assert set(names) <= set(header)  # the mean, by name
     header, rows = _rows(out_dir / "control_plan.csv")
     assert {"solve_time_s", "status", "fallback", "predicted_x_m[0]"} <= set(header)
     assert rows[0][header.index("fallback")] == "false"

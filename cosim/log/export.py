@@ -8,9 +8,12 @@ metrics' ``rejected_*`` keys and ``channels_gated``).
 CSV export writes one file per topic, ``<topic without the leading slash, / -> _>.csv``
 (``/vehicle/truth`` -> ``vehicle_truth.csv``), one row per message, first column
 ``log_time_ns``. Nested objects are flattened with dots (``translation.x``); an array whose
-length is the same in every message of the topic is flattened into ``name[i]`` columns
-(``covariance[0]`` ... ``covariance[195]``, ``state_names[0]`` ...); an array whose length
-varies between messages is skipped and named in :attr:`CsvExport.skipped`. ``null`` is an
+length is the same in every message of the topic is flattened into ``name[i]`` columns; an
+array whose length varies between messages is skipped and named in
+:attr:`CsvExport.skipped`. A list of names that is the same in every message
+(``state_names`` of ``/vehicle/estimate``) is not repeated in every row: it names the
+columns instead, ``covariance[x_m][y_m]`` (the upper triangle of the symmetric matrix) and
+any vector of its length ``[x_m]``. ``null`` is an
 empty cell, booleans are ``true``/``false``, floats keep full precision.
 """
 
@@ -143,8 +146,47 @@ def _cell(value: Any) -> str:
     return str(value)
 
 
+def _constant_names(messages: list[tuple[int, dict[str, Any]]]) -> dict[str, list[str]]:
+    """Top-level lists of strings that are the same in every message (``state_names``):
+    labels, written once in the header instead of in every row."""
+    if not messages:
+        return {}
+    first = messages[0][1]
+    return {key: value for key, value in first.items()
+            if isinstance(value, list) and value and all(isinstance(v, str) for v in value)
+            and all(message.get(key) == value for _, message in messages)}
+
+
+def _named(message: dict[str, Any], labels: dict[str, list[str]]) -> dict[str, Any]:
+    """``message`` without its label lists, its arrays over the one label list named by
+    it: ``mean[x_m]`` for a vector of its length, ``covariance[x_m][y_m]`` (upper triangle:
+    the matrix is symmetric) for a flattened square matrix."""
+    if not labels:
+        return message
+    names = next(iter(labels.values())) if len(labels) == 1 else None
+    out: dict[str, Any] = {}
+    for key, value in message.items():
+        if key in labels:
+            continue
+        if names is not None and isinstance(value, list) and value and all(
+                isinstance(v, (int, float)) or v is None for v in value):
+            n = len(names)
+            if len(value) == n * n:
+                for row in range(n):
+                    for col in range(row, n):
+                        out[f"{key}[{names[row]}][{names[col]}]"] = value[row * n + col]
+                continue
+            if len(value) == n:
+                out.update({f"{key}[{name}]": v for name, v in zip(names, value, strict=True)})
+                continue
+        out[key] = value
+    return out
+
+
 def _write_topic(topic: str, messages: list[tuple[int, dict[str, Any]]], out_dir: Path,
                  export: CsvExport) -> None:
+    labels = _constant_names(messages)
+    messages = [(t, _named(message, labels)) for t, message in messages]
     lengths: dict[str, set[int]] = {}
     for _, message in messages:
         _array_lengths(message, "", lengths)
