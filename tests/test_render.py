@@ -247,3 +247,24 @@ def test_video_window_and_cosim_run_video(short_run: RunResult, tmp_path: Path,
                  "--video", str(video)]) == 0
     assert f"video: {video}  16 frames at 30 fps, 640x360" in capsys.readouterr().out
     assert _read_video(video)[1].shape == (16, 360, 640, 3)
+
+
+@needs_osmesa
+def test_the_video_goes_beside_the_log_by_default(short_run: RunResult, tmp_path: Path) -> None:
+    """Not into the working directory: logs/x.mcap -> logs/x.mp4."""
+    import shutil
+    import subprocess
+    import sys
+
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    log = shutil.copy(short_run.log_path, logs / "x.mcap")
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    cosim = str(Path(sys.executable).with_name("cosim"))
+    result = subprocess.run([cosim, "render", str(log), "--duration", "0.2", "--width", "160",
+                             "--height", "90"], cwd=elsewhere, capture_output=True, text=True,
+                            timeout=300, check=False)
+    assert result.returncode == 0, result.stderr
+    assert (logs / "x.mp4").is_file()
+    assert list(elsewhere.iterdir()) == []
