@@ -17,8 +17,8 @@ within centimetres of the path, so one picture cannot show everything. Four pane
 
 The footprint is the simulated body's outline (``cosim.plant.sedan_model``): wheelbase plus an
 overhang of ``OVERHANG_M`` at each end, track plus 0.2 m, centred between the axles; its
-front edge is drawn heavier. Plans without world-frame ``x_m``/``y_m`` states (dynamic-mpc
-predicts path errors) have no predicted paths; the panels say so.
+front edge is drawn heavier. Plans without world-frame ``x_m``/``y_m`` states have no
+predicted paths; the panels say so (``dynamic-mpc`` adds them to its path-error plans).
 """
 
 from __future__ import annotations
