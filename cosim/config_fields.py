@@ -174,20 +174,7 @@ def set_dotted(data: dict[str, Any], dotted_key: str, value: Any) -> None:
 
 def describe(cls: type, prefix: str = "") -> list[tuple[str, str, str]]:
     """Every leaf key of ``cls`` as (dotted key, default, expected) rows, for docs and help."""
-    rows: list[tuple[str, str, str]] = []
-    hints = typing.get_type_hints(cls)
-    for f in dataclasses.fields(cls):
-        key = f"{prefix}.{f.name}" if prefix else f.name
-        hint = hints[f.name]
-        if dataclasses.is_dataclass(hint):
-            rows.extend(describe(hint, key))
-            continue
-        if typing.get_origin(hint) is tuple:
-            rows.extend(describe(typing.get_args(hint)[0], f"{key}[]"))
-            continue
-        kind = {bool: "true/false", int: "an integer", float: "a number", str: "a string"}[hint]
-        rows.append((key, repr(f.default), _expected(dict(f.metadata), kind)))
-    return rows
+    return [(info.key, repr(info.default), info.expected) for info in key_infos(cls, prefix)]
 
 
 UNIT_SUFFIXES: dict[str, str] = {
@@ -244,7 +231,7 @@ def key_infos(cls: type, prefix: str = "") -> list[KeyInfo]:
         if typing.get_origin(hint) is tuple:
             rows.extend(key_infos(typing.get_args(hint)[0], f"{key}[]"))
             continue
-        kind = {bool: "a boolean", int: "an integer", float: "a number", str: "a string"}[hint]
+        kind = {bool: "true/false", int: "an integer", float: "a number", str: "a string"}[hint]
         meta = dict(f.metadata)
         doc = str(meta.get("doc") or "")
         rows.append(KeyInfo(key, hint.__name__, unit_of(f.name, doc), f.default,

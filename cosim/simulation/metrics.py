@@ -126,6 +126,17 @@ class MetricsAccumulator:
         self.steer_rad.append(command.steer_rad)
         self.accel_mps2.append(command.accel_mps2)
 
+    def _tracking(self) -> dict[str, float]:
+        """The tracking metrics over the samples so far."""
+        return {
+            "cte_max_m": _max_abs(self.cte_m),
+            "cte_rms_m": _rms(self.cte_m),
+            "heading_err_max_rad": _max_abs(self.heading_err_rad),
+            "heading_err_rms_rad": _rms(self.heading_err_rad),
+            "speed_err_rms_mps": _rms(self.speed_err_mps),
+            "steer_max_rad": _max_abs(self.steer_rad),
+        }
+
     def live(self, t_s: float) -> dict[str, float | int]:
         """The metrics that can be computed so far, for ``/metrics/live`` at sim time
         ``t_s`` (same keys and meaning as :meth:`result`'s, over the run up to ``t_s``)."""
@@ -133,12 +144,7 @@ class MetricsAccumulator:
         return {
             "t_s": t_s,
             "cte_m": self.cte_m[-1] if self.cte_m else float("nan"),
-            "cte_max_m": _max_abs(self.cte_m),
-            "cte_rms_m": _rms(self.cte_m),
-            "heading_err_max_rad": _max_abs(self.heading_err_rad),
-            "heading_err_rms_rad": _rms(self.heading_err_rad),
-            "speed_err_rms_mps": _rms(self.speed_err_mps),
-            "steer_max_rad": _max_abs(self.steer_rad),
+            **self._tracking(),
             "solve_ms_p50": float(np.percentile(solve_ms, 50)) if solve_ms.size else float("nan"),
             "solve_ms_max": float(solve_ms.max()) if solve_ms.size else float("nan"),
             "solver_failures": self.solver_failures,
@@ -164,12 +170,7 @@ class MetricsAccumulator:
                 np.asarray(self.yaw_rate_radps), np.asarray(self.ay_mps2),
                 np.asarray(self.speed_mps), self.maneuver)
         return {
-            "cte_max_m": _max_abs(self.cte_m),
-            "cte_rms_m": _rms(self.cte_m),
-            "heading_err_max_rad": _max_abs(self.heading_err_rad),
-            "heading_err_rms_rad": _rms(self.heading_err_rad),
-            "speed_err_rms_mps": _rms(self.speed_err_mps),
-            "steer_max_rad": _max_abs(self.steer_rad),
+            **self._tracking(),
             "accel_max_mps2": float(accel.max()) if accel.size else float("nan"),
             "accel_min_mps2": float(accel.min()) if accel.size else float("nan"),
             "solve_ms_p50": percentile(50),
