@@ -71,9 +71,11 @@ def _build_parser() -> argparse.ArgumentParser:
     run.add_argument("--estimator", metavar="NAME",
                      help="state estimator: ekf (default), ukf, truth (debugging)")
     run.add_argument("--seed", type=int, metavar="N", help="seed of every noise source")
-    run.add_argument("--duration", type=float, metavar="S", help="simulated seconds")
+    run.add_argument("--duration", type=float, metavar="S",
+                     help="simulated seconds (sim.duration_s)")
     run.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                     dest="overrides", help="override a config key, e.g. tracker.horizon=30")
+                     dest="overrides", help="override a config key, e.g. tracker.horizon=30 "
+                     "(repeatable; every key, its unit and range: `cosim config keys`)")
     run.add_argument("--out", metavar="FILE.mcap",
                      help="log file (default logs/<scenario>[-<overrides>]-<time>.mcap)")
     run.add_argument("--json", action="store_true", help="print the metrics as JSON")
