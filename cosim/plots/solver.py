@@ -54,13 +54,16 @@ def solver_figure(runs: Sequence[RunLog], path: Path) -> Path:
             continue
         p50, p99 = np.nanpercentile(solve_ms, [50.0, 99.0])
         fallbacks = int(np.sum(plans.fallback))
-        title_parts.append(f"{run.tracker_name}: {fallbacks} fallback"
-                           f"{'' if fallbacks == 1 else 's'} in {solve_ms.size} steps")
+        title_parts.append((f"{run.tracker_name}: " if len(runs) == 1 else "")
+                           + f"{fallbacks} fallback{'' if fallbacks == 1 else 's'} in "
+                             f"{solve_ms.size} steps")
         hist_ax.hist(solve_ms, bins=bins, color=colour, alpha=0.55,
                      label=f"{solve_ms.size} steps")
         for value, name, style in ((p50, "p50", "--"), (p99, "p99", ":")):
             hist_ax.axvline(value, color=colour, linestyle=style, linewidth=1.6,
                             label=f"{name} {value:.3g} ms")
+            if len(runs) > 1:
+                continue  # two runs' labels would overlap: the legend has the values
             hist_ax.annotate(f"{name} {value:.3g} ms", xy=(value, 0.5),
                              xycoords=("data", "axes fraction"), xytext=(-3, 0),
                              textcoords="offset points", ha="right", va="center",
@@ -95,6 +98,6 @@ def solver_figure(runs: Sequence[RunLog], path: Path) -> Path:
     for ax in (hist_ax, time_ax):
         style_axes(ax)
         legend(ax, runs)
-    suptitle(figure, "Tracker solve time — " + ("; ".join(title_parts) or "no plans"), runs)
+    suptitle(figure, "Tracker solve time — " + (" vs ".join(title_parts) or "no plans"), runs)
     run_legend(figure, runs)
     return save(figure, path)
