@@ -210,7 +210,7 @@ def _nis_panel(ax: Any, runs: Sequence[RunLog]) -> None:
     if positive.size:
         ax.set_yscale("log")
         ax.set_ylim(0.5 * float(np.percentile(positive, 1.0)), 2.0 * float(np.max(positive)))
-    ax.set_ylabel("NIS / dof [-] (log)")
+    ax.set_ylabel("NIS / dof [-]" + (" (log)" if ax.get_yscale() == "log" else ""))
     ax.set_title(f"NIS per sensor, per degree of freedom ({NIS_WINDOW_S:g} s running mean)",
                  fontsize=10)
 
