@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from mcap.exceptions import McapError
+from mcap.reader import make_reader
 from mcap.records import Attachment, Channel, Footer, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 
@@ -92,9 +93,52 @@ def _records(path: Path) -> Iterator[Any]:
         stream.close()
 
 
+def _indexed_summary(path: Path) -> LogSummary | None:
+    """The summary from the file's summary section (statistics, channels, schemas, metadata
+    and attachment indexes) and the one chunk that holds ``/metrics``: milliseconds for a
+    complete file. None when the file has no complete summary section (a run cut off, or
+    another writer), and the caller scans the records instead."""
+    try:
+        with open(path, "rb") as stream:
+            reader = make_reader(stream)
+            found = reader.get_summary()
+            if found is None or found.statistics is None:
+                return None
+            statistics = found.statistics
+            summary = LogSummary(path)
+            if statistics.message_count:
+                summary.start_ns = statistics.message_start_time
+                summary.end_ns = statistics.message_end_time
+            for channel_id, channel in found.channels.items():
+                schema = found.schemas.get(channel.schema_id)
+                summary.channels.append(ChannelSummary(
+                    topic=channel.topic,
+                    schema_name=schema.name if schema else "",
+                    schema_encoding=schema.encoding if schema else "",
+                    message_encoding=channel.message_encoding,
+                    message_count=statistics.channel_message_counts.get(channel_id, 0),
+                ))
+            summary.metadata = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
+            summary.attachments = [a.name for a in found.attachment_indexes]
+            for _, _, message in reader.iter_messages(topics=["/metrics"]):
+                summary.metrics = json.loads(message.data)
+            return summary
+    except (McapError, EOFError, ValueError, OSError, struct.error, KeyError):
+        return None
+
+
 def read_summary(path: Path | str) -> LogSummary:
-    """Scan a log: channels with schema and count, time range, metadata, metrics."""
+    """Scan a log: channels with schema and count, time range, metadata, metrics.
+
+    A complete file is read through its summary section and indexes; a truncated one
+    record by record up to its last complete record (``truncated``)."""
     path = Path(path)
+    indexed = _indexed_summary(path) if path.is_file() else None
+    return indexed if indexed is not None else _scan_summary(path)
+
+
+def _scan_summary(path: Path) -> LogSummary:
+    """:func:`read_summary` record by record (what a file without a summary section takes)."""
     summary = LogSummary(path)
     schemas: dict[int, Schema] = {}
     channels: dict[int, Channel] = {}
