@@ -92,35 +92,38 @@ def _timed_run(out: Path) -> dict[str, float]:
     """One default lane change with every part timed; seconds per part, loop and total."""
     watch = _Stopwatch()
     config = load_config("lane-change")
+    original = {name: getattr(runner, name) for name in (
+        "MujocoPlant", "make_estimator", "make_tracker", "make_sensors", "McapRecorder",
+        "MetricsAccumulator", "foxglove", "FaultInjector")}
 
     def plant(*args: Any, **kwargs: Any) -> Any:
-        built = runner.MujocoPlant(*args, **kwargs)
+        built = original["MujocoPlant"](*args, **kwargs)
         watch.wrap_methods("physics", built, ("advance", "state", "apply", "add_yaw_rate"))
         return built
 
     def estimator(*args: Any, **kwargs: Any) -> Any:
-        built = runner.make_estimator(*args, **kwargs)
+        built = original["make_estimator"](*args, **kwargs)
         watch.wrap_methods("filter", built, ("predict", "update", "estimate"))
         return built
 
     def tracker(*args: Any, **kwargs: Any) -> Any:
-        built = runner.make_tracker(*args, **kwargs)
+        built = original["make_tracker"](*args, **kwargs)
         watch.wrap_methods("tracker", built, ("step",))
         return built
 
     def sensors(*args: Any, **kwargs: Any) -> Any:
-        built = runner.make_sensors(*args, **kwargs)
+        built = original["make_sensors"](*args, **kwargs)
         for sensor in built:
             watch.wrap_methods("sensors", sensor, ("sample",))
         return built
 
     def recorder(*args: Any, **kwargs: Any) -> Any:
-        built = runner.McapRecorder(*args, **kwargs)
+        built = original["McapRecorder"](*args, **kwargs)
         watch.wrap_methods("logging", built, ("write", "write_finite", "close"))
         return built
 
     def metrics(*args: Any, **kwargs: Any) -> Any:
-        built = runner.MetricsAccumulator(*args, **kwargs)
+        built = original["MetricsAccumulator"](*args, **kwargs)
         watch.wrap_methods("metrics", built, ("add_truth", "add_estimate", "add_update",
                                               "add_plan", "add_command", "result"))
         return built
@@ -129,12 +132,12 @@ def _timed_run(out: Path) -> dict[str, float]:
         """The runner's view of :mod:`cosim.log.foxglove`, each scene builder timed."""
 
         def __getattr__(self, name: str) -> Any:
-            value = getattr(runner.foxglove, name)
+            value = getattr(original["foxglove"], name)
             return watch.wrap("logging", value) if callable(value) else value
 
     class _Faults:
         def __init__(self, *args: Any, **kwargs: Any) -> None:
-            self._inner = runner.FaultInjector(*args, **kwargs)
+            self._inner = original["FaultInjector"](*args, **kwargs)
             self.apply = watch.wrap("sensors", self._inner.apply)
 
         @property
