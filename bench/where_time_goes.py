@@ -48,6 +48,17 @@ from cosim.simulation.scenario_config import load_config
 PARTS = ("physics", "sensors", "filter", "tracker", "logging", "metrics")
 """The parts timed inside the loop; the runner's own bookkeeping is the rest."""
 
+TIMED_BUILDERS: dict[str, tuple[str, tuple[str, ...]]] = {
+    "MujocoPlant": ("physics", ("advance", "state", "apply", "add_yaw_rate")),
+    "make_estimator": ("filter", ("predict", "update", "estimate")),
+    "make_tracker": ("tracker", ("step",)),
+    "McapRecorder": ("logging", ("write", "write_finite", "close")),
+    "MetricsAccumulator": ("metrics", ("add_truth", "add_estimate", "add_update", "add_plan",
+                                       "add_command", "result")),
+}
+"""What the runner builds (by its name in :mod:`cosim.simulation.runner`): the part each
+one's time counts for, and the methods timed."""
+
 
 class _Stopwatch:
     """Seconds per part, summed over the calls of the wrapped functions."""
@@ -93,39 +104,22 @@ def _timed_run(out: Path) -> dict[str, float]:
     watch = _Stopwatch()
     config = load_config("lane-change")
     original = {name: getattr(runner, name) for name in (
-        "MujocoPlant", "make_estimator", "make_tracker", "make_sensors", "McapRecorder",
-        "MetricsAccumulator", "foxglove", "FaultInjector")}
+        *TIMED_BUILDERS, "make_sensors", "foxglove", "FaultInjector")}
 
-    def plant(*args: Any, **kwargs: Any) -> Any:
-        built = original["MujocoPlant"](*args, **kwargs)
-        watch.wrap_methods("physics", built, ("advance", "state", "apply", "add_yaw_rate"))
-        return built
+    def timed_builder(name: str) -> Callable[..., Any]:
+        part, methods = TIMED_BUILDERS[name]
 
-    def estimator(*args: Any, **kwargs: Any) -> Any:
-        built = original["make_estimator"](*args, **kwargs)
-        watch.wrap_methods("filter", built, ("predict", "update", "estimate"))
-        return built
+        def build(*args: Any, **kwargs: Any) -> Any:
+            built = original[name](*args, **kwargs)
+            watch.wrap_methods(part, built, methods)
+            return built
 
-    def tracker(*args: Any, **kwargs: Any) -> Any:
-        built = original["make_tracker"](*args, **kwargs)
-        watch.wrap_methods("tracker", built, ("step",))
-        return built
+        return build
 
     def sensors(*args: Any, **kwargs: Any) -> Any:
         built = original["make_sensors"](*args, **kwargs)
         for sensor in built:
             watch.wrap_methods("sensors", sensor, ("sample",))
-        return built
-
-    def recorder(*args: Any, **kwargs: Any) -> Any:
-        built = original["McapRecorder"](*args, **kwargs)
-        watch.wrap_methods("logging", built, ("write", "write_finite", "close"))
-        return built
-
-    def metrics(*args: Any, **kwargs: Any) -> Any:
-        built = original["MetricsAccumulator"](*args, **kwargs)
-        watch.wrap_methods("metrics", built, ("add_truth", "add_estimate", "add_update",
-                                              "add_plan", "add_command", "result"))
         return built
 
     class _Foxglove:
@@ -145,10 +139,9 @@ def _timed_run(out: Path) -> dict[str, float]:
             return self._inner.injected
 
     patches = [
-        (runner, "MujocoPlant", plant), (runner, "make_estimator", estimator),
-        (runner, "make_tracker", tracker), (runner, "make_sensors", sensors),
-        (runner, "McapRecorder", recorder), (runner, "MetricsAccumulator", metrics),
-        (runner, "foxglove", _Foxglove()), (runner, "FaultInjector", _Faults),
+        *((runner, name, timed_builder(name)) for name in TIMED_BUILDERS),
+        (runner, "make_sensors", sensors), (runner, "foxglove", _Foxglove()),
+        (runner, "FaultInjector", _Faults),
         (VehicleState, "to_message", watch.wrap("logging", VehicleState.to_message)),
         (Estimate, "to_message", watch.wrap("logging", Estimate.to_message)),
         (Plan, "to_message", watch.wrap("logging", Plan.to_message)),

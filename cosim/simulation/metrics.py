@@ -31,6 +31,10 @@ METRIC_KEYS = (
 )
 """Keys every run's metrics hold (a contract: outside tests read them)."""
 
+WALL_CLOCK_KEYS = ("wall_time_s", "realtime_factor", "solve_ms_p50", "solve_ms_p99",
+                   "solve_ms_max", "step_ms_p50", "step_ms_p99", "step_ms_max")
+"""Metrics that measure the machine, not the run: they differ between two runs of one seed."""
+
 
 REJECTION_CAUSES = ("rejected_gate", "rejected_nonfinite", "rejected_stale",
                     "rejected_invalid")
