@@ -10,8 +10,15 @@ import pytest
 from mcap.writer import Writer
 
 from cosim.cli import main
+from cosim.log import reader
 from cosim.log.export import csv_name, export_csv, log_warnings
-from cosim.log.reader import ChannelSummary, LogSummary, _scan_summary, read_summary
+from cosim.log.reader import (
+    ChannelSummary,
+    LogSummary,
+    _scan_summary,
+    iter_messages,
+    read_summary,
+)
 from cosim.simulation.metrics import METRIC_KEYS
 from cosim.simulation.runner import RunResult, run
 from cosim.simulation.scenario_config import load_config
@@ -164,6 +171,15 @@ def test_the_summary_section_gives_what_a_full_scan_gives(good_run: RunResult) -
     assert indexed.attachments == scanned.attachments == ["sedan.xml"]
     assert indexed.metrics == scanned.metrics == good_run.metrics | {
         k: None for k, v in good_run.metrics.items() if isinstance(v, float) and v != v}
+
+
+def test_reading_a_topic_through_the_indexes_gives_what_a_scan_gives(
+        good_run: RunResult, monkeypatch: pytest.MonkeyPatch) -> None:
+    indexed = list(iter_messages(good_run.log_path, "/control/plan"))
+    monkeypatch.setattr(reader, "_has_summary", lambda stream: False)  # the scanning path
+    scanned = list(iter_messages(good_run.log_path, "/control/plan"))
+    assert len(indexed) == 40 and indexed == scanned
+    assert [t for t, _ in indexed] == sorted(t for t, _ in indexed)
 
 
 def test_a_truncated_log_is_inspected_and_exported(good_run: RunResult, tmp_path: Path,

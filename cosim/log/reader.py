@@ -178,8 +178,28 @@ def _scan_summary(path: Path) -> LogSummary:
     return summary
 
 
+def _has_summary(stream: Any) -> bool:
+    try:
+        return make_reader(stream).get_summary() is not None
+    except (McapError, EOFError, ValueError, OSError, struct.error):
+        return False
+
+
 def iter_messages(path: Path | str, topic: str) -> Iterator[tuple[int, dict[str, Any]]]:
-    """``(log_time_ns, message)`` of one topic, in file order (JSON-decoded)."""
+    """``(log_time_ns, message)`` of one topic, in file order (JSON-decoded).
+
+    A complete file is read through its chunk indexes (only the chunks that hold the
+    topic, no other record decoded into objects); a truncated one record by record."""
+    path = Path(path)
+    if path.is_file():
+        with open(path, "rb") as stream:
+            if _has_summary(stream):
+                stream.seek(0)
+                reader = make_reader(stream)
+                for _, _, message in reader.iter_messages(topics=[topic],
+                                                          log_time_order=False):
+                    yield message.log_time, json.loads(message.data)
+                return
     wanted: set[int] = set()
     for record in _records(Path(path)):
         if isinstance(record, Channel) and record.topic == topic:
