@@ -1,6 +1,6 @@
 """Where a run's time goes, how the tracker step grows with the horizon, and sweep throughput.
 
-    .venv/bin/python bench/where_time_goes.py [--repeats 5] [--parts-only]
+    .venv/bin/python bench/where_time_goes.py [--repeats 5] [--parts-duration S]
         [--horizons 10 20 40 80] [--scaling-duration 8] [--sweep-runs 20]
         [--sweep-duration 15] [--skip-scaling] [--skip-sweep]
 
@@ -99,10 +99,10 @@ def _patched(target: object, name: str, value: object) -> Iterator[None]:
         setattr(target, name, original)
 
 
-def _timed_run(out: Path) -> dict[str, float]:
+def _timed_run(out: Path, duration_s: float | None) -> dict[str, float]:
     """One default lane change with every part timed; seconds per part, loop and total."""
     watch = _Stopwatch()
-    config = load_config("lane-change")
+    config = load_config("lane-change", duration_s=duration_s)
     original = {name: getattr(runner, name) for name in (
         *TIMED_BUILDERS, "make_sensors", "foxglove", "FaultInjector")}
 
@@ -181,16 +181,17 @@ def _fresh_interpreter_s(code: str) -> float:
     return time.perf_counter() - start
 
 
-def parts_table(repeats: int) -> None:
+def parts_table(repeats: int, duration_s: float | None = None) -> None:
     rows: list[dict[str, float]] = []
     with tempfile.TemporaryDirectory() as tmp:
         for repeat in range(repeats):
-            rows.append(_timed_run(Path(tmp) / f"run-{repeat}.mcap"))
+            rows.append(_timed_run(Path(tmp) / f"run-{repeat}.mcap", duration_s))
     start_s = [_fresh_interpreter_s("pass") for _ in range(repeats)]
     imports_s = [_fresh_interpreter_s("import cosim.cli, cosim.simulation.runner")
                  for _ in range(repeats)]
     loop = statistics.median(row["loop"] for row in rows)
-    print(f"1. default lane change (15 s simulated), per run, median of {repeats}")
+    simulated = "15 s" if duration_s is None else f"{duration_s:g} s"
+    print(f"1. default lane change ({simulated} simulated), per run, median of {repeats}")
     print(f"   {'part':<24}{'seconds':>9}{'share of loop':>15}")
     for key in (*PARTS, "runner loop (rest)", "loop", "build, header, finish", "run() total",
                 "run() cpu"):
@@ -245,6 +246,8 @@ def sweep_table(runs: int, duration_s: float) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--parts-duration", type=float,
+                        help="simulated seconds of the parts' runs (default: the scenario's)")
     parser.add_argument("--horizons", type=int, nargs="+", default=[10, 20, 40, 80])
     parser.add_argument("--scaling-duration", type=float, default=8.0)
     parser.add_argument("--sweep-runs", type=int, default=20)
@@ -253,7 +256,7 @@ def main() -> None:
     parser.add_argument("--skip-sweep", action="store_true")
     args = parser.parse_args()
     print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
-    parts_table(args.repeats)
+    parts_table(args.repeats, args.parts_duration)
     if not args.skip_scaling:
         scaling_table(args.horizons, args.scaling_duration)
     if not args.skip_sweep:
