@@ -29,7 +29,7 @@ from collections.abc import Sequence
 
 import casadi as ca
 
-from cosim.plant.tire_model import MIN_LOAD_N, SLIP_EPSILON
+from cosim.plant.tire_model import MIN_LOAD_N, SLIP_EPSILON, relax_deflection
 from cosim.tyre_params import TyreParams
 
 CONTACT_FIELDS: tuple[tuple[str, int], ...] = (
@@ -55,16 +55,6 @@ def _magic_formula(slip: ca.SX, stiffness: ca.SX, shape: float, curvature: float
                    peak: ca.SX) -> ca.SX:
     bs = stiffness / (shape * peak) * slip
     return peak * ca.sin(shape * ca.atan(bs - curvature * (bs - ca.atan(bs))))
-
-
-def _relax(deflection: ca.SX, slip_velocity: ca.SX, secant: ca.SX, stiffness: float,
-           damping: ca.SX, speed: ca.SX, dt_s: float) -> tuple[ca.SX, ca.SX]:
-    denominator = damping * speed + secant
-    rate_coefficient = stiffness * speed / denominator
-    forcing = secant * slip_velocity / denominator
-    steady = -forcing / rate_coefficient
-    new = steady + (deflection - steady) * ca.exp(-rate_coefficient * dt_s)
-    return new, -(rate_coefficient * new + forcing)
 
 
 def _onto_circle(force_x: ca.SX, force_y: ca.SX, limit: ca.SX) -> tuple[ca.SX, ca.SX]:
@@ -121,8 +111,10 @@ def patch_step_sx(params: TyreParams, friction: float, load: ca.SX, forward_spee
                  + fade * p.low_speed_longitudinal_damping_nspm)
     damping_y = p.lateral_carcass_damping_nspm + fade * p.low_speed_lateral_damping_nspm
     cx, cy = p.longitudinal_carcass_stiffness_npm, p.lateral_carcass_stiffness_npm
-    new_x, new_rate_x = _relax(deflection_x, slip_x, secant_x, cx, damping_x, speed, dt_s)
-    new_y, new_rate_y = _relax(deflection_y, slip_y, secant_y, cy, damping_y, speed, dt_s)
+    new_x, new_rate_x = relax_deflection(deflection_x, slip_x, secant_x, cx, damping_x, speed,
+                                         dt_s, ca.exp)
+    new_y, new_rate_y = relax_deflection(deflection_y, slip_y, secant_y, cy, damping_y, speed,
+                                         dt_s, ca.exp)
     force_x, force_y = _onto_circle(cx * new_x + damping_x * new_rate_x,
                                     cy * new_y + damping_y * new_rate_y, limit)
 
