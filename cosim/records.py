@@ -49,7 +49,7 @@ class VehicleState:
 
     def to_message(self) -> dict[str, object]:
         """Plain JSON-ready fields (the `/vehicle/truth` payload)."""
-        message = dataclasses.asdict(self)
+        message = dict(self.__dict__)  # the fields: all plain floats but one tuple
         message["wheel_speed_radps"] = list(self.wheel_speed_radps)
         return message
 
@@ -81,8 +81,8 @@ class Measurement:
 
     def to_message(self) -> dict[str, object]:
         message: dict[str, object] = {"t_s": self.t_s, "sensor": self.sensor}
-        message.update({n: _json_float(v) for n, v in zip(self.names, self.values, strict=True)})
-        message["sigma"] = [float(s) for s in np.sqrt(np.diag(self.covariance))]
+        message.update(zip(self.names, _json_floats(self.values), strict=True))
+        message["sigma"] = np.sqrt(np.diag(self.covariance)).tolist()
         return message
 
 
@@ -111,9 +111,10 @@ class Estimate:
 
     def to_message(self) -> dict[str, object]:
         message: dict[str, object] = {"t_s": self.t_s}
-        message.update({n: float(v) for n, v in zip(self.names, self.mean, strict=True)})
+        message.update(zip(self.names, np.asarray(self.mean, dtype=float).tolist(),
+                           strict=True))
         message["state_names"] = list(self.names)
-        message["covariance"] = [float(c) for c in self.covariance.ravel()]
+        message["covariance"] = np.asarray(self.covariance, dtype=float).ravel().tolist()
         return message
 
 
@@ -156,14 +157,20 @@ class Plan:
             "fallback": self.fallback,
         }
         for name in self.state_names + self.input_names:
-            message[f"predicted_{name}"] = [_json_float(v) for v in self.column(name)]
+            message[f"predicted_{name}"] = _json_floats(self.column(name))
         return message
 
 
 def _json_float(value: float) -> float | None:
     """JSON has no NaN: a non-finite value is logged as null."""
     value = float(value)
-    return value if np.isfinite(value) else None
+    return value if math.isfinite(value) else None
+
+
+def _json_floats(values: np.ndarray) -> list[float | None]:
+    """:func:`_json_float` of every entry (one conversion to Python floats, then a pass)."""
+    return [v if math.isfinite(v) else None
+            for v in np.asarray(values, dtype=float).ravel().tolist()]
 
 
 @dataclass(frozen=True)

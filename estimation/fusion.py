@@ -371,8 +371,11 @@ class KalmanFusion(ABC):
                 f"covariance of shape {covariance.shape}"
             )
         columns = list(selection.measurement_columns)
-        z = values[columns]
-        r_matrix = covariance[np.ix_(columns, columns)] + np.diag(selection.model_variance)
+        if columns == list(range(size)):  # every channel, in order: no selection needed
+            z, r_matrix = values, covariance + np.diag(selection.model_variance)
+        else:
+            z = values[columns]
+            r_matrix = covariance[np.ix_(columns, columns)] + np.diag(selection.model_variance)
         t_s = float(measurement.t_s)
         if not (math.isfinite(t_s) and np.isfinite(z).all() and np.isfinite(r_matrix).all()):
             counts.rejected_nonfinite += 1
@@ -444,14 +447,17 @@ class KalmanFusion(ABC):
         """The channels ``group`` (indices into ``z``) against the current belief: the
         filter's trial update and its NIS. ``None`` if the innovation covariance is not
         positive definite."""
-        index = list(group)
-        rows = tuple(selection.model_rows[i] for i in index)
-        angle_rows = tuple(j for j, i in enumerate(group) if i in selection.angle_rows)
+        if len(group) == len(selection.model_rows):  # every channel (the common case)
+            rows, angle_rows = selection.model_rows, selection.angle_rows
+            z_group, r_group = z, r_matrix
+        else:
+            index = list(group)
+            rows = tuple(selection.model_rows[i] for i in index)
+            angle_rows = tuple(j for j, i in enumerate(group) if i in selection.angle_rows)
+            z_group, r_group = z[index], r_matrix[np.ix_(index, index)]
         residual = residual_function(angle_rows)
         try:
-            trial = self._trial_update(
-                model, rows, z[index], r_matrix[np.ix_(index, index)], residual, angle_rows
-            )
+            trial = self._trial_update(model, rows, z_group, r_group, residual, angle_rows)
         except np.linalg.LinAlgError:
             return None
         s_matrix = 0.5 * (trial.innovation_covariance + trial.innovation_covariance.T)

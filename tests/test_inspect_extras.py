@@ -10,8 +10,15 @@ import pytest
 from mcap.writer import Writer
 
 from cosim.cli import main
+from cosim.log import reader
 from cosim.log.export import csv_name, export_csv, log_warnings
-from cosim.log.reader import iter_messages, read_summary
+from cosim.log.reader import (
+    ChannelSummary,
+    LogSummary,
+    _scan_summary,
+    iter_messages,
+    read_summary,
+)
 from cosim.simulation.metrics import METRIC_KEYS
 from cosim.simulation.runner import RunResult, run
 from cosim.simulation.scenario_config import load_config
@@ -25,8 +32,10 @@ def good_run(tmp_path_factory: pytest.TempPathFactory) -> RunResult:
 
 @pytest.fixture(scope="module")
 def failing_run(tmp_path_factory: pytest.TempPathFactory) -> RunResult:
-    """One IPOPT iteration per step: every solve fails and the tracker falls back."""
-    config = load_config("lane-change", overrides=["tracker.max_iterations=1"],
+    """One IPOPT iteration per step: every solve fails and the tracker falls back (IPOPT
+    names the failure ``Maximum_Iterations_Exceeded``)."""
+    config = load_config("lane-change", overrides=["tracker.solver=ipopt",
+                                                   "tracker.max_iterations=1"],
                          duration_s=2.0)
     return run(config, tmp_path_factory.mktemp("inspect") / "failing.mcap")
 
@@ -155,6 +164,34 @@ def test_variable_length_arrays_are_skipped(tmp_path: Path) -> None:
     assert header == ["log_time_ns", "t_s", "fixed[0]", "fixed[1]", "pose.x"]
     assert export.skipped == {"/ragged": ["ragged"]}
     assert rows[2] == ["200000000", "0.2", "2", "-2", "2"]
+
+
+def test_the_summary_section_gives_what_a_full_scan_gives(good_run: RunResult) -> None:
+    # A complete log is summarised from its summary section and indexes; scanning every
+    # record (the path a truncated log takes) must find exactly the same.
+    indexed = read_summary(good_run.log_path)
+    scanned = _scan_summary(good_run.log_path)
+    assert indexed.truncated is False and scanned.truncated is False
+
+    def channels(summary: LogSummary) -> list[ChannelSummary]:
+        return sorted(summary.channels, key=lambda c: c.topic)
+
+    assert channels(indexed) == channels(scanned)
+    assert len(channels(indexed)) >= 10 and indexed.message_count > 1000
+    assert (indexed.start_ns, indexed.end_ns) == (scanned.start_ns, scanned.end_ns)
+    assert indexed.metadata == scanned.metadata and "run" in indexed.metadata
+    assert indexed.attachments == scanned.attachments == ["sedan.xml"]
+    assert indexed.metrics == scanned.metrics == good_run.metrics | {
+        k: None for k, v in good_run.metrics.items() if isinstance(v, float) and v != v}
+
+
+def test_reading_a_topic_through_the_indexes_gives_what_a_scan_gives(
+        good_run: RunResult, monkeypatch: pytest.MonkeyPatch) -> None:
+    indexed = list(iter_messages(good_run.log_path, "/control/plan"))
+    monkeypatch.setattr(reader, "_has_summary", lambda stream: False)  # the scanning path
+    scanned = list(iter_messages(good_run.log_path, "/control/plan"))
+    assert len(indexed) == 40 and indexed == scanned
+    assert [t for t, _ in indexed] == sorted(t for t, _ in indexed)
 
 
 def test_a_truncated_log_is_inspected_and_exported(good_run: RunResult, tmp_path: Path,

@@ -11,7 +11,7 @@ import pytest
 from mcap.reader import make_reader
 
 from cosim.log.reader import iter_messages, read_summary
-from cosim.simulation.metrics import METRIC_KEYS
+from cosim.simulation.metrics import METRIC_KEYS, WALL_CLOCK_KEYS
 from cosim.simulation.runner import RunResult
 from tests.conftest import run_scenario
 
@@ -20,8 +20,6 @@ DESIGN_TOPICS = {
     "/reference/path", "/metrics", "/tf", "/scene", "/sensors/gnss", "/sensors/imu",
     "/sensors/wheel_speed",
 }
-WALL_CLOCK_KEYS = {"wall_time_s", "realtime_factor", "solve_ms_p50", "solve_ms_p99",
-                   "solve_ms_max"}
 
 
 def _payloads(path: Path) -> dict[str, list[bytes]]:
@@ -39,7 +37,7 @@ def _strip_wall_clock(payloads: dict[str, list[bytes]]) -> dict[str, list[object
         decoded: list[object] = []
         for data in messages:
             message = json.loads(data)
-            for key in WALL_CLOCK_KEYS | {"solve_time_s"}:
+            for key in {*WALL_CLOCK_KEYS, "solve_time_s"}:
                 message.pop(key, None)
             decoded.append(message)
         stripped[topic] = decoded

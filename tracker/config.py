@@ -57,8 +57,11 @@ lane change at 20 m/s from 15 m/s, about 0.5 g; max CTE for seeds 0/1/2, ``plant
 * ``horizon = 25`` at ``dt_s = 0.05``: 1.25 s or 25 m of preview at 20 m/s, the length of
   one steering swing of the lane change (longer horizons at higher speed). 20
   stages: 0.094 m; 30 stages: 0.052 m at about 15 % more solve time.
-* ``solver = ipopt``: the reference. ``fatrop`` reaches the same optimum 2-3 times faster
-  and ``sqp-rti`` (one Gauss-Newton SQP step per control step, hpipm for the QP) gives the
+* ``solver = fatrop``: IPOPT's optimum (the same NLP to the same tolerance; plans agree
+  to 1e-4 along a closed-loop lane change, ``tests/tracker/test_nmpc_solvers.py``) 2-3
+  times faster, each interior-point iteration a Riccati recursion over the stages.
+  ``ipopt`` stays selectable as the reference (``--set tracker.solver=ipopt``);
+  ``sqp-rti`` (one Gauss-Newton SQP step per control step, hpipm for the QP) gives the
   same max CTE on the lane change (seeds 0/1/2, both NMPCs) 6-10 times faster:
   ``kinematic-nmpc`` at N = 20 0.5-0.6 ms median against 2.4-3.5 ms; ``dynamic-nmpc``
   0.7-0.9 ms against 5-10 ms (a loaded 2-core machine; table in :mod:`tracker.nmpc`).
@@ -144,11 +147,11 @@ class TrackerConfig:
         "gradient) rather than from straight ahead",
     )
     solver: str = setting(
-        "ipopt",
+        "fatrop",
         choices=("ipopt", "fatrop", "sqp-rti"),
         doc="NLP solver of kinematic-nmpc and dynamic-nmpc (measured table in tracker.nmpc): "
-        "ipopt (interior point, general sparse; the reference), fatrop (interior point over "
-        "the stages; IPOPT's optimum 2-3x faster), sqp-rti (real-time iteration: "
+        "fatrop (default: interior point over the stages; IPOPT's optimum 2-3x faster), "
+        "ipopt (interior point, general sparse; the reference), sqp-rti (real-time iteration: "
         "rti_iterations Gauss-Newton SQP steps per control step from the shifted plan, "
         "one QP each; same max CTE on the lane change 6-10x faster: kinematic N=20 "
         "0.5-0.6 ms median against 2.4-3.5 ms with ipopt)",

@@ -38,7 +38,8 @@ change, default tuning of :mod:`tracker.config`):
 * Max CTE 0.056 / 0.062 / 0.054 m for seeds 0 / 1 / 2 (the bar for an MPC on this path: 88 mm
   on its own model without noise, see :mod:`tracker.dynamic_mpc`), 0.053 m with the true state as
   the estimate, solve time 5.5 ms median, about 10 ms at the 99th percentile, 5 IPOPT iterations
-  median. On the linear model itself (the test bench) 0.045 m, limited by the moderate
+  median (IPOPT was then the default solver; fatrop, now the default, reaches the same
+  optimum). On the linear model itself (the test bench) 0.045 m, limited by the moderate
   ``steer_rate`` weight on purpose: ``steer_rate = 0.2`` with ``cte = 100`` gives 2 mm on the bench
   and 19 mm on the plant with the true state, but 0.045 m with the EKF (against 0.056 m), the wheel
   then chasing the sensor noise on the straight six times as fast (0.20 rad/s RMS) and

@@ -55,10 +55,10 @@ apply the first input and keep the rest as the next warm start. A tracker is an
 * Solvers (``tracker.solver``; built once in the constructor, a step only sets parameters
   and solves; the solver's own verdict decides success, see :meth:`_Nlp.solve`):
 
-  - ``ipopt`` (default): interior point with a general sparse factorisation, on the
+  - ``ipopt``: interior point with a general sparse factorisation, on the
     variables in blocks ``[x_0 .. x_N, u_0 .. u_{N-1}]``; the steering-rate constraint
     couples neighbouring inputs.
-  - ``fatrop``: an interior point method for optimal control, one Riccati recursion over
+  - ``fatrop`` (default): an interior point method for optimal control, one Riccati recursion over
     the stages per iteration. It needs the NLP stage by stage: ``[z_0, u_0, z_1, ..,
     z_N]`` with ``z_k = [x_k, u_{k-1}]``, the previous input carried as a state so the
     rate bound and the rate costs stay within a stage, the constraints ordered stage by
@@ -100,11 +100,11 @@ apply the first input and keep the rest as the next warm start. A tracker is an
   ms with the RTI. Harder cases (dynamic-nmpc, seed 0, max CTE ipopt / fatrop / RTI):
   Falcone's unstretched path at 1.11 g 0.6734 / 0.6734 / 0.6704 m (the soft slip limits
   active), a 2000 kg car on friction 0.7 0.1584 m for all three, 100 ms actuator delay
-  0.0735 m for all three; no failures. IPOPT stays the default: its results are the
-  reference the rest of the testbed was tuned and tested against (the RTI's plans are
-  one Gauss-Newton step, not an optimum, and report ``RTI_Completed``); ``sqp-rti`` is
-  as accurate on every case above and 6-10 times faster, ``fatrop`` gives IPOPT's
-  optimum 2-3 times faster.
+  0.0735 m for all three; no failures. ``fatrop`` is the default: it gives IPOPT's
+  optimum (the NLP the testbed was tuned against) 2-3 times faster; IPOPT stays
+  selectable as the reference. The RTI's plans are one Gauss-Newton step, not an
+  optimum (status ``RTI_Completed``), so it is not the default although it is as
+  accurate on every case above and 6-10 times faster.
 
 Nothing depends on wall-clock time except the reported ``solve_time_s``, so equal inputs
 give equal outputs.

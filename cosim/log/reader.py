@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from mcap.exceptions import McapError
+from mcap.reader import make_reader
 from mcap.records import Attachment, Channel, Footer, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 
@@ -108,9 +109,52 @@ def _records(path: Path) -> Iterator[Any]:
         stream.close()
 
 
+def _indexed_summary(path: Path) -> LogSummary | None:
+    """The summary from the file's summary section (statistics, channels, schemas, metadata
+    and attachment indexes) and the one chunk that holds ``/metrics``: milliseconds for a
+    complete file. None when the file has no complete summary section (a run cut off, or
+    another writer), and the caller scans the records instead."""
+    try:
+        with open(path, "rb") as stream:
+            reader = make_reader(stream)
+            found = reader.get_summary()
+            if found is None or found.statistics is None:
+                return None
+            statistics = found.statistics
+            summary = LogSummary(path)
+            if statistics.message_count:
+                summary.start_ns = statistics.message_start_time
+                summary.end_ns = statistics.message_end_time
+            for channel_id, channel in found.channels.items():
+                schema = found.schemas.get(channel.schema_id)
+                summary.channels.append(ChannelSummary(
+                    topic=channel.topic,
+                    schema_name=schema.name if schema else "",
+                    schema_encoding=schema.encoding if schema else "",
+                    message_encoding=channel.message_encoding,
+                    message_count=statistics.channel_message_counts.get(channel_id, 0),
+                ))
+            summary.metadata = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
+            summary.attachments = [a.name for a in found.attachment_indexes]
+            for _, _, message in reader.iter_messages(topics=["/metrics"]):
+                summary.metrics = json.loads(message.data)
+            return summary
+    except (McapError, EOFError, ValueError, OSError, struct.error, KeyError):
+        return None
+
+
 def read_summary(path: Path | str) -> LogSummary:
-    """Scan a log: channels with schema and count, time range, metadata, metrics."""
+    """Scan a log: channels with schema and count, time range, metadata, metrics.
+
+    A complete file is read through its summary section and indexes; a truncated one
+    record by record up to its last complete record (``truncated``)."""
     path = Path(path)
+    indexed = _indexed_summary(path) if path.is_file() else None
+    return indexed if indexed is not None else _scan_summary(path)
+
+
+def _scan_summary(path: Path) -> LogSummary:
+    """:func:`read_summary` record by record (what a file without a summary section takes)."""
     summary = LogSummary(path)
     schemas: dict[int, Schema] = {}
     channels: dict[int, Channel] = {}
@@ -150,9 +194,31 @@ def read_summary(path: Path | str) -> LogSummary:
     return summary
 
 
+def _has_summary(stream: Any) -> bool:
+    try:
+        return make_reader(stream).get_summary() is not None
+    except (McapError, EOFError, ValueError, OSError, struct.error):
+        return False
+
+
 def iter_messages(path: Path | str, topic: str) -> Iterator[tuple[int, dict[str, Any]]]:
     """``(log_time_ns, message)`` of one topic, in file order (JSON-decoded); the time is
-    sim time (the log's epoch subtracted)."""
+    sim time (the log's epoch subtracted).
+
+    A complete file is read through its chunk indexes (only the chunks that hold the
+    topic, no other record decoded into objects); a truncated one record by record."""
+    path = Path(path)
+    if path.is_file():
+        with open(path, "rb") as stream:
+            if _has_summary(stream):
+                stream.seek(0)
+                reader = make_reader(stream)
+                epoch = next((_epoch_ns(dict(record.metadata))
+                              for record in reader.iter_metadata() if record.name == "run"), 0)
+                for _, _, message in reader.iter_messages(topics=[topic],
+                                                          log_time_order=False):
+                    yield message.log_time - epoch, json.loads(message.data)
+                return
     wanted: set[int] = set()
     epoch = 0
     for record in _records(Path(path)):

@@ -43,15 +43,18 @@ body without colliding geoms) drives ahead; the plant advances it after each ste
 
 from __future__ import annotations
 
+import ctypes
 import dataclasses
 import math
 from typing import NamedTuple
 
+import casadi as ca
 import mujoco
 import numpy as np
 
 from cosim.exceptions import PhysicsDivergenceError
 from cosim.initial_state import InitialState
+from cosim.plant.compiled_function import CompiledFunction, compile_function
 from cosim.plant.lead_car import (
     LeadCarConfig,
     LeadCarPath,
@@ -68,6 +71,12 @@ from cosim.plant.sedan_model import (
     sedan_xml_and_assets,
 )
 from cosim.plant.tire_model import PATCH_AT_REST, PatchState, patch_step
+from cosim.plant.tyre_patches import (
+    CONTACT_SIZE,
+    FORCE_FIELDS,
+    PATCH_STATE_SIZE,
+    tyre_patches_function,
+)
 from cosim.records import WHEEL_NAMES, ActuatorCommand, VehicleState
 from cosim.tyre_params import TyreParams
 from cosim.vehicle_params import PlantConfig
@@ -101,11 +110,13 @@ class MujocoPlant:
     """The simulated sedan (see the module docstring for what each step does).
 
     ``physics_dt_s`` is the MuJoCo time step; ``mjcf_xml`` the model actually simulated.
+    ``one_call_tyres``: the four Magic Formula tyres in one CasADi call
+    (:mod:`cosim.plant.tyre_patches`, the default) or, false, the plain Python reference.
     The constructor settles the car on its suspension and then calls :meth:`reset`.
     """
 
     def __init__(self, config: PlantConfig, physics_dt_s: float, initial: InitialState,
-                 lead_car: LeadCarConfig | None = None) -> None:
+                 lead_car: LeadCarConfig | None = None, one_call_tyres: bool = True) -> None:
         self.config = config
         self.initial = initial
         self.lead_car = lead_car
@@ -118,10 +129,12 @@ class MujocoPlant:
         self._lookup_names()
         self._configure_actuators()
         self._tyres: _MagicFormulaTyres | None = (
-            _MagicFormulaTyres(config, self._model, self.physics_dt_s)
+            _MagicFormulaTyres(config, self._model, self.physics_dt_s, one_call_tyres)
             if config.tire_model == "pacejka"
             else None
         )
+        if self._tyres is not None:
+            self._tyres.bind(self._data)
         self._lead: _LeadCar | None = None
         if lead_car is not None:
             self._lookup_lead_car()
@@ -557,7 +570,8 @@ class _MagicFormulaTyres:
     about the wheel's centre of mass (the wheel centre for the sedan).
     """
 
-    def __init__(self, config: PlantConfig, model: mujoco.MjModel, physics_dt_s: float) -> None:
+    def __init__(self, config: PlantConfig, model: mujoco.MjModel, physics_dt_s: float,
+                 one_call: bool = True) -> None:
         body, geom = mujoco.mjtObj.mjOBJ_BODY, mujoco.mjtObj.mjOBJ_GEOM
         self._dt_s = physics_dt_s
         self._friction = config.tire_friction
@@ -586,19 +600,50 @@ class _MagicFormulaTyres:
         chassis = mujoco.mj_name2id(model, body, "chassis")
         self._root = int(model.body_rootid[chassis])
         self._n_wheels = len(WHEEL_NAMES)
+        self._bodies = np.array(self._wheel_body)
+        self._contact_buffer = np.zeros(self._n_wheels * CONTACT_SIZE)
+        self._state_buffer = np.zeros(self._n_wheels * PATCH_STATE_SIZE)
+        self._wrench_buffer = np.zeros((self._n_wheels, 6))
+        self._forces_buffer = np.zeros((self._n_wheels, FORCE_FIELDS))
+        self._new_state_buffer = np.zeros(self._n_wheels * PATCH_STATE_SIZE)
+        self._compiled: tuple[ctypes.CDLL, ca.Function] | None = None
+        """The four tyres as one compiled C call (:mod:`cosim.plant.tyre_patches`); None:
+        the plain reference, :func:`cosim.plant.tire_model.patch_step` per wheel."""
+        if one_call:
+            function = tyre_patches_function(self._params, self._friction, physics_dt_s,
+                                             self._wheel_body, self._root, model.nbody)
+            library = compile_function(function)
+            if library is not None:
+                self._compiled = (library, function)
+        self._patches: CompiledFunction | None = None
         self.reset((0.0,) * self._n_wheels)
+
+    def bind(self, d: mujoco.MjData) -> None:
+        """Point the compiled tyres at ``d``'s arrays (once per MjData: fixed memory)."""
+        if self._compiled is None:
+            return
+        library, function = self._compiled
+        self._patches = CompiledFunction(
+            library, function,
+            [d.cvel, d.xpos, d.xipos, d.xmat, d.subtree_com, self._contact_buffer,
+             self._state_buffer],
+            [self._wrench_buffer, self._forces_buffer, self._new_state_buffer])
 
     def reset(self, loads_n: tuple[float, ...]) -> None:
         """Undeflected tyres carrying ``loads_n``; no contact seen yet."""
         self._loads_n = list(loads_n)
         self._patch: list[PatchState] = [PATCH_AT_REST] * self._n_wheels
+        self._state_buffer[:] = 0.0
         self._contact_efc: list[tuple[int, int]] = []
         self._last: list[tuple[float, ...]] = [
             (load, 0.0, 0.0, 0.0, 0.0, 0.0) for load in loads_n
         ]
+        self._forces_buffer[:] = 0.0
+        self._forces_buffer[:, 0] = loads_n
 
-    def apply_forces(self, d: mujoco.MjData) -> None:
-        """Set each wheel's ``xfrc_applied`` from the state after ``mj_step1``."""
+    def _contacts(self, d: mujoco.MjData) -> tuple[list[int], list[float]]:
+        """Each wheel's deepest ground contact (-1: none) and the sign that turns that
+        contact's normal into the tyre; remembers every tyre contact's constraint row."""
         n_wheels = self._n_wheels
         contact_of_wheel: list[int] = [-1] * n_wheels
         normal_sign_of_wheel = [1.0] * n_wheels
@@ -627,9 +672,39 @@ class _MagicFormulaTyres:
                     depth_of_wheel[wheel] = dist[i]
                     contact_of_wheel[wheel] = i
                     normal_sign_of_wheel[wheel] = sign
-            positions = contacts.pos.tolist()
-            frames = contacts.frame.tolist()
         self._contact_efc = contact_efc
+        return contact_of_wheel, normal_sign_of_wheel
+
+    def apply_forces(self, d: mujoco.MjData) -> None:
+        """Set each wheel's ``xfrc_applied`` from the state after ``mj_step1``."""
+        if self._patches is None:
+            self._apply_forces_reference(d)
+            return
+        contact_of_wheel, sign_of_wheel = self._contacts(d)
+        values: list[float] = []
+        if d.ncon:
+            positions = d.contact.pos.tolist()
+            frames = d.contact.frame.tolist()
+        for index, sign, load in zip(contact_of_wheel, sign_of_wheel, self._loads_n,
+                                     strict=True):
+            if index < 0:
+                values += (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, load)
+                continue
+            frame = frames[index]
+            values += (1.0, *positions[index], sign * frame[0], sign * frame[1],
+                       sign * frame[2], load)
+        self._contact_buffer[:] = values
+        self._patches()
+        d.xfrc_applied[self._bodies] = self._wrench_buffer
+        self._state_buffer[:] = self._new_state_buffer
+
+    def _apply_forces_reference(self, d: mujoco.MjData) -> None:
+        """:meth:`apply_forces` in plain Python, :func:`patch_step` per wheel."""
+        n_wheels = self._n_wheels
+        contact_of_wheel, normal_sign_of_wheel = self._contacts(d)
+        if d.ncon:
+            positions = d.contact.pos.tolist()
+            frames = d.contact.frame.tolist()
         cvel = d.cvel.tolist()
         xpos = d.xpos.tolist()
         xipos = d.xipos.tolist()
@@ -702,6 +777,8 @@ class _MagicFormulaTyres:
         self._loads_n = loads
 
     def forces(self) -> tuple[TyreForces, ...]:
+        if self._patches is not None:
+            return tuple(TyreForces(*values) for values in self._forces_buffer.tolist())
         return tuple(TyreForces(*values) for values in self._last)
 
 

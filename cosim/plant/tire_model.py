@@ -67,7 +67,8 @@ carcass).
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from collections.abc import Callable
+from typing import Any, NamedTuple
 
 from cosim.tyre_params import TyreParams
 
@@ -218,15 +219,19 @@ def relaxation_lengths_m(params: TyreParams, load_n: float) -> tuple[float, floa
     )
 
 
-def _relax(deflection_m: float, slip_velocity_mps: float, secant_n: float, stiffness_npm: float,
-           damping_nspm: float, speed_mps: float, dt_s: float) -> tuple[float, float]:
+def relax_deflection(deflection_m: Any, slip_velocity_mps: Any, secant_n: Any,
+                     stiffness_npm: float, damping_nspm: Any, speed_mps: Any, dt_s: float,
+                     exp: Callable[[Any], Any] = math.exp) -> tuple[Any, Any]:
     """Exact step of ``de/dt = -(c v* e + f V_s) / (d v* + f)`` over ``dt_s`` for fixed
-    ``f`` and ``V_s``; returns the new deflection and its rate at the end of the step."""
+    ``f`` and ``V_s``; returns the new deflection and its rate at the end of the step.
+
+    Arithmetic and ``exp`` only, so it takes floats or, with ``exp=casadi.exp``, CasADi
+    symbols (:mod:`cosim.plant.tyre_patches`)."""
     denominator = damping_nspm * speed_mps + secant_n
     rate_coefficient = stiffness_npm * speed_mps / denominator
     forcing = secant_n * slip_velocity_mps / denominator
     steady = -forcing / rate_coefficient
-    deflection = steady + (deflection_m - steady) * math.exp(-rate_coefficient * dt_s)
+    deflection = steady + (deflection_m - steady) * exp(-rate_coefficient * dt_s)
     return deflection, -(rate_coefficient * deflection + forcing)
 
 
@@ -276,11 +281,11 @@ def patch_step(params: TyreParams, friction: float, load_n: float, forward_speed
     damping_y = params.lateral_carcass_damping_nspm + fade * params.low_speed_lateral_damping_nspm
     stiffness_cx = params.longitudinal_carcass_stiffness_npm
     stiffness_cy = params.lateral_carcass_stiffness_npm
-    deflection_x, rate_x = _relax(
+    deflection_x, rate_x = relax_deflection(
         state.deflection_x_m, slip_velocity_x_mps, secant_x, stiffness_cx, damping_x, speed,
         dt_s,
     )
-    deflection_y, rate_y = _relax(
+    deflection_y, rate_y = relax_deflection(
         state.deflection_y_m, slip_velocity_y_mps, secant_y, stiffness_cy, damping_y, speed,
         dt_s,
     )

@@ -27,8 +27,13 @@ METRIC_KEYS = (
     "solve_ms_p50", "solve_ms_p99", "solve_ms_max", "solver_failures",
     "est_pos_rmse_m", "est_yaw_rmse_rad", "est_speed_rmse_mps", "nees_mean", "nis_mean",
     "sim_duration_s", "wall_time_s", "realtime_factor", "completed",
+    "step_ms_p50", "step_ms_p99", "step_ms_max",
 )
 """Keys every run's metrics hold (a contract: outside tests read them)."""
+
+WALL_CLOCK_KEYS = ("wall_time_s", "realtime_factor", "solve_ms_p50", "solve_ms_p99",
+                   "solve_ms_max", "step_ms_p50", "step_ms_p99", "step_ms_max")
+"""Metrics that measure the machine, not the run: they differ between two runs of one seed."""
 
 
 REJECTION_CAUSES = ("rejected_gate", "rejected_nonfinite", "rejected_stale",
@@ -58,6 +63,18 @@ def _max_abs(values: list[float] | np.ndarray) -> float:
     return float(np.max(np.abs(array))) if array.size else float("nan")
 
 
+def _millisecond_percentiles(prefix: str, times_s: list[float]) -> dict[str, float]:
+    """``<prefix>_p50``, ``_p99`` and ``_max`` of ``times_s`` in milliseconds (NaN if none)."""
+    times_ms = np.asarray(times_s, dtype=float) * 1e3
+    times_ms = times_ms[np.isfinite(times_ms)]
+    if not times_ms.size:
+        return {f"{prefix}_p50": float("nan"), f"{prefix}_p99": float("nan"),
+                f"{prefix}_max": float("nan")}
+    p50, p99 = np.percentile(times_ms, [50.0, 99.0])
+    return {f"{prefix}_p50": float(p50), f"{prefix}_p99": float(p99),
+            f"{prefix}_max": float(times_ms.max())}
+
+
 @dataclass
 class MetricsAccumulator:
     """Collects what the metrics need while a run goes; :meth:`result` computes them."""
@@ -76,6 +93,9 @@ class MetricsAccumulator:
     steer_rad: list[float] = field(default_factory=list)
     accel_mps2: list[float] = field(default_factory=list)
     solve_time_s: list[float] = field(default_factory=list)
+    step_time_s: list[float] = field(default_factory=list)
+    """Wall time of each whole ``tracker.step``: latency prediction, projection, linearisation,
+    QP or NLP set-up and solve (measured by the runner around the call, for every tracker)."""
     solver_failures: int = 0
     pos_err_m: list[float] = field(default_factory=list)
     yaw_err_rad: list[float] = field(default_factory=list)
@@ -85,9 +105,13 @@ class MetricsAccumulator:
     estimator_counts: dict[str, dict[str, int]] = field(default_factory=dict)
     """Per sensor, the estimator's own counters (set at the end of the run)."""
     last_t_s: float = 0.0
+    last_path_s_m: float | None = None
+    """Arc length of the last projection of the truth onto the reference path."""
 
     def add_truth(self, truth: VehicleState) -> None:
-        projection = self.reference.project(truth.x_m, truth.y_m)
+        # Searched near the previous projection: the car moves < 1 m between log samples.
+        projection = self.reference.project(truth.x_m, truth.y_m, self.last_path_s_m)
+        self.last_path_s_m = projection.s_m
         self.cte_m.append(projection.lateral_error_m)
         self.heading_err_rad.append(float(wrap_angle(truth.yaw_rad - projection.path_yaw_rad)))
         self.speed_err_mps.append(truth.speed_mps - self.reference.speed_mps)
@@ -117,8 +141,9 @@ class MetricsAccumulator:
         if accepted and dim > 0 and np.isfinite(nis):
             self.nis_per_dof.append(nis / dim)
 
-    def add_plan(self, plan: Plan) -> None:
+    def add_plan(self, plan: Plan, step_time_s: float = float("nan")) -> None:
         self.solve_time_s.append(plan.solve_time_s)
+        self.step_time_s.append(step_time_s)
         if plan.fallback:
             self.solver_failures += 1
 
@@ -176,6 +201,7 @@ class MetricsAccumulator:
             "solve_ms_p50": percentile(50),
             "solve_ms_p99": percentile(99),
             "solve_ms_max": float(solve_ms.max()) if solve_ms.size else float("nan"),
+            **_millisecond_percentiles("step_ms", self.step_time_s),
             "solver_failures": self.solver_failures,
             "est_pos_rmse_m": _rms(self.pos_err_m),
             "est_yaw_rmse_rad": _rms(self.yaw_err_rad),

@@ -153,7 +153,8 @@ def test_slip_limits_hold_on_the_limit_lane_change() -> None:
 
 
 def test_forced_solver_failure_falls_back_then_stops_safely() -> None:
-    config = dataclasses.replace(CONFIG, max_iterations=1)
+    # IPOPT at one iteration: every solve fails, named Maximum_Iterations_Exceeded.
+    config = dataclasses.replace(CONFIG, max_iterations=1, solver="ipopt")
     tracker = DynamicNmpc(config)
     tracker.reset(Command(t_s=0.0, accel_mps2=0.0, steer_rad=0.05))
     car = Car(0.0, 0.5, 0.0, 15.0)

@@ -123,8 +123,9 @@ def test_heading_across_the_angle_wrap() -> None:
 
 
 def test_forced_solver_failure_falls_back_then_stops_safely() -> None:
+    # IPOPT at one iteration: every solve fails, named Maximum_Iterations_Exceeded.
     config = from_dict(TrackerConfig, {"name": "kinematic-nmpc", "max_iterations": 1,
-                                       "kinematic_understeer": False})
+                                       "solver": "ipopt", "kinematic_understeer": False})
     tracker = KinematicNmpc(config)
     tracker.reset(Command(t_s=0.0, accel_mps2=0.0, steer_rad=0.05))
     state = CarState(0.0, 0.5, 0.0, 15.0)

@@ -1,0 +1,268 @@
+"""Where a run's time goes, how the tracker step grows with the horizon, and sweep throughput.
+
+    .venv/bin/python bench/where_time_goes.py [--repeats 5] [--parts-duration S]
+        [--horizons 10 20 40 80] [--scaling-duration 8] [--sweep-runs 20]
+        [--sweep-duration 15] [--skip-scaling] [--skip-sweep]
+
+Three tables, each measured in this one invocation (figures are comparable with each other,
+not across machines or moments; note the load, ``os.getloadavg``, printed at the top):
+
+1. **Parts of the default lane change** (every default: tracker, estimator, full logging),
+   per run, median over ``--repeats`` runs in this process: physics with tyres
+   (``plant.advance`` and ``plant.state``), sensors (``sensor.sample`` and fault
+   injection), filter (``estimator.predict``/``update``/``estimate``), tracker step (the
+   whole ``tracker.step``), logging (building messages and Foxglove scenes, encoding and
+   MCAP writes), metrics (accumulating and the final figures), and the runner's own
+   loop (the rest). Each part is timed by wrapping the components the runner builds
+   (the wrappers add about a microsecond per call, charged to the part). Process start
+   and imports are timed in fresh interpreters: ``python -c pass``, then importing the
+   runner (what ``cosim run`` imports before the run), median of the repeats.
+2. **Horizon scaling**: ``step_ms_p50``/``step_ms_p99`` (the whole tracker step) and
+   ``solve_ms_p50`` of ``dynamic-nmpc`` with each NLP solver (fatrop, ipopt, sqp-rti)
+   and of ``ltv-mpc``, for N = 10, 20, 40, 80 at ``dt_s`` = 0.05 s, one run of
+   ``--scaling-duration`` simulated seconds each (the lane change's first swing).
+3. **Sweep throughput**: a ``--sweep-runs`` lane-change sweep (plant mass varied) through
+   ``cosim sweep``'s process backend with 1 and with 2 workers: runs per second.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import functools
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from collections import defaultdict
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+from cosim.records import Estimate, Plan, VehicleState
+from cosim.simulation import runner
+from cosim.simulation.scenario_config import load_config
+
+PARTS = ("physics", "sensors", "filter", "tracker", "logging", "metrics")
+"""The parts timed inside the loop; the runner's own bookkeeping is the rest."""
+
+TIMED_BUILDERS: dict[str, tuple[str, tuple[str, ...]]] = {
+    "MujocoPlant": ("physics", ("advance", "state", "apply", "add_yaw_rate")),
+    "make_estimator": ("filter", ("predict", "update", "estimate")),
+    "make_tracker": ("tracker", ("step",)),
+    "McapRecorder": ("logging", ("write", "write_finite", "close")),
+    "MetricsAccumulator": ("metrics", ("add_truth", "add_estimate", "add_update", "add_plan",
+                                       "add_command", "result")),
+}
+"""What the runner builds (by its name in :mod:`cosim.simulation.runner`): the part each
+one's time counts for, and the methods timed."""
+
+
+class _Stopwatch:
+    """Seconds per part, summed over the calls of the wrapped functions."""
+
+    def __init__(self) -> None:
+        self.seconds: dict[str, float] = defaultdict(float)
+        self._active: list[str] = []
+
+    def wrap(self, part: str, function: Callable[..., Any]) -> Callable[..., Any]:
+        """``function`` whose time counts for ``part`` (not twice when calls nest)."""
+
+        @functools.wraps(function)
+        def timed(*args: Any, **kwargs: Any) -> Any:
+            if self._active:  # already inside a timed call: charged to the outer part
+                return function(*args, **kwargs)
+            self._active.append(part)
+            start = time.perf_counter()
+            try:
+                return function(*args, **kwargs)
+            finally:
+                self.seconds[part] += time.perf_counter() - start
+                self._active.pop()
+
+        return timed
+
+    def wrap_methods(self, part: str, instance: object, names: tuple[str, ...]) -> None:
+        for name in names:
+            setattr(instance, name, self.wrap(part, getattr(instance, name)))
+
+
+@contextlib.contextmanager
+def _patched(target: object, name: str, value: object) -> Iterator[None]:
+    original = getattr(target, name)
+    setattr(target, name, value)
+    try:
+        yield
+    finally:
+        setattr(target, name, original)
+
+
+def _timed_run(out: Path, duration_s: float | None) -> dict[str, float]:
+    """One default lane change with every part timed; seconds per part, loop and total."""
+    watch = _Stopwatch()
+    config = load_config("lane-change", duration_s=duration_s)
+    original = {name: getattr(runner, name) for name in (
+        *TIMED_BUILDERS, "make_sensors", "foxglove", "FaultInjector")}
+
+    def timed_builder(name: str) -> Callable[..., Any]:
+        part, methods = TIMED_BUILDERS[name]
+
+        def build(*args: Any, **kwargs: Any) -> Any:
+            built = original[name](*args, **kwargs)
+            watch.wrap_methods(part, built, methods)
+            return built
+
+        return build
+
+    def sensors(*args: Any, **kwargs: Any) -> Any:
+        built = original["make_sensors"](*args, **kwargs)
+        for sensor in built:
+            watch.wrap_methods("sensors", sensor, ("sample",))
+        return built
+
+    class _Foxglove:
+        """The runner's view of :mod:`cosim.log.foxglove`, each scene builder timed."""
+
+        def __getattr__(self, name: str) -> Any:
+            value = getattr(original["foxglove"], name)
+            return watch.wrap("logging", value) if callable(value) else value
+
+    class _Faults:
+        def __init__(self, *args: Any, **kwargs: Any) -> None:
+            self._inner = original["FaultInjector"](*args, **kwargs)
+            self.apply = watch.wrap("sensors", self._inner.apply)
+
+        @property
+        def injected(self) -> int:
+            return self._inner.injected
+
+    patches = [
+        *((runner, name, timed_builder(name)) for name in TIMED_BUILDERS),
+        (runner, "make_sensors", sensors), (runner, "foxglove", _Foxglove()),
+        (runner, "FaultInjector", _Faults),
+        (VehicleState, "to_message", watch.wrap("logging", VehicleState.to_message)),
+        (Estimate, "to_message", watch.wrap("logging", Estimate.to_message)),
+        (Plan, "to_message", watch.wrap("logging", Plan.to_message)),
+    ]
+    with contextlib.ExitStack() as stack:
+        for target, name, value in patches:
+            stack.enter_context(_patched(target, name, value))
+        loop = runner._Run.loop
+        loop_seconds: list[float] = []
+
+        def timed_loop(self: Any, *args: Any) -> None:
+            start = time.perf_counter()
+            try:
+                loop(self, *args)
+            finally:
+                loop_seconds.append(time.perf_counter() - start)
+
+        stack.enter_context(_patched(runner._Run, "loop", timed_loop))
+        start_cpu, start = time.process_time(), time.perf_counter()
+        result = runner.run(config, out)
+        total, total_cpu = time.perf_counter() - start, time.process_time() - start_cpu
+    figures = {part: watch.seconds.get(part, 0.0) for part in PARTS}
+    figures["runner loop (rest)"] = loop_seconds[0] - sum(figures.values())
+    figures["loop"] = loop_seconds[0]
+    figures["build, header, finish"] = total - loop_seconds[0]
+    figures["run() total"] = total
+    figures["run() cpu"] = total_cpu
+    figures["realtime_factor"] = float(result.metrics["realtime_factor"])
+    figures["step_ms_p50"] = float(result.metrics["step_ms_p50"])
+    figures["step_ms_p99"] = float(result.metrics["step_ms_p99"])
+    return figures
+
+
+def _fresh_interpreter_s(code: str) -> float:
+    start = time.perf_counter()
+    subprocess.run([sys.executable, "-c", code], check=True)
+    return time.perf_counter() - start
+
+
+def parts_table(repeats: int, duration_s: float | None = None) -> None:
+    rows: list[dict[str, float]] = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for repeat in range(repeats):
+            rows.append(_timed_run(Path(tmp) / f"run-{repeat}.mcap", duration_s))
+    start_s = [_fresh_interpreter_s("pass") for _ in range(repeats)]
+    imports_s = [_fresh_interpreter_s("import cosim.cli, cosim.simulation.runner")
+                 for _ in range(repeats)]
+    loop = statistics.median(row["loop"] for row in rows)
+    simulated = "15 s" if duration_s is None else f"{duration_s:g} s"
+    print(f"1. default lane change ({simulated} simulated), per run, median of {repeats}")
+    print(f"   {'part':<24}{'seconds':>9}{'share of loop':>15}")
+    for key in (*PARTS, "runner loop (rest)", "loop", "build, header, finish", "run() total",
+                "run() cpu"):
+        value = statistics.median(row[key] for row in rows)
+        share = f"{100.0 * value / loop:>14.1f}%" if key in (*PARTS, "runner loop (rest)") \
+            else ""
+        print(f"   {key:<24}{value:>9.3f}{share}")
+    print(f"   {'interpreter start':<24}{statistics.median(start_s):>9.3f}")
+    print(f"   {'start + imports':<24}{statistics.median(imports_s):>9.3f}")
+    for key in ("realtime_factor", "step_ms_p50", "step_ms_p99"):
+        print(f"   {key:<24}{statistics.median(row[key] for row in rows):>9.3f}")
+
+
+SCALING_CASES: tuple[tuple[str, tuple[str, ...]], ...] = (
+    ("dynamic-nmpc fatrop", ("tracker.name=dynamic-nmpc", "tracker.solver=fatrop")),
+    ("dynamic-nmpc ipopt", ("tracker.name=dynamic-nmpc", "tracker.solver=ipopt")),
+    ("dynamic-nmpc sqp-rti", ("tracker.name=dynamic-nmpc", "tracker.solver=sqp-rti")),
+    ("ltv-mpc", ("tracker.name=ltv-mpc",)),
+)
+
+
+def scaling_table(horizons: list[int], duration_s: float) -> None:
+    print(f"2. whole tracker step against the horizon (lane change, {duration_s:g} s, dt 0.05 s)")
+    print(f"   {'tracker':<22}{'N':>4}{'step p50':>10}{'step p99':>10}{'solve p50':>11}"
+          f"{'cte_max':>9}  [ms, ms, ms, m]")
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, settings in SCALING_CASES:
+            for horizon in horizons:
+                overrides = [*settings, f"tracker.horizon={horizon}"]
+                config = load_config("lane-change", overrides=overrides,
+                                     duration_s=duration_s)
+                metrics = runner.run(config, Path(tmp) / "scaling.mcap").metrics
+                print(f"   {name:<22}{horizon:>4}{metrics['step_ms_p50']:>10.3f}"
+                      f"{metrics['step_ms_p99']:>10.3f}{metrics['solve_ms_p50']:>11.3f}"
+                      f"{metrics['cte_max_m']:>9.4f}", flush=True)
+
+
+def sweep_table(runs: int, duration_s: float) -> None:
+    # bench/ is the script's own folder, first on sys.path when it runs as a script.
+    from sweep_throughput import measure, spec_text
+
+    with tempfile.TemporaryDirectory() as tmp:
+        spec = Path(tmp) / "throughput.yaml"
+        spec.write_text(spec_text(runs, duration_s))
+        serial = measure(spec, Path(tmp) / "one", 1)
+        parallel = measure(spec, Path(tmp) / "two", 2)
+    print(f"3. sweep of {runs} lane changes x {duration_s:g} s (process backend)")
+    print(f"   1 worker   {serial:7.3f} runs/s")
+    print(f"   2 workers  {parallel:7.3f} runs/s   ({parallel / serial:.2f}x)")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--parts-duration", type=float,
+                        help="simulated seconds of the parts' runs (default: the scenario's)")
+    parser.add_argument("--horizons", type=int, nargs="+", default=[10, 20, 40, 80])
+    parser.add_argument("--scaling-duration", type=float, default=8.0)
+    parser.add_argument("--sweep-runs", type=int, default=20)
+    parser.add_argument("--sweep-duration", type=float, default=15.0)
+    parser.add_argument("--skip-scaling", action="store_true")
+    parser.add_argument("--skip-sweep", action="store_true")
+    args = parser.parse_args()
+    print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
+    parts_table(args.repeats, args.parts_duration)
+    if not args.skip_scaling:
+        scaling_table(args.horizons, args.scaling_duration)
+    if not args.skip_sweep:
+        sweep_table(args.sweep_runs, args.sweep_duration)
+    print(f"load average {os.getloadavg()[0]:.2f} at the end")
+
+
+if __name__ == "__main__":
+    main()
