@@ -25,12 +25,16 @@ worker), so every backend and worker count gives the same rows.
 from __future__ import annotations
 
 import concurrent.futures
+import contextlib
+import ctypes
 import datetime
 import math
 import multiprocessing
 import os
 import signal
+import sys
 import tempfile
+import threading
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -119,6 +123,40 @@ def _init_worker() -> None:
     for name in THREAD_LIMITS:
         os.environ.setdefault(name, "1")
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    die_with_parent()
+
+
+PARENT_CHECK_S = 0.5
+"""How often a sweep worker looks whether its parent is still there."""
+
+
+def die_with_parent() -> None:
+    """End this worker when the sweep process that started it dies, even by SIGKILL.
+
+    Linux: ``prctl(PR_SET_PDEATHSIG, SIGKILL)`` (man 2 prctl) has the kernel kill the worker
+    when its parent ends. Everywhere: a daemon thread compares ``os.getppid()`` with the
+    parent's pid every :data:`PARENT_CHECK_S` and exits the process when the worker has
+    been re-parented. Once the workers are gone, multiprocessing's resource tracker sees
+    its pipe close and ends too.
+    """
+    parent = os.getppid()
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(OSError, AttributeError):
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+        if os.getppid() != parent:  # the parent died before prctl took effect
+            os._exit(1)
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(PARENT_CHECK_S)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="cosim-parent-watch", daemon=True).start()
+
+
+PR_SET_PDEATHSIG = 1
+"""``prctl`` option: the signal a process gets when its parent dies (linux/prctl.h)."""
 
 
 class WorkerCrashError(CosimError):
