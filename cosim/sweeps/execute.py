@@ -112,7 +112,7 @@ def execute_task(task: RunTask) -> dict[str, Any]:
     return row
 
 
-def _init_worker() -> None:
+def _init_worker(parent_pid: int) -> None:
     """Pool worker start-up: one thread per numeric library; Ctrl-C is the parent's to handle.
 
     A terminal's Ctrl-C reaches every process of the group. An idle worker ignores it (no
@@ -123,15 +123,16 @@ def _init_worker() -> None:
     for name in THREAD_LIMITS:
         os.environ.setdefault(name, "1")
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    die_with_parent()
+    die_with_parent(parent_pid)
 
 
 PARENT_CHECK_S = 0.5
 """How often a sweep worker looks whether its parent is still there."""
 
 
-def die_with_parent() -> None:
-    """End this worker when the sweep process that started it dies, even by SIGKILL.
+def die_with_parent(parent: int) -> None:
+    """End this worker when the sweep process ``parent`` that started it dies, even by
+    SIGKILL (also when it died while this worker was still starting up).
 
     Linux: ``prctl(PR_SET_PDEATHSIG, SIGKILL)`` (man 2 prctl) has the kernel kill the worker
     when its parent ends. Everywhere: a daemon thread compares ``os.getppid()`` with the
@@ -139,13 +140,12 @@ def die_with_parent() -> None:
     been re-parented. Once the workers are gone, multiprocessing's resource tracker sees
     its pipe close and ends too.
     """
-    parent = os.getppid()
     if sys.platform.startswith("linux"):
         with contextlib.suppress(OSError, AttributeError):
             libc = ctypes.CDLL(None, use_errno=True)
             libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
-        if os.getppid() != parent:  # the parent died before prctl took effect
-            os._exit(1)
+    if os.getppid() != parent:  # the parent died before this worker got here
+        os._exit(1)
 
     def watch() -> None:
         while os.getppid() == parent:
@@ -186,7 +186,8 @@ class ProcessBackend:
         context = multiprocessing.get_context("spawn")
         workers = max(1, min(self.workers, len(tasks)))
         executor = concurrent.futures.ProcessPoolExecutor(
-            max_workers=workers, mp_context=context, initializer=_init_worker)
+            max_workers=workers, mp_context=context, initializer=_init_worker,
+            initargs=(os.getpid(),))
         # At most one task per worker is handed to the pool: a task in the pool's queue can
         # no longer be cancelled, so a deeper queue would run on after an interrupt.
         pending = list(tasks)
