@@ -215,9 +215,11 @@ def _command_run(args: argparse.Namespace) -> int:
         print(f"cosim: run ended badly: outcome {result.metrics['outcome']}{at} "
               f"(see /events in {result.log_path})", file=sys.stderr)
         return EXIT_BAD_OUTCOME
-    held = [c.text for c in conditions if c.holds(result.metrics)]
+    held = [c for c in conditions if c.holds(result.metrics)]
     if held:
-        print(f"cosim: --fail-if {held[0]!r} holds"
+        missing = "" if held[0].metric in result.metrics else \
+            f" (this run has no metric {held[0].metric!r})"
+        print(f"cosim: --fail-if {held[0].text!r} holds{missing}"
               + (f" (and {len(held) - 1} more)" if len(held) > 1 else ""), file=sys.stderr)
         return EXIT_BAD_OUTCOME
     return 0
@@ -391,16 +393,17 @@ def _command_sweep(args: argparse.Namespace) -> int:
 
 
 def check_sweep_dir(out: Path) -> None:
-    """Refuse a sweep --out that names a file or a folder that cannot be made."""
+    """Refuse a sweep --out that names a file, or a place where no directory can be made
+    (checked without making anything: a refused spec leaves no directory behind)."""
     if out.exists() and not out.is_dir():
         raise CosimError(f"--out {str(out)!r}: is a file: expected a directory for the sweep")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as error:
-        raise CosimError(f"--out {str(out)!r}: cannot make the directory "
-                         f"({error.strerror}): expected a writable place") from None
-    if not os.access(out, os.W_OK | os.X_OK):
-        raise CosimError(f"--out {str(out)!r}: not writable: expected a writable directory")
+    existing = next(p for p in (out, *out.parents) if p.exists() or p == Path(p.anchor))
+    if not existing.is_dir():
+        raise CosimError(f"--out {str(out)!r}: cannot make the directory ({str(existing)!r} "
+                         "is a file): expected a writable place")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise CosimError(f"--out {str(out)!r}: cannot make the directory ({str(existing)!r} "
+                         "is not writable): expected a writable place")
 
 
 def _command_render(args: argparse.Namespace) -> int:

@@ -145,7 +145,6 @@ def _register_topics(recorder: McapRecorder, sensor_names: list[str],
     recorder.register("/scene/car", mcap_schemas.SCENE_UPDATE)
     recorder.register("/scene/estimate", mcap_schemas.SCENE_UPDATE)
     recorder.register("/gnss/fix", mcap_schemas.LOCATION_FIX)
-    recorder.register("/events", mcap_schemas.EVENT)
     if disturbed:  # a channel exists only when it will carry messages
         recorder.register("/plant/disturbance", mcap_schemas.DISTURBANCE)
     for name in sensor_names:
@@ -211,6 +210,7 @@ class _Run:
         self.truth = self.plant.state()
         self.estimated_speed_mps = config.initial.speed_mps
         self.plan_scene_registered = False
+        self.events_registered = False
         """``/scene/plan`` is registered with the first plan that has world positions."""
 
     def write_header(self) -> None:
@@ -256,6 +256,9 @@ class _Run:
         for event in self.monitor.observe(
                 self.truth, metrics.cte_m.last, metrics.heading_err_rad.last, metrics.last_s_m,
                 None if forces is None else tuple(f.load_n for f in forces)):
+            if not self.events_registered:  # a channel exists only when it carries messages
+                self.recorder.register("/events", mcap_schemas.EVENT)
+                self.events_registered = True
             self.recorder.write_finite("/events", t_s, event.to_message())
         self.recorder.write_finite("/control/errors", t_s, {
             "t_s": t_s, "cte_m": metrics.cte_m.last,
