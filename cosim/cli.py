@@ -6,13 +6,13 @@ Start with `cosim run lane-change`, then `cosim plot` or `cosim inspect` on the 
 
     cosim run SCENARIO [--config FILE.yaml] [--tracker NAME] [--estimator NAME]
                        [--seed N] [--duration S] [--set key.path=value ...] [--out FILE.mcap]
-                       [--video FILE.mp4]
+                       [--force] [--fail-if 'METRIC>VALUE' ...] [--video FILE.mp4]
     cosim inspect FILE.mcap [--json] [--topic T [--head N]] [--csv DIR]
     cosim plot FILE.mcap [FILE2.mcap] [--out DIR]
     cosim scenarios
     cosim identify [--config FILE.yaml] [--set key.path=value ...] [--json]
     cosim sweep SPEC.yaml [--workers N] [--backend process|ray] [--out DIR] [--keep-logs]
-                          [--resume]
+                          [--resume] [--yes]
     cosim render FILE.mcap [--out VIDEO.mp4] [--fps N] [--width W] [--height H]
                            [--start S] [--duration S] [--gl osmesa|egl|glfw]
     cosim config show SCENARIO [--config FILE.yaml] [--set key.path=value ...] [...]
@@ -21,8 +21,12 @@ Start with `cosim run lane-change`, then `cosim plot` or `cosim inspect` on the 
 
 The options and exit codes are a stable interface: scripts and outside tests rely on them.
 
-Bad input: one line on stderr naming the bad value and what was expected, exit code 2.
-A run that aborts exits 1 (its log is complete up to the abort); an interrupt exits 130.
+Exit codes of ``cosim run``: 0 when the run's outcome is ``ok`` (and no --fail-if holds);
+2 on bad input (one line on stderr naming the bad value and what was expected); 3 when the
+run ended badly (its ``outcome`` is ``spun``, ``rolled_over``, ``off_road``,
+``end_of_path``, ``diverged`` ...: see cosim.simulation.outcome) or a --fail-if condition
+holds (the log is complete up to the end or the abort in both cases); 130 on an interrupt;
+1 when a file cannot be written (a full disk) or a standard stream is closed.
 A sweep exits 0 when every run has a row (failed runs and failed pass criteria included: the
 results say so), 1 if a worker process died, 130 on an interrupt (finish with --resume).
 """
@@ -30,9 +34,11 @@ results say so), 1 if a worker process died, 130 on an interrupt (finish with --
 from __future__ import annotations
 
 import argparse
+import contextlib
 import datetime
 import json
 import math
+import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -41,6 +47,9 @@ from typing import Any, NoReturn
 from cosim.exceptions import CosimError
 
 EXIT_USAGE = 2
+EXIT_IO = 1
+EXIT_BAD_OUTCOME = 3
+EXIT_INTERRUPT = 130
 
 
 class _Parser(argparse.ArgumentParser):
@@ -78,6 +87,11 @@ def _build_parser() -> argparse.ArgumentParser:
                      "(repeatable; every key, its unit and range: `cosim config keys`)")
     run.add_argument("--out", metavar="FILE.mcap",
                      help="log file (default logs/<scenario>[-<overrides>]-<time>.mcap)")
+    run.add_argument("--force", action="store_true",
+                     help="replace --out if it exists (refused otherwise)")
+    run.add_argument("--fail-if", action="append", default=[], metavar="'METRIC>VALUE'",
+                     dest="fail_if", help="exit 3 when this holds for the run's metrics "
+                     "(<, <=, >, >=, ==, !=; repeatable), e.g. 'cte_max_m>0.3'")
     run.add_argument("--json", action="store_true", help="print the metrics as JSON")
     run.add_argument("--video", metavar="FILE.mp4",
                      help="also render the run to this video (see `cosim render`)")
@@ -119,6 +133,8 @@ def _build_parser() -> argparse.ArgumentParser:
                        help="keep every run's MCAP log under DIR/logs")
     sweep.add_argument("--resume", action="store_true",
                        help="finish the interrupted sweep in --out DIR (same spec)")
+    sweep.add_argument("--yes", action="store_true",
+                       help="run a sweep of more than 10 000 runs (refused otherwise)")
 
     render = commands.add_parser(
         "render", help="render a log to a video from a chase camera (MuJoCo, offscreen)")
@@ -170,9 +186,12 @@ def _json_ready(values: dict[str, Any]) -> dict[str, Any]:
 
 
 def _command_run(args: argparse.Namespace) -> int:
+    from cosim.log.safe_file import check_output_path
+    from cosim.simulation.fail_if import parse_conditions
     from cosim.simulation.runner import run
     from cosim.simulation.scenario_config import load_config
 
+    conditions = parse_conditions(args.fail_if)
     if args.video is not None:
         from cosim.plots.render import check_video_path
 
@@ -190,6 +209,7 @@ def _command_run(args: argparse.Namespace) -> int:
         out = Path("logs") / default_log_name(config.name, tag, stamp)
     else:
         out = Path(args.out)
+    check_output_path(out, "--out", args.force, (args.config, args.scenario, args.video))
     if sys.stderr.isatty():
         from rich.progress import Progress
 
@@ -198,25 +218,53 @@ def _command_run(args: argparse.Namespace) -> int:
             result = run(config, out, lambda done: bar.update(task, completed=done))
     else:
         result = run(config, out)
+    shown = _shown_metrics(result.metrics, config.tracker.name == "open-loop")
     if args.json:
         print(json.dumps({"log": str(result.log_path), "metrics": _json_ready(result.metrics)}))
     else:
         _print_table(f"{config.name} (seed {config.seed}) -> {result.log_path}",
-                     [(k, _format_value(v)) for k, v in result.metrics.items()])
+                     [(k, _format_value(v)) for k, v in shown.items()])
     if result.abort_reason == "interrupted":
         print(f"cosim: interrupted; log written up to the interrupt: {result.log_path}",
               file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPT
     if args.video is not None:
         from cosim.plots.render import RenderOptions, describe, render_for_cli
 
         print(describe(render_for_cli(result.log_path, args.video, RenderOptions())),
               file=sys.stderr if args.json else sys.stdout)
     if not result.completed:
-        print(f"cosim: run aborted: {result.abort_reason}; log: {result.log_path}",
-              file=sys.stderr)
-        return 1
+        print(f"cosim: run aborted ({result.metrics.get('outcome')}): {result.abort_reason}; "
+              f"log: {result.log_path}", file=sys.stderr)
+        return EXIT_BAD_OUTCOME
+    if result.metrics.get("outcome", "ok") != "ok":
+        when = result.metrics.get(f"{result.metrics['outcome']}_t_s")
+        at = f" at t = {when:.2f} s" if isinstance(when, float) else ""
+        print(f"cosim: run ended badly: outcome {result.metrics['outcome']}{at} "
+              f"(see /events in {result.log_path})", file=sys.stderr)
+        return EXIT_BAD_OUTCOME
+    held = [c for c in conditions if c.holds(result.metrics)]
+    if held:
+        missing = "" if held[0].metric in result.metrics else \
+            f" (this run has no metric {held[0].metric!r})"
+        print(f"cosim: --fail-if {held[0].text!r} holds{missing}"
+              + (f" (and {len(held) - 1} more)" if len(held) > 1 else ""), file=sys.stderr)
+        return EXIT_BAD_OUTCOME
     return 0
+
+
+PATH_TRACKING_METRICS = ("cte_max_m", "cte_rms_m", "heading_err_max_rad",
+                         "heading_err_rms_rad", "speed_err_rms_mps")
+"""Not shown in an open-loop run's table: it follows no path (they stay in the log)."""
+
+
+def _shown_metrics(metrics: dict[str, Any], open_loop: bool) -> dict[str, Any]:
+    """The metrics a run prints: the outcome first; an open-loop run's manoeuvre figures
+    instead of path-tracking errors."""
+    shown = {"outcome": metrics.get("outcome", "ok"), **metrics}
+    if open_loop:
+        shown = {k: v for k, v in shown.items() if k not in PATH_TRACKING_METRICS}
+    return shown
 
 
 def _command_inspect(args: argparse.Namespace) -> int:
@@ -232,7 +280,8 @@ def _command_inspect(args: argparse.Namespace) -> int:
     if args.topic is not None:
         topics = [c.topic for c in summary.channels]
         if args.topic not in topics:
-            raise CosimError(f"--topic {args.topic!r}: expected one of {', '.join(topics)}")
+            raise CosimError(f"--topic {args.topic!r}: expected one of "
+                             f"{', '.join(topics) or '(none: the log has no channels)'}")
         if args.head is not None and args.head < 0:
             raise CosimError(f"--head {args.head}: expected a count >= 0")
         for n, (log_time_ns, message) in enumerate(iter_messages(path, args.topic)):
@@ -261,7 +310,10 @@ def _command_inspect(args: argparse.Namespace) -> int:
         return 0
     print(f"{path}  {summary.duration_s:.3f} s  {summary.message_count} messages"
           + ("  (TRUNCATED: read up to the last complete record)" if summary.truncated else ""))
-    width = max(len(c["topic"]) for c in document["channels"])
+    if summary.metrics:
+        print(f"outcome {summary.metrics.get('outcome', 'n/a (logged before outcomes)')}  "
+              f"completed {_format_value(summary.metrics.get('completed'))}")
+    width = max((len(c["topic"]) for c in document["channels"]), default=0)
     for channel in document["channels"]:
         print(f"  {channel['topic']:<{width}}  {channel['count']:>7}  {channel['schema']}")
     config = summary.config
@@ -275,7 +327,7 @@ def _command_inspect(args: argparse.Namespace) -> int:
         print(f"WARNING: {warning}")
     if summary.metrics:
         _print_table("metrics", [(k, _format_value(v)) for k, v in summary.metrics.items()])
-    else:
+    elif summary.written_by_cosim:
         print("metrics: none (the run did not finish)")
     return 0
 
@@ -340,16 +392,23 @@ def _command_sweep(args: argparse.Namespace) -> int:
     if not Path(args.spec).is_file():
         raise CosimError(f"{args.spec!r}: no such file (expected a sweep spec YAML)")
     out = Path(args.out) if args.out is not None else default_out_dir(Path(args.spec))
+    check_sweep_dir(out)
+    resume_hint = f"resume with `cosim sweep {args.spec} --out {out} --resume`"
     try:
         outcome = run_sweep(args.spec, out, args.workers, args.backend, args.keep_logs,
-                            args.resume)
+                            args.resume, yes=args.yes)
     except WorkerCrashError as error:
         print(f"cosim: sweep aborted: {error}", file=sys.stderr)
-        return 1
+        return EXIT_IO
     except KeyboardInterrupt:
-        print(f"cosim: sweep interrupted; finished rows are kept: resume with `cosim sweep "
-              f"{args.spec} --out {out} --resume`", file=sys.stderr)
-        return 130
+        print(f"cosim: sweep interrupted; finished rows are kept: {resume_hint}",
+              file=sys.stderr)
+        return EXIT_INTERRUPT
+    except OSError as error:  # a full disk while a row or a table was written
+        where = repr(error.filename) if error.filename else "the sweep's files"
+        print(f"cosim: error: cannot write {where}: {error.strerror or error}; the rows "
+              f"written so far are kept: {resume_hint}", file=sys.stderr)
+        return EXIT_IO
     earlier = outcome.finished - outcome.ran
     print(f"sweep: {outcome.runs} runs (ran {outcome.ran} now"
           + (f", {earlier} from before" if earlier else "")
@@ -359,6 +418,20 @@ def _command_sweep(args: argparse.Namespace) -> int:
     for path in outcome.files:
         print(f"  {path}")
     return 0
+
+
+def check_sweep_dir(out: Path) -> None:
+    """Refuse a sweep --out that names a file, or a place where no directory can be made
+    (checked without making anything: a refused spec leaves no directory behind)."""
+    if out.exists() and not out.is_dir():
+        raise CosimError(f"--out {str(out)!r}: is a file: expected a directory for the sweep")
+    existing = next(p for p in (out, *out.parents) if p.exists() or p == Path(p.anchor))
+    if not existing.is_dir():
+        raise CosimError(f"--out {str(out)!r}: cannot make the directory ({str(existing)!r} "
+                         "is a file): expected a writable place")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise CosimError(f"--out {str(out)!r}: cannot make the directory ({str(existing)!r} "
+                         "is not writable): expected a writable place")
 
 
 def _command_render(args: argparse.Namespace) -> int:
@@ -384,15 +457,36 @@ def main(argv: Sequence[str] | None = None) -> int:
                 "sweep": _command_sweep, "render": _command_render,
                 "config": _command_config}
     try:
-        return handlers[args.command](args)
+        code = handlers[args.command](args)
+        sys.stdout.flush()  # a full or closed stdout fails here, not at exit
+        return code
     except CosimError as error:
-        print(f"cosim: error: {error}", file=sys.stderr)
+        _say(f"cosim: error: {error}")
         return EXIT_USAGE
     except KeyboardInterrupt:  # before or after a run's loop (the loop handles its own)
-        print("cosim: interrupted", file=sys.stderr)
-        return 130
-    except BrokenPipeError:
+        _say("cosim: interrupted")
+        return EXIT_INTERRUPT
+    except BrokenPipeError:  # `cosim ... | head`: the reader has what it wanted
+        _silence_stdout()
         return 0
+    except OSError as error:  # a full disk, a full stdout
+        _silence_stdout()
+        where = f"{error.filename!r}" if error.filename else "a file or standard output"
+        _say(f"cosim: error: cannot write {where}: {error.strerror or error}")
+        return EXIT_IO
+
+
+def _say(line: str) -> None:
+    """One line on stderr, even when stderr itself is gone."""
+    with contextlib.suppress(OSError):
+        print(line, file=sys.stderr, flush=True)
+
+
+def _silence_stdout() -> None:
+    """Point stdout at /dev/null so that Python's exit does not fail flushing it again."""
+    with contextlib.suppress(OSError, ValueError):
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
 
 
 if __name__ == "__main__":

@@ -15,6 +15,7 @@ import typing
 from typing import Any, TypeVar
 
 from cosim.exceptions import ConfigError
+from cosim.yaml_io import shown
 
 T = TypeVar("T")
 
@@ -64,33 +65,33 @@ def _convert(value: Any, hint: Any, meta: dict[str, Any], key: str) -> Any:
     original = value
     if hint is bool:
         if not isinstance(value, bool):
-            raise ConfigError(f"{key} = {value!r}: expected true or false")
+            raise ConfigError(f"{key} = {shown(value)}: expected true or false")
         return value
     if hint is int:
         if isinstance(value, bool) or not isinstance(value, int):
-            raise ConfigError(f"{key} = {value!r}: expected {_expected(meta, 'an integer')}")
+            raise ConfigError(f"{key} = {shown(value)}: expected {_expected(meta, 'an integer')}")
         number: float = value
     elif hint is float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ConfigError(f"{key} = {value!r}: expected {_expected(meta, 'a number')}")
+            raise ConfigError(f"{key} = {shown(value)}: expected {_expected(meta, 'a number')}")
         number = float(value)
         if not math.isfinite(number):
-            raise ConfigError(f"{key} = {value!r}: expected a finite number")
+            raise ConfigError(f"{key} = {shown(value)}: expected a finite number")
         value = number
     elif hint is str:
         if isinstance(value, (datetime.date, datetime.datetime)):
             value = value.isoformat()  # YAML reads an unquoted date as a timestamp
         if not isinstance(value, str):
-            raise ConfigError(f"{key} = {value!r}: expected {_expected(meta, 'a string')}")
+            raise ConfigError(f"{key} = {shown(value)}: expected {_expected(meta, 'a string')}")
         if meta.get("choices") and value not in meta["choices"]:
-            raise ConfigError(f"{key} = {value!r}: expected {_expected(meta, 'a string')}")
+            raise ConfigError(f"{key} = {shown(value)}: expected {_expected(meta, 'a string')}")
         return value
     else:
         raise TypeError(f"unsupported config field type {hint!r} at {key}")
     low, high = meta.get("low"), meta.get("high")
     if (low is not None and number < low) or (high is not None and number > high):
         kind = "an integer" if hint is int else "a number"
-        raise ConfigError(f"{key} = {original!r}: expected {_expected(meta, kind)}")
+        raise ConfigError(f"{key} = {shown(original)}: expected {_expected(meta, kind)}")
     return value
 
 
@@ -99,7 +100,7 @@ def _items(item_cls: type, data: Any, key: str) -> tuple[Any, ...]:
     if data is None:
         return ()
     if not isinstance(data, list):
-        raise ConfigError(f"{key} = {data!r}: expected a list")
+        raise ConfigError(f"{key} = {shown(data)}: expected a list")
     return tuple(from_dict(item_cls, item, f"{key}[{i}]") for i, item in enumerate(data))
 
 
@@ -113,13 +114,13 @@ def from_dict(cls: type[T], data: Any, prefix: str = "") -> T:
         data = {}
     if not isinstance(data, dict):
         where = prefix or "the configuration"
-        raise ConfigError(f"{where} = {data!r}: expected a mapping of keys to values")
+        raise ConfigError(f"{where} = {shown(data)}: expected a mapping of keys to values")
     hints = typing.get_type_hints(cls)
     fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
     unknown = sorted(set(data) - set(fields))
     if unknown:
         key = f"{prefix}.{unknown[0]}" if prefix else str(unknown[0])
-        raise ConfigError(f"unknown key '{key}': expected one of {', '.join(sorted(fields))}")
+        raise ConfigError(f"unknown key {shown(key)}: expected one of {', '.join(sorted(fields))}")
     kwargs: dict[str, Any] = {}
     for name, value in data.items():
         key = f"{prefix}.{name}" if prefix else name
@@ -160,7 +161,7 @@ def set_dotted(data: dict[str, Any], dotted_key: str, value: Any) -> None:
     """
     parts = dotted_key.split(".")
     if not all(parts):
-        raise ConfigError(f"--set {dotted_key!r}: expected a dotted key like tracker.horizon")
+        raise ConfigError(f"--set {shown(dotted_key)}: expected a dotted key like tracker.horizon")
     node = data
     for part in parts[:-1]:
         child = node.get(part)

@@ -73,7 +73,11 @@ def polynomial_reference(path: ReferencePath, s0_m: float, distances_m: np.ndarr
     """A cubic in the vehicle frame, sampled at ``distances_m`` along it
     from the car's projection; None where the waypoints fold back (no ``y(x)``)."""
     end_m = s0_m + float(distances_m[-1]) + AHEAD_M
-    s = np.arange(max(0.0, s0_m - BEHIND_M), min(path.length_m, end_m), _WAYPOINT_SPACING_M)
+    if path.closed:  # a circuit: arc lengths wrap
+        s = np.arange(s0_m - BEHIND_M, end_m, _WAYPOINT_SPACING_M)
+    else:
+        s = np.arange(max(0.0, s0_m - BEHIND_M), min(path.length_m, end_m),
+                      _WAYPOINT_SPACING_M)
     if s.size < 4:
         return None
     waypoints = path.sample(s)

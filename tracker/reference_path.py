@@ -55,21 +55,29 @@ class ReferencePath:
       x_m, y_m: points along the path in the world frame, in driving order.
       speed_mps: the reference speed along the whole path.
       table_step_m: spacing of the projection table.
+      closed: the path is a circuit: the last point joins the first (do not repeat it),
+        the spline is periodic and arc lengths wrap modulo ``length_m`` instead of being
+        clamped, so a car can lap it for ever.
     """
 
     def __init__(
-        self, x_m: np.ndarray, y_m: np.ndarray, speed_mps: float, table_step_m: float = 0.25
+        self, x_m: np.ndarray, y_m: np.ndarray, speed_mps: float, table_step_m: float = 0.25,
+        closed: bool = False,
     ) -> None:
         x_m = np.asarray(x_m, dtype=float)
         y_m = np.asarray(y_m, dtype=float)
         if x_m.shape != y_m.shape or x_m.ndim != 1 or x_m.size < 4:
             raise ConfigError("reference path: expected matching 1-D x and y of >= 4 points")
+        if closed:
+            x_m, y_m = np.append(x_m, x_m[0]), np.append(y_m, y_m[0])
         seg = np.hypot(np.diff(x_m), np.diff(y_m))
         if np.any(seg <= 0.0):
             raise ConfigError("reference path: expected distinct consecutive points")
         s = np.concatenate(([0.0], np.cumsum(seg)))
-        self._x = CubicSpline(s, x_m)
-        self._y = CubicSpline(s, y_m)
+        boundary = "periodic" if closed else "not-a-knot"
+        self._x = CubicSpline(s, x_m, bc_type=boundary)
+        self._y = CubicSpline(s, y_m, bc_type=boundary)
+        self.closed = closed
         self.length_m = float(s[-1])
         self.speed_mps = float(speed_mps)
         self._table_step_m = float(table_step_m)
@@ -83,17 +91,22 @@ class ReferencePath:
             (self._x.c, self._y.c)).T.tolist()
 
     def point(self, s_m: float) -> PathPoint:
-        """The path at arc length ``s_m`` (clamped to the path)."""
-        s = float(np.clip(s_m, 0.0, self.length_m))
+        """The path at arc length ``s_m`` (clamped to the path, or wrapped on a circuit)."""
+        s = float(self._bounded(np.asarray(s_m, dtype=float)))
         dx, dy = float(self._x(s, 1)), float(self._y(s, 1))
         ddx, ddy = float(self._x(s, 2)), float(self._y(s, 2))
         curvature = (dx * ddy - dy * ddx) / (dx * dx + dy * dy) ** 1.5
         return PathPoint(s, float(self._x(s)), float(self._y(s)), float(np.arctan2(dy, dx)),
                          float(curvature))
 
+    def _bounded(self, s_m: np.ndarray) -> np.ndarray:
+        if self.closed:
+            return np.mod(s_m, self.length_m)
+        return np.clip(s_m, 0.0, self.length_m)
+
     def sample(self, s_m: np.ndarray) -> dict[str, np.ndarray]:
         """Vectorised :meth:`point`: arrays ``x_m``, ``y_m``, ``yaw_rad``, ``curvature_1pm``."""
-        s = np.clip(np.asarray(s_m, dtype=float), 0.0, self.length_m)
+        s = self._bounded(np.asarray(s_m, dtype=float))
         dx, dy = self._x(s, 1), self._y(s, 1)
         ddx, ddy = self._x(s, 2), self._y(s, 2)
         return {
@@ -130,7 +143,13 @@ class ReferencePath:
         """
         table_s, table_x, table_y = self._table_s, self._table_x, self._table_y
         first = 0
-        if near_s_m is not None:
+        if near_s_m is not None and self.closed:
+            # On a circuit the window wraps around the start line.
+            step, count = self._table_step_m, self._table_s.size
+            centre, half = int((near_s_m % self.length_m) / step), int(window_m / step) + 1
+            index = np.arange(centre - half, centre + half + 1) % count
+            table_s, table_x, table_y = table_s[index], table_x[index], table_y[index]
+        elif near_s_m is not None:
             step = self._table_step_m
             first = max(int((near_s_m - window_m) / step), 0)
             last = max(int(math.ceil((near_s_m + window_m) / step)) + 1, first + 1)
@@ -149,7 +168,8 @@ class ReferencePath:
             hess = dx * dx + dy * dy + (px - x_m) * ddx + (py - y_m) * ddy
             if hess <= 1e-9:
                 break
-            s = min(max(s - grad / hess, 0.0), length)
+            s = s - grad / hess
+            s = s % length if self.closed else min(max(s, 0.0), length)
         px, py, dx, dy, ddx, ddy = self._evaluate(s)
         yaw = math.atan2(dy, dx)
         curvature = (dx * ddy - dy * ddx) / (dx * dx + dy * dy) ** 1.5

@@ -43,12 +43,17 @@ def log_warnings(summary: LogSummary) -> list[str]:
         warnings.append("truncated file: it ends without a footer (the writer was killed?); "
                         "read up to the last complete record")
     metrics = summary.metrics
-    if metrics is None:
+    if not summary.written_by_cosim:
+        warnings.append(f"not written by cosim (writer {summary.library!r}): only its "
+                        "channels and counts are shown")
+    elif metrics is None:
         warnings.append("no /metrics message: the run did not finish, so there are no "
                         "metrics")
     elif metrics.get("completed") is False:
         reason = metrics.get("abort_reason") or "no reason logged"
         warnings.append(f"run did not complete (completed: false): {reason}")
+    if metrics and metrics.get("outcome", "ok") != "ok":
+        warnings.append(f"run ended badly: outcome {metrics['outcome']} (see /events)")
     warnings.extend(_solver_warnings(summary))
     if metrics:
         warnings.extend(_rejection_warnings(metrics))

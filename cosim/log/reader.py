@@ -20,8 +20,9 @@ from typing import Any
 
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
-from mcap.records import Attachment, Channel, Footer, Message, Metadata, Schema
+from mcap.records import Attachment, Channel, Footer, Header, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
+from zstandard import ZstdError
 
 from cosim.exceptions import LogReadError
 
@@ -47,6 +48,12 @@ class LogSummary:
     attachments: list[str] = field(default_factory=list)
     metrics: dict[str, Any] | None = None
     truncated: bool = False
+    library: str = ""
+    """The writer named in the MCAP header (``cosim <version>`` for cosim's logs)."""
+
+    @property
+    def written_by_cosim(self) -> bool:
+        return self.library.startswith("cosim")
 
     @property
     def duration_s(self) -> float:
@@ -65,13 +72,20 @@ class LogSummary:
 
     @property
     def config(self) -> dict[str, Any]:
-        text = self.metadata.get("run", {}).get("config_json")
-        return json.loads(text) if text else {}
+        return _json_object(self.metadata.get("run", {}).get("config_json"))
 
     @property
     def versions(self) -> dict[str, str]:
-        text = self.metadata.get("run", {}).get("versions")
-        return json.loads(text) if text else {}
+        return _json_object(self.metadata.get("run", {}).get("versions"))
+
+
+def _json_object(text: str | None) -> dict[str, Any]:
+    """A JSON object from metadata; {} when absent or not one (another writer's)."""
+    try:
+        value = json.loads(text) if text else {}
+    except ValueError:
+        return {}
+    return value if isinstance(value, dict) else {}
 
 
 def _epoch_ns(run_metadata: dict[str, str]) -> int:
@@ -82,8 +96,9 @@ def _epoch_ns(run_metadata: dict[str, str]) -> int:
 
 
 def _records(path: Path) -> Iterator[Any]:
-    """Every record of the file; stops quietly at a truncation, which it reports by
-    yielding ``None`` last."""
+    """Every record of the file; stops quietly at a truncation or at corrupted bytes (a
+    chunk that does not decompress, a bad CRC, a record that does not parse), which it
+    reports by yielding ``None`` last."""
     try:
         stream = open(path, "rb")  # noqa: SIM115 - closed in finally
     except OSError as error:
@@ -96,7 +111,8 @@ def _records(path: Path) -> Iterator[Any]:
                 if isinstance(record, Footer):
                     saw_footer = True
                 yield record
-        except (McapError, EOFError, ValueError, OSError, struct.error) as error:
+        except (McapError, EOFError, ValueError, OSError, struct.error,
+                ZstdError, RuntimeError, MemoryError) as error:  # lz4 raises RuntimeError
             if not saw_footer and stream.tell() <= 8:
                 raise LogReadError(
                     f"{str(path)!r}: not an MCAP file ({error})"
@@ -137,9 +153,9 @@ def _indexed_summary(path: Path) -> LogSummary | None:
             summary.metadata = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
             summary.attachments = [a.name for a in found.attachment_indexes]
             for _, _, message in reader.iter_messages(topics=["/metrics"]):
-                summary.metrics = json.loads(message.data)
+                summary.metrics = _metrics(message.data)
             return summary
-    except (McapError, EOFError, ValueError, OSError, struct.error, KeyError):
+    except (McapError, EOFError, ValueError, OSError, struct.error, KeyError, ZstdError):
         return None
 
 
@@ -162,6 +178,8 @@ def _scan_summary(path: Path) -> LogSummary:
     for record in _records(path):
         if record is None:
             summary.truncated = True
+        elif isinstance(record, Header):
+            summary.library = record.library
         elif isinstance(record, Schema):
             schemas[record.id] = record
         elif isinstance(record, Channel):
@@ -175,7 +193,7 @@ def _scan_summary(path: Path) -> LogSummary:
                 summary.end_ns = record.log_time
             channel = channels.get(record.channel_id)
             if channel is not None and channel.topic == "/metrics":
-                summary.metrics = json.loads(record.data)
+                summary.metrics = _metrics(record.data)
         elif isinstance(record, Metadata):
             summary.metadata[record.name] = dict(record.metadata)
         elif isinstance(record, Attachment):
@@ -197,8 +215,23 @@ def _scan_summary(path: Path) -> LogSummary:
 def _has_summary(stream: Any) -> bool:
     try:
         return make_reader(stream).get_summary() is not None
-    except (McapError, EOFError, ValueError, OSError, struct.error):
+    except (McapError, EOFError, ValueError, OSError, struct.error, ZstdError):
         return False
+def _metrics(data: bytes) -> dict[str, Any] | None:
+    try:
+        metrics = json.loads(data)
+    except ValueError:  # UnicodeDecodeError included: not cosim's JSON
+        return None
+    return metrics if isinstance(metrics, dict) else None
+
+
+def _decoded(topic: str, data: bytes) -> dict[str, Any]:
+    try:
+        message = json.loads(data)
+    except ValueError:
+        raise LogReadError(f"topic {topic!r}: a message is not JSON: expected a log that "
+                           "cosim wrote (JSON messages)") from None
+    return message if isinstance(message, dict) else {"value": message}
 
 
 def iter_messages(path: Path | str, topic: str) -> Iterator[tuple[int, dict[str, Any]]]:
@@ -217,7 +250,7 @@ def iter_messages(path: Path | str, topic: str) -> Iterator[tuple[int, dict[str,
                               for record in reader.iter_metadata() if record.name == "run"), 0)
                 for _, _, message in reader.iter_messages(topics=[topic],
                                                           log_time_order=False):
-                    yield message.log_time - epoch, json.loads(message.data)
+                    yield message.log_time - epoch, _decoded(topic, message.data)
                 return
     wanted: set[int] = set()
     epoch = 0
@@ -227,7 +260,7 @@ def iter_messages(path: Path | str, topic: str) -> Iterator[tuple[int, dict[str,
         elif isinstance(record, Metadata) and record.name == "run":
             epoch = _epoch_ns(dict(record.metadata))
         elif isinstance(record, Message) and record.channel_id in wanted:
-            yield record.log_time - epoch, json.loads(record.data)
+            yield record.log_time - epoch, _decoded(topic, record.data)
 
 
 def iter_topics(path: Path | str, topics: set[str] | None = None
@@ -243,7 +276,8 @@ def iter_topics(path: Path | str, topics: set[str] | None = None
         elif isinstance(record, Metadata) and record.name == "run":
             epoch = _epoch_ns(dict(record.metadata))
         elif isinstance(record, Message) and record.channel_id in names:
-            yield names[record.channel_id], record.log_time - epoch, json.loads(record.data)
+            topic = names[record.channel_id]
+            yield topic, record.log_time - epoch, _decoded(topic, record.data)
 
 
 def read_attachment(path: Path | str, name: str) -> bytes | None:

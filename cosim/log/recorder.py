@@ -8,6 +8,10 @@ Log time is integer nanoseconds of simulated time since the run's start. The fil
 written through a stream that flushes every record the MCAP writer emits, and the writer
 emits a chunk at a time, so a killed process loses at most the chunk being filled (about
 ``chunk_size_bytes`` of data, a second or so of a run).
+
+The file is written under a temporary name and renamed to its final name by
+:meth:`McapRecorder.publish` (see :mod:`cosim.log.safe_file`): a run refused before it
+publishes leaves the final name untouched.
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ from mcap.writer import CompressionType, Writer
 
 from cosim import __version__
 from cosim.exceptions import ConfigError
+from cosim.log.safe_file import PendingFile
 
 
 class _FlushingStream:
@@ -65,14 +70,13 @@ class McapRecorder:
         attachment's log time is ``epoch_ns`` plus its sim time. Readers subtract it
         (:mod:`cosim.log.reader`, from the ``run`` metadata's ``epoch_ns``)."""
         try:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-            self._file = open(self.path, "wb")  # noqa: SIM115 - closed in close()
+            self._pending = PendingFile(self.path)
         except OSError as error:
             raise ConfigError(
                 f"--out {str(self.path)!r}: cannot write ({error.strerror})"
             ) from None
         self._writer = Writer(
-            _FlushingStream(self._file),
+            _FlushingStream(self._pending.file),
             chunk_size=chunk_size_bytes,
             compression=CompressionType.ZSTD,
         )
@@ -84,8 +88,22 @@ class McapRecorder:
     def __enter__(self) -> McapRecorder:
         return self
 
-    def __exit__(self, *exc_info: object) -> None:
-        self.close()
+    def __exit__(self, exc_type: type[BaseException] | None, *exc_info: object) -> None:
+        if exc_type is not None and not self._pending.published:
+            self.abandon()
+        else:
+            self.close()
+
+    def publish(self) -> None:
+        """Put the log at its final name (the run has started for real); idempotent."""
+        self._pending.publish()
+
+    def abandon(self) -> None:
+        """Close without finishing and remove the unpublished file (idempotent)."""
+        if self._closed:
+            return
+        self._closed = True
+        self._pending.close()
 
     def register(self, topic: str, schema: dict[str, Any]) -> None:
         """Declare a topic with its JSON schema; the schema's title is its name."""
@@ -122,11 +140,12 @@ class McapRecorder:
         )
 
     def close(self) -> None:
-        """Write the summary and close the file (idempotent)."""
+        """Write the summary, publish and close the file (idempotent)."""
         if self._closed:
             return
         self._closed = True
         try:
             self._writer.finish()
+            self._pending.publish()
         finally:
-            self._file.close()
+            self._pending.close()

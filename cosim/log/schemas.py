@@ -93,6 +93,14 @@ DISTURBANCE = object_schema(
     "An unmeasured disturbance applied to the plant (scenario `disturbances`).",
 )
 
+EVENT = object_schema(
+    "cosim.Event",
+    {"t_s": NUMBER, "kind": STRING, "value": NUMBER_OR_NULL, "threshold": NUMBER_OR_NULL,
+     "detail": STRING},
+    "Something that happened in the run (an outcome event: spun, rolled_over, off_road, "
+    "end_of_path, collision): its simulated time, the value that crossed the threshold.",
+)
+
 TRACKING_ERRORS = object_schema(
     "cosim.TrackingErrors",
     {"t_s": NUMBER, "cte_m": NUMBER, "heading_err_rad": NUMBER, "speed_err_mps": NUMBER,

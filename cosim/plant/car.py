@@ -667,7 +667,8 @@ class _MagicFormulaTyres:
                     wheel = wheel_of_geom.get(geom1, -1)
                     if wheel < 0:
                         continue
-                contact_efc.append((wheel, efc_address[i]))
+                if efc_address[i] >= 0:  # -1: inside the margin but not (yet) a constraint,
+                    contact_efc.append((wheel, efc_address[i]))  # so it carries no force
                 if dist[i] < depth_of_wheel[wheel]:
                     depth_of_wheel[wheel] = dist[i]
                     contact_of_wheel[wheel] = i

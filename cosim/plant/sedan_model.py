@@ -41,6 +41,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from cosim.exceptions import ConfigError
+from cosim.plant.headless import headless_gl
 from cosim.records import WHEEL_NAMES
 from cosim.vehicle_params import PlantConfig, VehicleParams
 
@@ -302,7 +303,7 @@ def import_mjcf() -> types.ModuleType:
     Importing dm_control on a machine without a display makes glfw warn that DISPLAY is
     missing; rendering is not used here, so that one warning is harmless.
     """
-    with warnings.catch_warnings():
+    with warnings.catch_warnings(), headless_gl():
         warnings.filterwarnings("ignore", message=r".*DISPLAY.*")
         from dm_control import mjcf
 

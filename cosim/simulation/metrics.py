@@ -15,6 +15,7 @@ import numpy as np
 
 from cosim.records import Command, Estimate, Plan, VehicleState
 from cosim.simulation.maneuver_metrics import maneuver_metrics
+from cosim.simulation.running_stats import RunningStats, Samples
 from tracker.maneuver import ManeuverConfig
 from tracker.reference_path import ReferencePath, wrap_angle
 
@@ -53,17 +54,7 @@ def rejection_counts(counts: dict[str, dict[str, int]]) -> dict[str, int]:
     }
 
 
-def _rms(values: list[float] | np.ndarray) -> float:
-    array = np.asarray(values, dtype=float)
-    return float(np.sqrt(np.mean(array**2))) if array.size else float("nan")
-
-
-def _max_abs(values: list[float] | np.ndarray) -> float:
-    array = np.asarray(values, dtype=float)
-    return float(np.max(np.abs(array))) if array.size else float("nan")
-
-
-def _millisecond_percentiles(prefix: str, times_s: list[float]) -> dict[str, float]:
+def _millisecond_percentiles(prefix: str, times_s: np.ndarray) -> dict[str, float]:
     """``<prefix>_p50``, ``_p99`` and ``_max`` of ``times_s`` in milliseconds (NaN if none)."""
     times_ms = np.asarray(times_s, dtype=float) * 1e3
     times_ms = times_ms[np.isfinite(times_ms)]
@@ -77,31 +68,32 @@ def _millisecond_percentiles(prefix: str, times_s: list[float]) -> dict[str, flo
 
 @dataclass
 class MetricsAccumulator:
-    """Collects what the metrics need while a run goes; :meth:`result` computes them."""
+    """Collects what the metrics need while a run goes, in constant memory (but for the
+    solve times and an open-loop manoeuvre's signals); :meth:`result` computes them."""
 
     reference: ReferencePath
     maneuver: ManeuverConfig | None = None
     """Set for open-loop runs: adds the manoeuvre's steady-state (and step) metrics."""
-    t_s: list[float] = field(default_factory=list)
-    true_steer_rad: list[float] = field(default_factory=list)
-    yaw_rate_radps: list[float] = field(default_factory=list)
-    ay_mps2: list[float] = field(default_factory=list)
-    speed_mps: list[float] = field(default_factory=list)
-    cte_m: list[float] = field(default_factory=list)
-    heading_err_rad: list[float] = field(default_factory=list)
-    speed_err_mps: list[float] = field(default_factory=list)
-    steer_rad: list[float] = field(default_factory=list)
-    accel_mps2: list[float] = field(default_factory=list)
-    solve_time_s: list[float] = field(default_factory=list)
-    step_time_s: list[float] = field(default_factory=list)
+    t_s: Samples = field(default_factory=Samples)
+    true_steer_rad: Samples = field(default_factory=Samples)
+    yaw_rate_radps: Samples = field(default_factory=Samples)
+    ay_mps2: Samples = field(default_factory=Samples)
+    speed_mps: Samples = field(default_factory=Samples)
+    cte_m: RunningStats = field(default_factory=RunningStats)
+    heading_err_rad: RunningStats = field(default_factory=RunningStats)
+    speed_err_mps: RunningStats = field(default_factory=RunningStats)
+    steer_rad: RunningStats = field(default_factory=RunningStats)
+    accel_mps2: RunningStats = field(default_factory=RunningStats)
+    solve_time_s: Samples = field(default_factory=Samples)
+    step_time_s: Samples = field(default_factory=Samples)
     """Wall time of each whole ``tracker.step``: latency prediction, projection, linearisation,
     QP or NLP set-up and solve (measured by the runner around the call, for every tracker)."""
     solver_failures: int = 0
-    pos_err_m: list[float] = field(default_factory=list)
-    yaw_err_rad: list[float] = field(default_factory=list)
-    speed_est_err_mps: list[float] = field(default_factory=list)
-    nees: list[float] = field(default_factory=list)
-    nis_per_dof: list[float] = field(default_factory=list)
+    pos_err_m: RunningStats = field(default_factory=RunningStats)
+    yaw_err_rad: RunningStats = field(default_factory=RunningStats)
+    speed_est_err_mps: RunningStats = field(default_factory=RunningStats)
+    nees: RunningStats = field(default_factory=RunningStats)
+    nis_per_dof: RunningStats = field(default_factory=RunningStats)
     estimator_counts: dict[str, dict[str, int]] = field(default_factory=dict)
     """Per sensor, the estimator's own counters (set at the end of the run)."""
     last_t_s: float = 0.0
@@ -112,16 +104,16 @@ class MetricsAccumulator:
         # Searched near the previous projection: the car moves < 1 m between log samples.
         projection = self.reference.project(truth.x_m, truth.y_m, self.last_path_s_m)
         self.last_path_s_m = projection.s_m
-        self.cte_m.append(projection.lateral_error_m)
-        self.heading_err_rad.append(float(wrap_angle(truth.yaw_rad - projection.path_yaw_rad)))
-        self.speed_err_mps.append(truth.speed_mps - self.reference.speed_mps)
+        self.cte_m.add(projection.lateral_error_m)
+        self.heading_err_rad.add(float(wrap_angle(truth.yaw_rad - projection.path_yaw_rad)))
+        self.speed_err_mps.add(truth.speed_mps - self.reference.speed_mps)
         self.last_t_s = truth.t_s
         if self.maneuver is not None:
-            self.t_s.append(truth.t_s)
-            self.true_steer_rad.append(truth.steer_rad)
-            self.yaw_rate_radps.append(truth.yaw_rate_radps)
-            self.ay_mps2.append(truth.ay_mps2)
-            self.speed_mps.append(truth.speed_mps)
+            self.t_s.add(truth.t_s)
+            self.true_steer_rad.add(truth.steer_rad)
+            self.yaw_rate_radps.add(truth.yaw_rate_radps)
+            self.ay_mps2.add(truth.ay_mps2)
+            self.speed_mps.add(truth.speed_mps)
 
     def add_estimate(self, estimate: Estimate, truth: VehicleState) -> None:
         error = np.array([
@@ -130,59 +122,58 @@ class MetricsAccumulator:
             float(wrap_angle(estimate["yaw_rad"] - truth.yaw_rad)),
             estimate["vx_mps"] - truth.vx_mps,
         ])
-        self.pos_err_m.append(float(np.hypot(error[0], error[1])))
-        self.yaw_err_rad.append(float(error[2]))
-        self.speed_est_err_mps.append(float(error[3]))
+        self.pos_err_m.add(float(np.hypot(error[0], error[1])))
+        self.yaw_err_rad.add(float(error[2]))
+        self.speed_est_err_mps.add(float(error[3]))
         covariance = estimate.sub_covariance(NEES_STATES)
         if np.all(np.isfinite(covariance)) and np.linalg.det(covariance) > 0.0:
-            self.nees.append(float(error @ np.linalg.solve(covariance, error)))
+            self.nees.add(float(error @ np.linalg.solve(covariance, error)))
 
     def add_update(self, accepted: bool, nis: float, dim: int) -> None:
         if accepted and dim > 0 and np.isfinite(nis):
-            self.nis_per_dof.append(nis / dim)
+            self.nis_per_dof.add(nis / dim)
 
     def add_plan(self, plan: Plan, step_time_s: float = float("nan")) -> None:
-        self.solve_time_s.append(plan.solve_time_s)
-        self.step_time_s.append(step_time_s)
+        self.solve_time_s.add(plan.solve_time_s)
+        self.step_time_s.add(step_time_s)
         if plan.fallback:
             self.solver_failures += 1
 
     def add_command(self, command: Command) -> None:
-        self.steer_rad.append(command.steer_rad)
-        self.accel_mps2.append(command.accel_mps2)
+        self.steer_rad.add(command.steer_rad)
+        self.accel_mps2.add(command.accel_mps2)
 
     def _tracking(self) -> dict[str, float]:
         """The tracking metrics over the samples so far."""
         return {
-            "cte_max_m": _max_abs(self.cte_m),
-            "cte_rms_m": _rms(self.cte_m),
-            "heading_err_max_rad": _max_abs(self.heading_err_rad),
-            "heading_err_rms_rad": _rms(self.heading_err_rad),
-            "speed_err_rms_mps": _rms(self.speed_err_mps),
-            "steer_max_rad": _max_abs(self.steer_rad),
+            "cte_max_m": self.cte_m.max_abs,
+            "cte_rms_m": self.cte_m.rms,
+            "heading_err_max_rad": self.heading_err_rad.max_abs,
+            "heading_err_rms_rad": self.heading_err_rad.rms,
+            "speed_err_rms_mps": self.speed_err_mps.rms,
+            "steer_max_rad": self.steer_rad.max_abs,
         }
 
     def live(self, t_s: float) -> dict[str, float | int]:
         """The metrics that can be computed so far, for ``/metrics/live`` at sim time
         ``t_s`` (same keys and meaning as :meth:`result`'s, over the run up to ``t_s``)."""
-        solve_ms = np.asarray(self.solve_time_s) * 1e3
+        solve_ms = self.solve_time_s.as_array() * 1e3
         return {
             "t_s": t_s,
-            "cte_m": self.cte_m[-1] if self.cte_m else float("nan"),
+            "cte_m": self.cte_m.last,
             **self._tracking(),
             "solve_ms_p50": float(np.percentile(solve_ms, 50)) if solve_ms.size else float("nan"),
             "solve_ms_max": float(solve_ms.max()) if solve_ms.size else float("nan"),
             "solver_failures": self.solver_failures,
-            "est_pos_rmse_m": _rms(self.pos_err_m),
-            "est_yaw_rmse_rad": _rms(self.yaw_err_rad),
-            "nees_mean": float(np.mean(self.nees)) if self.nees else float("nan"),
-            "nis_mean": float(np.mean(self.nis_per_dof)) if self.nis_per_dof else float("nan"),
+            "est_pos_rmse_m": self.pos_err_m.rms,
+            "est_yaw_rmse_rad": self.yaw_err_rad.rms,
+            "nees_mean": self.nees.mean,
+            "nis_mean": self.nis_per_dof.mean,
         }
 
     def result(self, wall_time_s: float, completed: bool) -> dict[str, float | int | bool]:
         """Every metric; NaN where a quantity has no samples (e.g. NEES of ``truth``)."""
-        solve_ms = np.asarray(self.solve_time_s) * 1e3
-        accel = np.asarray(self.accel_mps2)
+        solve_ms = self.solve_time_s.as_array() * 1e3
 
         def percentile(q: float) -> float:
             return float(np.percentile(solve_ms, q)) if solve_ms.size else float("nan")
@@ -191,23 +182,23 @@ class MetricsAccumulator:
         extra: dict[str, float] = {}
         if self.maneuver is not None:
             extra = maneuver_metrics(
-                np.asarray(self.t_s), np.asarray(self.true_steer_rad),
-                np.asarray(self.yaw_rate_radps), np.asarray(self.ay_mps2),
-                np.asarray(self.speed_mps), self.maneuver)
+                self.t_s.as_array(), self.true_steer_rad.as_array(),
+                self.yaw_rate_radps.as_array(), self.ay_mps2.as_array(),
+                self.speed_mps.as_array(), self.maneuver)
         return {
             **self._tracking(),
-            "accel_max_mps2": float(accel.max()) if accel.size else float("nan"),
-            "accel_min_mps2": float(accel.min()) if accel.size else float("nan"),
+            "accel_max_mps2": self.accel_mps2.maximum,
+            "accel_min_mps2": self.accel_mps2.minimum,
             "solve_ms_p50": percentile(50),
             "solve_ms_p99": percentile(99),
             "solve_ms_max": float(solve_ms.max()) if solve_ms.size else float("nan"),
-            **_millisecond_percentiles("step_ms", self.step_time_s),
+            **_millisecond_percentiles("step_ms", self.step_time_s.as_array()),
             "solver_failures": self.solver_failures,
-            "est_pos_rmse_m": _rms(self.pos_err_m),
-            "est_yaw_rmse_rad": _rms(self.yaw_err_rad),
-            "est_speed_rmse_mps": _rms(self.speed_est_err_mps),
-            "nees_mean": float(np.mean(self.nees)) if self.nees else float("nan"),
-            "nis_mean": float(np.mean(self.nis_per_dof)) if self.nis_per_dof else float("nan"),
+            "est_pos_rmse_m": self.pos_err_m.rms,
+            "est_yaw_rmse_rad": self.yaw_err_rad.rms,
+            "est_speed_rmse_mps": self.speed_est_err_mps.rms,
+            "nees_mean": self.nees.mean,
+            "nis_mean": self.nis_per_dof.mean,
             **rejection_counts(self.estimator_counts),
             "sim_duration_s": sim_duration_s,
             "wall_time_s": wall_time_s,

@@ -47,6 +47,7 @@ from cosim.records import Command, Estimate, Plan
 from cosim.sensing.faults import FaultInjector
 from cosim.sensing.sensors import TruthSensor, make_sensors
 from cosim.simulation.metrics import MetricsAccumulator
+from cosim.simulation.outcome import OutcomeMonitor
 from cosim.simulation.scenario_config import ScenarioConfig, steps_per_period
 from estimation.registry import make_estimator
 from tracker.double_lane_change import double_lane_change
@@ -81,6 +82,13 @@ def build_reference(config: ScenarioConfig) -> ReferencePath:
     if path.kind == "straight":
         x_m = np.linspace(0.0, path.length_m, 4) + config.initial.x_m
         return ReferencePath(x_m, np.full(4, config.initial.y_m), path.speed_mps)
+    if path.kind == "circle":  # a circuit from the car's pose, its centre on the car's left
+        angle = np.arange(0.0, 2.0 * np.pi, 1.0 / path.radius_m)  # about 1 m apart
+        ahead_m, left_m = path.radius_m * np.sin(angle), path.radius_m * (1.0 - np.cos(angle))
+        c, s = np.cos(config.initial.yaw_rad), np.sin(config.initial.yaw_rad)
+        x_m = config.initial.x_m + c * ahead_m - s * left_m
+        y_m = config.initial.y_m + s * ahead_m + c * left_m
+        return ReferencePath(x_m, y_m, path.speed_mps, closed=True)
     raise AssertionError(f"unhandled path kind {path.kind!r}")  # validated by choices
 
 
@@ -200,15 +208,20 @@ class _Run:
         open_loop = config.tracker.name == "open-loop"
         self.metrics = MetricsAccumulator(self.reference,
                                           config.maneuver if open_loop else None)
+        self.monitor = OutcomeMonitor(
+            config.outcome, None if self.reference.closed else self.reference.length_m,
+            tracks_path=not open_loop)
         self.delay_line: collections.deque[tuple[int, Command]] = collections.deque()
         self.yaw_rate_changes = collections.deque(disturbances.schedule(
             config.disturbances, self.clock.dt_s, component_rng(config.seed, "disturbances")))
         self.truth = self.plant.state()
         self.estimated_speed_mps = config.initial.speed_mps
         self.plan_scene_registered = False
+        """``/scene/plan`` is registered with the first plan that has world positions."""
         self.next_live_metrics_s = LIVE_METRICS_PERIOD_S
         """Sim time of the next ``/metrics/live`` message."""
-        """``/scene/plan`` is registered with the first plan that has world positions."""
+        self.events_registered = False
+        """``/events`` is registered with the first event."""
 
     def write_header(self) -> None:
         """Channels, the run's metadata, the simulated MJCF, the path and the static scene."""
@@ -251,9 +264,18 @@ class _Run:
         metrics = self.metrics
         metrics.add_truth(self.truth)
         metrics.add_estimate(estimate, self.truth)
+        forces = self.plant.tyre_forces()
+        for event in self.monitor.observe(
+                self.truth, metrics.cte_m.last, metrics.heading_err_rad.last, metrics.last_path_s_m,
+                None if forces is None else tuple(f.load_n for f in forces)):
+            if not self.events_registered:  # a channel exists only when it carries messages
+                self.recorder.register("/events", mcap_schemas.EVENT)
+                self.events_registered = True
+            self.recorder.write_finite("/events", t_s, event.to_message())
         self.recorder.write_finite("/control/errors", t_s, {
-            "t_s": t_s, "cte_m": metrics.cte_m[-1], "heading_err_rad": metrics.heading_err_rad[-1],
-            "speed_err_mps": metrics.speed_err_mps[-1], "speed_mps": self.truth.speed_mps,
+            "t_s": t_s, "cte_m": metrics.cte_m.last,
+            "heading_err_rad": metrics.heading_err_rad.last,
+            "speed_err_mps": metrics.speed_err_mps.last, "speed_mps": self.truth.speed_mps,
             "ref_speed_mps": self.reference.speed_mps,
         })
         if t_s >= self.next_live_metrics_s - 1e-9:
@@ -356,39 +378,44 @@ def run(
     ``completed: false`` and the result says ``interrupted``.
     """
     wall_start = time.perf_counter()
-    completed, abort_reason = False, ""
+    completed, abort_reason, abort = False, "", ""
     # One BLAS thread: the matrices here are small, and an idle BLAS thread spinning on
     # the other core made MPC solve times jitter (ltv-mpc p99 5 ms against 1 ms).
     with threadpool_limits(limits=1, user_api="blas"), McapRecorder(
             out_path, epoch_ns=config.sim.epoch_ns) as recorder:
         state = _Run(config, recorder)
         state.write_header()
+        recorder.publish()  # the run starts for real: the log takes its final name
         try:
             with _stop_on_signals() as stop:
                 state.loop(stop, progress)
             completed = True
         except PhysicsDivergenceError as error:
-            abort_reason = str(error)
+            abort_reason, abort = str(error), "diverged"
         except KeyboardInterrupt:
-            abort_reason = "interrupted"
+            abort_reason = abort = "interrupted"
         except Exception as error:  # the log is finished below, then the error goes on
             _finish(recorder, state, wall_start, False,
-                    f"{type(error).__name__}: {error}")
+                    f"{type(error).__name__}: {error}", "error")
             raise
         if progress is not None:
             progress(1.0)
-        metrics = _finish(recorder, state, wall_start, completed, abort_reason)
+        metrics = _finish(recorder, state, wall_start, completed, abort_reason, abort)
     return RunResult(Path(out_path), metrics, completed, abort_reason)
 
 
-def _finish(recorder: McapRecorder, state: _Run, wall_start: float,
-            completed: bool, abort_reason: str) -> dict[str, float | int | bool | str]:
+def _finish(recorder: McapRecorder, state: _Run, wall_start: float, completed: bool,
+            abort_reason: str, abort: str) -> dict[str, float | int | bool | str]:
     metrics = state.metrics
     counts = getattr(state.estimator, "counts", None)
     metrics.estimator_counts = counts() if counts is not None else {}
     values: dict[str, float | int | bool | str] = dict(
         metrics.result(time.perf_counter() - wall_start, completed))
     values["faults_injected"] = sum(f.injected for f in state.faults.values())
+    values["outcome"] = state.monitor.outcome(abort)
+    values["events"] = len(state.monitor.events)
+    for event in state.monitor.events:
+        values.setdefault(f"{event.kind}_t_s", event.t_s)
     if abort_reason:
         values["abort_reason"] = abort_reason
     recorder.write_finite("/metrics", metrics.last_t_s, values)

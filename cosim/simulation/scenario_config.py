@@ -25,7 +25,10 @@ from cosim.log.foxglove import GeoOrigin
 from cosim.plant.disturbances import DisturbanceConfig
 from cosim.sensing.faults import FaultConfig
 from cosim.sensing.sensors import SensorsConfig, suite_preset
+from cosim.simulation.outcome import OutcomeConfig
 from cosim.vehicle_params import PlantConfig
+from cosim.yaml_io import loads as yaml_loads
+from cosim.yaml_io import read_yaml_file, shown
 from estimation.config import EstimatorConfig
 from tracker.config import TrackerConfig
 from tracker.maneuver import ManeuverConfig
@@ -75,10 +78,13 @@ class SimConfig:
 class PathConfig:
     """The reference path and speed."""
 
-    kind: str = setting("double-lane-change", choices=("double-lane-change", "straight"))
+    kind: str = setting("double-lane-change",
+                        choices=("double-lane-change", "straight", "circle"))
     stretch: float = setting(1.5, low=0.2, high=10.0, doc="x-scale of Falcone's constants")
     speed_mps: float = setting(20.0, low=0.0, high=80.0, doc="reference speed v_D")
     length_m: float = setting(600.0, low=10.0, high=1e5)
+    radius_m: float = setting(100.0, low=5.0, high=1e4,
+                              doc="circle: a closed circuit, counter-clockwise, lapped for ever")
 
 
 @dataclass(frozen=True)
@@ -99,6 +105,7 @@ class ScenarioConfig:
     tracker: TrackerConfig = section(TrackerConfig)
     maneuver: ManeuverConfig = section(ManeuverConfig)
     geo: GeoOrigin = section(GeoOrigin)
+    outcome: OutcomeConfig = section(OutcomeConfig)
 
 
 def builtin_scenarios() -> dict[str, str]:
@@ -107,20 +114,13 @@ def builtin_scenarios() -> dict[str, str]:
     for entry in sorted(importlib.resources.files("cosim.scenarios").iterdir(),
                         key=lambda e: e.name):
         if entry.name.endswith(".yaml"):
-            data = yaml.safe_load(entry.read_text()) or {}
+            data = yaml_loads(entry.read_text()) or {}
             scenarios[entry.name.removesuffix(".yaml")] = str(data.get("description", ""))
     return scenarios
 
 
 def _read_yaml(path: Path, what: str) -> dict[str, Any]:
-    try:
-        data = yaml.safe_load(path.read_text())
-    except OSError as error:
-        raise ConfigError(f"{what} {str(path)!r}: cannot read ({error.strerror})") from None
-    except yaml.YAMLError as error:
-        mark = getattr(error, "problem_mark", None)
-        where = f" line {mark.line + 1}" if mark is not None else ""
-        raise ConfigError(f"{what} {str(path)!r}:{where} is not valid YAML") from None
+    data = read_yaml_file(path, what)
     if data is None:
         return {}
     if not isinstance(data, dict):
@@ -131,7 +131,7 @@ def _read_yaml(path: Path, what: str) -> dict[str, Any]:
 def _scenario_data(scenario: str) -> dict[str, Any]:
     builtin = importlib.resources.files("cosim.scenarios") / f"{scenario}.yaml"
     if builtin.is_file():
-        data = yaml.safe_load(builtin.read_text()) or {}
+        data = yaml_loads(builtin.read_text()) or {}
         data.setdefault("name", scenario)
         return data
     path = Path(scenario)
@@ -161,9 +161,11 @@ def parse_override(text: str) -> tuple[str, Any]:
     if not sep or not key.strip():
         raise ConfigError(f"--set {text!r}: expected key.path=value")
     try:
-        value = yaml.safe_load(raw) if raw.strip() else ""
+        value = yaml_loads(raw) if raw.strip() else ""
     except yaml.YAMLError:
         value = raw
+    except ConfigError as error:
+        raise ConfigError(f"--set {shown(text)}: {error}") from None
     return key.strip(), value
 
 
@@ -198,7 +200,17 @@ def load_config(
     _believe_actuator_delay(data)
     config = from_dict(ScenarioConfig, data)
     check_rates(config)
+    check_faults(config)
     return config
+
+
+def check_faults(config: ScenarioConfig) -> None:
+    """Refuse a fault on a sensor the run does not have (it would silently do nothing)."""
+    for index, fault in enumerate(config.faults):
+        if not getattr(config.sensors, fault.sensor).enabled:
+            raise ConfigError(
+                f"faults[{index}].sensor = {fault.sensor!r}: that sensor is disabled "
+                f"(sensors.{fault.sensor}.enabled = false): expected an enabled sensor")
 
 
 def _believe_actuator_delay(data: dict[str, Any]) -> None:

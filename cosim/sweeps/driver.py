@@ -26,6 +26,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from cosim.exceptions import CosimError
 from cosim.sweeps.execute import make_backend
 from cosim.sweeps.plots import heat_map, metric_plots
 from cosim.sweeps.results import (
@@ -126,24 +127,40 @@ class _Progress:
               f"{verdict} (eta {eta:.0f} s)", file=sys.stderr, flush=True)
 
 
+RUN_LIMIT = 10_000
+"""A sweep of more runs than this is refused unless the user says ``--yes``."""
+
+
+def check_size(spec: SweepSpec, spec_path: Path, yes: bool) -> None:
+    """Refuse a sweep of more than :data:`RUN_LIMIT` runs unless ``yes``."""
+    if spec.n_runs > RUN_LIMIT and not yes:
+        raise CosimError(f"sweep spec {str(spec_path)!r}: {spec.n_runs:,} runs: expected at "
+                         f"most {RUN_LIMIT:,} (or --yes to run them all)")
+
+
 def run_sweep(spec_path: str | Path, out_dir: str | Path | None = None,
               workers: int | None = None, backend: str = "process",
               keep_logs: bool = False, resume: bool = False,
-              on_row: Callable[[dict[str, Any]], None] | None = None) -> SweepOutcome:
+              on_row: Callable[[dict[str, Any]], None] | None = None,
+              yes: bool = False) -> SweepOutcome:
     """Run (or finish, with ``resume``) the sweep of ``spec_path`` into ``out_dir``.
 
     ``workers``: processes (``process``) or tasks in flight (``ray``); default: the cores
     this process may use (``process``), Ray's own scheduling (``ray``). ``on_row`` is called
     with each raw row as it lands (tests use it). Raises :class:`cosim.exceptions.CosimError`
-    on bad input, ``KeyboardInterrupt`` after an interrupt (rows kept, tables written).
+    on bad input (a sweep above :data:`RUN_LIMIT` runs without ``yes`` included),
+    ``KeyboardInterrupt`` after an interrupt (rows kept, tables written, plots skipped so
+    that the interrupt acts at once), ``OSError`` when a row cannot be written (a full
+    disk: the rows written so far are kept, ``--resume`` runs the others).
     """
     start = time.perf_counter()
     spec_path = Path(spec_path)
     spec = load_spec(spec_path)
+    check_size(spec, spec_path, yes)
     runner = make_backend(backend, workers, spec.ray_address)
     directory = SweepDir(Path(out_dir) if out_dir is not None else default_out_dir(spec_path))
     tasks = spec.tasks(directory.log_dir if keep_logs else None)
-    directory.prepare(spec, spec_path.read_text(), resume, len(tasks))
+    directory.prepare(spec, spec_path.read_text(encoding="utf-8-sig"), resume, len(tasks))
     rows = {run_id: row for run_id, row in directory.read_rows().items()
             if run_id < len(tasks)}
     missing = [task for task in tasks if task.run_id not in rows]
@@ -169,7 +186,7 @@ def run_sweep(spec_path: str | Path, out_dir: str | Path | None = None,
         except KeyboardInterrupt:
             interrupted = True
     files = _write_outputs(directory, spec, list(rows.values()), len(tasks),
-                           time.perf_counter() - start)
+                           time.perf_counter() - start, plots=not interrupted)
     if interrupted:
         raise KeyboardInterrupt
     flat_pass = [not failures(r, spec) for r in rows.values()]
@@ -180,12 +197,15 @@ def run_sweep(spec_path: str | Path, out_dir: str | Path | None = None,
 
 
 def _write_outputs(directory: SweepDir, spec: SweepSpec, rows: list[dict[str, Any]],
-                   n_runs: int, wall_time_s: float) -> tuple[Path, ...]:
+                   n_runs: int, wall_time_s: float, plots: bool = True) -> tuple[Path, ...]:
+    """The tables, the summary and (unless ``plots`` is false) the figures."""
     flat = write_tables(directory, spec, rows, n_runs)
-    plots: list[Path] = []
-    if flat:
+    figures: list[Path] = []
+    if flat and plots:
         heat = heat_map(spec, flat, directory.root / f"heatmap-{spec.metric}.png")
-        plots = ([heat] if heat is not None else []) + metric_plots(spec, flat, directory.root)
+        figures = [heat] if heat is not None else []
+        figures += metric_plots(spec, flat, directory.root)
     summary = directory.root / "summary.md"
-    summary.write_text(summary_markdown(spec, flat, n_runs, plots, wall_time_s))
-    return (directory.root / "results.csv", directory.root / "results.json", summary, *plots)
+    summary.write_text(summary_markdown(spec, flat, n_runs, figures, wall_time_s))
+    return (directory.root / "results.csv", directory.root / "results.json", summary,
+            *figures)

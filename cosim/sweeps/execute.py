@@ -25,12 +25,16 @@ worker), so every backend and worker count gives the same rows.
 from __future__ import annotations
 
 import concurrent.futures
+import contextlib
+import ctypes
 import datetime
 import math
 import multiprocessing
 import os
 import signal
+import sys
 import tempfile
+import threading
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -108,7 +112,7 @@ def execute_task(task: RunTask) -> dict[str, Any]:
     return row
 
 
-def _init_worker() -> None:
+def _init_worker(parent_pid: int) -> None:
     """Pool worker start-up: one thread per numeric library; Ctrl-C is the parent's to handle.
 
     A terminal's Ctrl-C reaches every process of the group. An idle worker ignores it (no
@@ -119,6 +123,40 @@ def _init_worker() -> None:
     for name in THREAD_LIMITS:
         os.environ.setdefault(name, "1")
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    die_with_parent(parent_pid)
+
+
+PARENT_CHECK_S = 0.5
+"""How often a sweep worker looks whether its parent is still there."""
+
+
+def die_with_parent(parent: int) -> None:
+    """End this worker when the sweep process ``parent`` that started it dies, even by
+    SIGKILL (also when it died while this worker was still starting up).
+
+    Linux: ``prctl(PR_SET_PDEATHSIG, SIGKILL)`` (man 2 prctl) has the kernel kill the worker
+    when its parent ends. Everywhere: a daemon thread compares ``os.getppid()`` with the
+    parent's pid every :data:`PARENT_CHECK_S` and exits the process when the worker has
+    been re-parented. Once the workers are gone, multiprocessing's resource tracker sees
+    its pipe close and ends too.
+    """
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(OSError, AttributeError):
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    if os.getppid() != parent:  # the parent died before this worker got here
+        os._exit(1)
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(PARENT_CHECK_S)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="cosim-parent-watch", daemon=True).start()
+
+
+PR_SET_PDEATHSIG = 1
+"""``prctl`` option: the signal a process gets when its parent dies (linux/prctl.h)."""
 
 
 class WorkerCrashError(CosimError):
@@ -148,7 +186,8 @@ class ProcessBackend:
         context = multiprocessing.get_context("spawn")
         workers = max(1, min(self.workers, len(tasks)))
         executor = concurrent.futures.ProcessPoolExecutor(
-            max_workers=workers, mp_context=context, initializer=_init_worker)
+            max_workers=workers, mp_context=context, initializer=_init_worker,
+            initargs=(os.getpid(),))
         # At most one task per worker is handed to the pool: a task in the pool's queue can
         # no longer be cancelled, so a deeper queue would run on after an interrupt.
         pending = list(tasks)

@@ -18,6 +18,7 @@ missing run ids. The other files are derived from it and rewritten at the end.
 
 from __future__ import annotations
 
+import collections
 import csv
 import json
 import math
@@ -97,11 +98,11 @@ class SweepDir:
         rows: dict[int, dict[str, Any]] = {}
         if not self.rows_file.is_file():
             return rows
-        for line in self.rows_file.read_text().splitlines():
+        for line in self.rows_file.read_bytes().splitlines():
             try:
-                row = json.loads(line)
-            except ValueError:
-                continue  # the line a kill cut short; its run is redone
+                row = json.loads(line.decode("utf-8"))
+            except ValueError:  # UnicodeDecodeError included
+                continue  # a line a kill or a full disk cut short, or damaged: run it again
             if isinstance(row, dict) and isinstance(row.get("run_id"), int) \
                     and not row.get("interrupted"):
                 rows[row["run_id"]] = row
@@ -109,13 +110,14 @@ class SweepDir:
 
     def open_rows(self) -> IO[str]:
         """``results.jsonl`` for appending; a torn last line is ended first."""
-        handle = self.rows_file.open("a+")
-        handle.seek(0, os.SEEK_END)
-        if handle.tell() > 0:
-            handle.seek(handle.tell() - 1)
-            if handle.read(1) != "\n":
-                handle.write("\n")
-        return handle
+        if self.rows_file.is_file():
+            with self.rows_file.open("rb+") as raw:
+                raw.seek(0, os.SEEK_END)
+                if raw.tell() > 0:
+                    raw.seek(-1, os.SEEK_END)
+                    if raw.read(1) != b"\n":
+                        raw.write(b"\n")
+        return self.rows_file.open("a", encoding="utf-8")
 
 
 def append_row(handle: IO[str], row: dict[str, Any]) -> None:
@@ -142,6 +144,7 @@ def flat_row(row: dict[str, Any], spec: SweepSpec, metric_keys: Sequence[str]
     flat["failed"] = "" if row.get("error") else "; ".join(why)
     flat["error"] = row.get("error", "")
     metrics = row.get("metrics", {})
+    flat["outcome"] = metrics.get("outcome", "")
     flat.update({key: _finite_or_none(metrics.get(key)) for key in metric_keys})
     flat.update({key: row.get(key, "") for key in ("log", "started_at", "finished_at")})
     return flat
@@ -149,7 +152,8 @@ def flat_row(row: dict[str, Any], spec: SweepSpec, metric_keys: Sequence[str]
 
 def metric_columns(rows: Iterable[dict[str, Any]]) -> list[str]:
     """Every metric any row holds: the contract's keys first, then the others sorted."""
-    extra = sorted({k for r in rows for k in r.get("metrics", {})} - set(METRIC_KEYS))
+    extra = sorted({k for r in rows for k in r.get("metrics", {})}
+                   - {*METRIC_KEYS, "outcome"})
     return [*METRIC_KEYS, *extra]
 
 
@@ -315,6 +319,11 @@ def summary_markdown(spec: SweepSpec, flat: Sequence[dict[str, Any]], n_runs: in
         lines.append(f"Only {len(flat)} of {n_runs} runs are finished: resume with "
                      "`--resume`.")
     lines.append("")
+    outcomes = collections.Counter(r["outcome"] or "error" for r in flat)
+    if outcomes:
+        lines += ["## Outcomes", "", "How the runs ended (see `cosim.simulation.outcome`): "
+                  + ", ".join(f"{kind} {count}" for kind, count in outcomes.most_common())
+                  + ".", ""]
 
     key = [(-as_number(r[metric]) if not math.isnan(as_number(r[metric])) else -math.inf)
            for r in flat]
@@ -322,9 +331,9 @@ def summary_markdown(spec: SweepSpec, flat: Sequence[dict[str, Any]], n_runs: in
     lines += [f"## Worst cases by `{metric}`", ""]
     lines += _table(
         ["run", *[f"`{p.path}`" for p in spec.parameters], "seed", f"{metric} [{unit}]",
-         "result", "why"],
+         "outcome", "result", "why"],
         [[flat[i]["run_id"], *[flat[i][p.path] for p in spec.parameters], flat[i]["seed"],
-          as_number(flat[i][metric]), flat[i]["pass"],
+          as_number(flat[i][metric]), flat[i]["outcome"] or "-", flat[i]["pass"],
           flat[i]["failed"] or flat[i]["error"]] for i in order[:WORST_CASES]])
     lines.append("")
 

@@ -53,9 +53,13 @@ import yaml
 
 from cosim.exceptions import ConfigError
 from cosim.simulation.metrics import METRIC_KEYS
+from cosim.yaml_io import read_yaml_file, shown
 
 Scalar = float | int | bool | str
 """A value a varied parameter can take."""
+
+MAX_SEEDS = 1_000_000
+"""A seed count above this is refused outright (the list alone would fill memory)."""
 
 BOOLEAN_METRICS = ("completed",)
 """Metrics that are true or false; every other metric of METRIC_KEYS is a number."""
@@ -211,6 +215,13 @@ class SweepSpec:
     estimator_name: str = ""
     """The estimator the runs use (``estimator``, else the scenario's), for titles."""
 
+    @property
+    def n_runs(self) -> int:
+        """How many runs the spec asks for (computed without listing them)."""
+        points = {"grid": math.prod(len(p.values) for p in self.parameters),
+                  "random": self.random_n, "seeds": 1}[self.mode]
+        return points * len(self.seeds)
+
     def points(self) -> list[tuple[Scalar, ...]]:
         """The parameter points, one value per parameter, in run-id order."""
         if self.mode == "grid":
@@ -291,53 +302,49 @@ class _SpecReader:
         return ConfigError(f"{self.where}: {message}")
 
     def read(self) -> dict[str, Any]:
-        try:
-            data = yaml.safe_load(self.path.read_text())
-        except OSError as error:
-            raise self.error(f"cannot read ({error.strerror})") from None
-        except yaml.YAMLError as error:
-            mark = getattr(error, "problem_mark", None)
-            where = f" (line {mark.line + 1})" if mark is not None else ""
-            raise self.error(f"not valid YAML{where}") from None
+        data = read_yaml_file(self.path, "sweep spec")
         if not isinstance(data, dict):
             raise self.error("expected a mapping with scenario:, seeds:, grid: or random:")
         unknown = sorted(set(data) - set(SPEC_KEYS))
         if unknown:
-            raise self.error(f"unknown key {unknown[0]!r}: expected one of "
+            raise self.error(f"unknown key {shown(unknown[0])}: expected one of "
                              f"{', '.join(SPEC_KEYS)}")
         return data
 
     def optional_str(self, data: dict[str, Any], key: str) -> str | None:
         value = data.get(key)
         if value is not None and not isinstance(value, str):
-            raise self.error(f"{key}: {value!r}: expected a name")
+            raise self.error(f"{key}: {shown(value)}: expected a name")
         return value
 
     def scenario(self, data: dict[str, Any]) -> tuple[str, str]:
         """The scenario as load_config takes it, and the file's text when it is a file."""
         scenario = data.get("scenario")
         if not isinstance(scenario, str) or not scenario:
-            raise self.error(f"scenario: {scenario!r}: expected a built-in name or a YAML path")
+            raise self.error(f"scenario: {shown(scenario)}: expected a built-in name or a "
+                             "YAML path")
         if scenario.endswith((".yaml", ".yml")):
             candidate = self.path.parent / scenario
             path = candidate if candidate.is_file() else Path(scenario)
             if not path.is_file():
-                raise self.error(f"scenario: {scenario!r}: no such file")
-            return str(path.resolve()), path.read_text()
+                raise self.error(f"scenario: {shown(scenario)}: no such file")
+            read_yaml_file(path, "scenario")  # refuses a file that is not UTF-8 YAML
+            return str(path.resolve()), path.read_text(encoding="utf-8-sig")
         return scenario, ""
 
     def seeds(self, value: Any) -> tuple[int, ...]:
         if value is None:
             return (0,)
         if isinstance(value, int) and not isinstance(value, bool):
-            if value < 1:
-                raise self.error(f"seeds: {value}: expected a count >= 1 or a list of seeds")
+            if not 1 <= value <= MAX_SEEDS:
+                raise self.error(f"seeds: {value}: expected a count in [1, {MAX_SEEDS}] or a "
+                                 "list of seeds")
             return tuple(range(value))
         if not isinstance(value, list) or not value:
-            raise self.error(f"seeds: {value!r}: expected a count >= 1 or a list of seeds")
+            raise self.error(f"seeds: {shown(value)}: expected a count >= 1 or a list of seeds")
         for seed in value:
             if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-                raise self.error(f"seeds: {seed!r}: expected an integer >= 0")
+                raise self.error(f"seeds: {shown(seed)}: expected an integer >= 0")
         if len(set(value)) != len(value):
             raise self.error(f"seeds: {value}: expected each seed once")
         return tuple(value)
@@ -347,14 +354,14 @@ class _SpecReader:
         if value is None:
             return {}
         if not isinstance(value, dict):
-            raise self.error(f"{key}: {value!r}: expected a mapping of dotted paths to values")
+            raise self.error(f"{key}: {shown(value)}: expected a mapping of dotted paths to values")
         return value
 
     def duration(self, value: Any) -> float | None:
         if value is None:
             return None
         if not _is_number(value) or value < 0:
-            raise self.error(f"duration_s: {value!r}: expected a number of seconds >= 0")
+            raise self.error(f"duration_s: {shown(value)}: expected a number of seconds >= 0")
         return float(value)
 
     def criteria(self, data: dict[str, Any]) -> tuple[PassCriterion, ...]:
@@ -363,13 +370,13 @@ class _SpecReader:
             if metric not in METRIC_KEYS:
                 close = difflib.get_close_matches(str(metric), METRIC_KEYS, n=1)
                 hint = f" (did you mean {close[0]}?)" if close else ""
-                raise self.error(f"pass: unknown metric {metric!r}{hint}: expected one of "
+                raise self.error(f"pass: unknown metric {shown(metric)}{hint}: expected one of "
                                  f"{', '.join(METRIC_KEYS)}")
             if metric in BOOLEAN_METRICS:
                 if not isinstance(bound, bool):
-                    raise self.error(f"pass: {metric}: {bound!r}: expected true or false")
+                    raise self.error(f"pass: {metric}: {shown(bound)}: expected true or false")
             elif not _is_number(bound):
-                raise self.error(f"pass: {metric}: {bound!r}: expected a number "
+                raise self.error(f"pass: {metric}: {shown(bound)}: expected a number "
                                  f"(an upper bound in {unit_of(metric)})")
             criteria.append(PassCriterion(metric, bound if isinstance(bound, bool)
                                           else float(bound)))
@@ -380,7 +387,7 @@ class _SpecReader:
             numeric = [c.metric for c in criteria if not isinstance(c.bound, bool)]
             return numeric[0] if numeric else DEFAULT_METRIC
         if value not in METRIC_KEYS or value in BOOLEAN_METRICS:
-            raise self.error(f"metric: {value!r}: expected a numeric metric, one of "
+            raise self.error(f"metric: {shown(value)}: expected a numeric metric, one of "
                              f"{', '.join(k for k in METRIC_KEYS if k not in BOOLEAN_METRICS)}")
         return str(value)
 
@@ -429,9 +436,9 @@ def load_spec(path: str | Path) -> SweepSpec:
         mode, ranges = "random", dict(reader.mapping(data, "random"))
         random_n, random_seed = ranges.pop("n", None), ranges.pop("seed", 0)
         if isinstance(random_n, bool) or not isinstance(random_n, int) or random_n < 1:
-            raise reader.error(f"random: n: {random_n!r}: expected a number of samples >= 1")
+            raise reader.error(f"random: n: {shown(random_n)}: expected a number of samples >= 1")
         if isinstance(random_seed, bool) or not isinstance(random_seed, int) or random_seed < 0:
-            raise reader.error(f"random: seed: {random_seed!r}: expected an integer >= 0")
+            raise reader.error(f"random: seed: {shown(random_seed)}: expected an integer >= 0")
         if not ranges:
             raise reader.error("random: expected at least one dotted path -> [low, high] "
                                "besides n and seed")
@@ -443,7 +450,7 @@ def load_spec(path: str | Path) -> SweepSpec:
                                ("sim.duration_s", duration_s)) if given is not None}
     parameters = []
     for key, value in ranges.items():
-        where = f"{mode}: {key!r}"
+        where = f"{mode}: {shown(key)}"
         if not isinstance(key, str) or key not in leaves:
             close = difflib.get_close_matches(str(key), list(leaves), n=1)
             hint = f"; did you mean {close[0]}?" if close else ""
@@ -460,19 +467,19 @@ def load_spec(path: str | Path) -> SweepSpec:
                   "counterpart_value": counterpart_value}
         if mode == "grid":
             if not isinstance(value, list) or not value:
-                raise reader.error(f"{where}: {value!r}: expected a non-empty list of values")
+                raise reader.error(f"{where}: {shown(value)}: expected a non-empty list of values")
             for item in value:
                 if not isinstance(item, (int, float, str, bool)):
-                    raise reader.error(f"{where}: {item!r}: expected a number, string or "
+                    raise reader.error(f"{where}: {shown(item)}: expected a number, string or "
                                        "boolean")
-                config(((key, item),), f"{where} value {item!r}")
+                config(((key, item),), f"{where} value {shown(item)}")
             if len(set(value)) != len(value):
                 raise reader.error(f"{where}: {value}: expected each value once")
             parameters.append(Parameter(values=tuple(value), **common))
         else:
             if not (isinstance(value, list) and len(value) == 2
                     and all(_is_number(v) for v in value)):
-                raise reader.error(f"{where}: {value!r}: expected [low, high] (two numbers)")
+                raise reader.error(f"{where}: {shown(value)}: expected [low, high] (two numbers)")
             low, high = float(value[0]), float(value[1])
             if low > high:
                 raise reader.error(f"{where}: [{value[0]}, {value[1]}]: expected low <= high")

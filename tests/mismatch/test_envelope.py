@@ -41,6 +41,7 @@ def lane_change(tmp_path: Path, *overrides: str) -> RunResult:
 def assert_tracks(result: RunResult, cte_bound_m: float) -> None:
     metrics = result.metrics
     assert result.completed and metrics["completed"] is True
+    assert metrics["outcome"] == "ok", metrics["outcome"]
     assert metrics["solver_failures"] == 0
     assert metrics["cte_max_m"] <= cte_bound_m, metrics["cte_max_m"]
 
@@ -124,5 +125,6 @@ def test_friction_beyond_the_envelope_fails_visibly(tmp_path: Path, friction: fl
     """
     result = lane_change(tmp_path, f"plant.tire_friction={friction}")
     assert result.completed and result.metrics["completed"] is True
+    assert result.metrics["outcome"] == "spun", result.metrics["outcome"]  # it turned round
     assert result.metrics["cte_max_m"] > 1.0, result.metrics["cte_max_m"]
     assert result.metrics["heading_err_max_rad"] > 1.5, result.metrics["heading_err_max_rad"]

@@ -174,4 +174,4 @@ def test_tables_summary_and_plots_from_rows(tmp_path: Path) -> None:
     assert "`tracker.model.mass_kg` = 1575 (held)" in summary
     assert "| 1 | 1 | 1/1 |" not in summary  # aggregates count every seed and point
     worst_table = summary.split("## Worst cases")[1]
-    assert worst_table.splitlines()[4].startswith("| 0 | 1100 | 0.7 | 0 | n/a | **FAIL**")
+    assert worst_table.splitlines()[4].startswith("| 0 | 1100 | 0.7 | 0 | n/a | - | **FAIL**")

@@ -1,0 +1,260 @@
+"""A table of bad inputs and faults: each gets its exit code, exactly one line on stderr that
+names the culprit and what was expected, no traceback, and no file of the user's lost.
+
+Rows call :func:`cosim.cli.main` in this process (each row's files are made fresh in
+``tmp_path``); what only a separate process can show (a closed stdout, MUJOCO_GL, a full
+disk, signals) is in ``test_faults.py``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pytest
+from mcap.writer import Writer
+
+from cosim.cli import main
+
+
+@dataclass(frozen=True)
+class Files:
+    """The files a row can name; ``user`` ones must be unchanged afterwards."""
+
+    root: Path
+    user: dict[str, Path] = field(default_factory=dict)
+
+    def __call__(self, name: str) -> str:
+        return str(self.root / name)
+
+
+def _write_other_tool_mcap(path: Path) -> None:
+    with path.open("wb") as stream:
+        writer = Writer(stream)
+        writer.start(profile="ros1", library="some-other-tool 1.0")
+        schema = writer.register_schema(name="std_msgs/String", encoding="ros1msg",
+                                        data=b"string data")
+        channel = writer.register_channel(topic="/chatter", message_encoding="ros1",
+                                          schema_id=schema)
+        for i in range(3):
+            writer.add_message(channel_id=channel, log_time=i, publish_time=i,
+                               data=b"\x05\x00\x00\x00hello")
+        writer.finish()
+
+
+def _write_empty_mcap(path: Path) -> None:
+    with path.open("wb") as stream:
+        writer = Writer(stream)
+        writer.start(profile="", library="cosim 0.1.0")
+        writer.finish()
+
+
+@pytest.fixture()
+def files(tmp_path: Path) -> Files:
+    root = tmp_path
+    texts = {
+        "good.yaml": "seed: 3\n",
+        "latin1.yaml": None,
+        "dup.yaml": "seed: 1\nplant:\n  mass_kg: 1500\n  mass_kg: 1600\n",
+        "bomb.yaml": "plant:\n  mass_kg:\n    - &a [x, x, x, x, x, x, x, x, x]\n"
+                     + "".join(f"    - &{b} [*{a}, *{a}, *{a}, *{a}, *{a}, *{a}, *{a}, *{a}]\n"
+                               for a, b in zip("abcdefgh", "bcdefghi", strict=True)),
+        "list.yaml": "- 1\n- 2\n",
+        "broken.yaml": "plant: {mass_kg: 1500\n",
+        "disabled-fault.yaml": "faults:\n  - {kind: dropout, sensor: heading}\n",
+        "bad-channel.yaml": "faults:\n  - {kind: nan, sensor: imu, channel: nope}\n",
+        "spec-dup.yaml": "scenario: lane-change\nseeds: 1\nseeds: 2\n",
+        "spec-huge.yaml": "scenario: lane-change\nseeds: 10\ngrid:\n"
+                          f"  plant.mass_kg: {list(range(1000, 2000, 10))}\n"
+                          f"  plant.tire_friction: {[0.5 + i / 100 for i in range(50)]}\n",
+        "spec-latin1-scenario.yaml": "scenario: latin1.yaml\nseeds: 1\n",
+        "spec-good.yaml": "scenario: lane-change\nseeds: 1\nduration_s: 0.1\n",
+        "notes.txt": "not an MCAP file, just text\n",
+    }
+    for name, text in texts.items():
+        if text is not None:
+            (root / name).write_text(text)
+    (root / "latin1.yaml").write_bytes("description: Stra\xdfe\nseed: 1\n".encode("latin-1"))
+    (root / "utf16.yaml").write_bytes("seed: 1\n".encode("utf-16"))
+    (root / "binary.yaml").write_bytes(bytes(range(256)) * 4)
+    (root / "spec-binary.yaml").write_bytes(b"\x89PNG\r\n\x1a\n" + bytes(range(200)))
+    (root / "existing.mcap").write_bytes(b"a user's precious log" * 100)
+    (root / "a-file").write_text("a file where a directory is expected\n")
+    _write_other_tool_mcap(root / "other.mcap")
+    _write_empty_mcap(root / "empty.mcap")
+    good = (root / "good.mcap")
+    good.write_bytes((root / "other.mcap").read_bytes())
+    corrupt = bytearray((root / "other.mcap").read_bytes())
+    corrupt[40:200] = bytes(160)
+    (root / "corrupt.mcap").write_bytes(bytes(corrupt))
+    (root / "folder").mkdir()
+    user = {name: root / name for name in (
+        "good.yaml", "existing.mcap", "latin1.yaml", "binary.yaml", "a-file", "other.mcap",
+        "corrupt.mcap", "spec-good.yaml")}
+    return Files(root, user)
+
+
+Args = Callable[[Files], list[str]]
+
+
+@dataclass(frozen=True)
+class Row:
+    name: str
+    args: Args
+    fragments: tuple[str, ...]
+    """Every one must be in the stderr line (the culprit, and what was expected)."""
+    code: int = 2
+
+
+ROWS = [
+    # cosim run: scenario, config files and their encodings
+    Row("unknown scenario", lambda f: ["run", "nowhere"], ("'nowhere'", "expected")),
+    Row("config missing", lambda f: ["run", "lane-change", "--config", f("none.yaml")],
+        ("none.yaml", "cannot read")),
+    Row("config binary", lambda f: ["run", "lane-change", "--config", f("binary.yaml")],
+        ("binary.yaml", "not UTF-8", "expected a UTF-8 text file")),
+    Row("config latin-1", lambda f: ["run", "lane-change", "--config", f("latin1.yaml")],
+        ("latin1.yaml", "byte 17 is not UTF-8")),
+    Row("config utf-16", lambda f: ["run", "lane-change", "--config", f("utf16.yaml")],
+        ("utf16.yaml", "expected a UTF-8 text file")),
+    Row("config duplicate key", lambda f: ["run", "lane-change", "--config", f("dup.yaml")],
+        ("dup.yaml", "line 4", "'mass_kg' given twice", "expected each key once")),
+    Row("config YAML bomb", lambda f: ["run", "lane-change", "--config", f("bomb.yaml")],
+        ("plant.mass_kg", "expected a number")),
+    Row("config a list", lambda f: ["run", "lane-change", "--config", f("list.yaml")],
+        ("list.yaml", "expected a mapping")),
+    Row("config broken YAML", lambda f: ["run", "lane-change", "--config", f("broken.yaml")],
+        ("broken.yaml", "not valid YAML")),
+    Row("scenario file latin-1", lambda f: ["run", f("latin1.yaml")],
+        ("latin1.yaml", "not UTF-8")),
+    Row("scenario file utf-16", lambda f: ["run", f("utf16.yaml")], ("utf16.yaml", "UTF-8")),
+    # --set
+    Row("set without =", lambda f: ["run", "lane-change", "--set", "plant.mass_kg"],
+        ("plant.mass_kg", "expected key.path=value")),
+    Row("set unknown key", lambda f: ["run", "lane-change", "--set", "plant.mas_kg=1"],
+        ("plant.mas_kg", "expected one of")),
+    Row("set negative mass", lambda f: ["run", "lane-change", "--set", "plant.mass_kg=-5"],
+        ("plant.mass_kg = -5", "expected a number in")),
+    Row("set exponent out of range", lambda f: ["run", "lane-change", "--set",
+                                                "plant.mass_kg=2e9"],
+        ("plant.mass_kg = 2000000000.0", "expected a number in")),
+    Row("set word for number", lambda f: ["run", "lane-change", "--set", "plant.mass_kg=heavy"],
+        ("plant.mass_kg = 'heavy'", "expected a number")),
+    Row("set huge value", lambda f: ["run", "lane-change", "--set", "plant.mass_kg=" + "9x" * 5000],
+        ("plant.mass_kg = '9x9x", "expected a number")),
+    Row("set rate off the step", lambda f: ["run", "lane-change", "--set",
+                                            "sim.control_period_s=0.003"],
+        ("sim.control_period_s = 0.003", "whole multiple")),
+    Row("set duplicate key in value", lambda f: ["run", "lane-change", "--set",
+                                                 "plant={mass_kg: 1, mass_kg: 2}"],
+        ("--set", "'mass_kg' given twice")),
+    Row("unknown tracker", lambda f: ["run", "lane-change", "--tracker", "pid"],
+        ("tracker.name = 'pid'", "expected one of")),
+    Row("negative duration", lambda f: ["run", "lane-change", "--duration", "-1"],
+        ("--duration -1.0", "expected a number of seconds")),
+    Row("NaN duration", lambda f: ["run", "lane-change", "--duration", "nan"],
+        ("--duration nan", "expected")),
+    Row("seed not a number", lambda f: ["run", "lane-change", "--seed", "abc"],
+        ("'abc'",)),
+    Row("fault on a disabled sensor", lambda f: ["run", "lane-change", "--config",
+                                                 f("disabled-fault.yaml")],
+        ("faults[0].sensor = 'heading'", "disabled", "expected an enabled sensor")),
+    Row("fault kind unknown", lambda f: ["run", "lane-change", "--set",
+                                         "faults=[{kind: meltdown}]"],
+        ("faults[0].kind = 'meltdown'", "expected one of")),
+    Row("fail-if malformed", lambda f: ["run", "lane-change", "--fail-if", "cte_max_m~0.3"],
+        ("--fail-if 'cte_max_m~0.3'", "expected METRIC OP VALUE")),
+    # cosim run: where the log goes
+    Row("out exists", lambda f: ["run", "lane-change", "--out", f("existing.mcap")],
+        ("existing.mcap", "exists", "--force")),
+    Row("out is the config", lambda f: ["run", "lane-change", "--config", f("good.yaml"),
+                                        "--out", f("good.yaml"), "--force"],
+        ("good.yaml", "is the input file", "expected another file name")),
+    Row("out is a folder", lambda f: ["run", "lane-change", "--out", f("folder")],
+        ("folder", "is a folder", "expected a file name")),
+    Row("out under a file", lambda f: ["run", "lane-change", "--duration", "0.1",
+                                       "--out", f("a-file") + "/run.mcap"],
+        ("a-file/run.mcap", "cannot write")),
+    Row("fault channel unknown, existing log forced", lambda f: [
+        "run", "lane-change", "--duration", "0.1", "--config", f("bad-channel.yaml"),
+        "--out", f("existing.mcap"), "--force"],
+        ("channel = 'nope'", "expected one of")),
+    # cosim inspect and plot
+    Row("inspect missing", lambda f: ["inspect", f("missing.mcap")],
+        ("missing.mcap", "no such file")),
+    Row("inspect text file", lambda f: ["inspect", f("notes.txt")],
+        ("notes.txt", "not an MCAP file")),
+    Row("inspect corrupted", lambda f: ["inspect", f("corrupt.mcap")], ("corrupt.mcap",)),
+    Row("inspect other tool's topic", lambda f: ["inspect", f("other.mcap"), "--topic",
+                                                 "/chatter"],
+        ("'/chatter'", "not JSON", "expected a log that cosim wrote")),
+    Row("inspect unknown topic", lambda f: ["inspect", f("empty.mcap"), "--topic", "/x"],
+        ("--topic '/x'", "expected one of")),
+    Row("plot empty", lambda f: ["plot", f("empty.mcap"), "--out", f("plots")],
+        ("empty.mcap", "nothing to plot")),
+    Row("plot other tool's", lambda f: ["plot", f("other.mcap"), "--out", f("plots")],
+        ("other.mcap", "nothing to plot")),
+    Row("plot corrupted", lambda f: ["plot", f("corrupt.mcap"), "--out", f("plots")],
+        ("corrupt.mcap",)),
+    # cosim sweep
+    Row("sweep spec missing", lambda f: ["sweep", f("none.yaml")], ("none.yaml", "no such file")),
+    Row("sweep spec binary", lambda f: ["sweep", f("spec-binary.yaml"), "--out", f("s1")],
+        ("spec-binary.yaml", "not UTF-8")),
+    Row("sweep spec duplicate key", lambda f: ["sweep", f("spec-dup.yaml"), "--out", f("s2")],
+        ("spec-dup.yaml", "'seeds' given twice")),
+    Row("sweep scenario latin-1", lambda f: ["sweep", f("spec-latin1-scenario.yaml"),
+                                             "--out", f("s3")],
+        ("latin1.yaml", "not UTF-8")),
+    Row("sweep of 50 000 runs", lambda f: ["sweep", f("spec-huge.yaml"), "--out", f("s4")],
+        ("50,000 runs", "expected at most 10,000", "--yes")),
+    Row("sweep out is a file", lambda f: ["sweep", f("spec-good.yaml"), "--out", f("a-file")],
+        ("a-file", "is a file", "expected a directory")),
+    Row("sweep out unmakeable", lambda f: ["sweep", f("spec-good.yaml"), "--out",
+                                           f("a-file") + "/sweep"],
+        ("a-file/sweep", "cannot make the directory", "expected a writable place")),
+    Row("sweep resume without out", lambda f: ["sweep", f("spec-good.yaml"), "--resume"],
+        ("--resume", "expected --out DIR")),
+    Row("sweep zero workers", lambda f: ["sweep", f("spec-good.yaml"), "--workers", "0",
+                                         "--out", f("s5")],
+        ("--workers 0", "expected a count >= 1")),
+    # cosim identify
+    Row("identify config binary", lambda f: ["identify", "--config", f("binary.yaml")],
+        ("binary.yaml", "not UTF-8")),
+    Row("identify set exponent word", lambda f: ["identify", "--set", "plant.mass_kg=1e"],
+        ("plant.mass_kg = '1e'", "expected a number")),
+]
+
+
+def _digests(files: Files) -> dict[str, str]:
+    return {name: hashlib.sha256(path.read_bytes()).hexdigest()
+            for name, path in files.user.items()}
+
+
+def _call(argv: list[str]) -> int:
+    try:
+        return main(argv)
+    except SystemExit as exit_:  # argparse's own usage errors
+        return int(exit_.code or 0)
+
+
+@pytest.mark.parametrize("row", ROWS, ids=[row.name for row in ROWS])
+def test_bad_input(row: Row, files: Files, capsys: pytest.CaptureFixture[str]) -> None:
+    before = _digests(files)
+    code = _call(row.args(files))
+    err = capsys.readouterr().err
+    assert code == row.code, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert "Traceback" not in err
+    assert len(lines[0]) < 600, "the echoed value must be capped"
+    for fragment in row.fragments:
+        assert fragment in lines[0], lines[0]
+    assert _digests(files) == before, "a user's file changed"
+    assert not list(files.root.glob(".*.partial")), "a temporary log was left behind"
+
+
+def test_the_table_has_at_least_forty_rows() -> None:
+    assert len(ROWS) >= 40
+    assert len({row.name for row in ROWS}) == len(ROWS)
