@@ -4,6 +4,12 @@ The path is a cubic spline x(s), y(s) through densely sampled points (scipy). Pr
 finds the arc length of the nearest point: a coarse search over a dense table, then Newton
 steps on the spline. The signed lateral error is positive when the point lies left of the
 path (ISO 8855 / ENU convention).
+
+A closed path (a circuit) is a periodic spline: arc lengths wrap modulo the lap length,
+so a tracker can read the path ahead across the start line. The reference speed is part of
+the reference: a :class:`tracker.paths.speed_profile.SpeedProfile` gives it at an arc
+length and a time (constant, a function of arc length such as a circuit's friction-limited
+profile, or a function of time such as stop-and-go); ``speed_mps`` is its top speed.
 """
 
 from __future__ import annotations
@@ -14,6 +20,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from cosim.exceptions import ConfigError
+from tracker.paths.speed_profile import ConstantSpeed, SpeedProfile
 
 
 @dataclass(frozen=True)
@@ -47,33 +54,54 @@ class ReferencePath:
     """A planar path with a reference speed.
 
     Args:
-      x_m, y_m: points along the path in the world frame, in driving order.
-      speed_mps: the reference speed along the whole path.
+      x_m, y_m: points along the path in the world frame, in driving order. For a closed
+        path the last point must not repeat the first: the spline closes the loop itself.
+      speed_mps: the reference speed along the whole path, or a speed profile.
       table_step_m: spacing of the projection table.
+      closed: the path is a loop (periodic spline, arc lengths modulo the lap).
     """
 
     def __init__(
-        self, x_m: np.ndarray, y_m: np.ndarray, speed_mps: float, table_step_m: float = 0.25
+        self, x_m: np.ndarray, y_m: np.ndarray, speed_mps: float | SpeedProfile,
+        table_step_m: float = 0.25, closed: bool = False,
     ) -> None:
         x_m = np.asarray(x_m, dtype=float)
         y_m = np.asarray(y_m, dtype=float)
         if x_m.shape != y_m.shape or x_m.ndim != 1 or x_m.size < 4:
             raise ConfigError("reference path: expected matching 1-D x and y of >= 4 points")
+        if closed:
+            x_m, y_m = np.append(x_m, x_m[0]), np.append(y_m, y_m[0])
         seg = np.hypot(np.diff(x_m), np.diff(y_m))
         if np.any(seg <= 0.0):
             raise ConfigError("reference path: expected distinct consecutive points")
         s = np.concatenate(([0.0], np.cumsum(seg)))
-        self._x = CubicSpline(s, x_m)
-        self._y = CubicSpline(s, y_m)
+        boundary = "periodic" if closed else "not-a-knot"
+        self._x = CubicSpline(s, x_m, bc_type=boundary)
+        self._y = CubicSpline(s, y_m, bc_type=boundary)
+        self.closed = closed
         self.length_m = float(s[-1])
-        self.speed_mps = float(speed_mps)
+        self.speed_profile: SpeedProfile = (
+            speed_mps if isinstance(speed_mps, SpeedProfile) else ConstantSpeed(speed_mps))
+        self.speed_mps = self.speed_profile.top_speed_mps
+        """The profile's top speed (the constant reference speed of most paths) [m/s]."""
         self._table_s = np.arange(0.0, self.length_m, table_step_m)
         self._table_x = self._x(self._table_s)
         self._table_y = self._y(self._table_s)
 
+    def wrap(self, s_m: np.ndarray | float) -> np.ndarray:
+        """Arc lengths on the path: modulo the lap on a closed path, else clamped to it."""
+        s = np.asarray(s_m, dtype=float)
+        if self.closed:
+            return np.mod(s, self.length_m)
+        return np.clip(s, 0.0, self.length_m)
+
+    def speed_ref(self, s_m: np.ndarray | float, t_s: np.ndarray | float) -> np.ndarray:
+        """The reference speed at arc lengths ``s_m`` and times ``t_s`` [m/s]."""
+        return self.speed_profile.speed_mps(self.wrap(s_m), np.asarray(t_s, dtype=float))
+
     def point(self, s_m: float) -> PathPoint:
-        """The path at arc length ``s_m`` (clamped to the path)."""
-        s = float(np.clip(s_m, 0.0, self.length_m))
+        """The path at arc length ``s_m`` (clamped to the path, or wrapped when closed)."""
+        s = float(self.wrap(s_m))
         dx, dy = float(self._x(s, 1)), float(self._y(s, 1))
         ddx, ddy = float(self._x(s, 2)), float(self._y(s, 2))
         curvature = (dx * ddy - dy * ddx) / (dx * dx + dy * dy) ** 1.5
@@ -82,7 +110,7 @@ class ReferencePath:
 
     def sample(self, s_m: np.ndarray) -> dict[str, np.ndarray]:
         """Vectorised :meth:`point`: arrays ``x_m``, ``y_m``, ``yaw_rad``, ``curvature_1pm``."""
-        s = np.clip(np.asarray(s_m, dtype=float), 0.0, self.length_m)
+        s = self.wrap(s_m)
         dx, dy = self._x(s, 1), self._y(s, 1)
         ddx, ddy = self._x(s, 2), self._y(s, 2)
         return {
@@ -106,7 +134,7 @@ class ReferencePath:
             hess = dx * dx + dy * dy + (px - x_m) * ddx + (py - y_m) * ddy
             if hess <= 1e-9:
                 break
-            s = float(np.clip(s - grad / hess, 0.0, self.length_m))
+            s = float(self.wrap(s - grad / hess))
         p = self.point(s)
         lateral = -np.sin(p.yaw_rad) * (x_m - p.x_m) + np.cos(p.yaw_rad) * (y_m - p.y_m)
         return Projection(s, float(lateral), p.yaw_rad, p.curvature_1pm)

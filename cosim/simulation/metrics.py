@@ -5,6 +5,14 @@ y - y_ref); heading error is the true yaw minus the path's yaw at that projectio
 to (-pi, pi]. NEES is over (x, y, yaw, speed), 4 degrees of freedom, so its mean should sit
 near 4 for a consistent filter. ``nis_mean`` is the mean of NIS divided by the measurement's
 dimension over every accepted update (1 for a consistent filter, whatever the sensor).
+The speed error is against the reference's speed profile at the projection and the time.
+
+Comfort, from the truth at the log rate: ``lat_accel_max_mps2`` is the largest lateral
+acceleration of the centre of gravity (vehicle frame); ``jerk_rms_mps3`` the RMS of the
+magnitude of the planar jerk (finite differences of the vehicle-frame longitudinal and
+lateral accelerations between log samples) and ``lat_jerk_rms_mps3`` that of its lateral
+part, the two figures ride-comfort studies rank controllers by (e.g. ISO 2631-1's weighting
+aside, peak lateral acceleration and RMS jerk are the usual path-tracking comfort figures).
 """
 
 from __future__ import annotations
@@ -73,6 +81,12 @@ class MetricsAccumulator:
     cte_m: list[float] = field(default_factory=list)
     heading_err_rad: list[float] = field(default_factory=list)
     speed_err_mps: list[float] = field(default_factory=list)
+    ref_speed_mps: list[float] = field(default_factory=list)
+    s_m: list[float] = field(default_factory=list)
+    """Arc length of each truth sample's projection (the course monitor reads it)."""
+    comfort_t_s: list[float] = field(default_factory=list)
+    comfort_ax_mps2: list[float] = field(default_factory=list)
+    comfort_ay_mps2: list[float] = field(default_factory=list)
     steer_rad: list[float] = field(default_factory=list)
     accel_mps2: list[float] = field(default_factory=list)
     solve_time_s: list[float] = field(default_factory=list)
@@ -90,7 +104,13 @@ class MetricsAccumulator:
         projection = self.reference.project(truth.x_m, truth.y_m)
         self.cte_m.append(projection.lateral_error_m)
         self.heading_err_rad.append(float(wrap_angle(truth.yaw_rad - projection.path_yaw_rad)))
-        self.speed_err_mps.append(truth.speed_mps - self.reference.speed_mps)
+        ref_speed = float(self.reference.speed_ref(projection.s_m, truth.t_s))
+        self.ref_speed_mps.append(ref_speed)
+        self.s_m.append(projection.s_m)
+        self.speed_err_mps.append(truth.speed_mps - ref_speed)
+        self.comfort_t_s.append(truth.t_s)
+        self.comfort_ax_mps2.append(truth.ax_mps2)
+        self.comfort_ay_mps2.append(truth.ay_mps2)
         self.last_t_s = truth.t_s
         if self.maneuver is not None:
             self.t_s.append(truth.t_s)
@@ -164,5 +184,18 @@ class MetricsAccumulator:
             "wall_time_s": wall_time_s,
             "realtime_factor": sim_duration_s / wall_time_s if wall_time_s > 0 else float("nan"),
             "completed": completed,
+            **self.comfort(),
             **extra,
         }
+
+    def comfort(self) -> dict[str, float]:
+        """``lat_accel_max_mps2``, ``jerk_rms_mps3``, ``lat_jerk_rms_mps3`` (module docstring)."""
+        t = np.asarray(self.comfort_t_s)
+        ax, ay = np.asarray(self.comfort_ax_mps2), np.asarray(self.comfort_ay_mps2)
+        if t.size < 2:
+            return {"lat_accel_max_mps2": _max_abs(ay), "jerk_rms_mps3": float("nan"),
+                    "lat_jerk_rms_mps3": float("nan")}
+        dt = np.diff(t)
+        jx, jy = np.diff(ax) / dt, np.diff(ay) / dt
+        return {"lat_accel_max_mps2": _max_abs(ay), "jerk_rms_mps3": _rms(np.hypot(jx, jy)),
+                "lat_jerk_rms_mps3": _rms(jy)}

@@ -46,10 +46,11 @@ from cosim.plant.low_level import AccelToTorque
 from cosim.records import Command, Estimate, Plan
 from cosim.sensing.faults import FaultInjector
 from cosim.sensing.sensors import TruthSensor, make_sensors
+from cosim.simulation.course import Course, build_course
+from cosim.simulation.course_metrics import CourseMonitor
 from cosim.simulation.metrics import MetricsAccumulator
 from cosim.simulation.scenario_config import ScenarioConfig, steps_per_period
 from estimation.registry import make_estimator
-from tracker.double_lane_change import double_lane_change
 from tracker.reference_path import ReferencePath
 from tracker.registry import make_tracker
 
@@ -74,14 +75,13 @@ def component_rng(seed: int, component: str) -> np.random.Generator:
 
 
 def build_reference(config: ScenarioConfig) -> ReferencePath:
-    """The reference path the scenario names."""
-    path = config.path
-    if path.kind == "double-lane-change":
-        return double_lane_change(path.speed_mps, path.stretch, path.length_m)
-    if path.kind == "straight":
-        x_m = np.linspace(0.0, path.length_m, 4) + config.initial.x_m
-        return ReferencePath(x_m, np.full(4, config.initial.y_m), path.speed_mps)
-    raise AssertionError(f"unhandled path kind {path.kind!r}")  # validated by choices
+    """The reference path the scenario names (:func:`build_course` for its cones and bounds)."""
+    return scenario_course(config).reference
+
+
+def scenario_course(config: ScenarioConfig) -> Course:
+    """The course of the scenario: path, speed profile, gates, cones, track bounds."""
+    return build_course(config.path, config.initial, config.plant, config.sim.duration_s)
 
 
 def _versions() -> dict[str, str]:
@@ -173,7 +173,9 @@ class _Run:
         self.config = config
         self.clock = _Clock.from_config(config)
         self.recorder = recorder
-        self.reference = build_reference(config)
+        self.course = scenario_course(config)
+        self.reference = self.course.reference
+        self.course_monitor = CourseMonitor(self.course, config.plant)
         self.plant = MujocoPlant(config.plant, self.clock.dt_s, config.initial)
         self.estimator = make_estimator(config.estimator, config.initial, config.tracker.model)
         self.tracker = make_tracker(config.tracker, config.maneuver)
@@ -221,8 +223,14 @@ class _Run:
         recorder.write("/reference/path", 0.0, {
             **{k: [float(v) for v in samples[k]] for k in samples},
             "speed_mps": self.reference.speed_mps,
+            "ref_speed_mps": [float(v) for v in self.reference.speed_ref(samples["s_m"], 0.0)],
+            "closed": self.reference.closed,
         })
-        recorder.write("/scene", 0.0, foxglove.static_scene(samples["x_m"], samples["y_m"]))
+        course = self.course
+        edges = course.bounds.edges(self.reference) if course.bounds is not None else None
+        recorder.write("/scene", 0.0, foxglove.static_scene(
+            samples["x_m"], samples["y_m"], course.cones_xy_m, edges,
+            closed=self.reference.closed))
 
     def current_estimate(self, t_s: float) -> Estimate:
         self.estimator.predict(t_s)
@@ -240,10 +248,11 @@ class _Run:
         metrics = self.metrics
         metrics.add_truth(self.truth)
         metrics.add_estimate(estimate, self.truth)
+        self.course_monitor.add_truth(self.truth, metrics.cte_m[-1], metrics.s_m[-1])
         self.recorder.write_finite("/control/errors", t_s, {
             "t_s": t_s, "cte_m": metrics.cte_m[-1], "heading_err_rad": metrics.heading_err_rad[-1],
             "speed_err_mps": metrics.speed_err_mps[-1], "speed_mps": self.truth.speed_mps,
-            "ref_speed_mps": self.reference.speed_mps,
+            "ref_speed_mps": metrics.ref_speed_mps[-1],
         })
 
     def sense(self, k: int, t_s: float) -> None:
@@ -365,6 +374,7 @@ def _finish(recorder: McapRecorder, state: _Run, wall_start: float,
     metrics.estimator_counts = counts() if counts is not None else {}
     values: dict[str, float | int | bool | str] = dict(
         metrics.result(time.perf_counter() - wall_start, completed))
+    values.update(state.course_monitor.result())
     values["faults_injected"] = sum(f.injected for f in state.faults.values())
     if abort_reason:
         values["abort_reason"] = abort_reason

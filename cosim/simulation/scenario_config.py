@@ -24,6 +24,7 @@ from cosim.log.foxglove import GeoOrigin
 from cosim.plant.disturbances import DisturbanceConfig
 from cosim.sensing.faults import FaultConfig
 from cosim.sensing.sensors import SensorsConfig, suite_preset
+from cosim.simulation.path_config import PathConfig
 from cosim.vehicle_params import PlantConfig
 from estimation.config import EstimatorConfig
 from tracker.config import TrackerConfig
@@ -38,16 +39,6 @@ class SimConfig:
     control_period_s: float = setting(0.05, low=1e-4, high=5.0)
     log_period_s: float = setting(0.01, low=1e-4, high=5.0, doc="truth/estimate log rate")
     duration_s: float = setting(15.0, low=0.0, high=3600.0)
-
-
-@dataclass(frozen=True)
-class PathConfig:
-    """The reference path and speed."""
-
-    kind: str = setting("double-lane-change", choices=("double-lane-change", "straight"))
-    stretch: float = setting(1.5, low=0.2, high=10.0, doc="x-scale of Falcone's constants")
-    speed_mps: float = setting(20.0, low=0.0, high=80.0, doc="reference speed v_D")
-    length_m: float = setting(600.0, low=10.0, high=1e5)
 
 
 @dataclass(frozen=True)
