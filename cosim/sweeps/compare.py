@@ -47,6 +47,8 @@ LEAGUE_METRICS: tuple[tuple[str, str, str], ...] = (
     ("speed_err_rms_mps", "RMS speed err [m/s]", "mean"),
     ("lat_accel_max_mps2", "max a_y [m/s^2]", "max"),
     ("jerk_rms_mps3", "RMS jerk [m/s^3]", "mean"),
+    ("solve_ms_p50", "solve p50 [ms]", "mean"),
+    ("solve_ms_p99", "solve p99 [ms]", "max"),
     ("step_ms_p50", "step p50 [ms]", "mean"),
     ("step_ms_p99", "step p99 [ms]", "max"),
     ("gates_hit", "gates hit", "max"),

@@ -52,15 +52,32 @@ def circle(radius_m: float) -> Shape:
     return Shape(radius_m * np.sin(theta), radius_m * (1.0 - np.cos(theta)), True)
 
 
-def figure_eight(radius_m: float) -> Shape:
-    """A closed figure eight: the lemniscate of Gerono ``x = a sin t, y = a sin t cos t``
-    with ``a = radius_m`` (the tightest radius of curvature, at the ends of the lobes),
-    turned by -45 degrees so it starts at the origin heading along +x. The path crosses
-    itself at the origin at right angles, with zero curvature there."""
-    a = radius_m
-    n = max(128, int(6.2 * a / STEP_M))
-    t = np.arange(n) * 2.0 * np.pi / n
-    x, y = a * np.sin(t), a * np.sin(t) * np.cos(t)
+def figure_eight(radius_m: float, transition_m: float = 10.0) -> Shape:
+    """A closed figure eight: two 270-degree arcs of ``radius_m``, a left and a right one,
+    joined by straights that cross at the origin at right angles (each straight is tangent
+    to both circles, so its half-length is ``radius_m``). Curvature ramps over
+    ``transition_m`` centred on each join; the small gap that the ramps leave at the end of
+    the lap is spread linearly along it. The figure is turned so that it starts at the
+    origin heading along +x (the first straight runs along +x)."""
+    r = radius_m
+    arc = 1.5 * np.pi * r
+    joins = np.cumsum([r, arc, 2.0 * r, arc])
+    length = joins[-1] + r
+    s = np.arange(0.0, length, STEP_M)
+    k = 1.0 / r
+    half = transition_m / 2.0
+    kappa = (k * _ramp(s, joins[0] - half, transition_m)
+             - k * _ramp(s, joins[1] - half, transition_m)
+             - k * _ramp(s, joins[2] - half, transition_m)
+             + k * _ramp(s, joins[3] - half, transition_m))
+    yaw = np.pi / 4.0 + cumulative_trapezoid(kappa, s, initial=0.0)
+    x = cumulative_trapezoid(np.cos(yaw), s, initial=0.0)
+    y = cumulative_trapezoid(np.sin(yaw), s, initial=0.0)
+    # Close the loop: the end should come back to the start.
+    end_x = x[-1] + np.cos(yaw[-1]) * (length - s[-1])
+    end_y = y[-1] + np.sin(yaw[-1]) * (length - s[-1])
+    x -= end_x * s / length
+    y -= end_y * s / length
     rot = -np.pi / 4.0
     return Shape(np.cos(rot) * x - np.sin(rot) * y, np.sin(rot) * x + np.cos(rot) * y, True)
 
