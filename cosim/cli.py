@@ -25,6 +25,7 @@ import datetime
 import json
 import math
 import sys
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NoReturn
@@ -408,6 +409,12 @@ def _command_render(args: argparse.Namespace) -> int:
     return 0
 
 
+def _one_line_warning(message: Warning | str, category: type[Warning], filename: str,
+                      lineno: int, file: Any = None, line: str | None = None) -> None:
+    """A warning as one line on stderr (``cosim: warning: ...``), without source lines."""
+    print(f"cosim: warning: {message}", file=sys.stderr)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``cosim`` console script."""
     args = _build_parser().parse_args(argv)
@@ -416,7 +423,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                 "sweep": _command_sweep, "render": _command_render,
                 "compare": _command_compare}
     try:
-        return handlers[args.command](args)
+        with warnings.catch_warnings():
+            warnings.showwarning = _one_line_warning
+            return handlers[args.command](args)
     except CosimError as error:
         print(f"cosim: error: {error}", file=sys.stderr)
         return EXIT_USAGE

@@ -217,8 +217,10 @@ def run_compare(scenarios: Sequence[str], trackers: Sequence[str], seeds: int,
                 log_dir: Path | None) -> list[dict[str, Any]]:
     """Run every combination on a process pool with a progress bar; the rows, by run id.
 
-    Each scenario is loaded once first, so a bad name or file is one error before any run.
+    Each scenario and its course are built once first, so a bad name, key or path file is
+    one error before any run.
     """
+    from cosim.simulation.runner import scenario_course
     from cosim.simulation.scenario_config import load_config
     from cosim.sweeps.driver import RunProgress
     from cosim.sweeps.execute import ProcessBackend, default_workers
@@ -226,7 +228,7 @@ def run_compare(scenarios: Sequence[str], trackers: Sequence[str], seeds: int,
     if seeds < 1:
         raise ConfigError(f"--seeds {seeds}: expected at least 1")
     for scenario in scenarios:
-        load_config(scenario, duration_s=duration_s)
+        scenario_course(load_config(scenario, duration_s=duration_s))
     tasks = make_tasks(scenarios, trackers, seeds, duration_s, log_dir)
     rows: list[dict[str, Any]] = []
     with RunProgress(len(tasks), 0, "compare") as progress:
