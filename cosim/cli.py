@@ -368,7 +368,7 @@ def _command_compare(args: argparse.Namespace) -> int:
         raise CosimError(f"--workers {args.workers}: expected at least 1")
     out = Path(args.out) if args.out else Path("logs") / _time.strftime("compare-%Y%m%d-%H%M%S")
     rows = compare.run_compare(scenarios, trackers, args.seeds, args.workers, args.duration,
-                               out / "logs" if args.keep_logs else None)
+                               out / "logs" if args.keep_logs else None, out / "rows.jsonl")
     table = compare.write_outputs(rows, out)
     if args.json:
         print(json.dumps(compare.json_rows(rows), indent=1))

@@ -9,7 +9,8 @@ metric in :data:`LEAGUE_METRICS` (the worst over seeds for maxima), and ``failur
 that did not complete plus control steps that needed a fallback.
 
 Outputs in ``--out DIR``: ``league.md`` and ``league.csv`` (the table), ``league.png``
-(``cte_rms_m`` per scenario and tracker, log scale) and ``rows.json`` (every run's metrics).
+(``cte_rms_m`` per scenario and tracker, log scale), ``rows.json`` (every run's metrics) and
+``rows.jsonl`` (each run's row as it finished, kept if the comparison is interrupted).
 """
 
 from __future__ import annotations
@@ -213,12 +214,13 @@ def write_outputs(rows: Sequence[dict[str, Any]], out_dir: Path) -> list[LeagueR
 
 
 def run_compare(scenarios: Sequence[str], trackers: Sequence[str], seeds: int,
-                workers: int | None, duration_s: float | None,
-                log_dir: Path | None) -> list[dict[str, Any]]:
+                workers: int | None, duration_s: float | None, log_dir: Path | None,
+                rows_path: Path | None = None) -> list[dict[str, Any]]:
     """Run every combination on a process pool with a progress bar; the rows, by run id.
 
     Each scenario and its course are built once first, so a bad name, key or path file is
-    one error before any run.
+    one error before any run. With ``rows_path`` each row is appended to it as one JSON line
+    as it lands (flushed), so an interrupt or a crash keeps the finished runs.
     """
     from cosim.simulation.runner import scenario_course
     from cosim.simulation.scenario_config import load_config
@@ -231,9 +233,15 @@ def run_compare(scenarios: Sequence[str], trackers: Sequence[str], seeds: int,
         scenario_course(load_config(scenario, duration_s=duration_s))
     tasks = make_tasks(scenarios, trackers, seeds, duration_s, log_dir)
     rows: list[dict[str, Any]] = []
+    if rows_path is not None:
+        rows_path.parent.mkdir(parents=True, exist_ok=True)
+        rows_path.write_text("")
     with RunProgress(len(tasks), 0, "compare") as progress:
         def land(row: dict[str, Any]) -> None:
             rows.append(row)
+            if rows_path is not None:
+                with rows_path.open("a") as handle:
+                    handle.write(json.dumps(row) + "\n")
             progress.update(row, "error" if row["error"] else "ok")
 
         ProcessBackend(workers or default_workers()).run(tasks, land)
