@@ -191,7 +191,12 @@ class MetricsAccumulator:
     def comfort(self) -> dict[str, float]:
         """``lat_accel_max_mps2``, ``jerk_rms_mps3``, ``lat_jerk_rms_mps3`` (module docstring)."""
         t = np.asarray(self.comfort_t_s)
-        ax, ay = np.asarray(self.comfort_ax_mps2), np.asarray(self.comfort_ay_mps2)
+        # Before the first physics step the plant has no accelerations yet (they read 0):
+        # that sample would turn the start into a jerk of a few hundred m/s^3.
+        after_start = t > 0.0
+        t = t[after_start]
+        ax = np.asarray(self.comfort_ax_mps2)[after_start]
+        ay = np.asarray(self.comfort_ay_mps2)[after_start]
         if t.size < 2:
             return {"lat_accel_max_mps2": _max_abs(ay), "jerk_rms_mps3": float("nan"),
                     "lat_jerk_rms_mps3": float("nan")}
