@@ -62,8 +62,33 @@ def _table(x: np.ndarray, v: np.ndarray, what: str) -> tuple[np.ndarray, np.ndar
     return x, v
 
 
+class _TabulatedSpeed(SpeedProfile):
+    """Speeds at increasing breakpoints of one argument, linear between them."""
+
+    speed_table_mps: np.ndarray
+
+    def _breakpoints(self) -> np.ndarray:
+        raise NotImplementedError
+
+    def _argument(self, s_m: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def _period(self) -> float | None:
+        """The period of the argument (a closed path's lap), None if it does not wrap."""
+        return None
+
+    @property
+    def top_speed_mps(self) -> float:  # type: ignore[override]
+        return float(np.max(self.speed_table_mps))
+
+    def speed_mps(self, s_m: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+        s, t = np.broadcast_arrays(np.asarray(s_m, dtype=float), np.asarray(t_s, dtype=float))
+        return np.interp(self._argument(s, t), self._breakpoints(), self.speed_table_mps,
+                         period=self._period())
+
+
 @dataclass(frozen=True)
-class SpatialSpeed(SpeedProfile):
+class SpatialSpeed(_TabulatedSpeed):
     """A speed per arc length (m/s at ``s_table_m``), linear between breakpoints."""
 
     s_table_m: np.ndarray
@@ -74,18 +99,18 @@ class SpatialSpeed(SpeedProfile):
     def __post_init__(self) -> None:
         _table(self.s_table_m, self.speed_table_mps, "spatial speed profile")
 
-    @property
-    def top_speed_mps(self) -> float:  # type: ignore[override]
-        return float(np.max(self.speed_table_mps))
+    def _period(self) -> float | None:
+        return self.period_m
 
-    def speed_mps(self, s_m: np.ndarray, t_s: np.ndarray) -> np.ndarray:
-        s = np.broadcast_to(np.asarray(s_m, dtype=float),
-                            np.broadcast(np.asarray(s_m), np.asarray(t_s)).shape)
-        return np.interp(s, self.s_table_m, self.speed_table_mps, period=self.period_m)
+    def _breakpoints(self) -> np.ndarray:
+        return self.s_table_m
+
+    def _argument(self, s_m: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+        return s_m
 
 
 @dataclass(frozen=True)
-class TimedSpeed(SpeedProfile):
+class TimedSpeed(_TabulatedSpeed):
     """A speed per time (m/s at ``t_table_s``), linear between breakpoints, held after."""
 
     t_table_s: np.ndarray
@@ -94,14 +119,11 @@ class TimedSpeed(SpeedProfile):
     def __post_init__(self) -> None:
         _table(self.t_table_s, self.speed_table_mps, "timed speed profile")
 
-    @property
-    def top_speed_mps(self) -> float:  # type: ignore[override]
-        return float(np.max(self.speed_table_mps))
+    def _breakpoints(self) -> np.ndarray:
+        return self.t_table_s
 
-    def speed_mps(self, s_m: np.ndarray, t_s: np.ndarray) -> np.ndarray:
-        t = np.broadcast_to(np.asarray(t_s, dtype=float),
-                            np.broadcast(np.asarray(s_m), np.asarray(t_s)).shape)
-        return np.interp(t, self.t_table_s, self.speed_table_mps)
+    def _argument(self, s_m: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+        return t_s
 
 
 def friction_limited(s_m: np.ndarray, curvature_1pm: np.ndarray, top_speed_mps: float,
