@@ -86,9 +86,10 @@ def test_iso_lane_change_passes_every_gate_at_60_kmh(tmp_path: Path) -> None:
 
 @pytest.mark.slow
 def test_iso_lane_change_too_fast_hits_gates(tmp_path: Path) -> None:
-    # 100 km/h through lanes sized for 60-70 km/h: no tracker keeps the body inside.
-    result = _full(tmp_path, "iso-lane-change", "dynamic-mpc", "path.speed_mps=27.8",
-                   "initial.speed_mps=27.8")
+    # 76 km/h on the lanes' centre line needs more grip than the tyres have in the offset
+    # lane (bench/iso_entry_speed.py: the best tracker passes up to about 68 km/h).
+    result = _full(tmp_path, "iso-lane-change", "dynamic-mpc", "path.speed_mps=21.11",
+                   "initial.speed_mps=21.11")
     assert result.metrics["gates_hit"] >= 1
 
 
