@@ -16,8 +16,9 @@ machine): on the ISO 3888-1 lane change at 60 km/h the MPCs but ``kinematic-nmpc
 gate, while every baseline hits at least one (``pid`` and ``lqr`` spin once the steering-rate
 bound saturates them); ``dynamic-mpc`` passes up to 68 km/h and hits gates at 72 km/h
 (``bench/iso_entry_speed.py``). On the ring circuit ``lqr`` (RMS CTE 0.076 m) edges out
-the best MPCs (0.101 m; 0.080 m for ``ltv-mpc`` with ``tracker.weights.cte=40``): at 0.75 g
-the MPCs' soft limits keep their linear-tyre models in range and give up centimetres.
+the best MPCs (0.101 m; 0.080 m for ``ltv-mpc`` with ``tracker.weights.cte=40``, tuned for
+the 0.5 g lane change, not for 0.75 g laps); the cause is not pinned down (the MPCs' soft
+slip-angle limits and their steering-effort weights are the suspects).
 
 Outputs in ``--out DIR``: ``league.md`` and ``league.csv`` (the table), ``league.png``
 (``cte_rms_m`` per scenario and tracker, log scale), ``rows.json`` (every run's metrics) and
