@@ -383,12 +383,10 @@ def _print_league(table: list[Any]) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    from cosim.sweeps.compare import LEAGUE_METRICS
+    from cosim.sweeps.compare import LEAGUE_METRICS, by_scenario
 
     console = Console()
-    for scenario in dict.fromkeys(r.scenario for r in table):
-        rows = sorted((r for r in table if r.scenario == scenario),
-                      key=lambda r: (r.values["cte_rms_m"] is None, r.values["cte_rms_m"] or 0))
+    for scenario, rows in by_scenario(table).items():
         view = Table(title=scenario)
         view.add_column("tracker")
         for _, title, _ in LEAGUE_METRICS:

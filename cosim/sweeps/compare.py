@@ -146,13 +146,21 @@ def _cell(value: float | None) -> str:
     return f"{value:.4g}"
 
 
+def by_scenario(table: Sequence[LeagueRow]) -> dict[str, list[LeagueRow]]:
+    """The table's rows per scenario (in run order), each list best RMS CTE first."""
+    groups: dict[str, list[LeagueRow]] = {}
+    for row in table:
+        groups.setdefault(row.scenario, []).append(row)
+    return {scenario: sorted(rows, key=lambda r: (r.values["cte_rms_m"] is None,
+                                                  r.values["cte_rms_m"] or 0.0))
+            for scenario, rows in groups.items()}
+
+
 def markdown(table: Sequence[LeagueRow]) -> str:
     """The league table as Markdown, one section per scenario, best RMS CTE first."""
     lines = []
     titles = [title for _, title, _ in LEAGUE_METRICS]
-    for scenario in dict.fromkeys(r.scenario for r in table):
-        rows = sorted((r for r in table if r.scenario == scenario),
-                      key=lambda r: (r.values["cte_rms_m"] is None, r.values["cte_rms_m"] or 0))
+    for scenario, rows in by_scenario(table).items():
         lines += [f"## {scenario}", "", "| tracker | " + " | ".join(titles) + " | failures |",
                   "|---" * (len(titles) + 2) + "|"]
         for r in rows:
