@@ -99,8 +99,9 @@ def test_stop_and_go_comes_to_full_stops_and_goes_again(tmp_path: Path, tracker:
     result = _full(tmp_path, "stop-and-go", tracker, "sim.duration_s=14")
     speed = load_run(result.log_path).truth
     t, v = speed.t_s, speed.speed_mps
-    standing = (t > 8.6) & (t < 10.0)  # the profile stands still from 8 s to 10 s
-    assert np.max(v[standing]) < 0.3
+    # The profile stands still from 8 s to 10 s; a tracker reads 0.5 s ahead.
+    standing = (t > 9.0) & (t < 9.5)
+    assert np.max(v[standing]) < 0.1
     assert v[t > 13.5].min() > 6.0  # and accelerates back towards 12 m/s
     assert result.metrics["cte_max_m"] < 0.1
 

@@ -10,7 +10,7 @@ A baseline is a law ``steer = f(pose, path)`` (:class:`LateralLaw`) inside
 * the same bounds: ``|delta| <= tracker.max_steer_rad``, ``|d delta/dt| <=
   tracker.max_steer_rate_radps``, ``accel_min_mps2 <= a <= accel_max_mps2``;
 * a longitudinal PI on the speed error (``tracker.baseline.speed``) with the reference
-  profile's acceleration as feed-forward;
+  profile's acceleration as feed-forward, and a standstill hold while the reference rests;
 * the steady-state steering of the path's curvature as feed-forward, ``delta_ff = L kappa +
   K v^2 kappa`` with the belief's understeer gradient ``K`` (Rajamani 2012, eq. 3.15 without
   the small-angle ``atan``; the MPCs use the same term), where the law itself has no
@@ -41,6 +41,10 @@ PLAN_INPUTS = ("accel_mps2", "steer_rad")
 """The plan's input columns (the :class:`Command` fields)."""
 ACCEL_FEEDFORWARD_S = 0.5
 """Time over which the speed profile's slope is read for the acceleration feed-forward [s]."""
+STANDSTILL_GAIN_PER_S = 2.0
+"""While the reference stands still (now and ``ACCEL_FEEDFORWARD_S`` ahead), brake at least
+this times the remaining speed, so the car comes to rest instead of creeping on the PI's
+small residual error [1/s]."""
 
 
 @dataclass(frozen=True)
@@ -106,6 +110,8 @@ class SpeedLoop:
         limit = self._cfg.integral_limit_mps
         self._integral = float(np.clip(self._integral + error * dt_s, -limit, limit))
         accel = (v_next - v_ref) / ahead + self._cfg.kp * error + self._cfg.ki * self._integral
+        if v_ref <= 0.0 and v_next <= 0.0:  # standstill hold
+            accel = min(accel, -STANDSTILL_GAIN_PER_S * max(pose.vx_mps, 0.0))
         return float(np.clip(accel, *self._limits))
 
 
