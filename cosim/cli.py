@@ -40,6 +40,7 @@ import json
 import math
 import os
 import sys
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NoReturn
@@ -111,6 +112,25 @@ def _build_parser() -> argparse.ArgumentParser:
                       help="output directory (default <log>-plots beside the log)")
 
     commands.add_parser("scenarios", help="list the built-in scenarios")
+    compare = commands.add_parser(
+        "compare", help="every tracker on every scenario and seed: a league table")
+    compare.add_argument("--trackers", metavar="A,B,..",
+                         help="trackers to compare (default: every closed-loop tracker)")
+    compare.add_argument("--scenarios", metavar="X,Y,..",
+                         help="scenarios, built-in names or YAML paths (default: the library)")
+    compare.add_argument("--seeds", type=int, default=1, metavar="N",
+                         help="seeds 0..N-1 per combination (default 1)")
+    compare.add_argument("--workers", type=int, metavar="N",
+                         help="parallel runs (default: the usable cores)")
+    compare.add_argument("--duration", type=float, metavar="S",
+                         help="override every scenario's sim.duration_s")
+    compare.add_argument("--json", action="store_true",
+                         help="print every run as {scenario, tracker, seed, metrics}")
+    compare.add_argument("--out", metavar="DIR",
+                         help="write league.md, league.csv, league.png, rows.json "
+                         "(default logs/compare-<time>)")
+    compare.add_argument("--keep-logs", action="store_true",
+                         help="keep every run's MCAP log in DIR/logs")
 
     identify = commands.add_parser(
         "identify", help="identify the plant's bicycle-model parameters and actuator lags")
@@ -432,6 +452,49 @@ def check_sweep_dir(out: Path) -> None:
     if not os.access(existing, os.W_OK | os.X_OK):
         raise CosimError(f"--out {str(out)!r}: cannot make the directory ({str(existing)!r} "
                          "is not writable): expected a writable place")
+def _command_compare(args: argparse.Namespace) -> int:
+    import time as _time
+
+    from cosim.sweeps import compare
+    from tracker.registry import TRACKER_NAMES
+
+    closed_loop = [name for name in TRACKER_NAMES if name != "open-loop"]
+    trackers = compare.parse_names(args.trackers, compare.DEFAULT_TRACKERS, closed_loop,
+                                   "trackers")
+    scenarios = compare.parse_names(args.scenarios, compare.DEFAULT_SCENARIOS, None,
+                                    "scenarios")
+    if args.workers is not None and args.workers < 1:
+        raise CosimError(f"--workers {args.workers}: expected at least 1")
+    out = Path(args.out) if args.out else Path("logs") / _time.strftime("compare-%Y%m%d-%H%M%S")
+    rows = compare.run_compare(scenarios, trackers, args.seeds, args.workers, args.duration,
+                               out / "logs" if args.keep_logs else None, out / "rows.jsonl")
+    table = compare.write_outputs(rows, out)
+    if args.json:
+        print(json.dumps(compare.json_rows(rows), indent=1))
+        return 0
+    _print_league(table)
+    for name in ("league.md", "league.csv", "league.png", "rows.json"):
+        print(f"  {out / name}")
+    return 0
+
+
+def _print_league(table: list[Any]) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    from cosim.sweeps.compare import LEAGUE_METRICS, by_scenario
+
+    console = Console()
+    for scenario, rows in by_scenario(table).items():
+        view = Table(title=scenario)
+        view.add_column("tracker")
+        for _, title, _ in LEAGUE_METRICS:
+            view.add_column(title, justify="right")
+        view.add_column("failures", justify="right")
+        for r in rows:
+            view.add_row(r.tracker, *[("-" if r.values[k] is None else f"{r.values[k]:.4g}")
+                                      for k, _, _ in LEAGUE_METRICS], str(r.failures))
+        console.print(view)
 
 
 def _command_render(args: argparse.Namespace) -> int:
@@ -447,6 +510,10 @@ def _command_config(args: argparse.Namespace) -> int:
     from cosim import config_cli
 
     return config_cli.command(args)
+def _one_line_warning(message: Warning | str, category: type[Warning], filename: str,
+                      lineno: int, file: Any = None, line: str | None = None) -> None:
+    """A warning as one line on stderr (``cosim: warning: ...``), without source lines."""
+    print(f"cosim: warning: {message}", file=sys.stderr)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -455,9 +522,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     handlers = {"run": _command_run, "inspect": _command_inspect, "plot": _command_plot,
                 "scenarios": _command_scenarios, "identify": _command_identify,
                 "sweep": _command_sweep, "render": _command_render,
-                "config": _command_config}
+                "config": _command_config, "compare": _command_compare}
     try:
-        code = handlers[args.command](args)
+        with warnings.catch_warnings():
+            warnings.showwarning = _one_line_warning
+            code = handlers[args.command](args)
         sys.stdout.flush()  # a full or closed stdout fails here, not at exit
         return code
     except CosimError as error:

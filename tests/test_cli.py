@@ -29,7 +29,7 @@ def cosim(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[st
         (("run", "lane-change", "--set", "tracker.horizn=3"), "unknown key 'tracker.horizn'"),
         (("run", "lane-change", "--set", "plant.mass_kg=-1"), "plant.mass_kg = -1"),
         (("run", "nowhere"), "scenario 'nowhere'"),
-        (("run", "lane-change", "--tracker", "pid"), "tracker.name = 'pid'"),
+        (("run", "lane-change", "--tracker", "bang-bang"), "tracker.name = 'bang-bang'"),
         (("run", "lane-change", "--estimator", "magic"), "estimator.name = 'magic'"),
         (("run", "lane-change", "--set", "sim.control_period_s=0.033"), "whole multiple"),
         (("run", "lane-change", "--seed", "abc"), "invalid int value: 'abc'"),

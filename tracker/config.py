@@ -75,12 +75,14 @@ from dataclasses import dataclass
 from cosim.config_fields import section, setting
 from cosim.exceptions import ConfigError
 from cosim.vehicle_params import VehicleParams
+from tracker.baselines.config import BaselineConfig
 from tracker.dynamic_mpc_config import DynamicMpcConfig
 from tracker.horizon_reference import REFERENCE_KINDS
 from tracker.ltv_mpc_config import LtvMpcConfig
 
 TRACKER_CHOICES: tuple[str, ...] = (
     "kinematic-nmpc", "dynamic-nmpc", "dynamic-mpc", "ltv-mpc", "open-loop",
+    "pid", "stanley", "pure-pursuit", "lqr",
 )
 """Values ``tracker.name`` accepts; :data:`tracker.registry.TRACKER_NAMES` maps each one."""
 
@@ -193,6 +195,7 @@ class TrackerConfig:
     model: VehicleParams = section(VehicleParams)
     dynamic_mpc: DynamicMpcConfig = section(DynamicMpcConfig)
     ltv_mpc: LtvMpcConfig = section(LtvMpcConfig)
+    baseline: BaselineConfig = section(BaselineConfig)
 
     def __post_init__(self) -> None:
         if not self.accel_min_mps2 < self.accel_max_mps2:

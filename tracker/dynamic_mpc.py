@@ -400,7 +400,7 @@ class DynamicMpc:
             "input_prev": self._previous_input,
             "speed_lin_mps": start.state[path_model.STATE["vx_mps"]],
             "yaw_rate_ref_radps": yaw_rate_ref,
-            "speed_ref_mps": reference.speed_mps,
+            "speed_ref_mps": self._speed_reference(reference, start),
         })
         lbx, ubx = self._variable_bounds(t_s)
         began = time.perf_counter()
@@ -487,6 +487,14 @@ class DynamicMpc:
             values["e1_m"] = values["e2_rad"] = math.nan
         path_state = np.array([values[name] for name in path_model.STATE_NAMES], dtype=float)
         return StartingPoint(end_t_s, path_state, s_m)
+
+    @staticmethod
+    def _speed_reference(reference: ReferencePath, start: StartingPoint) -> float:
+        """The speed profile where the car starts from (the model holds one speed reference
+        over the horizon, as the paper does); the top speed before the first projection."""
+        if not math.isfinite(start.s_m):
+            return reference.speed_mps
+        return float(reference.speed_ref(start.s_m, start.t_s))
 
     def _yaw_rate_reference(self, reference: ReferencePath,
                             start: StartingPoint) -> np.ndarray:

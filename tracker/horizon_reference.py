@@ -50,6 +50,14 @@ class HorizonReference:
     y_m: np.ndarray
     yaw_rad: np.ndarray
     curvature_1pm: np.ndarray
+    s_m: np.ndarray
+    """Arc length on the path of each stage (where its reference speed is read) [m]."""
+
+    def speed_mps(self, path: ReferencePath, t_s: float, dt_s: float) -> np.ndarray:
+        """The path's reference speed at each stage's arc length and time
+        (stage ``k`` at ``t_s + k dt_s``, k = 1..N)."""
+        times = t_s + dt_s * np.arange(1, self.s_m.size + 1)
+        return path.speed_ref(self.s_m, times)
 
 
 def _rebased_yaw(yaw_rad: np.ndarray, first_rad: float, car_yaw_rad: float) -> np.ndarray:
@@ -65,7 +73,7 @@ def spline_reference(path: ReferencePath, s_m: np.ndarray, first_yaw_rad: float,
     samples = path.sample(s_m)
     return HorizonReference(samples["x_m"], samples["y_m"],
                             _rebased_yaw(samples["yaw_rad"], first_yaw_rad, car_yaw_rad),
-                            samples["curvature_1pm"])
+                            samples["curvature_1pm"], np.asarray(s_m, dtype=float))
 
 
 def polynomial_reference(path: ReferencePath, s0_m: float, distances_m: np.ndarray,
@@ -104,6 +112,7 @@ def polynomial_reference(path: ReferencePath, s0_m: float, distances_m: np.ndarr
         y_m=y_m + si * xs + c * ys,
         yaw_rad=_rebased_yaw(yaw_rad + heading, yaw_rad + first_heading, yaw_rad),
         curvature_1pm=curvature,
+        s_m=s0_m + np.asarray(distances_m, dtype=float),
     )
 
 

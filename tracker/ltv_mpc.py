@@ -225,7 +225,7 @@ class LtvMpc:
         linearise_s = 0.0
         try:
             warm = self._warm_start(t_s, state0)
-            ref = self._reference(reference, state0, warm.states)
+            ref = self._reference(reference, state0, warm.states, t_s)
             bar = (warm if self.config.ltv_mpc.linearize_about == "previous-plan"
                    else self._reference_trajectory(t_s, state0, warm, ref))
             lin_start = time.perf_counter()
@@ -312,10 +312,10 @@ class LtvMpc:
         return _Trajectory(t_s, states, shifted_inputs(warm.inputs, warm.t_s, t_s, dt_s))
 
     def _reference(self, reference: ReferencePath, state0: np.ndarray,
-                   warm_states: np.ndarray) -> dict[str, np.ndarray]:
+                   warm_states: np.ndarray, t_s: float) -> dict[str, np.ndarray]:
         """Reference points at the arc lengths the warm start expects to cover
         (:mod:`tracker.horizon_reference`, ``tracker.reference``), with the reference's
-        curvature there (``curvature_1pm``)."""
+        curvature there (``curvature_1pm``) and the speed profile at each stage."""
         points = horizon_reference(self.config.reference, reference, state0[STATE["x_m"]],
                                    state0[STATE["y_m"]], state0[STATE["yaw_rad"]],
                                    warm_states[:, STATE["vx_mps"]], self.config.dt_s)
@@ -323,7 +323,7 @@ class LtvMpc:
             "ref_x_m": points.x_m,
             "ref_y_m": points.y_m,
             "ref_yaw_rad": points.yaw_rad,
-            "ref_speed_mps": np.full(self._n, reference.speed_mps),
+            "ref_speed_mps": points.speed_mps(reference, t_s, self.config.dt_s),
             "curvature_1pm": points.curvature_1pm,
         }
 

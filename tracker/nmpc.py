@@ -18,7 +18,7 @@ apply the first input and keep the rest as the next warm start. A tracker is an
 * Cost (the exact form is in :mod:`tracker.config`): cross-track error measured
   from each reference point's tangent, heading error (the path yaw is unwrapped along the
   horizon and shifted by whole turns to within pi of the current yaw, so the difference is
-  smooth and needs no wrapping inside the NLP), speed error to ``reference.speed_mps``,
+  smooth and needs no wrapping inside the NLP), speed error to the reference's speed profile,
   acceleration and steering, and their rates; the first rate is taken against the
   previously applied command.
 * Bounds: steering ``|delta| <= max_steer_rad`` (pi/8 by default), acceleration in
@@ -722,7 +722,7 @@ class Nmpc:
             return self._fallback(t_s, state0, "non_finite_estimate", 0, 0.0)
         guess = self._initial_guess(t_s, state0)
 
-        blocks = self._reference_blocks(reference, state0, guess.states)
+        blocks = self._reference_blocks(reference, state0, guess.states, t_s)
         blocks["state0"] = state0
         blocks["input_prev"] = self._previous_input
         params = self._params.pack(blocks)
@@ -813,10 +813,13 @@ class Nmpc:
         return _Trajectory(t_s, states, shifted_inputs(warm.inputs, warm.t_s, t_s, dt_s))
 
     def _reference_blocks(
-        self, reference: ReferencePath, state0: np.ndarray, guess_states: np.ndarray
+        self, reference: ReferencePath, state0: np.ndarray, guess_states: np.ndarray,
+        t_s: float,
     ) -> dict[str, np.ndarray]:
         """Reference points at the arc lengths the warm start expects to cover
-        (:mod:`tracker.horizon_reference`), and the steering they need in a steady turn."""
+        (:mod:`tracker.horizon_reference`), the reference speed there (the path's speed
+        profile at each stage's arc length and time), and the steering they need in a
+        steady turn."""
         cfg = self.config
         index = self._state
         speed = guess_states[:, index["vx_mps"]]
@@ -832,7 +835,7 @@ class Nmpc:
             "ref_x_m": points.x_m,
             "ref_y_m": points.y_m,
             "ref_yaw_rad": points.yaw_rad,
-            "ref_speed_mps": np.full(self._n, reference.speed_mps),
+            "ref_speed_mps": points.speed_mps(reference, t_s, cfg.dt_s),
             "ref_steer_rad": steer,
         }
 

@@ -7,6 +7,12 @@ evaluate the spline's cubic pieces from scipy's coefficients in plain floats (Ho
 microsecond each instead of the tens a vectorised scipy call costs on one point; the
 runner projects the car 100 times per simulated second. The signed lateral error is
 positive when the point lies left of the path (ISO 8855 / ENU convention).
+
+A closed path (a circuit) is a periodic spline: arc lengths wrap modulo the lap length,
+so a tracker can read the path ahead across the start line. The reference speed is part of
+the reference: a :class:`tracker.paths.speed_profile.SpeedProfile` gives it at an arc
+length and a time (constant, a function of arc length such as a circuit's friction-limited
+profile, or a function of time such as stop-and-go); ``speed_mps`` is its top speed.
 """
 
 from __future__ import annotations
@@ -19,6 +25,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from cosim.exceptions import ConfigError
+from tracker.paths.speed_profile import ConstantSpeed, SpeedProfile
 
 
 @dataclass(frozen=True)
@@ -52,17 +59,16 @@ class ReferencePath:
     """A planar path with a reference speed.
 
     Args:
-      x_m, y_m: points along the path in the world frame, in driving order.
-      speed_mps: the reference speed along the whole path.
+      x_m, y_m: points along the path in the world frame, in driving order. For a closed
+        path the last point must not repeat the first: the spline closes the loop itself.
+      speed_mps: the reference speed along the whole path, or a speed profile.
       table_step_m: spacing of the projection table.
-      closed: the path is a circuit: the last point joins the first (do not repeat it),
-        the spline is periodic and arc lengths wrap modulo ``length_m`` instead of being
-        clamped, so a car can lap it for ever.
+      closed: the path is a loop (periodic spline, arc lengths modulo the lap).
     """
 
     def __init__(
-        self, x_m: np.ndarray, y_m: np.ndarray, speed_mps: float, table_step_m: float = 0.25,
-        closed: bool = False,
+        self, x_m: np.ndarray, y_m: np.ndarray, speed_mps: float | SpeedProfile,
+        table_step_m: float = 0.25, closed: bool = False,
     ) -> None:
         x_m = np.asarray(x_m, dtype=float)
         y_m = np.asarray(y_m, dtype=float)
@@ -79,7 +85,10 @@ class ReferencePath:
         self._y = CubicSpline(s, y_m, bc_type=boundary)
         self.closed = closed
         self.length_m = float(s[-1])
-        self.speed_mps = float(speed_mps)
+        self.speed_profile: SpeedProfile = (
+            speed_mps if isinstance(speed_mps, SpeedProfile) else ConstantSpeed(speed_mps))
+        self.speed_mps = self.speed_profile.top_speed_mps
+        """The profile's top speed (the constant reference speed of most paths) [m/s]."""
         self._table_step_m = float(table_step_m)
         self._table_s = np.arange(0.0, self.length_m, table_step_m)
         self._table_x = self._x(self._table_s)
@@ -90,23 +99,29 @@ class ReferencePath:
         self._pieces: list[tuple[float, ...]] = np.vstack(
             (self._x.c, self._y.c)).T.tolist()
 
+    def wrap(self, s_m: np.ndarray | float) -> np.ndarray:
+        """Arc lengths on the path: modulo the lap on a closed path, else clamped to it."""
+        s = np.asarray(s_m, dtype=float)
+        if self.closed:
+            return np.mod(s, self.length_m)
+        return np.clip(s, 0.0, self.length_m)
+
+    def speed_ref(self, s_m: np.ndarray | float, t_s: np.ndarray | float) -> np.ndarray:
+        """The reference speed at arc lengths ``s_m`` and times ``t_s`` [m/s]."""
+        return self.speed_profile.speed_mps(self.wrap(s_m), np.asarray(t_s, dtype=float))
+
     def point(self, s_m: float) -> PathPoint:
-        """The path at arc length ``s_m`` (clamped to the path, or wrapped on a circuit)."""
-        s = float(self._bounded(np.asarray(s_m, dtype=float)))
+        """The path at arc length ``s_m`` (clamped to the path, or wrapped when closed)."""
+        s = float(self.wrap(s_m))
         dx, dy = float(self._x(s, 1)), float(self._y(s, 1))
         ddx, ddy = float(self._x(s, 2)), float(self._y(s, 2))
         curvature = (dx * ddy - dy * ddx) / (dx * dx + dy * dy) ** 1.5
         return PathPoint(s, float(self._x(s)), float(self._y(s)), float(np.arctan2(dy, dx)),
                          float(curvature))
 
-    def _bounded(self, s_m: np.ndarray) -> np.ndarray:
-        if self.closed:
-            return np.mod(s_m, self.length_m)
-        return np.clip(s_m, 0.0, self.length_m)
-
     def sample(self, s_m: np.ndarray) -> dict[str, np.ndarray]:
         """Vectorised :meth:`point`: arrays ``x_m``, ``y_m``, ``yaw_rad``, ``curvature_1pm``."""
-        s = self._bounded(np.asarray(s_m, dtype=float))
+        s = self.wrap(s_m)
         dx, dy = self._x(s, 1), self._y(s, 1)
         ddx, ddy = self._x(s, 2), self._y(s, 2)
         return {

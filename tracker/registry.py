@@ -10,6 +10,10 @@ from collections.abc import Callable
 from types import MappingProxyType
 
 from cosim.exceptions import ConfigError
+from tracker.baselines.lqr import make_lqr
+from tracker.baselines.pid import make_pid
+from tracker.baselines.pure_pursuit import make_pure_pursuit
+from tracker.baselines.stanley import make_stanley
 from tracker.config import TrackerConfig
 from tracker.dynamic_mpc import DynamicMpc
 from tracker.dynamic_nmpc import DynamicNmpc
@@ -28,6 +32,10 @@ _CONSTRUCTORS: MappingProxyType[
         "dynamic-mpc": lambda config, maneuver: DynamicMpc(config),
         "ltv-mpc": lambda config, maneuver: LtvMpc(config),
         "open-loop": OpenLoopTracker,
+        "pid": lambda config, maneuver: make_pid(config),
+        "stanley": lambda config, maneuver: make_stanley(config),
+        "pure-pursuit": lambda config, maneuver: make_pure_pursuit(config),
+        "lqr": lambda config, maneuver: make_lqr(config),
     }
 )
 

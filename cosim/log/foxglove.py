@@ -54,6 +54,10 @@ TYRE_WIDTH_M = 0.22
 
 PATH_Z_M = 0.02
 """Height of the reference path above the ground (drawn just above it)."""
+CONE_HEIGHT_M = 0.7
+"""Height of a traffic cone in the scene."""
+CONE_BASE_M = 0.35
+"""Base diameter of a traffic cone."""
 PLAN_Z_M = 0.05
 ESTIMATE_Z_M = 0.08
 
@@ -167,14 +171,36 @@ def location_fix(x_m: float, y_m: float, t_s: float, sigma_m: float,
     }
 
 
-def static_scene(path_x_m: np.ndarray, path_y_m: np.ndarray) -> dict[str, object]:
-    """``foxglove.SceneUpdate`` with the reference path (sent once, on ``/scene``)."""
-    line = {
-        "type": 0, "pose": _pose(0.0, 0.0, 0.0), "thickness": 0.1, "scale_invariant": False,
-        "points": [_vector(x, y, PATH_Z_M) for x, y in zip(path_x_m, path_y_m, strict=True)],
-        "color": _color(0.1, 0.8, 0.2), "colors": [], "indices": [],
-    }
-    return _scene(_entity(0.0, WORLD_FRAME, "reference_path", False, lines=[line]))
+def static_scene(path_x_m: np.ndarray, path_y_m: np.ndarray,
+                 cones_xy_m: np.ndarray | None = None,
+                 edges: tuple[np.ndarray, ...] | None = None,
+                 closed: bool = False) -> dict[str, object]:
+    """``foxglove.SceneUpdate`` with the reference path, and where the course has them, its
+    cones (orange cones 0.7 m tall) and track edges ``(x_left, y_left, x_right, y_right)``
+    as white lines (sent once, on ``/scene``)."""
+    def line(x: np.ndarray, y: np.ndarray, color: dict[str, float],
+             thickness: float) -> dict[str, Any]:
+        points = [_vector(a, b, PATH_Z_M) for a, b in zip(x, y, strict=True)]
+        if closed and points:
+            points.append(points[0])
+        return {"type": 0, "pose": _pose(0.0, 0.0, 0.0), "thickness": thickness,
+                "scale_invariant": False, "points": points, "color": color, "colors": [],
+                "indices": []}
+
+    entities = [_entity(0.0, WORLD_FRAME, "reference_path", False,
+                        lines=[line(path_x_m, path_y_m, _color(0.1, 0.8, 0.2), 0.1)])]
+    if cones_xy_m is not None and len(cones_xy_m):
+        cones = [{"pose": _pose(x, y, CONE_HEIGHT_M / 2),
+                  "size": _vector(CONE_BASE_M, CONE_BASE_M, CONE_HEIGHT_M),
+                  "bottom_scale": 1.0, "top_scale": 0.0, "color": _color(1.0, 0.45, 0.0)}
+                 for x, y in cones_xy_m]
+        entities.append(_entity(0.0, WORLD_FRAME, "cones", False, cylinders=cones))
+    if edges is not None:
+        white = _color(0.95, 0.95, 0.95)
+        entities.append(_entity(0.0, WORLD_FRAME, "track_bounds", False,
+                                lines=[line(edges[0], edges[1], white, 0.15),
+                                       line(edges[2], edges[3], white, 0.15)]))
+    return _scene(*entities)
 
 
 def car_scene(truth: VehicleState, params: VehicleParams) -> dict[str, object]:

@@ -113,8 +113,10 @@ TRACKING_ERRORS = object_schema(
 REFERENCE_PATH = object_schema(
     "cosim.ReferencePath",
     {"s_m": NUMBERS, "x_m": NUMBERS, "y_m": NUMBERS, "yaw_rad": NUMBERS,
-     "curvature_1pm": NUMBERS, "speed_mps": NUMBER},
-    "The reference path sampled along its arc length, world frame.",
+     "curvature_1pm": NUMBERS, "speed_mps": NUMBER, "ref_speed_mps": NUMBERS,
+     "closed": BOOLEAN},
+    "The reference path sampled along its arc length, world frame; speed_mps is the top "
+    "speed, ref_speed_mps the speed profile at t = 0; closed for a circuit.",
 )
 
 METRICS = {

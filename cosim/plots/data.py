@@ -24,7 +24,7 @@ from cosim.simulation.metrics import NEES_STATES
 from tracker.reference_path import ReferencePath, wrap_angle
 
 TOPICS = {"/vehicle/truth", "/vehicle/estimate", "/control/command", "/control/plan",
-          "/reference/path", "/estimator/updates"}
+          "/reference/path", "/estimator/updates", "/control/errors"}
 
 TRUTH_FIELDS = ("x_m", "y_m", "yaw_rad", "vx_mps", "vy_mps", "yaw_rate_radps", "ax_mps2",
                 "steer_rad", "roll_rad")
@@ -129,6 +129,9 @@ class TrackingErrors:
     """Signed lateral error, positive left of the path."""
     heading_err_rad: np.ndarray
     speed_err_mps: np.ndarray
+    ref_speed_mps: np.ndarray
+    """The reference speed at each sample: the logged profile (``/control/errors``) where
+    the log has it, else the path's constant speed."""
 
 
 @dataclass(frozen=True)
@@ -246,15 +249,23 @@ def _reference(messages: list[tuple[int, dict[str, Any]]]) -> Reference | None:
     message = messages[0][1]
     x, y = _floats(message["x_m"]), _floats(message["y_m"])
     try:
-        path = ReferencePath(x, y, float(message["speed_mps"]))
+        path = ReferencePath(x, y, float(message["speed_mps"]),
+                             closed=bool(message.get("closed", False)))
     except CosimError:
         return None
     return Reference(x, y, float(message["speed_mps"]), path)
 
 
-def _tracking(truth: Truth, reference: Reference | None) -> TrackingErrors | None:
+def _tracking(truth: Truth, reference: Reference | None,
+              errors: list[tuple[int, dict[str, Any]]]) -> TrackingErrors | None:
     if reference is None:
         return None
+    ref_speed = np.full(truth.t_s.shape, reference.speed_mps)
+    logged = {time_ns: m.get("ref_speed_mps") for time_ns, m in errors}
+    for i, time_ns in enumerate(truth.log_time_ns):
+        value = logged.get(int(time_ns))
+        if value is not None:
+            ref_speed[i] = float(value)
     projections = [reference.path.project(x, y) for x, y in zip(truth.x_m, truth.y_m,
                                                                   strict=True)]
     path_yaw = np.array([p.path_yaw_rad for p in projections])
@@ -263,7 +274,8 @@ def _tracking(truth: Truth, reference: Reference | None) -> TrackingErrors | Non
         s_m=np.array([p.s_m for p in projections]),
         cte_m=np.array([p.lateral_error_m for p in projections]),
         heading_err_rad=np.asarray(wrap_angle(truth.yaw_rad - path_yaw)),
-        speed_err_mps=truth.speed_mps - reference.speed_mps,
+        speed_err_mps=truth.speed_mps - ref_speed,
+        ref_speed_mps=ref_speed,
     )
 
 
@@ -319,7 +331,8 @@ def load_run(path: Path | str) -> RunLog:
         truncated=summary.truncated, truth=truth, estimate=estimate,
         commands=_commands(messages["/control/command"]),
         plans=_plans(messages["/control/plan"]), reference=reference,
-        tracking=_tracking(truth, reference), estimation=_estimation(truth, estimate),
+        tracking=_tracking(truth, reference, messages["/control/errors"]),
+        estimation=_estimation(truth, estimate),
         nis=_nis(messages["/estimator/updates"]),
     )
 

@@ -18,6 +18,7 @@ from cosim.plots.style import (
     finish,
     new_figure,
     note,
+    run_colour,
     run_line,
     time_axis,
 )
@@ -55,7 +56,11 @@ def tracking_figure(runs: Sequence[RunLog], path: Path) -> Path:
         speed_ax.plot(run.truth.t_s, run.truth.speed_mps, linewidth=1.2, **run_line(i),
                       label=f"true speed (speed error RMS "
                             f"{_rms(errors.speed_err_mps):.2f} m/s)")
-        if run.reference is not None and run.reference.speed_mps not in reference_speeds:
+        profile = errors.ref_speed_mps
+        if np.ptp(profile) > 0.0:  # a speed profile: draw it as it was asked for
+            speed_ax.plot(errors.t_s, profile, color=run_colour(i), linestyle=":", linewidth=1.0,
+                          label="reference speed profile")
+        elif run.reference is not None and run.reference.speed_mps not in reference_speeds:
             reference_speeds.add(run.reference.speed_mps)
             speed_ax.axhline(run.reference.speed_mps, color=REFERENCE_COLOUR, linestyle="--",
                              linewidth=1.0,

@@ -5,6 +5,14 @@ y - y_ref); heading error is the true yaw minus the path's yaw at that projectio
 to (-pi, pi]. NEES is over (x, y, yaw, speed), 4 degrees of freedom, so its mean should sit
 near 4 for a consistent filter. ``nis_mean`` is the mean of NIS divided by the measurement's
 dimension over every accepted update (1 for a consistent filter, whatever the sensor).
+The speed error is against the reference's speed profile at the projection and the time.
+
+Comfort, from the truth at the log rate: ``lat_accel_max_mps2`` is the largest lateral
+acceleration of the centre of gravity (vehicle frame); ``jerk_rms_mps3`` the RMS of the
+magnitude of the planar jerk (finite differences of the vehicle-frame longitudinal and
+lateral accelerations between log samples) and ``lat_jerk_rms_mps3`` that of its lateral
+part, the two figures ride-comfort studies rank controllers by (e.g. ISO 2631-1's weighting
+aside, peak lateral acceleration and RMS jerk are the usual path-tracking comfort figures).
 """
 
 from __future__ import annotations
@@ -82,6 +90,13 @@ class MetricsAccumulator:
     cte_m: RunningStats = field(default_factory=RunningStats)
     heading_err_rad: RunningStats = field(default_factory=RunningStats)
     speed_err_mps: RunningStats = field(default_factory=RunningStats)
+    last_ref_speed_mps: float = float("nan")
+    """The reference speed at the last truth sample's projection and time [m/s]."""
+    lat_accel_mps2: RunningStats = field(default_factory=RunningStats)
+    jerk_mps3: RunningStats = field(default_factory=RunningStats)
+    lat_jerk_mps3: RunningStats = field(default_factory=RunningStats)
+    last_accel: tuple[float, float, float] | None = None
+    """``(t_s, ax_mps2, ay_mps2)`` of the last truth sample, for the jerk's differences."""
     steer_rad: RunningStats = field(default_factory=RunningStats)
     accel_mps2: RunningStats = field(default_factory=RunningStats)
     solve_time_s: Samples = field(default_factory=Samples)
@@ -106,7 +121,10 @@ class MetricsAccumulator:
         self.last_path_s_m = projection.s_m
         self.cte_m.add(projection.lateral_error_m)
         self.heading_err_rad.add(float(wrap_angle(truth.yaw_rad - projection.path_yaw_rad)))
-        self.speed_err_mps.add(truth.speed_mps - self.reference.speed_mps)
+        ref_speed = float(self.reference.speed_ref(projection.s_m, truth.t_s))
+        self.last_ref_speed_mps = ref_speed
+        self.speed_err_mps.add(truth.speed_mps - ref_speed)
+        self._add_comfort(truth)
         self.last_t_s = truth.t_s
         if self.maneuver is not None:
             self.t_s.add(truth.t_s)
@@ -204,5 +222,28 @@ class MetricsAccumulator:
             "wall_time_s": wall_time_s,
             "realtime_factor": sim_duration_s / wall_time_s if wall_time_s > 0 else float("nan"),
             "completed": completed,
+            **self.comfort(),
             **extra,
         }
+
+    def _add_comfort(self, truth: VehicleState) -> None:
+        # Before the first physics step the plant has no accelerations yet (they read 0):
+        # that sample would turn the start into a jerk of a few hundred m/s^3.
+        if truth.t_s <= 0.0:
+            return
+        self.lat_accel_mps2.add(truth.ay_mps2)
+        if self.last_accel is not None:
+            last_t_s, last_ax, last_ay = self.last_accel
+            dt = truth.t_s - last_t_s
+            if dt > 0.0:
+                jerk_x = (truth.ax_mps2 - last_ax) / dt
+                jerk_y = (truth.ay_mps2 - last_ay) / dt
+                self.jerk_mps3.add(float(np.hypot(jerk_x, jerk_y)))
+                self.lat_jerk_mps3.add(jerk_y)
+        self.last_accel = (truth.t_s, truth.ax_mps2, truth.ay_mps2)
+
+    def comfort(self) -> dict[str, float]:
+        """``lat_accel_max_mps2``, ``jerk_rms_mps3``, ``lat_jerk_rms_mps3`` (module docstring)."""
+        return {"lat_accel_max_mps2": self.lat_accel_mps2.max_abs,
+                "jerk_rms_mps3": self.jerk_mps3.rms,
+                "lat_jerk_rms_mps3": self.lat_jerk_mps3.rms}

@@ -46,11 +46,12 @@ from cosim.plant.low_level import AccelToTorque
 from cosim.records import Command, Estimate, Plan
 from cosim.sensing.faults import FaultInjector
 from cosim.sensing.sensors import TruthSensor, make_sensors
+from cosim.simulation.course import Course, build_course
+from cosim.simulation.course_metrics import CourseMonitor
 from cosim.simulation.metrics import MetricsAccumulator
 from cosim.simulation.outcome import OutcomeMonitor
 from cosim.simulation.scenario_config import ScenarioConfig, steps_per_period
 from estimation.registry import make_estimator
-from tracker.double_lane_change import double_lane_change
 from tracker.reference_path import ReferencePath
 from tracker.registry import make_tracker
 
@@ -75,21 +76,13 @@ def component_rng(seed: int, component: str) -> np.random.Generator:
 
 
 def build_reference(config: ScenarioConfig) -> ReferencePath:
-    """The reference path the scenario names."""
-    path = config.path
-    if path.kind == "double-lane-change":
-        return double_lane_change(path.speed_mps, path.stretch, path.length_m)
-    if path.kind == "straight":
-        x_m = np.linspace(0.0, path.length_m, 4) + config.initial.x_m
-        return ReferencePath(x_m, np.full(4, config.initial.y_m), path.speed_mps)
-    if path.kind == "circle":  # a circuit from the car's pose, its centre on the car's left
-        angle = np.arange(0.0, 2.0 * np.pi, 1.0 / path.radius_m)  # about 1 m apart
-        ahead_m, left_m = path.radius_m * np.sin(angle), path.radius_m * (1.0 - np.cos(angle))
-        c, s = np.cos(config.initial.yaw_rad), np.sin(config.initial.yaw_rad)
-        x_m = config.initial.x_m + c * ahead_m - s * left_m
-        y_m = config.initial.y_m + s * ahead_m + c * left_m
-        return ReferencePath(x_m, y_m, path.speed_mps, closed=True)
-    raise AssertionError(f"unhandled path kind {path.kind!r}")  # validated by choices
+    """The reference path the scenario names (:func:`build_course` for its cones and bounds)."""
+    return scenario_course(config).reference
+
+
+def scenario_course(config: ScenarioConfig) -> Course:
+    """The course of the scenario: path, speed profile, gates, cones, track bounds."""
+    return build_course(config.path, config.initial, config.plant, config.sim.duration_s)
 
 
 def _versions() -> dict[str, str]:
@@ -188,7 +181,9 @@ class _Run:
         self.config = config
         self.clock = _Clock.from_config(config)
         self.recorder = recorder
-        self.reference = build_reference(config)
+        self.course = scenario_course(config)
+        self.reference = self.course.reference
+        self.course_monitor = CourseMonitor(self.course, config.plant)
         self.plant = MujocoPlant(config.plant, self.clock.dt_s, config.initial)
         self.estimator = make_estimator(config.estimator, config.initial, config.tracker.model)
         self.tracker = make_tracker(config.tracker, config.maneuver)
@@ -245,8 +240,14 @@ class _Run:
         recorder.write("/reference/path", 0.0, {
             **{k: [float(v) for v in samples[k]] for k in samples},
             "speed_mps": self.reference.speed_mps,
+            "ref_speed_mps": [float(v) for v in self.reference.speed_ref(samples["s_m"], 0.0)],
+            "closed": self.reference.closed,
         })
-        recorder.write("/scene", 0.0, foxglove.static_scene(samples["x_m"], samples["y_m"]))
+        course = self.course
+        edges = course.bounds.edges(self.reference) if course.bounds is not None else None
+        recorder.write("/scene", 0.0, foxglove.static_scene(
+            samples["x_m"], samples["y_m"], course.cones_xy_m, edges,
+            closed=self.reference.closed))
 
     def current_estimate(self, t_s: float) -> Estimate:
         self.estimator.predict(t_s)
@@ -272,11 +273,12 @@ class _Run:
                 self.recorder.register("/events", mcap_schemas.EVENT)
                 self.events_registered = True
             self.recorder.write_finite("/events", t_s, event.to_message())
+        self.course_monitor.add_truth(self.truth, metrics.cte_m.last, metrics.last_path_s_m)
         self.recorder.write_finite("/control/errors", t_s, {
             "t_s": t_s, "cte_m": metrics.cte_m.last,
             "heading_err_rad": metrics.heading_err_rad.last,
             "speed_err_mps": metrics.speed_err_mps.last, "speed_mps": self.truth.speed_mps,
-            "ref_speed_mps": self.reference.speed_mps,
+            "ref_speed_mps": metrics.last_ref_speed_mps,
         })
         if t_s >= self.next_live_metrics_s - 1e-9:
             self.recorder.write_finite("/metrics/live", t_s, metrics.live(t_s))
@@ -411,6 +413,7 @@ def _finish(recorder: McapRecorder, state: _Run, wall_start: float, completed: b
     metrics.estimator_counts = counts() if counts is not None else {}
     values: dict[str, float | int | bool | str] = dict(
         metrics.result(time.perf_counter() - wall_start, completed))
+    values.update(state.course_monitor.result())
     values["faults_injected"] = sum(f.injected for f in state.faults.values())
     values["outcome"] = state.monitor.outcome(abort)
     values["events"] = len(state.monitor.events)

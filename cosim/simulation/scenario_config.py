@@ -26,6 +26,7 @@ from cosim.plant.disturbances import DisturbanceConfig
 from cosim.sensing.faults import FaultConfig
 from cosim.sensing.sensors import SensorsConfig, suite_preset
 from cosim.simulation.outcome import OutcomeConfig
+from cosim.simulation.path_config import PathConfig
 from cosim.vehicle_params import PlantConfig
 from cosim.yaml_io import loads as yaml_loads
 from cosim.yaml_io import read_yaml_file, shown
@@ -72,19 +73,6 @@ class SimConfig:
     def epoch_ns(self) -> int:
         """:attr:`epoch` in integer nanoseconds since 1970-01-01T00:00:00Z."""
         return epoch_ns(self.epoch)
-
-
-@dataclass(frozen=True)
-class PathConfig:
-    """The reference path and speed."""
-
-    kind: str = setting("double-lane-change",
-                        choices=("double-lane-change", "straight", "circle"))
-    stretch: float = setting(1.5, low=0.2, high=10.0, doc="x-scale of Falcone's constants")
-    speed_mps: float = setting(20.0, low=0.0, high=80.0, doc="reference speed v_D")
-    length_m: float = setting(600.0, low=10.0, high=1e5)
-    radius_m: float = setting(100.0, low=5.0, high=1e4,
-                              doc="circle: a closed circuit, counter-clockwise, lapped for ever")
 
 
 @dataclass(frozen=True)

@@ -80,17 +80,18 @@ def _sigterm_as_interrupt() -> Iterator[None]:
         signal.signal(signal.SIGTERM, previous)
 
 
-class _Progress:
-    """Progress with ETA: a rich bar on a terminal, else one line per finished run."""
+class RunProgress:
+    """Progress with ETA: a rich bar on a terminal, else one line per finished run
+    (``cosim sweep``, ``cosim compare``)."""
 
-    def __init__(self, total: int, done: int, spec: SweepSpec) -> None:
-        self.total, self.done, self.spec = total, done, spec
+    def __init__(self, total: int, done: int, label: str) -> None:
+        self.total, self.done, self.label = total, done, label
         self.start = time.perf_counter()
         self.ran = 0
         self.bar: Any = None
         self.task: Any = None
 
-    def __enter__(self) -> _Progress:
+    def __enter__(self) -> RunProgress:
         if sys.stderr.isatty():
             from rich.console import Console
             from rich.progress import (
@@ -102,7 +103,7 @@ class _Progress:
                 TimeRemainingColumn,
             )
 
-            self.bar = Progress(TextColumn(f"sweep {self.spec.name}"), BarColumn(),
+            self.bar = Progress(TextColumn(self.label), BarColumn(),
                                 MofNCompleteColumn(), TimeElapsedColumn(),
                                 TextColumn("eta"), TimeRemainingColumn(),
                                 console=Console(stderr=True), transient=True)
@@ -166,7 +167,8 @@ def run_sweep(spec_path: str | Path, out_dir: str | Path | None = None,
     missing = [task for task in tasks if task.run_id not in rows]
     ran = 0
     interrupted = False
-    with directory.open_rows() as handle, _Progress(len(tasks), len(rows), spec) as progress:
+    progress_bar = RunProgress(len(tasks), len(rows), f"sweep {spec.name}")
+    with directory.open_rows() as handle, progress_bar as progress:
 
         def land(row: dict[str, Any]) -> None:
             nonlocal ran

@@ -56,7 +56,7 @@ def test_nested_keys_set_like_the_command_line() -> None:
         ({"weights": {"lateral": 1.0}}, "unknown key 'tracker.weights.lateral'"),
         ({"weights": {"cte": -1.0}}, "tracker.weights.cte = -1.0"),
         ({"weights": 3}, "tracker.weights = 3"),
-        ({"name": "pid"}, "tracker.name = 'pid'"),
+        ({"name": "bang-bang"}, "tracker.name = 'bang-bang'"),
         ({"horizn": 30}, "unknown key 'tracker.horizn'"),
         ({"max_steer_rad": 2.0}, "tracker.max_steer_rad = 2.0"),
         ({"max_iterations": 0}, "tracker.max_iterations = 0"),
@@ -113,6 +113,6 @@ def test_the_mathworks_example_tyres_are_a_belief_one_can_state() -> None:
 
 
 def test_registry_refuses_unknown_names() -> None:
-    config = dataclasses.replace(TrackerConfig(), name="pure-pursuit")
-    with pytest.raises(ConfigError, match="tracker.name = 'pure-pursuit'.*kinematic-nmpc"):
+    config = dataclasses.replace(TrackerConfig(), name="follow-the-carrot")
+    with pytest.raises(ConfigError, match="tracker.name = 'follow-the-carrot'.*kinematic-nmpc"):
         make_tracker(config)

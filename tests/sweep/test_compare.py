@@ -1,0 +1,78 @@
+"""``cosim compare``: the league table from rows, and the command as a user runs it."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import pytest
+
+from cosim.sweeps.compare import league, make_tasks, markdown
+from tests.test_cli import cosim
+
+
+def _row(run_id: int, scenario: str, tracker: str, seed: int, cte: float,
+         error: str = "", failures: int = 0) -> dict:
+    return {"run_id": run_id, "seed": seed, "params": {"scenario": scenario, "tracker": tracker},
+            "metrics": {"cte_rms_m": cte, "cte_max_m": 3 * cte, "solver_failures": failures},
+            "error": error}
+
+
+def test_league_takes_the_mean_of_rms_and_the_worst_of_maxima_over_seeds() -> None:
+    rows = [_row(0, "circle", "pid", 0, 0.1), _row(1, "circle", "pid", 1, 0.3, failures=2),
+            _row(2, "circle", "lqr", 0, 0.05, error="PhysicsDivergenceError: boom")]
+    table = {r.tracker: r for r in league(rows)}
+    assert table["pid"].values["cte_rms_m"] == pytest.approx(0.2)
+    assert table["pid"].values["cte_max_m"] == pytest.approx(0.9)
+    assert table["pid"].failures == 2
+    assert table["lqr"].failures == 1 and table["lqr"].errors == ("PhysicsDivergenceError: boom",)
+    text = markdown(list(table.values()))
+    assert text.index("| lqr |") < text.index("| pid |")  # best RMS CTE first
+
+
+def test_tasks_cover_every_combination_once() -> None:
+    tasks = make_tasks(["circle", "track"], ["pid", "lqr", "ltv-mpc"], 2, 1.0, None)
+    keys = {(t.scenario, t.tracker, t.seed) for t in tasks}
+    assert len(tasks) == len(keys) == 12
+    assert [t.run_id for t in tasks] == list(range(12))
+
+
+def test_compare_runs_every_combination_and_writes_the_table(tmp_path: Path) -> None:
+    out = tmp_path / "league"
+    result = cosim("compare", "--trackers", "pid,lqr", "--scenarios", "circle",
+                   "--duration", "0.5", "--workers", "2", "--json", "--out", str(out))
+    assert result.returncode == 0, result.stderr
+    rows = json.loads(result.stdout)
+    assert {(r["scenario"], r["tracker"], r["seed"]) for r in rows} == {
+        ("circle", "pid", 0), ("circle", "lqr", 0)}
+    assert all(r["metrics"]["completed"] for r in rows)
+    with (out / "league.csv").open() as handle:
+        table = list(csv.DictReader(handle))
+    assert {r["tracker"] for r in table} == {"pid", "lqr"}
+    assert (out / "league.png").stat().st_size > 0
+    assert "## circle" in (out / "league.md").read_text()
+
+
+@pytest.mark.parametrize(("args", "fragment"), [
+    (("--trackers", "pid,bogus"), "'bogus' is not one of"),
+    (("--trackers", "open-loop"), "'open-loop' is not one of"),
+    (("--scenarios", "nowhere"), "scenario 'nowhere'"),
+    (("--seeds", "0"), "--seeds 0"),
+])
+def test_compare_bad_input_is_one_line_and_exit_2(tmp_path: Path, args: tuple[str, ...],
+                                                  fragment: str) -> None:
+    result = cosim("compare", *args, "--out", str(tmp_path))
+    assert result.returncode == 2
+    assert fragment in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
+
+
+def test_bad_track_csv_is_one_line_and_exit_2(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.csv"
+    bad.write_text("x,y\n0,0\n1,0\n1,0\n2,2\n")
+    result = cosim("run", "track", "--set", f"path.file={bad}", "--out",
+                   str(tmp_path / "run.mcap"))
+    assert result.returncode == 2
+    assert result.stderr.strip() == (f"cosim: error: path.file {str(bad)!r}: data rows 2 and 3 "
+                                     "are the same point, expected distinct consecutive points")

@@ -1,0 +1,1 @@
+"""Classic path trackers to measure the MPCs against: PID, Stanley, pure pursuit, LQR."""
