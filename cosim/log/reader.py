@@ -13,11 +13,13 @@ from __future__ import annotations
 
 import json
 import struct
-from collections.abc import Iterator
+import zlib
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import zstandard
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from mcap.records import Attachment, Channel, Footer, Header, Message, Metadata, Schema
@@ -125,6 +127,42 @@ def _records(path: Path) -> Iterator[Any]:
         stream.close()
 
 
+CHUNK_OPCODE = 0x06
+"""MCAP's opcode of a Chunk record (the MCAP specification, "Records")."""
+
+
+def _chunks_intact(stream: Any, chunk_indexes: Sequence[Any]) -> bool:
+    """Whether every chunk the summary indexes is where the index says and decompresses to
+    its CRC: the summary section alone cannot show damaged bytes in the data section. A
+    chunk record is opcode (1 byte), length (uint64), then start and end time (2 x uint64),
+    uncompressed size (uint64), uncompressed CRC-32 (uint32, 0 = none), the compression
+    (uint32-prefixed string) and the records (uint64-prefixed bytes), all little-endian.
+    Reading and decompressing the bytes costs milliseconds; no record is decoded."""
+    for index in chunk_indexes:
+        stream.seek(index.chunk_start_offset)
+        record = stream.read(index.chunk_length)
+        if len(record) != index.chunk_length or record[0] != CHUNK_OPCODE:
+            return False
+        if int.from_bytes(record[1:9], "little") != index.chunk_length - 9:
+            return False
+        size = int.from_bytes(record[25:33], "little")
+        crc = int.from_bytes(record[33:37], "little")
+        name_length = int.from_bytes(record[37:41], "little")
+        compression = record[41:41 + name_length].decode("ascii", "replace")
+        start = 41 + name_length + 8
+        data = record[start:start + int.from_bytes(record[start - 8:start], "little")]
+        try:
+            if compression == "zstd":
+                data = zstandard.ZstdDecompressor().decompress(data, max_output_size=size)
+            elif compression:
+                continue  # lz4 and others: left to the mcap reader
+        except ZstdError:
+            return False
+        if len(data) != size or (crc and zlib.crc32(data) != crc):
+            return False
+    return True
+
+
 def _indexed_summary(path: Path) -> LogSummary | None:
     """The summary from the file's summary section (statistics, channels, schemas, metadata
     and attachment indexes) and the one chunk that holds ``/metrics``: milliseconds for a
@@ -136,8 +174,11 @@ def _indexed_summary(path: Path) -> LogSummary | None:
             found = reader.get_summary()
             if found is None or found.statistics is None:
                 return None
+            if not _chunks_intact(stream, found.chunk_indexes):
+                return None  # the record-by-record scan says where the damage is
             statistics = found.statistics
             summary = LogSummary(path)
+            summary.library = reader.get_header().library
             if statistics.message_count:
                 summary.start_ns = statistics.message_start_time
                 summary.end_ns = statistics.message_end_time
