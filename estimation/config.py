@@ -20,10 +20,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from cosim.config_fields import setting
+from cosim.config_fields import section, setting
 from estimation.models import TYRE_MODELS
+from estimation.noise_config import NoiseBelief
 
 ESTIMATOR_NAMES: tuple[str, ...] = ("ekf", "ukf", "truth")
+
+INITIAL_MODES: tuple[str, ...] = ("sampled", "first-fix", "truth")
+"""Values ``estimator.initial`` accepts (:mod:`estimation.initial`)."""
 """Values ``estimator.name`` accepts; :func:`estimation.registry.make_estimator` builds each."""
 
 
@@ -37,6 +41,15 @@ class EstimatorConfig:
         doc="ekf: extended Kalman filter; ukf: unscented Kalman filter (same models); "
         "truth: the true state (debugging)",
     )
+
+    initial: str = setting(
+        "sampled",
+        choices=INITIAL_MODES,
+        doc="the initial estimate: sampled (drawn from N(truth, P0) with the run's seed), "
+        "first-fix (sampled, then the position taken from the first GNSS fix) or truth "
+        "(debugging only: the filter starts without error)",
+    )
+    noise: NoiseBelief = section(NoiseBelief)
 
     tyre_model: str = setting(
         "saturating",
@@ -81,12 +94,6 @@ class EstimatorConfig:
     )
     lateral_residual_time_constant_s: float = setting(
         0.5, low=0.05, high=1e4, doc="the lateral residual relaxes to zero with this time constant"
-    )
-    gyro_bias_psd_rad2ps3: float = setting(
-        4e-8, low=0.0, high=1.0, doc="random walk of the gyro bias ((rad/s)^2 per s)"
-    )
-    accel_bias_psd_m2ps5: float = setting(
-        4e-6, low=0.0, high=1.0, doc="random walk of the ax accelerometer bias ((m/s^2)^2 per s)"
     )
     yaw_psd_rad2ps: float = setting(
         1e-8, low=0.0, high=10.0, doc="heading random walk (unmodelled yaw errors) [rad^2/s]"

@@ -175,7 +175,9 @@ class _Run:
         self.recorder = recorder
         self.reference = build_reference(config)
         self.plant = MujocoPlant(config.plant, self.clock.dt_s, config.initial)
-        self.estimator = make_estimator(config.estimator, config.initial, config.tracker.model)
+        self.estimator = make_estimator(
+            config.estimator, config.initial, config.tracker.model,
+            rng=component_rng(config.seed, "estimator.initial"))
         self.tracker = make_tracker(config.tracker, config.maneuver)
         self.low_level = AccelToTorque(config.tracker.model)
         self.sensors = make_sensors(config.sensors)
@@ -261,7 +263,7 @@ class _Run:
                     self.config.sensors.gnss.sigma_m, self.config.geo))
             update = self.estimator.update(measurement)
             if sensor.name != "truth":  # noise-free: NIS is undefined
-                self.metrics.add_update(update.accepted, update.nis, update.dim)
+                self.metrics.add_update(sensor.name, update)
 
     def control(self, k: int, t_s: float) -> None:
         command, plan = self.tracker.step(t_s, self.current_estimate(t_s), self.reference)
