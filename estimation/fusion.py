@@ -128,11 +128,13 @@ def process_noise(config: EstimatorConfig) -> ProcessNoise:
         yaw_accel_psd_rad2ps3=config.yaw_accel_psd_rad2ps3,
         jerk_psd_m2ps5=config.jerk_psd_m2ps5,
         steer_psd_rad2ps=config.steer_psd_rad2ps,
+        steer_rate_psd_rad2ps3=config.steer_rate_psd_rad2ps3,
         roll_accel_psd_rad2ps3=config.roll_accel_psd_rad2ps3,
         lateral_residual_psd_m2ps5=residual_psd,
         gyro_bias_psd_rad2ps3=config.noise.gyro_bias_psd_rad2ps3,
         accel_bias_psd_m2ps5=config.noise.accel_bias_psd_m2ps5,
         rolling_radius_scale_psd_1ps=config.rolling_radius_scale_psd_1ps,
+        wheel_track_scale_psd_1ps=config.wheel_track_scale_psd_1ps,
     )
 
 
@@ -339,7 +341,6 @@ class KalmanFusion(ABC):
                 f"covariance of shape {covariance.shape}"
             )
         z = values[list(selection.measurement_columns)]
-        r_matrix = np.diag(selection.model_variance)
         t_s = float(measurement.t_s)
         if not (math.isfinite(t_s) and np.isfinite(z).all()):
             counts.rejected_nonfinite += 1
@@ -349,6 +350,7 @@ class KalmanFusion(ABC):
             return UpdateResult(False, math.nan, dim, STALE)
 
         self.predict(t_s)
+        r_matrix = np.diag(selection.model_variance)
         if self._awaiting_first_fix and sensor == "gnss" and dim == 2:
             self._take_first_fix(model, selection, z, r_matrix)
             counts.accepted += 1

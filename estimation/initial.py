@@ -16,9 +16,9 @@ initial covariance):
   :class:`estimation.fusion.KalmanFusion`);
 - ``truth``: the mean is the true initial state (debugging only).
 
-The states of the car's motion (:data:`estimation.models.VEHICLE_STATE_NAMES` and the roll
-rate) are sampled. The sensor states (gyro and accelerometer biases, the rolling-radius
-scale) keep their nominal means (zero, one): their truth is itself unknown (a sensor's
+The states of the car's motion (:data:`estimation.models.VEHICLE_STATE_NAMES`, the roll
+rate and the steering rate) are sampled. The sensor states (gyro and accelerometer biases, the rolling-radius
+and track scales) keep their nominal means (zero, one): their truth is itself unknown (a sensor's
 turn-on bias is drawn by the sensor, the effective radius is the tyre's), so the nominal
 mean with its P0 is already the honest prior. The lateral residual is a model state with
 no truth to centre on.
@@ -32,7 +32,7 @@ from cosim.initial_state import InitialState
 from estimation.config import EstimatorConfig
 from estimation.models import STATE_NAMES, VEHICLE_STATE_NAMES, wrap_angle
 
-SAMPLED_STATES: tuple[str, ...] = (*VEHICLE_STATE_NAMES, "roll_rate_radps")
+SAMPLED_STATES: tuple[str, ...] = (*VEHICLE_STATE_NAMES, "roll_rate_radps", "steer_rate_radps")
 """States whose initial mean is drawn around the truth in the ``sampled`` mode."""
 
 
@@ -51,12 +51,14 @@ def nominal_belief(
         "yaw_rate_radps": 0.0,
         "ax_mps2": 0.0,
         "steer_rad": 0.0,
+        "steer_rate_radps": 0.0,
         "roll_rad": 0.0,
         "roll_rate_radps": 0.0,
         "lateral_accel_residual_mps2": 0.0,
         "gyro_bias_radps": 0.0,
         "ax_bias_mps2": 0.0,
         "rolling_radius_scale": 1.0,
+        "wheel_track_scale": 1.0,
     }
     sigma = {
         "x_m": config.init_position_sigma_m,
@@ -67,12 +69,14 @@ def nominal_belief(
         "yaw_rate_radps": config.init_yaw_rate_sigma_radps,
         "ax_mps2": config.init_accel_sigma_mps2,
         "steer_rad": config.init_steer_sigma_rad,
+        "steer_rate_radps": config.init_steer_rate_sigma_radps,
         "roll_rad": config.init_roll_sigma_rad,
         "roll_rate_radps": config.init_roll_rate_sigma_radps,
         "lateral_accel_residual_mps2": config.lateral_residual_sigma_mps2,
         "gyro_bias_radps": config.init_gyro_bias_sigma_radps,
         "ax_bias_mps2": config.init_accel_bias_sigma_mps2,
         "rolling_radius_scale": config.init_rolling_radius_scale_sigma,
+        "wheel_track_scale": config.init_wheel_track_scale_sigma,
     }
     return (
         np.array([float(mean[name]) for name in STATE_NAMES]),
