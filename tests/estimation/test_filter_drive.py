@@ -153,6 +153,7 @@ def test_process_model_predicts_side_slip_from_the_steering() -> None:
     x = np.zeros(len(STATE_NAMES))
     x[state_index("vx_mps")] = profile.speed0_mps
     x[state_index("rolling_radius_scale")] = 1.0
+    x[state_index("wheel_track_scale")] = 1.0
     predicted, true = [], []
     for index_ms in range(0, len(truth.t_s) - 10, 10):
         x[state_index("steer_rad")] = truth.at(index_ms + 5, "steer_rad")  # mid-step

@@ -25,6 +25,7 @@ from cosim.initial_state import InitialState
 from cosim.records import Measurement
 from cosim.vehicle_params import VehicleParams
 from estimation.config import EstimatorConfig
+from estimation.noise_config import NoiseBelief
 from estimation.models import MODEL_STATE_NAMES, STATE_NAMES, VEHICLE_STATE_NAMES
 from estimation.registry import make_estimator
 from tracker.dynamic_bicycle import DynamicBicycleParams
@@ -33,7 +34,7 @@ SPEED_MPS = 10.0
 GNSS_PERIOD_S = 0.1
 GNSS_SIGMA_M = 0.5
 DURATION_S = 60.0
-CONFIG = EstimatorConfig(roll_gradient_radpmps2=0.0)
+CONFIG = EstimatorConfig(roll_gradient_radpmps2=0.0, noise=NoiseBelief(gnss_sigma_m=0.5))
 """Without the body roll mode, whose equations have no independent implementation to
 compare with (tests/estimation/test_models.py checks it by hand)."""
 REFERENCE_STATES = tuple(
@@ -60,6 +61,7 @@ def _linear_reference() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
     a[_index("y_m"), _index("vy_mps")] = 1.0
     a[_index("yaw_rad"), _index("yaw_rate_radps")] = 1.0
     a[_index("vx_mps"), _index("ax_mps2")] = 1.0  # dvx/dt = ax + r vy
+    a[_index("steer_rad"), _index("steer_rate_radps")] = 1.0
     bicycle = DynamicBicycleParams.from_vehicle(VehicleParams(), 72550.0, 79580.0)
     lateral_a, lateral_b = bicycle.lateral_state_space(SPEED_MPS)
     lateral = [_index("vy_mps"), _index("yaw_rate_radps")]
@@ -76,6 +78,7 @@ def _linear_reference() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
         "yaw_rate_radps": CONFIG.yaw_accel_psd_rad2ps3,
         "ax_mps2": CONFIG.jerk_psd_m2ps5,
         "steer_rad": CONFIG.steer_psd_rad2ps,
+        "steer_rate_radps": CONFIG.steer_rate_psd_rad2ps3,
         "lateral_accel_residual_mps2": (
             2 * CONFIG.lateral_residual_sigma_mps2**2 / CONFIG.lateral_residual_time_constant_s
         ),
@@ -186,8 +189,8 @@ def test_steady_state_covariance_solves_the_riccati_equation() -> None:
 
 
 def test_ukf_agrees_with_the_linear_kalman_filter() -> None:
-    """Noiseless, linear tyres: the UKF's covariance equals the optimal one to 2 % of the
-    standard deviations (the longitudinal channel to 0.1 %: only products such as r vy and
+    """Noiseless, linear tyres: the UKF's covariance equals the optimal one to 3 % of the
+    standard deviations (the longitudinal channel to 0.2 %: only products such as r vy and
     vx cos(yaw) couple it to the lateral one); its mean stays on the optimal one to 10 % of a
     standard deviation: the sigma points see that ``E[vx cos(yaw)] = vx (1 - sigma_yaw^2 / 2)``
     with GNSS alone, and to keep up with the fixes the UKF's speed sits 0.2 % high. (With
@@ -197,8 +200,8 @@ def test_ukf_agrees_with_the_linear_kalman_filter() -> None:
     history = _run("ukf", noise_sigma_m=0.0, tyre_model="linear")
     block = np.ix_(LONGITUDINAL, LONGITUDINAL)
     for ukf_p, kf_p in zip(history.posteriors, history.kf_posteriors, strict=True):
-        np.testing.assert_allclose(_scaled(ukf_p, kf_p), _scaled(kf_p, kf_p), rtol=0, atol=2e-2)
-        np.testing.assert_allclose(ukf_p[block], kf_p[block], rtol=1e-3, atol=1e-13)
+        np.testing.assert_allclose(_scaled(ukf_p, kf_p), _scaled(kf_p, kf_p), rtol=0, atol=3e-2)
+        np.testing.assert_allclose(ukf_p[block], kf_p[block], rtol=2e-3, atol=1e-13)
     for ukf_mean, kf_mean, kf_p in zip(history.means, history.kf_means, history.kf_posteriors,
                                        strict=True):
         sigma = np.sqrt(np.diag(kf_p))
