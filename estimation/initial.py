@@ -17,9 +17,10 @@ initial covariance):
 - ``truth``: the mean is the true initial state (debugging only).
 
 The states of the car's motion (:data:`estimation.models.VEHICLE_STATE_NAMES`, the roll
-rate and the steering rate) are sampled. The sensor states (gyro and accelerometer biases, the rolling-radius
-and track scales) keep their nominal means (zero, one): their truth is itself unknown (a sensor's
-turn-on bias is drawn by the sensor, the effective radius is the tyre's), so the nominal
+rate and the steering rate) are sampled. The sensor states (gyro and accelerometer biases,
+the rolling-radius and track scales) keep their nominal means (zero, one): their truth is
+itself unknown (a sensor's turn-on bias is drawn by the sensor, the effective radius is the
+tyre's), so the nominal
 mean with its P0 is already the honest prior. The lateral residual is a model state with
 no truth to centre on.
 """

@@ -8,9 +8,9 @@ samples are correlated; :mod:`estimation.consistency` tests an ensemble). ``nis_
 mean of NIS divided by the measurement's dimension over every update the filter tested
 against its prior, gated ones included (1 for a consistent filter, whatever the sensor);
 ``nis_<sensor>`` (``nis_gnss``, ``nis_imu``, ``nis_wheel_speed``, ``nis_steering``, ...) is
-the same for one sensor: its summed NIS over its summed channels (``nis_dof_<sensor>``), the
-NIS per degree of freedom (Bar-Shalom, Li, Kirubarajan, "Estimation with Applications to Tracking and
-Navigation", Wiley 2001, section 5.4.2).
+the same for one sensor: its summed NIS over its summed channels (``nis_dof_<sensor>``),
+the NIS per degree of freedom (Bar-Shalom, Li, Kirubarajan, "Estimation with Applications
+to Tracking and Navigation", Wiley 2001, section 5.4.2).
 """
 
 from __future__ import annotations
@@ -20,8 +20,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cosim.records import Command, Estimate, Plan, VehicleState
-from estimation.update_result import UpdateResult
 from cosim.simulation.maneuver_metrics import maneuver_metrics
+from estimation.update_result import UpdateResult
 from tracker.maneuver import ManeuverConfig
 from tracker.reference_path import ReferencePath, wrap_angle
 

@@ -25,8 +25,8 @@ from cosim.initial_state import InitialState
 from cosim.records import Measurement
 from cosim.vehicle_params import VehicleParams
 from estimation.config import EstimatorConfig
-from estimation.noise_config import NoiseBelief
 from estimation.models import MODEL_STATE_NAMES, STATE_NAMES, VEHICLE_STATE_NAMES
+from estimation.noise_config import NoiseBelief
 from estimation.registry import make_estimator
 from tracker.dynamic_bicycle import DynamicBicycleParams
 
