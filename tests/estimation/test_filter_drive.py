@@ -129,7 +129,8 @@ def test_constant_gyro_bias_is_learned_within_seconds(name: str) -> None:
         print(f"{name}, gyro bias {bias_radps} rad/s, wheels {setup.use_wheels}: estimate at "
               f"{after_s:g} s {estimate[later][0]:.5f}, at the end {estimate[-1]:.5f} "
               f"+- {run.sigma('gyro_bias_radps')[-1]:.5f}")
-        assert abs(estimate[0]) < 0.1 * bias_radps  # it starts from zero ...
+        # It starts from zero (the first log follows the first IMU updates) ...
+        assert abs(estimate[0]) < 0.2 * bias_radps
         assert np.abs(estimate[later] - bias_radps).max() < tolerance * bias_radps  # ... learns
         assert np.abs(estimate[later] - bias_radps).max() < 3 * run.sigma("gyro_bias_radps")[-1]
         assert run.rmse("yaw_rate_radps", later) < 0.004  # the bias is not in the yaw rate
