@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from cosim.exceptions import ConfigError
 from cosim.initial_state import InitialState
 from cosim.vehicle_params import VehicleParams
@@ -40,9 +42,13 @@ def make_estimator(
     belief: VehicleParams,
     *,
     t0_s: float = 0.0,
+    rng: np.random.Generator | None = None,
 ) -> Estimator:
-    """Build the estimator ``config.name`` with its initial belief at ``t0_s``."""
-    return estimator_class(config.name)(config, initial, belief, t0_s=t0_s)
+    """Build the estimator ``config.name`` with its initial belief at ``t0_s``.
+
+    ``initial`` is the car's true initial state; the filters draw their initial estimate
+    around it with ``rng`` (``config.initial``, :mod:`estimation.initial`)."""
+    return estimator_class(config.name)(config, initial, belief, t0_s=t0_s, rng=rng)
 
 
 def required_sensors(name: str) -> tuple[str, ...]:
