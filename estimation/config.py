@@ -25,10 +25,10 @@ from estimation.models import TYRE_MODELS
 from estimation.noise_config import NoiseBelief
 
 ESTIMATOR_NAMES: tuple[str, ...] = ("ekf", "ukf", "truth")
+"""Values ``estimator.name`` accepts; :func:`estimation.registry.make_estimator` builds each."""
 
 INITIAL_MODES: tuple[str, ...] = ("sampled", "first-fix", "truth")
 """Values ``estimator.initial`` accepts (:mod:`estimation.initial`)."""
-"""Values ``estimator.name`` accepts; :func:`estimation.registry.make_estimator` builds each."""
 
 
 @dataclass(frozen=True)
