@@ -30,11 +30,11 @@ def test_limit_scenario_uses_falcones_constants() -> None:
 
 def test_overrides_reach_nested_keys_with_yaml_types() -> None:
     config = load_config("lane-change", overrides=["tracker.horizon=12", "plant.mass_kg=2000",
-                                                   "sensors.gnss.enabled=false"],
+                                                   "sensors.heading.enabled=true"],
                          seed=7, duration_s=3.0)
     assert config.tracker.horizon == 12
     assert config.plant.mass_kg == 2000.0
-    assert config.sensors.gnss.enabled is False
+    assert config.sensors.heading.enabled is True
     assert config.seed == 7
     assert config.sim.duration_s == 3.0
     # The controller's belief is independent of the plant's truth: mismatch as data.
