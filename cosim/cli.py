@@ -404,7 +404,7 @@ def _command_identify(args: argparse.Namespace) -> int:
 
 
 def _command_sweep(args: argparse.Namespace) -> int:
-    from cosim.sweeps.driver import default_out_dir, run_sweep
+    from cosim.sweeps.driver import check_sweep_dir, default_out_dir, run_sweep
     from cosim.sweeps.execute import WorkerCrashError
 
     if args.resume and args.out is None:
@@ -440,18 +440,6 @@ def _command_sweep(args: argparse.Namespace) -> int:
     return 0
 
 
-def check_sweep_dir(out: Path) -> None:
-    """Refuse a sweep --out that names a file, or a place where no directory can be made
-    (checked without making anything: a refused spec leaves no directory behind)."""
-    if out.exists() and not out.is_dir():
-        raise CosimError(f"--out {str(out)!r}: is a file: expected a directory for the sweep")
-    existing = next(p for p in (out, *out.parents) if p.exists() or p == Path(p.anchor))
-    if not existing.is_dir():
-        raise CosimError(f"--out {str(out)!r}: cannot make the directory ({str(existing)!r} "
-                         "is a file): expected a writable place")
-    if not os.access(existing, os.W_OK | os.X_OK):
-        raise CosimError(f"--out {str(out)!r}: cannot make the directory ({str(existing)!r} "
-                         "is not writable): expected a writable place")
 def _command_compare(args: argparse.Namespace) -> int:
     import time as _time
 

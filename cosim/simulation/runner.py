@@ -58,12 +58,25 @@ from tracker.registry import make_tracker
 
 @dataclass(frozen=True)
 class RunResult:
-    """What a run produced."""
+    """What a run produced: its log, its metrics (:data:`cosim.simulation.metrics.METRIC_KEYS`
+    and the outcome's), whether it ran to the end, and why not."""
 
     log_path: Path
     metrics: dict[str, float | int | bool | str]
     completed: bool
     abort_reason: str
+    """Empty when the run completed; else why it stopped (``interrupted``, the error)."""
+
+    @property
+    def outcome(self) -> str:
+        """How the run ended: ``ok``, an event (``off_road``, ``spun`` ...) or the abort
+        (``interrupted``, ``diverged``, ``error``); see :mod:`cosim.simulation.outcome`."""
+        return str(self.metrics.get("outcome", "ok"))
+
+    @property
+    def reason(self) -> str:
+        """:attr:`abort_reason` (empty when the run completed)."""
+        return self.abort_reason
 
 
 def component_rng(seed: int, component: str) -> np.random.Generator:
