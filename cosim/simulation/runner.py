@@ -36,7 +36,7 @@ from threadpoolctl import threadpool_limits
 
 from cosim import __version__
 from cosim.config_fields import to_dict
-from cosim.exceptions import PhysicsDivergenceError
+from cosim.exceptions import PhysicsDivergenceError, TrackerFault
 from cosim.log import foxglove
 from cosim.log import schemas as mcap_schemas
 from cosim.log.recorder import McapRecorder
@@ -407,6 +407,8 @@ def run(
             completed = True
         except PhysicsDivergenceError as error:
             abort_reason, abort = str(error), "diverged"
+        except TrackerFault as error:  # a plug-in tracker failed: a result, not a crash
+            abort_reason, abort = str(error), "error"
         except KeyboardInterrupt:
             abort_reason = abort = "interrupted"
         except Exception as error:  # the log is finished below, then the error goes on
