@@ -26,7 +26,7 @@ import math
 import time
 from typing import Any
 
-from cosim.config_fields import from_dict
+from cosim.config_fields import from_dict, to_dict
 from cosim.exceptions import ConfigError, PluginError, TrackerFault
 from cosim.plugins import load_object
 from cosim.records import Command, Estimate, Plan
@@ -59,6 +59,13 @@ def plugin_params(cls: type, params: dict[str, Any]) -> Any:
         raise PluginError(f"{cls.__module__}:{cls.__qualname__}.Params: expected a dataclass "
                           "(the schema of tracker.params)")
     return from_dict(schema, params, "tracker.params")
+
+
+def resolved_params(config: TrackerConfig) -> dict[str, Any]:
+    """``tracker.params`` with the schema's defaults filled in (as given, without a schema):
+    what a sweep varies and calls nominal."""
+    params = plugin_params(tracker_class(config.name), config.params)
+    return to_dict(params) if dataclasses.is_dataclass(params) else dict(params)
 
 
 def check_plugin(config: TrackerConfig) -> None:
