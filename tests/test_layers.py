@@ -21,6 +21,7 @@ LAYERS: dict[str, int] = {
     "cosim.config_cli": 5,
     "cosim.identification": 5,
     "cosim.sweeps": 5,
+    "cosim.gym": 5,
     "cosim.plots": 5,
     "cosim.simulation": 4,
     "cosim.plant": 3,

@@ -52,6 +52,7 @@ from cosim.simulation.metrics import MetricsAccumulator
 from cosim.simulation.outcome import OutcomeMonitor
 from cosim.simulation.scenario_config import ScenarioConfig, steps_per_period
 from estimation.registry import make_estimator
+from tracker.protocol import Tracker
 from tracker.reference_path import ReferencePath
 from tracker.registry import make_tracker
 
@@ -190,7 +191,8 @@ class _Clock:
 class _Run:
     """The components of one run and the phases of one physics step."""
 
-    def __init__(self, config: ScenarioConfig, recorder: McapRecorder) -> None:
+    def __init__(self, config: ScenarioConfig, recorder: McapRecorder,
+                 tracker: Tracker | None = None) -> None:
         self.config = config
         self.clock = _Clock.from_config(config)
         self.recorder = recorder
@@ -199,7 +201,9 @@ class _Run:
         self.course_monitor = CourseMonitor(self.course, config.plant)
         self.plant = MujocoPlant(config.plant, self.clock.dt_s, config.initial)
         self.estimator = make_estimator(config.estimator, config.initial, config.tracker.model)
-        self.tracker = make_tracker(config.tracker, config.maneuver)
+        self.tracker = tracker if tracker is not None else \
+            make_tracker(config.tracker, config.maneuver)
+        """The run's tracker; the Gymnasium environment passes one that replays its actions."""
         self.low_level = AccelToTorque(config.tracker.model)
         self.sensors = make_sensors(config.sensors)
         if "truth" in getattr(self.estimator, "required_sensors", ()):
@@ -361,21 +365,30 @@ class _Run:
                 "t_s": t_s, "kind": "heading_step", "heading_step_rad": change.angle_rad,
                 "yaw_rate_change_radps": change.delta_radps})
 
+    def observe(self, k: int) -> bool:
+        """Phases 1-2 of step ``k`` (log, sense); False at the end of the run."""
+        t_s = k * self.clock.dt_s
+        if k % self.clock.log_steps == 0:
+            self.log(t_s)
+        self.sense(k, t_s)
+        return k < self.clock.n_steps
+
+    def act(self, k: int) -> None:
+        """Phases 4-5 of step ``k``: actuate, disturb, advance the plant."""
+        t_s = k * self.clock.dt_s
+        self.actuate(k, t_s)
+        self.disturb(k, t_s)
+        self.plant.advance()
+        self.truth = self.plant.state()
+
     def loop(self, stop: _StopRequest, progress: Callable[[float], None] | None) -> None:
         clock = self.clock
         for k in range(clock.n_steps + 1):
-            t_s = k * clock.dt_s
-            if k % clock.log_steps == 0:
-                self.log(t_s)
-            self.sense(k, t_s)
-            if k == clock.n_steps:
+            if not self.observe(k):
                 return
             if k % clock.control_steps == 0:
-                self.control(k, t_s)
-            self.actuate(k, t_s)
-            self.disturb(k, t_s)
-            self.plant.advance()
-            self.truth = self.plant.state()
+                self.control(k, k * clock.dt_s)
+            self.act(k)
             if stop.signal_name:
                 raise KeyboardInterrupt
             if progress is not None and k % 500 == 0:
@@ -441,3 +454,11 @@ def _finish(recorder: McapRecorder, state: _Run, wall_start: float, completed: b
         {k: (v if not isinstance(v, float) or np.isfinite(v) else None)
          for k, v in values.items()})})
     return values
+
+
+RunState = _Run
+"""The components and phases of one run, for a caller that drives the loop itself (the
+Gymnasium environment :mod:`cosim.gym` steps it one control period at a time)."""
+
+finish_run = _finish
+"""Compute the run's metrics and write them to its log (the end of :func:`run`)."""
