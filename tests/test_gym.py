@@ -3,6 +3,9 @@ built-in MPC as the policy reproduces ``cosim run`` (same seed, same max CTE wit
 
 from __future__ import annotations
 
+import re
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -64,3 +67,14 @@ def test_the_mpc_as_policy_matches_cosim_run(tmp_path: Path) -> None:
     expected = reference_run.metrics["cte_max_m"]
     assert info["metrics"]["cte_max_m"] == pytest.approx(expected, rel=0.01)
     assert np.isfinite(expected) and expected > 0.0
+
+
+def test_the_docs_random_policy_example_runs(tmp_path: Path) -> None:
+    text = (Path(__file__).resolve().parents[1] / "docs" / "gym.md").read_text()
+    first = re.findall(r"```python\n(.*?)```", text, flags=re.DOTALL)[0]
+    done = subprocess.run([sys.executable, "-c", first], cwd=tmp_path, capture_output=True,
+                          text=True, timeout=600, env={"MUJOCO_GL": "disable",
+                                                       "PATH": "/usr/bin:/bin"})
+    assert done.returncode == 0, done.stderr
+    cte_max_m, outcome = done.stdout.split()
+    assert float(cte_max_m) > 0.0 and outcome in ("ok", "off_road", "spun", "end_of_path")
