@@ -21,10 +21,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from cosim.config_fields import mapping, setting
+from cosim.config_fields import mapping, section, setting
 from cosim.exceptions import ConfigError
 from cosim.plugins import entry_point_names, is_import_path
 from estimation.models import TYRE_MODELS
+from estimation.noise_config import NoiseBelief
 
 ESTIMATOR_NAMES: tuple[str, ...] = ("ekf", "ukf", "truth")
 """Built-in values of ``estimator.name``; :func:`estimation.registry.make_estimator` builds
@@ -37,6 +38,9 @@ PLUGIN_GROUP = "cosim.estimators"
 def is_plugin_name(name: str) -> bool:
     """Whether ``name`` names an estimator from outside cosim: an import path or a plug-in."""
     return is_import_path(name) or name in entry_point_names(PLUGIN_GROUP)
+
+INITIAL_MODES: tuple[str, ...] = ("sampled", "first-fix", "truth")
+"""Values ``estimator.initial`` accepts (:mod:`estimation.initial`)."""
 
 
 @dataclass(frozen=True)
@@ -61,6 +65,15 @@ class EstimatorConfig:
                 "installed plug-in (cosim estimators) or an import path module:Class"
             )
 
+    initial: str = setting(
+        "sampled",
+        choices=INITIAL_MODES,
+        doc="the initial estimate: sampled (drawn from N(truth, P0) with the run's seed), "
+        "first-fix (sampled, then the position taken from the first GNSS fix) or truth "
+        "(debugging only: the filter starts without error)",
+    )
+    noise: NoiseBelief = section(NoiseBelief)
+
     tyre_model: str = setting(
         "saturating",
         choices=TYRE_MODELS,
@@ -82,16 +95,22 @@ class EstimatorConfig:
 
     # Process noise (continuous-time white-noise PSDs).
     jerk_psd_m2ps5: float = setting(
-        5.0, low=0.0, high=1e6, doc="longitudinal jerk driving ax_mps2 [m^2/s^5]"
+        0.2, low=0.0, high=1e6, doc="longitudinal jerk driving ax_mps2 [m^2/s^5]"
     )
     yaw_accel_psd_rad2ps3: float = setting(
         5e-4, low=0.0, high=1e6, doc="yaw acceleration the bicycle does not explain [rad^2/s^3]"
     )
     lateral_accel_psd_m2ps3: float = setting(
-        5e-4, low=0.0, high=1e6, doc="white lateral acceleration driving vy_mps [m^2/s^3]"
+        5e-3, low=0.0, high=1e6, doc="white lateral acceleration driving vy_mps [m^2/s^3]"
     )
     steer_psd_rad2ps: float = setting(
-        0.001, low=0.0, high=100.0, doc="random walk of steer_rad between steering samples"
+        1e-5,
+        low=0.0,
+        high=100.0,
+        doc="white noise on the steering rate: steps the rate state does not follow",
+    )
+    steer_rate_psd_rad2ps3: float = setting(
+        0.05, low=0.0, high=1e4, doc="random walk of steer_rate_radps (steering acceleration)"
     )
     roll_accel_psd_rad2ps3: float = setting(
         1e-3, low=0.0, high=100.0, doc="roll acceleration the roll mode does not explain"
@@ -105,14 +124,8 @@ class EstimatorConfig:
     lateral_residual_time_constant_s: float = setting(
         0.5, low=0.05, high=1e4, doc="the lateral residual relaxes to zero with this time constant"
     )
-    gyro_bias_psd_rad2ps3: float = setting(
-        4e-8, low=0.0, high=1.0, doc="random walk of the gyro bias ((rad/s)^2 per s)"
-    )
-    accel_bias_psd_m2ps5: float = setting(
-        4e-6, low=0.0, high=1.0, doc="random walk of the ax accelerometer bias ((m/s^2)^2 per s)"
-    )
     yaw_psd_rad2ps: float = setting(
-        1e-8, low=0.0, high=10.0, doc="heading random walk (unmodelled yaw errors) [rad^2/s]"
+        3e-7, low=0.0, high=10.0, doc="heading random walk (unmodelled yaw errors) [rad^2/s]"
     )
     position_psd_m2ps: float = setting(
         1e-6, low=0.0, high=100.0, doc="position random walk (unmodelled motion) [m^2/s]"
@@ -120,16 +133,19 @@ class EstimatorConfig:
     rolling_radius_scale_psd_1ps: float = setting(
         1e-6, low=0.0, high=1.0, doc="random walk of rolling_radius_scale (drive slip) [1/s]"
     )
+    wheel_track_scale_psd_1ps: float = setting(
+        1e-6, low=0.0, high=1.0, doc="random walk of wheel_track_scale (load, camber) [1/s]"
+    )
     max_step_s: float = setting(
         0.01, low=1e-4, high=0.02, doc="longest sub-step of a prediction interval"
     )
 
     # Model errors of the measurement equations, added to each measurement's own covariance.
     wheel_model_sigma_mps: float = setting(
-        0.03, low=0.0, high=10.0, doc="tyre slip, rolling-radius error (at the wheel centre)"
+        0.005, low=0.0, high=10.0, doc="tyre slip, rolling-radius error (at the wheel centre)"
     )
     lateral_accel_model_sigma_mps2: float = setting(
-        0.1, low=0.0, high=50.0, doc="IMU lateral acceleration: accelerometer bias, vibration"
+        0.0, low=0.0, high=50.0, doc="IMU lateral acceleration: accelerometer bias, vibration"
     )
     steer_model_sigma_rad: float = setting(
         0.0, low=0.0, high=1.0, doc="steering sensor: mean road-wheel angle vs the bicycle's"
@@ -145,6 +161,7 @@ class EstimatorConfig:
     init_yaw_rate_sigma_radps: float = setting(0.05, low=1e-6, high=10.0)
     init_accel_sigma_mps2: float = setting(0.5, low=1e-6, high=100.0)
     init_steer_sigma_rad: float = setting(0.05, low=1e-6, high=1.0)
+    init_steer_rate_sigma_radps: float = setting(0.05, low=1e-6, high=10.0)
     init_roll_sigma_rad: float = setting(0.005, low=1e-6, high=1.0)
     init_roll_rate_sigma_radps: float = setting(0.02, low=1e-6, high=10.0)
     init_gyro_bias_sigma_radps: float = setting(
@@ -153,8 +170,11 @@ class EstimatorConfig:
     init_accel_bias_sigma_mps2: float = setting(
         0.02, low=1e-9, high=10.0, doc="spread of the ax accelerometer's turn-on bias"
     )
+    init_wheel_track_scale_sigma: float = setting(
+        0.1, low=1e-6, high=0.5, doc="relative error of the believed track at the wheels"
+    )
     init_rolling_radius_scale_sigma: float = setting(
-        0.01, low=1e-6, high=0.5, doc="relative error of the believed wheel radius"
+        0.005, low=1e-6, high=0.5, doc="relative error of the believed wheel radius"
     )
 
     # Outlier rejection.

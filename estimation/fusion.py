@@ -37,6 +37,7 @@ from cosim.records import Estimate, Measurement
 from cosim.vehicle_params import VehicleParams
 from estimation.config import EstimatorConfig
 from estimation.errors import EstimatorError
+from estimation.initial import initial_belief
 from estimation.models import (
     ANGLE_STATES,
     MAX_STEP_S,
@@ -115,7 +116,8 @@ def residual_function(
 
 def process_noise(config: EstimatorConfig) -> ProcessNoise:
     """The configured PSDs; the lateral residual's from its stationary sigma and time
-    constant (a first-order Gauss-Markov process: ``q = 2 sigma^2 / tau``)."""
+    constant (a first-order Gauss-Markov process: ``q = 2 sigma^2 / tau``); the bias walks
+    from the sensor belief ``config.noise``."""
     residual_psd = (
         2.0 * config.lateral_residual_sigma_mps2**2 / config.lateral_residual_time_constant_s
     )
@@ -126,11 +128,13 @@ def process_noise(config: EstimatorConfig) -> ProcessNoise:
         yaw_accel_psd_rad2ps3=config.yaw_accel_psd_rad2ps3,
         jerk_psd_m2ps5=config.jerk_psd_m2ps5,
         steer_psd_rad2ps=config.steer_psd_rad2ps,
+        steer_rate_psd_rad2ps3=config.steer_rate_psd_rad2ps3,
         roll_accel_psd_rad2ps3=config.roll_accel_psd_rad2ps3,
         lateral_residual_psd_m2ps5=residual_psd,
-        gyro_bias_psd_rad2ps3=config.gyro_bias_psd_rad2ps3,
-        accel_bias_psd_m2ps5=config.accel_bias_psd_m2ps5,
+        gyro_bias_psd_rad2ps3=config.noise.gyro_bias_psd_rad2ps3,
+        accel_bias_psd_m2ps5=config.noise.accel_bias_psd_m2ps5,
         rolling_radius_scale_psd_1ps=config.rolling_radius_scale_psd_1ps,
+        wheel_track_scale_psd_1ps=config.wheel_track_scale_psd_1ps,
     )
 
 
@@ -145,55 +149,18 @@ def roll_params(config: EstimatorConfig, belief: VehicleParams) -> RollParams:
     )
 
 
-def initial_belief(
-    config: EstimatorConfig, initial: InitialState
-) -> tuple[np.ndarray, np.ndarray]:
-    """Mean (position, yaw, forward speed from ``initial``; the rest zero, the rolling-radius
-    scale one) and diagonal covariance (the configured standard deviations)."""
-    mean = {
-        "x_m": initial.x_m,
-        "y_m": initial.y_m,
-        "yaw_rad": wrap_angle(initial.yaw_rad),
-        "vx_mps": initial.speed_mps,
-        "vy_mps": 0.0,
-        "yaw_rate_radps": 0.0,
-        "ax_mps2": 0.0,
-        "steer_rad": 0.0,
-        "roll_rad": 0.0,
-        "roll_rate_radps": 0.0,
-        "lateral_accel_residual_mps2": 0.0,
-        "gyro_bias_radps": 0.0,
-        "ax_bias_mps2": 0.0,
-        "rolling_radius_scale": 1.0,
-    }
-    sigma = {
-        "x_m": config.init_position_sigma_m,
-        "y_m": config.init_position_sigma_m,
-        "yaw_rad": config.init_yaw_sigma_rad,
-        "vx_mps": config.init_speed_sigma_mps,
-        "vy_mps": config.init_lateral_speed_sigma_mps,
-        "yaw_rate_radps": config.init_yaw_rate_sigma_radps,
-        "ax_mps2": config.init_accel_sigma_mps2,
-        "steer_rad": config.init_steer_sigma_rad,
-        "roll_rad": config.init_roll_sigma_rad,
-        "roll_rate_radps": config.init_roll_rate_sigma_radps,
-        "lateral_accel_residual_mps2": config.lateral_residual_sigma_mps2,
-        "gyro_bias_radps": config.init_gyro_bias_sigma_radps,
-        "ax_bias_mps2": config.init_accel_bias_sigma_mps2,
-        "rolling_radius_scale": config.init_rolling_radius_scale_sigma,
-    }
-    return (
-        np.array([float(mean[name]) for name in STATE_NAMES]),
-        np.diag([float(sigma[name]) ** 2 for name in STATE_NAMES]),
-    )
-
-
 class KalmanFusion(ABC):
     """A Kalman filter over :data:`estimation.models.STATE_NAMES`, fed asynchronously.
 
-    ``initial`` sets the mean and ``config`` its standard deviations (see
-    :func:`initial_belief`); ``belief`` gives the dynamic bicycle, the wheel radius and the
-    track the models need. ``t0_s`` is the time of the initial belief.
+    ``initial`` is the car's initial state and ``config`` the prior's standard deviations;
+    the mean is drawn around ``initial`` with ``rng`` as ``config.initial`` says
+    (:func:`estimation.initial.initial_belief`). ``belief`` gives the dynamic bicycle, the
+    wheel radius and the track the models need. ``t0_s`` is the time of the initial belief.
+
+    The measurement noise ``R`` of every update is the filter's own belief
+    (``config.noise``, :mod:`estimation.noise_config`) plus the model's error
+    (``model_sigma``); the covariance a measurement carries is the sensor's truth, which
+    a real filter cannot know, and is not used.
     """
 
     required_sensors: tuple[str, ...] = ("gnss",)
@@ -215,6 +182,7 @@ class KalmanFusion(ABC):
         belief: VehicleParams,
         *,
         t0_s: float = 0.0,
+        rng: np.random.Generator | None = None,
     ) -> None:
         if not math.isfinite(t0_s):
             raise ValueError(f"t0_s = {t0_s!r}: expected a finite time")
@@ -240,9 +208,11 @@ class KalmanFusion(ABC):
             roll=roll,
         )
         self._angle_indices = tuple(state_index(name) for name in ANGLE_STATES)
-        mean, covariance = initial_belief(config, initial)
+        self._noise_variances = config.noise.channel_variances()
+        mean, covariance = initial_belief(config, initial, rng)
         self._setup_filter(mean, covariance)
         self._t_s = float(t0_s)
+        self._awaiting_first_fix = config.initial == "first-fix"
 
         self._counts: dict[str, SensorCounts] = {}
         self._gate_thresholds: dict[int, float] = {}
@@ -371,13 +341,10 @@ class KalmanFusion(ABC):
                 f"covariance of shape {covariance.shape}"
             )
         columns = list(selection.measurement_columns)
-        if columns == list(range(size)):  # every channel, in order: no selection needed
-            z, r_matrix = values, covariance + np.diag(selection.model_variance)
-        else:
-            z = values[columns]
-            r_matrix = covariance[np.ix_(columns, columns)] + np.diag(selection.model_variance)
+        # Every channel, in order: no selection needed.
+        z = values if columns == list(range(size)) else values[columns]
         t_s = float(measurement.t_s)
-        if not (math.isfinite(t_s) and np.isfinite(z).all() and np.isfinite(r_matrix).all()):
+        if not (math.isfinite(t_s) and np.isfinite(z).all()):
             counts.rejected_nonfinite += 1
             return UpdateResult(False, math.nan, dim, NON_FINITE)
         if is_stale(self._t_s, t_s):
@@ -385,6 +352,11 @@ class KalmanFusion(ABC):
             return UpdateResult(False, math.nan, dim, STALE)
 
         self.predict(t_s)
+        r_matrix = np.diag(selection.model_variance)
+        if self._awaiting_first_fix and sensor == "gnss" and dim == 2:
+            self._take_first_fix(model, selection, z, r_matrix)
+            counts.accepted += 1
+            return UpdateResult(True, math.nan, dim, ACCEPTED)
         everything = tuple(range(dim))
         joint = self._innovation(model, selection, everything, z, r_matrix)
         if joint is None:
@@ -396,9 +368,24 @@ class KalmanFusion(ABC):
             self._forget_gate_failures(model, selection, everything)
             if not self._apply(joint):
                 counts.rejected_invalid += 1
-                return UpdateResult(False, joint.nis, dim, INVALID)
+                return UpdateResult(False, joint.nis, dim, INVALID, joint.nis, dim)
             counts.accepted += 1
-            return UpdateResult(True, joint.nis, dim, ACCEPTED)
+            return UpdateResult(True, joint.nis, dim, ACCEPTED, joint.nis, dim)
+        result = self._gated_update(model, selection, z, r_matrix, t_s, counts)
+        return dataclasses.replace(result, joint_nis=joint.nis, joint_dim=dim)
+
+    def _gated_update(
+        self,
+        model: MeasurementModel,
+        selection: Selection,
+        z: np.ndarray,
+        r_matrix: np.ndarray,
+        t_s: float,
+        counts: SensorCounts,
+    ) -> UpdateResult:
+        """A measurement whose joint NIS failed the gate: its channels gated one by one."""
+        dim = len(selection.model_rows)
+        everything = tuple(range(dim))
 
         # Above the gate. Independent channels (diagonal R) are then gated one by one and
         # fused sequentially, so a spinning wheel or a lateral-acceleration transient costs
@@ -541,6 +528,22 @@ class KalmanFusion(ABC):
 
     # ----------------------------------------------------------------------------- helpers
 
+    def _take_first_fix(
+        self, model: MeasurementModel, selection: Selection, z: np.ndarray, r_matrix: np.ndarray
+    ) -> None:
+        """``first-fix``: the position becomes the fix, its covariance the believed GNSS
+        noise, uncorrelated with the other states (a receiver's cold start)."""
+        rows = [state_index(model.channels[row]) for row in selection.model_rows]
+        mean = np.array(self._x, dtype=float)
+        mean[rows] = z
+        covariance = np.array(self._p, dtype=float)
+        covariance[rows, :] = 0.0
+        covariance[:, rows] = 0.0
+        covariance[np.ix_(rows, rows)] = r_matrix
+        self._set_mean(mean)
+        self._set_covariance(covariance)
+        self._awaiting_first_fix = False
+
     def _inflate_for_jump(self, jacobian: np.ndarray, innovation: np.ndarray) -> None:
         """Make room for a persistent jump before a gate-released update.
 
@@ -563,7 +566,11 @@ class KalmanFusion(ABC):
             angle_rows = tuple(
                 i for i, row in enumerate(model_rows) if model.channels[row] in model.angle_channels
             )
-            variance = np.array([model.model_sigma[row] ** 2 for row in model_rows])
+            believed = self._noise_variances.get(model.sensor, {})
+            variance = np.array([
+                model.model_sigma[row] ** 2 + believed.get(model.channels[row], 0.0)
+                for row in model_rows
+            ])
             self._selections[key] = Selection(model_rows, columns, angle_rows, variance)
         return self._selections[key]
 

@@ -3,7 +3,8 @@
 A name that is not built in is an estimator from outside cosim: an import path
 ``my_pkg.my_module:MyFilter`` or an entry point of the group ``cosim.estimators``
 (:mod:`cosim.plugins`). Its class is built as the built-in ones are,
-``cls(config, initial, belief, t0_s=...)`` (its own settings in ``config.params``), and must
+``cls(config, initial, belief, t0_s=..., rng=...)`` (its own settings in
+``config.params``; ``rng`` draws its initial estimate), and must
 have ``predict(t_s)``, ``estimate() -> Estimate`` and ``update(measurement)`` returning an
 :class:`estimation.update_result.UpdateResult`, plus the class attributes
 ``required_sensors`` and ``supported_sensors``.
@@ -12,6 +13,8 @@ have ``predict(t_s)``, ``estimate() -> Estimate`` and ``update(measurement)`` re
 from __future__ import annotations
 
 from typing import Any
+
+import numpy as np
 
 from cosim.exceptions import ConfigError, PluginError
 from cosim.initial_state import InitialState
@@ -58,9 +61,13 @@ def make_estimator(
     belief: VehicleParams,
     *,
     t0_s: float = 0.0,
+    rng: np.random.Generator | None = None,
 ) -> Estimator:
-    """Build the estimator ``config.name`` with its initial belief at ``t0_s``."""
-    return estimator_class(config.name)(config, initial, belief, t0_s=t0_s)
+    """Build the estimator ``config.name`` with its initial belief at ``t0_s``.
+
+    ``initial`` is the car's true initial state; the filters draw their initial estimate
+    around it with ``rng`` (``config.initial``, :mod:`estimation.initial`)."""
+    return estimator_class(config.name)(config, initial, belief, t0_s=t0_s, rng=rng)
 
 
 def required_sensors(name: str) -> tuple[str, ...]:

@@ -57,10 +57,11 @@ class TruthEstimator:
         belief: VehicleParams,
         *,
         t0_s: float = 0.0,
+        rng: np.random.Generator | None = None,
     ) -> None:
         if not math.isfinite(t0_s):
             raise ValueError(f"t0_s = {t0_s!r}: expected a finite time")
-        del config, belief  # the truth needs no tuning and no model
+        del config, belief, rng  # the truth needs no tuning, no model and no draw
         values = dict.fromkeys(TRUTH_STATE_NAMES, 0.0)
         values.update(
             x_m=initial.x_m,

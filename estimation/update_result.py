@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 ACCEPTED = "accepted"
@@ -43,12 +44,19 @@ class UpdateResult:
     it could not be computed: ignored sensor, non-finite or stale measurement); ``dim`` is
     the number of channels fused or tested (0 for an ignored sensor); ``reason`` is one of
     :data:`REASONS` (exact strings, so callers can compare: ``reason == "ignored"``).
+
+    ``joint_nis`` and ``joint_dim`` are the NIS and dimension of *all* the measurement's
+    channels against the prior, whatever the gate then did: the figure consistency
+    statistics need (a gated update is evidence of over-confidence, so dropping it would
+    flatter the filter). NaN and 0 where no innovation was computed.
     """
 
     accepted: bool
     nis: float
     dim: int
     reason: str
+    joint_nis: float = math.nan
+    joint_dim: int = 0
 
 
 @dataclass

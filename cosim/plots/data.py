@@ -389,6 +389,16 @@ def _label_value(value: Any) -> str:
     if isinstance(value, float):
         return f"{value:g}"
     return "n/a" if value is None else str(value)
+def load_estimation(path: Path | str) -> EstimationErrors | None:
+    """The estimation errors of a log (and their NEES) alone: reads only the truth and the
+    estimate, for ensembles of many runs (:mod:`cosim.plots.ensemble`)."""
+    topics = ("/vehicle/truth", "/vehicle/estimate")
+    messages: dict[str, list[tuple[int, dict[str, Any]]]] = {topic: [] for topic in topics}
+    for topic, log_time_ns, message in iter_topics(Path(path), set(topics)):
+        messages[topic].append((log_time_ns, message))
+    if not messages["/vehicle/truth"]:
+        raise LogReadError(f"{str(path)!r}: no /vehicle/truth messages")
+    return _estimation(_truth(messages["/vehicle/truth"]), _estimate(messages["/vehicle/estimate"]))
 
 
 def distinct_labels(runs: list[RunLog]) -> list[RunLog]:

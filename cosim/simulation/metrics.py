@@ -3,8 +3,14 @@
 Tracking errors use the true centre of gravity projected onto the reference path (not
 y - y_ref); heading error is the true yaw minus the path's yaw at that projection, wrapped
 to (-pi, pi]. NEES is over (x, y, yaw, speed), 4 degrees of freedom, so its mean should sit
-near 4 for a consistent filter. ``nis_mean`` is the mean of NIS divided by the measurement's
-dimension over every accepted update (1 for a consistent filter, whatever the sensor).
+near 4 for a consistent filter (but the time average of one run is no test of that: its
+samples are correlated; :mod:`estimation.consistency` tests an ensemble). ``nis_mean`` is the
+mean of NIS divided by the measurement's dimension over every update the filter tested
+against its prior, gated ones included (1 for a consistent filter, whatever the sensor);
+``nis_<sensor>`` (``nis_gnss``, ``nis_imu``, ``nis_wheel_speed``, ``nis_steering``, ...) is
+the same for one sensor: its summed NIS over its summed channels (``nis_dof_<sensor>``),
+the NIS per degree of freedom (Bar-Shalom, Li, Kirubarajan, "Estimation with Applications
+to Tracking and Navigation", Wiley 2001, section 5.4.2).
 The speed error is against the reference's speed profile at the projection and the time.
 
 Comfort, from the truth at the log rate: ``lat_accel_max_mps2`` is the largest lateral
@@ -24,6 +30,7 @@ import numpy as np
 from cosim.records import Command, Estimate, Plan, VehicleState
 from cosim.simulation.maneuver_metrics import maneuver_metrics
 from cosim.simulation.running_stats import RunningStats, Samples
+from estimation.update_result import UpdateResult
 from tracker.maneuver import ManeuverConfig
 from tracker.reference_path import ReferencePath, wrap_angle
 
@@ -109,6 +116,10 @@ class MetricsAccumulator:
     speed_est_err_mps: RunningStats = field(default_factory=RunningStats)
     nees: RunningStats = field(default_factory=RunningStats)
     nis_per_dof: RunningStats = field(default_factory=RunningStats)
+    nis_sum: dict[str, float] = field(default_factory=dict)
+    """Per sensor, the summed NIS of every tested update (gated included)."""
+    nis_dof: dict[str, int] = field(default_factory=dict)
+    """Per sensor, the summed dimension of those updates."""
     estimator_counts: dict[str, dict[str, int]] = field(default_factory=dict)
     """Per sensor, the estimator's own counters (set at the end of the run)."""
     last_t_s: float = 0.0
@@ -147,9 +158,14 @@ class MetricsAccumulator:
         if np.all(np.isfinite(covariance)) and np.linalg.det(covariance) > 0.0:
             self.nees.add(float(error @ np.linalg.solve(covariance, error)))
 
-    def add_update(self, accepted: bool, nis: float, dim: int) -> None:
-        if accepted and dim > 0 and np.isfinite(nis):
+    def add_update(self, sensor: str, update: UpdateResult) -> None:
+        """One measurement's outcome: its NIS over all its channels against the prior,
+        whether the gate then fused it or not."""
+        nis, dim = update.joint_nis, update.joint_dim
+        if dim > 0 and np.isfinite(nis):
             self.nis_per_dof.add(nis / dim)
+            self.nis_sum[sensor] = self.nis_sum.get(sensor, 0.0) + nis
+            self.nis_dof[sensor] = self.nis_dof.get(sensor, 0) + dim
 
     def add_plan(self, plan: Plan, step_time_s: float = float("nan")) -> None:
         self.solve_time_s.add(plan.solve_time_s)
@@ -217,6 +233,9 @@ class MetricsAccumulator:
             "est_speed_rmse_mps": self.speed_est_err_mps.rms,
             "nees_mean": self.nees.mean,
             "nis_mean": self.nis_per_dof.mean,
+            **{f"nis_{sensor}": self.nis_sum[sensor] / self.nis_dof[sensor]
+               for sensor in sorted(self.nis_sum)},
+            **{f"nis_dof_{sensor}": self.nis_dof[sensor] for sensor in sorted(self.nis_dof)},
             **rejection_counts(self.estimator_counts),
             "sim_duration_s": sim_duration_s,
             "wall_time_s": wall_time_s,

@@ -200,7 +200,9 @@ class _Run:
         self.reference = self.course.reference
         self.course_monitor = CourseMonitor(self.course, config.plant)
         self.plant = MujocoPlant(config.plant, self.clock.dt_s, config.initial)
-        self.estimator = make_estimator(config.estimator, config.initial, config.tracker.model)
+        self.estimator = make_estimator(
+            config.estimator, config.initial, config.tracker.model,
+            rng=component_rng(config.seed, "estimator.initial"))
         self.tracker = tracker if tracker is not None else \
             make_tracker(config.tracker, config.maneuver)
         """The run's tracker; the Gymnasium environment passes one that replays its actions."""
@@ -316,7 +318,7 @@ class _Run:
                     self.config.sensors.gnss.sigma_m, self.config.geo))
             update = self.estimator.update(measurement)
             if sensor.name != "truth":  # noise-free: NIS is undefined
-                self.metrics.add_update(update.accepted, update.nis, update.dim)
+                self.metrics.add_update(sensor.name, update)
                 self.recorder.write_finite("/estimator/updates", t_s, {
                     "t_s": t_s, "sensor": sensor.name, "accepted": update.accepted,
                     "nis": update.nis, "dof": update.dim, "reason": update.reason})

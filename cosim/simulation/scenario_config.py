@@ -31,7 +31,8 @@ from cosim.vehicle_params import PlantConfig
 from cosim.yaml_io import loads as yaml_loads
 from cosim.yaml_io import read_yaml_file, shown
 from estimation.config import ESTIMATOR_NAMES, EstimatorConfig
-from estimation.registry import estimator_class
+from estimation.noise_config import suite_noise_preset
+from estimation.registry import estimator_class, required_sensors
 from tracker.config import TrackerConfig, is_plugin_name
 from tracker.maneuver import ManeuverConfig
 from tracker.plugin import check_plugin
@@ -187,9 +188,11 @@ def load_config(
     if isinstance(sensors, dict) and isinstance(sensors.get("suite"), str):
         # The suite presets figures; what the user set explicitly wins.
         data["sensors"] = _merge(suite_preset(sensors["suite"]), sensors)
+        _believe_suite(data, sensors["suite"])
     _believe_actuator_delay(data)
     config = from_dict(ScenarioConfig, data)
     check_rates(config)
+    check_required_sensors(config)
     check_faults(config)
     # A bad plug-in is refused here, before any run starts.
     if is_plugin_name(config.tracker.name):
@@ -206,6 +209,34 @@ def check_faults(config: ScenarioConfig) -> None:
             raise ConfigError(
                 f"faults[{index}].sensor = {fault.sensor!r}: that sensor is disabled "
                 f"(sensors.{fault.sensor}.enabled = false): expected an enabled sensor")
+
+
+def _believe_suite(data: dict[str, Any], suite: str) -> None:
+    """The estimator believes the chosen suite's datasheet (``estimator.noise``,
+    :func:`estimation.noise_config.suite_noise_preset`), so a plain run is matched; a
+    belief figure set explicitly wins, which is how a study makes the belief wrong."""
+    preset = suite_noise_preset(suite)
+    if not preset:
+        return
+    estimator = data.setdefault("estimator", {})
+    if not isinstance(estimator, dict):
+        return  # from_dict names the bad value
+    noise = estimator.get("noise")
+    if noise is None:
+        noise = {}
+    if isinstance(noise, dict):
+        estimator["noise"] = _merge(preset, noise)
+
+
+def check_required_sensors(config: ScenarioConfig) -> None:
+    """Refuse a run whose estimator needs a sensor that is disabled (one line, exit 2)."""
+    for name in required_sensors(config.estimator.name):
+        sensor = getattr(config.sensors, name, None)
+        if sensor is not None and not sensor.enabled:
+            raise ConfigError(
+                f"sensors.{name}.enabled = false: estimator.name = {config.estimator.name} "
+                f"needs the {name} sensor (enable it or choose another estimator)"
+            )
 
 
 def _believe_actuator_delay(data: dict[str, Any]) -> None:

@@ -13,6 +13,7 @@ seeded numpy Generator: GNSS at 10 Hz, IMU and steering at 100 Hz, wheel speeds 
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from collections.abc import Callable
@@ -387,6 +388,11 @@ def run_filter(
     """Simulate ``profile``, synthesise the sensors, fuse everything with ``estimator``."""
     setup = SensorSetup() if setup is None else setup
     config = EstimatorConfig(name=estimator) if config is None else config
+    # The filter believes the synthetic sensors' datasheet (no quantisation here).
+    config = dataclasses.replace(config, noise=dataclasses.replace(
+        config.noise, gnss_sigma_m=setup.gnss_sigma_m, gyro_sigma_radps=IMU_YAW_RATE_SIGMA_RADPS,
+        accel_sigma_mps2=IMU_ACCEL_SIGMA_MPS2, wheel_sigma_radps=WHEEL_SIGMA_RADPS,
+        wheel_quantum_radps=0.0, steer_sigma_rad=STEERING_SIGMA_RAD, steer_quantum_rad=0.0))
     initial = InitialState(speed_mps=profile.speed0_mps) if initial is None else initial
     belief = VehicleParams()
     truth = simulate_truth(profile, initial, belief, saturating_truth)

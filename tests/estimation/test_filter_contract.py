@@ -18,6 +18,7 @@ from estimation.config import EstimatorConfig
 from estimation.errors import TimeOrderError
 from estimation.fusion import KalmanFusion
 from estimation.models import STATE_NAMES
+from estimation.noise_config import NoiseBelief
 from estimation.registry import make_estimator
 from estimation.update_result import REASONS
 
@@ -62,6 +63,7 @@ def test_initial_estimate_comes_from_the_initial_state(name: str) -> None:
         "yaw_rad": 1.0,
         "vx_mps": 12.0,
         "rolling_radius_scale": 1.0,
+        "wheel_track_scale": 1.0,
     }
     for name in STATE_NAMES:
         assert estimate[name] == pytest.approx(expected.get(name, 0.0))
@@ -69,6 +71,55 @@ def test_initial_estimate_comes_from_the_initial_state(name: str) -> None:
     assert sigma[STATE_NAMES.index("x_m")] == pytest.approx(config.init_position_sigma_m)
     assert sigma[STATE_NAMES.index("yaw_rad")] == pytest.approx(config.init_yaw_sigma_rad)
     assert sigma[STATE_NAMES.index("ax_mps2")] == pytest.approx(config.init_accel_sigma_mps2)
+
+
+def test_measurement_noise_is_the_filters_belief_not_the_sensors(name: str) -> None:
+    """R comes from ``estimator.noise``: the covariance a measurement carries (the sensor's
+    truth, which a real filter cannot know) changes nothing; the belief does."""
+    results = []
+    for carried, believed in ((1e-4, 0.02), (100.0, 0.02), (1e-4, 0.5)):
+        config = EstimatorConfig(noise=NoiseBelief(gnss_sigma_m=believed))
+        kf = _filter(name, config, speed_mps=10.0)
+        result = kf.update(_gnss(0.0, 1.0, 0.0, cov=np.eye(2) * carried))
+        results.append((result.nis, kf.estimate()["x_m"]))
+    assert results[0] == results[1]
+    p0 = EstimatorConfig().init_position_sigma_m**2
+    assert results[0][0] == pytest.approx(1.0 / (p0 + 0.02**2), rel=1e-6)
+    assert results[2][0] == pytest.approx(1.0 / (p0 + 0.5**2), rel=1e-6)
+    assert results[2][1] < results[0][1]
+
+
+def test_initial_estimate_is_drawn_around_the_truth(name: str) -> None:
+    """``sampled``: the prior mean is the truth plus a draw from N(0, P0) (the same for the
+    same generator); ``truth``: the truth itself; ``first-fix``: sampled, then the position
+    is the first GNSS fix with the believed GNSS covariance."""
+    initial = {"x_m": 5.0, "y_m": -3.0, "yaw_rad": 1.0, "speed_mps": 12.0}
+    means = []
+    for mode in ("sampled", "sampled", "truth"):
+        config = dataclasses.replace(EstimatorConfig(initial=mode), name=name)
+        kf = make_estimator(config, InitialState(**initial), VehicleParams(),
+                            rng=np.random.default_rng(4))
+        means.append(kf.estimate().mean)
+    np.testing.assert_array_equal(means[0], means[1])
+    assert means[2][STATE_NAMES.index("x_m")] == 5.0
+    config = EstimatorConfig()
+    errors = (means[0] - means[2]) / np.sqrt(np.diag(
+        make_estimator(config, InitialState(**initial), VehicleParams()).estimate().covariance))
+    moved = {n for n, e in zip(STATE_NAMES, errors, strict=True) if e != 0.0}
+    assert {"x_m", "y_m", "yaw_rad", "vx_mps", "steer_rad"} <= moved
+    assert "rolling_radius_scale" not in moved and "gyro_bias_radps" not in moved
+    assert np.all(np.abs(errors) < 5.0)
+
+    config = dataclasses.replace(EstimatorConfig(initial="first-fix"), name=name)
+    kf = make_estimator(config, InitialState(**initial), VehicleParams(),
+                        rng=np.random.default_rng(4))
+    result = kf.update(_gnss(0.0, 5.3, -2.9))
+    assert result.accepted and math.isnan(result.nis)
+    estimate = kf.estimate()
+    assert (estimate["x_m"], estimate["y_m"]) == (5.3, -2.9)
+    np.testing.assert_allclose(estimate.sub_covariance(("x_m", "y_m")),
+                               np.eye(2) * config.noise.gnss_sigma_m**2)
+    assert kf.update(_gnss(0.1, 6.5, -2.9)).joint_dim == 2  # later fixes are updates
 
 
 def test_estimate_is_a_copy(name: str) -> None:
@@ -147,7 +198,7 @@ def test_non_finite_measurements_are_rejected_and_counted(name: str) -> None:
     bad = [
         _gnss(0.2, math.nan, 0.0),
         _gnss(0.2, 2.0, math.inf),
-        _gnss(0.2, 2.0, 0.0, cov=np.array([[math.nan, 0.0], [0.0, 1.0]])),
+        _gnss(0.2, math.nan, math.nan),
         _gnss(math.nan, 2.0, 0.0),
     ]
     for measurement in bad:
@@ -295,13 +346,13 @@ def test_yaw_is_wrapped_through_pi(name: str) -> None:
 
 def test_angle_innovation_is_wrapped(name: str) -> None:
     """A heading of -3.1 rad seen from 3.1 rad is 0.083 rad away, not 6.2 rad."""
-    config = EstimatorConfig()
+    config = EstimatorConfig(noise=NoiseBelief(heading_sigma_rad=0.05))
     kf = _filter(name, config, yaw_rad=3.1)
     heading = Measurement("heading", 0.0, ("yaw_rad",), np.array([-3.1]), np.eye(1) * 0.05**2)
     result = kf.update(heading)
     assert result.accepted
     expected_innovation = 2 * math.pi - 6.2
-    variance = config.init_yaw_sigma_rad**2 + 0.05**2
+    variance = config.init_yaw_sigma_rad**2 + config.noise.heading_sigma_rad**2
     assert result.nis == pytest.approx(expected_innovation**2 / variance, rel=1e-6)
     yaw = kf.estimate()["yaw_rad"]
     assert abs(yaw) > 3.1  # moved towards pi, across it or not

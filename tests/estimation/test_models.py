@@ -61,6 +61,7 @@ def linear_process() -> ProcessModel:
 def _state(**values: float) -> np.ndarray:
     x = np.zeros(len(STATE_NAMES))
     x[state_index("rolling_radius_scale")] = 1.0
+    x[state_index("wheel_track_scale")] = 1.0
     for name, value in values.items():
         x[state_index(name)] = value
     return x
@@ -332,6 +333,9 @@ def test_wheel_speed_model_by_hand() -> None:
     # A tyre that rolls on a 1 % smaller radius spins 1 % faster.
     h, _ = model.evaluate(_state(vx_mps=10.0, yaw_rate_radps=0.5, rolling_radius_scale=0.99))
     np.testing.assert_allclose(h, [9.6 / (0.99 * radius), 10.4 / (0.99 * radius)])
+    # An effective track 10 % wider than believed: the turn's difference grows by 10 %.
+    h, _ = model.evaluate(_state(vx_mps=10.0, yaw_rate_radps=0.5, wheel_track_scale=1.1))
+    np.testing.assert_allclose(h, [9.56 / radius, 10.44 / radius])
     # Steered 0.1 rad: each wheel spins at its centre velocity along its Ackermann plane.
     x = _state(vx_mps=10.0, vy_mps=0.2, yaw_rate_radps=0.3, steer_rad=0.1)
     left, right = ackermann_angles(0.1, BELIEF.wheelbase_m, BELIEF.track_m)

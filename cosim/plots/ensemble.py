@@ -1,0 +1,73 @@
+"""Monte Carlo ensembles of runs: run a scenario over seeds and judge the filter's consistency.
+
+Each member is one run of the same configuration with another seed (so independent sensor
+noise, disturbances and initial estimate); its NEES series is read back from its log
+(:func:`cosim.plots.data.load_estimation`, over ``x, y, yaw, vx``) and its NIS sums come from
+its metrics (``nis_<sensor>`` times ``nis_dof_<sensor>``). :func:`judge` hands them to
+:func:`estimation.consistency.ensemble_consistency` (ANEES per time step with its chi-square
+band; NIS per degree of freedom per sensor). Used by ``bench/estimator_consistency.py`` and
+by the slow consistency tests.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from cosim.plots.data import load_estimation
+from cosim.simulation.runner import run
+from cosim.simulation.scenario_config import ScenarioConfig
+from estimation.consistency import SETTLE_S, EnsembleConsistency, ensemble_consistency
+
+NIS_PREFIX = "nis_dof_"
+
+
+@dataclass(frozen=True)
+class EnsembleMember:
+    """What the consistency test needs of one run."""
+
+    seed: int
+    t_s: np.ndarray
+    nees: np.ndarray
+    nis_sum: Mapping[str, float]
+    nis_dof: Mapping[str, int]
+    metrics: Mapping[str, object]
+
+
+def run_member(config: ScenarioConfig, seed: int, out_dir: Path, keep_log: bool = False
+               ) -> EnsembleMember:
+    """Run ``config`` with ``seed`` into ``out_dir`` and read back its NEES and NIS."""
+    path = Path(out_dir) / f"{config.name}-{config.estimator.name}-{seed}.mcap"
+    result = run(dataclasses.replace(config, seed=seed), path)
+    if not result.completed:
+        raise RuntimeError(f"seed {seed}: the run did not complete ({result.abort_reason})")
+    errors = load_estimation(path)
+    if not keep_log:
+        path.unlink()
+    if errors is None or errors.nees is None:
+        raise RuntimeError(f"seed {seed}: the log has no NEES (estimator without covariance)")
+    dofs = {key.removeprefix(NIS_PREFIX): int(value)  # type: ignore[call-overload]
+            for key, value in result.metrics.items() if key.startswith(NIS_PREFIX)}
+    sums = {sensor: float(result.metrics[f"nis_{sensor}"]) * count  # type: ignore[arg-type]
+            for sensor, count in dofs.items()}
+    return EnsembleMember(seed, errors.t_s, errors.nees, sums, dofs, result.metrics)
+
+
+def judge(members: Sequence[EnsembleMember], probability: float = 0.95,
+          settle_s: float = SETTLE_S) -> EnsembleConsistency:
+    """The consistency figures of the members (cut to the shortest run's samples)."""
+    if not members:
+        raise ValueError("no runs to judge")
+    steps = min(m.t_s.size for m in members)
+    return ensemble_consistency(
+        members[0].t_s[:steps],
+        np.vstack([m.nees[:steps] for m in members]),
+        [m.nis_sum for m in members],
+        [m.nis_dof for m in members],
+        probability=probability,
+        settle_s=settle_s,
+    )
