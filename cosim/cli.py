@@ -10,6 +10,8 @@ Start with `cosim run lane-change`, then `cosim plot` or `cosim inspect` on the 
     cosim inspect FILE.mcap [--json] [--topic T [--head N]] [--csv DIR]
     cosim plot FILE.mcap [FILE2.mcap] [--out DIR]
     cosim scenarios
+    cosim trackers
+    cosim estimators
     cosim identify [--config FILE.yaml] [--set key.path=value ...] [--json]
     cosim sweep SPEC.yaml [--workers N] [--backend process|ray] [--out DIR] [--keep-logs]
                           [--resume] [--yes]
@@ -77,7 +79,8 @@ def _build_parser() -> argparse.ArgumentParser:
     run.add_argument("--config", metavar="FILE.yaml", help="YAML merged over the scenario")
     run.add_argument("--tracker", metavar="NAME",
                      help="path tracker: dynamic-nmpc (default), kinematic-nmpc, ltv-mpc, "
-                     "dynamic-mpc, open-loop")
+                     "dynamic-mpc, open-loop ... (`cosim trackers`), an installed plug-in or "
+                     "my_pkg.my_module:MyTracker")
     run.add_argument("--estimator", metavar="NAME",
                      help="state estimator: ekf (default), ukf, truth (debugging)")
     run.add_argument("--seed", type=int, metavar="N", help="seed of every noise source")
@@ -112,6 +115,9 @@ def _build_parser() -> argparse.ArgumentParser:
                       help="output directory (default <log>-plots beside the log)")
 
     commands.add_parser("scenarios", help="list the built-in scenarios")
+    commands.add_parser("trackers", help="list the trackers: built in and installed plug-ins")
+    commands.add_parser("estimators",
+                        help="list the estimators: built in and installed plug-ins")
     compare = commands.add_parser(
         "compare", help="every tracker on every scenario and seed: a league table")
     compare.add_argument("--trackers", metavar="A,B,..",
@@ -367,6 +373,39 @@ def _command_scenarios(args: argparse.Namespace) -> int:
     return 0
 
 
+def _command_trackers(args: argparse.Namespace) -> int:
+    from cosim.plugins import entry_point_names
+    from tracker.config import PLUGIN_GROUP
+    from tracker.registry import TRACKER_NAMES
+
+    del args
+    return _print_components(TRACKER_NAMES, entry_point_names(PLUGIN_GROUP), PLUGIN_GROUP,
+                             "--tracker")
+
+
+def _command_estimators(args: argparse.Namespace) -> int:
+    from cosim.plugins import entry_point_names
+    from estimation.config import ESTIMATOR_NAMES, PLUGIN_GROUP
+
+    del args
+    return _print_components(ESTIMATOR_NAMES, entry_point_names(PLUGIN_GROUP), PLUGIN_GROUP,
+                             "--estimator")
+
+
+def _print_components(builtin: Sequence[str], plugins: dict[str, str], group: str,
+                      option: str) -> int:
+    """Built-in names, then the installed plug-ins of ``group`` with the class each names."""
+    width = max(len(name) for name in [*builtin, *plugins])
+    for name in builtin:
+        print(f"{name:<{width}}  built in")
+    for name, target in plugins.items():
+        print(f"{name:<{width}}  plug-in {target}")
+    if not plugins:
+        print(f"(no plug-ins installed: entry point group {group!r}; or use {option} "
+              "my_pkg.my_module:MyClass)")
+    return 0
+
+
 IDENTIFY_SCENARIO = "lane-change"
 """`cosim identify` identifies the plant of this scenario's config (with the overrides)."""
 
@@ -404,7 +443,7 @@ def _command_identify(args: argparse.Namespace) -> int:
 
 
 def _command_sweep(args: argparse.Namespace) -> int:
-    from cosim.sweeps.driver import default_out_dir, run_sweep
+    from cosim.sweeps.driver import check_sweep_dir, default_out_dir, run_sweep
     from cosim.sweeps.execute import WorkerCrashError
 
     if args.resume and args.out is None:
@@ -440,27 +479,19 @@ def _command_sweep(args: argparse.Namespace) -> int:
     return 0
 
 
-def check_sweep_dir(out: Path) -> None:
-    """Refuse a sweep --out that names a file, or a place where no directory can be made
-    (checked without making anything: a refused spec leaves no directory behind)."""
-    if out.exists() and not out.is_dir():
-        raise CosimError(f"--out {str(out)!r}: is a file: expected a directory for the sweep")
-    existing = next(p for p in (out, *out.parents) if p.exists() or p == Path(p.anchor))
-    if not existing.is_dir():
-        raise CosimError(f"--out {str(out)!r}: cannot make the directory ({str(existing)!r} "
-                         "is a file): expected a writable place")
-    if not os.access(existing, os.W_OK | os.X_OK):
-        raise CosimError(f"--out {str(out)!r}: cannot make the directory ({str(existing)!r} "
-                         "is not writable): expected a writable place")
 def _command_compare(args: argparse.Namespace) -> int:
     import time as _time
 
     from cosim.sweeps import compare
+    from tracker.config import is_plugin_name
     from tracker.registry import TRACKER_NAMES
 
     closed_loop = [name for name in TRACKER_NAMES if name != "open-loop"]
-    trackers = compare.parse_names(args.trackers, compare.DEFAULT_TRACKERS, closed_loop,
-                                   "trackers")
+    trackers = compare.parse_names(args.trackers, compare.DEFAULT_TRACKERS, None, "trackers")
+    for name in trackers:  # built-in closed-loop trackers, or trackers from outside cosim
+        if name not in closed_loop and not is_plugin_name(name):
+            raise CosimError(f"--trackers: {name!r} is not one of {', '.join(closed_loop)}, "
+                             "an installed plug-in or module:Class")
     scenarios = compare.parse_names(args.scenarios, compare.DEFAULT_SCENARIOS, None,
                                     "scenarios")
     if args.workers is not None and args.workers < 1:
@@ -522,7 +553,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     handlers = {"run": _command_run, "inspect": _command_inspect, "plot": _command_plot,
                 "scenarios": _command_scenarios, "identify": _command_identify,
                 "sweep": _command_sweep, "render": _command_render,
-                "config": _command_config, "compare": _command_compare}
+                "config": _command_config, "compare": _command_compare,
+                "trackers": _command_trackers, "estimators": _command_estimators}
     try:
         with warnings.catch_warnings():
             warnings.showwarning = _one_line_warning

@@ -8,6 +8,7 @@ names the dotted key and what was expected. Validation uses ``raise``, never ``a
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import datetime
 import math
@@ -104,6 +105,20 @@ def _items(item_cls: type, data: Any, key: str) -> tuple[Any, ...]:
     return tuple(from_dict(item_cls, item, f"{key}[{i}]") for i, item in enumerate(data))
 
 
+def mapping(doc: str = "") -> Any:
+    """A free-form section (a mapping, empty by default) that this module does not validate:
+    its owner does (``tracker.params``, validated by a plug-in tracker's own schema)."""
+    return dataclasses.field(default_factory=dict, metadata={"doc": doc})
+
+
+def _mapping(data: Any, key: str) -> dict[str, Any]:
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise ConfigError(f"{key} = {shown(data)}: expected a mapping of keys to values")
+    return copy.deepcopy(data)
+
+
 def from_dict(cls: type[T], data: Any, prefix: str = "") -> T:
     """Build the dataclass ``cls`` from ``data``, validating every key and value.
 
@@ -129,6 +144,8 @@ def from_dict(cls: type[T], data: Any, prefix: str = "") -> T:
             kwargs[name] = from_dict(hint, value, key)
         elif typing.get_origin(hint) is tuple:
             kwargs[name] = _items(typing.get_args(hint)[0], value, key)
+        elif typing.get_origin(hint) is dict:
+            kwargs[name] = _mapping(value, key)
         else:
             kwargs[name] = _convert(value, hint, dict(fields[name].metadata), key)
     # Defaults are validated too: a wrong default is a bug, and a section may have
@@ -231,6 +248,10 @@ def key_infos(cls: type, prefix: str = "") -> list[KeyInfo]:
             continue
         if typing.get_origin(hint) is tuple:
             rows.extend(key_infos(typing.get_args(hint)[0], f"{key}[]"))
+            continue
+        if typing.get_origin(hint) is dict:
+            rows.append(KeyInfo(f"{key}.*", "mapping", "-", {}, "keys of its owner's schema",
+                                str(f.metadata.get("doc") or "")))
             continue
         kind = {bool: "true/false", int: "an integer", float: "a number", str: "a string"}[hint]
         meta = dict(f.metadata)

@@ -37,3 +37,13 @@ class RenderError(CosimError):
 
 class GlBackendError(RenderError):
     """The OpenGL back-end MuJoCo renders with (MUJOCO_GL) is missing or does not start."""
+
+
+class PluginError(CosimError):
+    """A tracker or estimator from outside cosim cannot be loaded or breaks its interface
+    (missing module, no ``step`` method, a wrong return type): bad input, exit code 2."""
+
+
+class TrackerFault(CosimError):
+    """A tracker from outside cosim failed during a run (raised, returned a non-finite
+    command, overran its time budget): the run ends with ``completed: false``."""

@@ -19,13 +19,25 @@ the module docstring of :mod:`estimation.models` and the comments below.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
-from cosim.config_fields import section, setting
+from cosim.config_fields import mapping, section, setting
+from cosim.exceptions import ConfigError
+from cosim.plugins import entry_point_names, is_import_path
 from estimation.models import TYRE_MODELS
 from estimation.noise_config import NoiseBelief
 
 ESTIMATOR_NAMES: tuple[str, ...] = ("ekf", "ukf", "truth")
-"""Values ``estimator.name`` accepts; :func:`estimation.registry.make_estimator` builds each."""
+"""Built-in values of ``estimator.name``; :func:`estimation.registry.make_estimator` builds
+each (and plug-ins: :data:`PLUGIN_GROUP`, or an import path)."""
+
+PLUGIN_GROUP = "cosim.estimators"
+"""Entry-point group of estimators from other packages."""
+
+
+def is_plugin_name(name: str) -> bool:
+    """Whether ``name`` names an estimator from outside cosim: an import path or a plug-in."""
+    return is_import_path(name) or name in entry_point_names(PLUGIN_GROUP)
 
 INITIAL_MODES: tuple[str, ...] = ("sampled", "first-fix", "truth")
 """Values ``estimator.initial`` accepts (:mod:`estimation.initial`)."""
@@ -37,10 +49,21 @@ class EstimatorConfig:
 
     name: str = setting(
         "ekf",
-        choices=ESTIMATOR_NAMES,
         doc="ekf: extended Kalman filter; ukf: unscented Kalman filter (same models); "
-        "truth: the true state (debugging)",
+        "truth: the true state (debugging); or an estimator from outside cosim: an installed "
+        "plug-in (entry point group cosim.estimators, `cosim estimators`) or an import path "
+        "my_pkg.my_module:MyFilter (estimation.registry)",
     )
+    params: dict[str, Any] = mapping(
+        doc="a plug-in estimator's own settings (it reads them from its config.params)",
+    )
+
+    def __post_init__(self) -> None:
+        if self.name not in ESTIMATOR_NAMES and not is_plugin_name(self.name):
+            raise ConfigError(
+                f"name = {self.name!r}: expected one of {', '.join(ESTIMATOR_NAMES)}, an "
+                "installed plug-in (cosim estimators) or an import path module:Class"
+            )
 
     initial: str = setting(
         "sampled",

@@ -1,13 +1,26 @@
-"""Estimators by name: what ``estimator.name`` selects and which sensors each one needs."""
+"""Estimators by name: what ``estimator.name`` selects and which sensors each one needs.
+
+A name that is not built in is an estimator from outside cosim: an import path
+``my_pkg.my_module:MyFilter`` or an entry point of the group ``cosim.estimators``
+(:mod:`cosim.plugins`). Its class is built as the built-in ones are,
+``cls(config, initial, belief, t0_s=..., rng=...)`` (its own settings in
+``config.params``; ``rng`` draws its initial estimate), and must
+have ``predict(t_s)``, ``estimate() -> Estimate`` and ``update(measurement)`` returning an
+:class:`estimation.update_result.UpdateResult`, plus the class attributes
+``required_sensors`` and ``supported_sensors``.
+"""
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
-from cosim.exceptions import ConfigError
+from cosim.exceptions import ConfigError, PluginError
 from cosim.initial_state import InitialState
+from cosim.plugins import load_object
 from cosim.vehicle_params import VehicleParams
-from estimation.config import ESTIMATOR_NAMES, EstimatorConfig
+from estimation.config import ESTIMATOR_NAMES, PLUGIN_GROUP, EstimatorConfig, is_plugin_name
 from estimation.ekf import Ekf
 from estimation.truth import TruthEstimator
 from estimation.ukf import Ukf
@@ -25,6 +38,10 @@ __all__ = [
 Estimator = Ekf | Ukf | TruthEstimator
 
 
+ESTIMATOR_METHODS = ("predict", "estimate", "update")
+"""What the runner calls on an estimator."""
+
+
 def estimator_class(name: str) -> type[Ekf] | type[Ukf] | type[TruthEstimator]:
     """The class registered as ``name``; a :class:`ConfigError` listing the known ones."""
     if name == "ekf":
@@ -33,6 +50,8 @@ def estimator_class(name: str) -> type[Ekf] | type[Ukf] | type[TruthEstimator]:
         return Ukf
     if name == "truth":
         return TruthEstimator
+    if is_plugin_name(name):
+        return _plugin_class(name)
     raise ConfigError(f"estimator.name = {name!r}: expected one of {', '.join(ESTIMATOR_NAMES)}")
 
 
@@ -59,3 +78,19 @@ def required_sensors(name: str) -> tuple[str, ...]:
 def supported_sensors(name: str) -> tuple[str, ...]:
     """Sensors the estimator ``name`` fuses (others are ignored, not rejected)."""
     return estimator_class(name).supported_sensors
+
+
+def _plugin_class(name: str) -> Any:
+    """An estimator class from outside cosim, checked for the methods the runner calls."""
+    cls = load_object(name, PLUGIN_GROUP, "estimator.name")
+    if not isinstance(cls, type):
+        raise PluginError(f"estimator.name = {name!r}: is a {type(cls).__name__}: expected "
+                          "an estimator class")
+    missing = [m for m in ESTIMATOR_METHODS if not callable(getattr(cls, m, None))]
+    missing += [a for a in ("required_sensors", "supported_sensors")
+                if not isinstance(getattr(cls, a, None), tuple)]
+    if missing:
+        raise PluginError(f"estimator.name = {name!r}: class {cls.__name__} lacks "
+                          f"{', '.join(missing)}: expected predict(t_s), estimate(), "
+                          "update(measurement) and tuples required_sensors, supported_sensors")
+    return cls

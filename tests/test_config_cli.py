@@ -37,6 +37,8 @@ def leaf_keys(cls: type, prefix: str = "") -> list[str]:
             keys += leaf_keys(hint, key)
         elif typing.get_origin(hint) is tuple:
             keys += leaf_keys(typing.get_args(hint)[0], key + "[]")
+        elif typing.get_origin(hint) is dict:  # a free-form section: its owner's keys
+            keys.append(key + ".*")
         else:
             keys.append(key)
     return keys

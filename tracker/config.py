@@ -71,9 +71,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
-from cosim.config_fields import section, setting
+from cosim.config_fields import mapping, section, setting
 from cosim.exceptions import ConfigError
+from cosim.plugins import entry_point_names, is_import_path
 from cosim.vehicle_params import VehicleParams
 from tracker.baselines.config import BaselineConfig
 from tracker.dynamic_mpc_config import DynamicMpcConfig
@@ -85,6 +87,15 @@ TRACKER_CHOICES: tuple[str, ...] = (
     "pid", "stanley", "pure-pursuit", "lqr",
 )
 """Values ``tracker.name`` accepts; :data:`tracker.registry.TRACKER_NAMES` maps each one."""
+
+
+PLUGIN_GROUP = "cosim.trackers"
+"""Entry-point group of trackers from other packages (:mod:`tracker.plugin`)."""
+
+
+def is_plugin_name(name: str) -> bool:
+    """Whether ``name`` names a tracker from outside cosim: an import path or a plug-in."""
+    return is_import_path(name) or name in entry_point_names(PLUGIN_GROUP)
 
 
 @dataclass(frozen=True)
@@ -117,7 +128,20 @@ class TrackerConfig:
     ``plant`` section. Their difference is the model mismatch under study.
     """
 
-    name: str = setting("dynamic-nmpc", choices=TRACKER_CHOICES, doc="tracker to build")
+    name: str = setting(
+        "dynamic-nmpc",
+        doc="tracker to build: one of " + ", ".join(TRACKER_CHOICES) + "; or a tracker "
+        "from outside cosim: an installed plug-in (entry point group cosim.trackers, "
+        "`cosim trackers`) or an import path my_pkg.my_module:MyTracker (tracker.plugin)",
+    )
+    params: dict[str, Any] = mapping(
+        doc="a plug-in tracker's own settings, passed to it (validated by its Params schema "
+        "if it declares one), e.g. --set tracker.params.lookahead_time_s=0.8",
+    )
+    step_budget_s: float = setting(
+        1.0, low=1e-4, high=3600.0,
+        doc="a plug-in tracker's step that takes longer (wall clock) ends the run",
+    )
     horizon: int = setting(25, low=2, high=200, doc="number of stages N")
     dt_s: float = setting(0.05, low=0.005, high=1.0, doc="length of one stage [s]")
     weights: TrackerWeights = section(TrackerWeights)
@@ -198,6 +222,11 @@ class TrackerConfig:
     baseline: BaselineConfig = section(BaselineConfig)
 
     def __post_init__(self) -> None:
+        if self.name not in TRACKER_CHOICES and not is_plugin_name(self.name):
+            raise ConfigError(
+                f"name = {self.name!r}: expected one of {', '.join(TRACKER_CHOICES)}, an "
+                "installed plug-in (cosim trackers) or an import path module:Class"
+            )
         if not self.accel_min_mps2 < self.accel_max_mps2:
             raise ConfigError(
                 f"accel_min_mps2 = {self.accel_min_mps2}: expected less than "

@@ -1,7 +1,8 @@
 """Trackers by name: ``tracker.name`` in a scenario picks the constructor.
 
 A tracker is anything with ``step(t_s, estimate, reference) -> (Command, Plan)`` and
-``reset()`` (the :class:`cosim.protocols.Tracker` protocol).
+``reset()`` (the :class:`cosim.protocols.Tracker` protocol). A name that is not built in is a
+tracker from outside cosim (an import path or an installed plug-in: :mod:`tracker.plugin`).
 """
 
 from __future__ import annotations
@@ -14,13 +15,14 @@ from tracker.baselines.lqr import make_lqr
 from tracker.baselines.pid import make_pid
 from tracker.baselines.pure_pursuit import make_pure_pursuit
 from tracker.baselines.stanley import make_stanley
-from tracker.config import TrackerConfig
+from tracker.config import TrackerConfig, is_plugin_name
 from tracker.dynamic_mpc import DynamicMpc
 from tracker.dynamic_nmpc import DynamicNmpc
 from tracker.kinematic_nmpc import KinematicNmpc
 from tracker.ltv_mpc import LtvMpc
 from tracker.maneuver import ManeuverConfig
 from tracker.open_loop import OpenLoopTracker
+from tracker.plugin import make_plugin_tracker
 from tracker.protocol import Tracker
 
 _CONSTRUCTORS: MappingProxyType[
@@ -46,6 +48,8 @@ TRACKER_NAMES: tuple[str, ...] = tuple(_CONSTRUCTORS)
 def make_tracker(config: TrackerConfig, maneuver: ManeuverConfig | None = None) -> Tracker:
     """Build the tracker ``config.name``; ``maneuver`` drives the ``open-loop`` tracker."""
     constructor = _CONSTRUCTORS.get(config.name)
+    if constructor is None and is_plugin_name(config.name):
+        return make_plugin_tracker(config)
     if constructor is None:
         raise ConfigError(
             f"tracker.name = {config.name!r}: expected one of {', '.join(TRACKER_NAMES)}"

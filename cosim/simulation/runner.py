@@ -36,7 +36,7 @@ from threadpoolctl import threadpool_limits
 
 from cosim import __version__
 from cosim.config_fields import to_dict
-from cosim.exceptions import PhysicsDivergenceError
+from cosim.exceptions import PhysicsDivergenceError, TrackerFault
 from cosim.log import foxglove
 from cosim.log import schemas as mcap_schemas
 from cosim.log.recorder import McapRecorder
@@ -52,18 +52,32 @@ from cosim.simulation.metrics import MetricsAccumulator
 from cosim.simulation.outcome import OutcomeMonitor
 from cosim.simulation.scenario_config import ScenarioConfig, steps_per_period
 from estimation.registry import make_estimator
+from tracker.protocol import Tracker
 from tracker.reference_path import ReferencePath
 from tracker.registry import make_tracker
 
 
 @dataclass(frozen=True)
 class RunResult:
-    """What a run produced."""
+    """What a run produced: its log, its metrics (:data:`cosim.simulation.metrics.METRIC_KEYS`
+    and the outcome's), whether it ran to the end, and why not."""
 
     log_path: Path
     metrics: dict[str, float | int | bool | str]
     completed: bool
     abort_reason: str
+    """Empty when the run completed; else why it stopped (``interrupted``, the error)."""
+
+    @property
+    def outcome(self) -> str:
+        """How the run ended: ``ok``, an event (``off_road``, ``spun`` ...) or the abort
+        (``interrupted``, ``diverged``, ``error``); see :mod:`cosim.simulation.outcome`."""
+        return str(self.metrics.get("outcome", "ok"))
+
+    @property
+    def reason(self) -> str:
+        """:attr:`abort_reason` (empty when the run completed)."""
+        return self.abort_reason
 
 
 def component_rng(seed: int, component: str) -> np.random.Generator:
@@ -177,7 +191,8 @@ class _Clock:
 class _Run:
     """The components of one run and the phases of one physics step."""
 
-    def __init__(self, config: ScenarioConfig, recorder: McapRecorder) -> None:
+    def __init__(self, config: ScenarioConfig, recorder: McapRecorder,
+                 tracker: Tracker | None = None) -> None:
         self.config = config
         self.clock = _Clock.from_config(config)
         self.recorder = recorder
@@ -188,7 +203,9 @@ class _Run:
         self.estimator = make_estimator(
             config.estimator, config.initial, config.tracker.model,
             rng=component_rng(config.seed, "estimator.initial"))
-        self.tracker = make_tracker(config.tracker, config.maneuver)
+        self.tracker = tracker if tracker is not None else \
+            make_tracker(config.tracker, config.maneuver)
+        """The run's tracker; the Gymnasium environment passes one that replays its actions."""
         self.low_level = AccelToTorque(config.tracker.model)
         self.sensors = make_sensors(config.sensors)
         if "truth" in getattr(self.estimator, "required_sensors", ()):
@@ -350,21 +367,30 @@ class _Run:
                 "t_s": t_s, "kind": "heading_step", "heading_step_rad": change.angle_rad,
                 "yaw_rate_change_radps": change.delta_radps})
 
+    def observe(self, k: int) -> bool:
+        """Phases 1-2 of step ``k`` (log, sense); False at the end of the run."""
+        t_s = k * self.clock.dt_s
+        if k % self.clock.log_steps == 0:
+            self.log(t_s)
+        self.sense(k, t_s)
+        return k < self.clock.n_steps
+
+    def act(self, k: int) -> None:
+        """Phases 4-5 of step ``k``: actuate, disturb, advance the plant."""
+        t_s = k * self.clock.dt_s
+        self.actuate(k, t_s)
+        self.disturb(k, t_s)
+        self.plant.advance()
+        self.truth = self.plant.state()
+
     def loop(self, stop: _StopRequest, progress: Callable[[float], None] | None) -> None:
         clock = self.clock
         for k in range(clock.n_steps + 1):
-            t_s = k * clock.dt_s
-            if k % clock.log_steps == 0:
-                self.log(t_s)
-            self.sense(k, t_s)
-            if k == clock.n_steps:
+            if not self.observe(k):
                 return
             if k % clock.control_steps == 0:
-                self.control(k, t_s)
-            self.actuate(k, t_s)
-            self.disturb(k, t_s)
-            self.plant.advance()
-            self.truth = self.plant.state()
+                self.control(k, k * clock.dt_s)
+            self.act(k)
             if stop.signal_name:
                 raise KeyboardInterrupt
             if progress is not None and k % 500 == 0:
@@ -396,6 +422,8 @@ def run(
             completed = True
         except PhysicsDivergenceError as error:
             abort_reason, abort = str(error), "diverged"
+        except TrackerFault as error:  # a plug-in tracker failed: a result, not a crash
+            abort_reason, abort = str(error), "error"
         except KeyboardInterrupt:
             abort_reason = abort = "interrupted"
         except Exception as error:  # the log is finished below, then the error goes on
@@ -428,3 +456,11 @@ def _finish(recorder: McapRecorder, state: _Run, wall_start: float, completed: b
         {k: (v if not isinstance(v, float) or np.isfinite(v) else None)
          for k, v in values.items()})})
     return values
+
+
+RunState = _Run
+"""The components and phases of one run, for a caller that drives the loop itself (the
+Gymnasium environment :mod:`cosim.gym` steps it one control period at a time)."""
+
+finish_run = _finish
+"""Compute the run's metrics and write them to its log (the end of :func:`run`)."""

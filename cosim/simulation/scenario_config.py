@@ -30,11 +30,12 @@ from cosim.simulation.path_config import PathConfig
 from cosim.vehicle_params import PlantConfig
 from cosim.yaml_io import loads as yaml_loads
 from cosim.yaml_io import read_yaml_file, shown
-from estimation.config import EstimatorConfig
+from estimation.config import ESTIMATOR_NAMES, EstimatorConfig
 from estimation.noise_config import suite_noise_preset
-from estimation.registry import required_sensors
-from tracker.config import TrackerConfig
+from estimation.registry import estimator_class, required_sensors
+from tracker.config import TrackerConfig, is_plugin_name
 from tracker.maneuver import ManeuverConfig
+from tracker.plugin import check_plugin
 
 DEFAULT_EPOCH = "2026-01-01T00:00:00Z"
 """Log time of sim time 0 unless ``sim.epoch`` says otherwise: a fixed date, so that two
@@ -193,6 +194,11 @@ def load_config(
     check_rates(config)
     check_required_sensors(config)
     check_faults(config)
+    # A bad plug-in is refused here, before any run starts.
+    if is_plugin_name(config.tracker.name):
+        check_plugin(config.tracker)
+    if config.estimator.name not in ESTIMATOR_NAMES:
+        estimator_class(config.estimator.name)
     return config
 
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import contextlib
 import datetime
+import os
 import signal
 import sys
 import threading
@@ -137,6 +138,20 @@ def check_size(spec: SweepSpec, spec_path: Path, yes: bool) -> None:
     if spec.n_runs > RUN_LIMIT and not yes:
         raise CosimError(f"sweep spec {str(spec_path)!r}: {spec.n_runs:,} runs: expected at "
                          f"most {RUN_LIMIT:,} (or --yes to run them all)")
+
+
+def check_sweep_dir(out: Path) -> None:
+    """Refuse a sweep --out that names a file, or a place where no directory can be made
+    (checked without making anything: a refused spec leaves no directory behind)."""
+    if out.exists() and not out.is_dir():
+        raise CosimError(f"--out {str(out)!r}: is a file: expected a directory for the sweep")
+    existing = next(p for p in (out, *out.parents) if p.exists() or p == Path(p.anchor))
+    if not existing.is_dir():
+        raise CosimError(f"--out {str(out)!r}: cannot make the directory ({str(existing)!r} "
+                         "is a file): expected a writable place")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise CosimError(f"--out {str(out)!r}: cannot make the directory ({str(existing)!r} "
+                         "is not writable): expected a writable place")
 
 
 def run_sweep(spec_path: str | Path, out_dir: str | Path | None = None,

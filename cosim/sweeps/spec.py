@@ -54,6 +54,8 @@ import yaml
 from cosim.exceptions import ConfigError
 from cosim.simulation.metrics import METRIC_KEYS
 from cosim.yaml_io import read_yaml_file, shown
+from tracker.config import is_plugin_name
+from tracker.plugin import resolved_params
 
 Scalar = float | int | bool | str
 """A value a varied parameter can take."""
@@ -422,6 +424,8 @@ def load_spec(path: str | Path) -> SweepSpec:
 
     base = config((), "config")
     leaves = _leaves(to_dict(base))
+    if is_plugin_name(base.tracker.name):  # a plug-in's own settings, defaults filled in
+        leaves.update(_leaves({"tracker": {"params": resolved_params(base.tracker)}}))
 
     grid, random = data.get("grid"), data.get("random")
     if grid is not None and random is not None:

@@ -1,0 +1,123 @@
+"""The Python API: load a configuration, run it, sweep it, and get the results back.
+
+What ``cosim run`` and ``cosim sweep`` do, callable from a notebook, a tuning script or an
+optimiser, with the same validation and the same errors (every user error is a
+:class:`cosim.exceptions.CosimError` whose message is the line the command line prints)::
+
+    import cosim
+
+    config = cosim.load_config("lane-change", seed=1, overrides=["tracker.horizon=30"])
+    result = cosim.run(config, out="logs/lane-change-h30.mcap")
+    print(result.completed, result.outcome, result.metrics["cte_max_m"])
+
+``import cosim`` alone imports none of this (the package resolves ``cosim.run`` and the other
+names on first use), so importing the package stays light and has no side effects. The
+run's own machinery is :mod:`cosim.simulation.runner`; the sweep's is
+:mod:`cosim.sweeps.driver`. A worked example: ``docs/api.md``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+from cosim.exceptions import ConfigError
+from cosim.log.safe_file import check_output_path
+from cosim.simulation.runner import RunResult
+from cosim.simulation.runner import run as _run_loop
+from cosim.simulation.scenario_config import ScenarioConfig
+from cosim.simulation.scenario_config import load_config as _load_config
+from cosim.sweeps.driver import SweepOutcome, check_sweep_dir, run_sweep
+
+__all__ = ["RunResult", "ScenarioConfig", "SweepOutcome", "load_config", "run", "sweep"]
+
+
+def load_config(
+    scenario: str | Path,
+    *,
+    config_file: str | Path | None = None,
+    overrides: Sequence[str] = (),
+    seed: int | None = None,
+    duration_s: float | None = None,
+    tracker: str | None = None,
+    estimator: str | None = None,
+) -> ScenarioConfig:
+    """The validated configuration of a run, resolved as ``cosim run`` resolves it.
+
+    ``scenario`` is a built-in name (``cosim scenarios``) or a YAML file; ``config_file`` a
+    YAML merged over it; then ``seed``, ``duration_s`` (``sim.duration_s``), ``tracker``
+    (``tracker.name``), ``estimator`` (``estimator.name``) and the ``overrides``, each
+    ``"key.path=value"`` as ``--set`` takes it (the value is read as YAML). Raises
+    :class:`cosim.exceptions.ConfigError` naming the bad key or value and what was expected.
+    """
+    if duration_s is not None and not (math.isfinite(duration_s) and duration_s >= 0):
+        raise ConfigError(f"duration_s = {duration_s}: expected a number of seconds >= 0")
+    if isinstance(overrides, str):  # one string would be read character by character
+        raise ConfigError(f"overrides = {overrides!r}: expected a list of 'key.path=value'")
+    return _load_config(str(scenario), None if config_file is None else str(config_file),
+                        list(overrides), seed, duration_s, tracker, estimator)
+
+
+def run(
+    config: ScenarioConfig | str,
+    out: str | Path,
+    *,
+    force: bool = False,
+    progress: Callable[[float], None] | None = None,
+) -> RunResult:
+    """Run one configuration and log it to the MCAP file ``out``; its :class:`RunResult`.
+
+    ``config`` is a :class:`ScenarioConfig` (from :func:`load_config`) or a scenario name or
+    path, loaded with its defaults. ``out`` is refused, as ``--out`` is, when it is a folder
+    or already exists (unless ``force``). ``progress`` is called with the fraction done.
+
+    A run that ends badly is a result, not an exception: ``result.completed`` is false when
+    it aborted (``result.reason`` says why), and ``result.outcome`` names how it ended
+    (``ok``, ``off_road``, ``spun`` ...; see :mod:`cosim.simulation.outcome`). An interrupt
+    (Ctrl-C, SIGTERM) ends the run with ``reason == "interrupted"`` and the log kept.
+    """
+    if isinstance(config, str):
+        config = load_config(config)
+    if not isinstance(config, ScenarioConfig):
+        raise ConfigError(f"config = {type(config).__name__}: expected a ScenarioConfig "
+                          "(cosim.load_config) or a scenario name")
+    path = Path(out)
+    check_output_path(path, "out", force)
+    return _run_loop(config, path, progress)
+
+
+def sweep(
+    spec: str | Path,
+    out: str | Path,
+    *,
+    workers: int | None = None,
+    backend: str = "process",
+    keep_logs: bool = False,
+    resume: bool = False,
+    yes: bool = False,
+) -> SweepOutcome:
+    """Run the sweep spec ``spec`` (YAML, see :mod:`cosim.sweeps.spec`) into directory ``out``.
+
+    As ``cosim sweep SPEC --out DIR``: ``results.jsonl``, ``results.csv``, ``results.json``,
+    ``summary.md`` and the plots land in ``out`` (their paths: ``outcome.files``);
+    ``workers`` parallel runs (default: the usable cores), ``backend`` ``process`` or
+    ``ray``, ``keep_logs`` keeps each run's MCAP under ``out/logs``, ``resume`` finishes
+    an interrupted sweep in ``out``, ``yes`` allows more than 10 000 runs. A bad spec raises
+    :class:`cosim.exceptions.CosimError` before any run; an interrupt re-raises
+    ``KeyboardInterrupt`` with the finished rows kept.
+
+    The ``process`` backend starts its workers fresh (multiprocessing's ``spawn``): they
+    import the caller's main module, so a script that calls this keeps its work under
+    ``if __name__ == "__main__":``, as every script with a process pool must.
+    """
+    spec_path = Path(spec)
+    if not spec_path.is_file():
+        raise ConfigError(f"{str(spec)!r}: no such file (expected a sweep spec YAML)")
+    if backend not in ("process", "ray"):
+        raise ConfigError(f"backend = {backend!r}: expected process or ray")
+    if workers is not None and workers < 1:
+        raise ConfigError(f"workers = {workers}: expected at least 1")
+    out_dir = Path(out)
+    check_sweep_dir(out_dir)
+    return run_sweep(spec_path, out_dir, workers, backend, keep_logs, resume, yes=yes)

@@ -1,0 +1,80 @@
+"""``cosim.gym``: the environment passes Gymnasium's checker, a random policy runs, and the
+built-in MPC as the policy reproduces ``cosim run`` (same seed, same max CTE within 1 %)."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+gymnasium = pytest.importorskip("gymnasium")
+
+from gymnasium.utils.env_checker import check_env  # noqa: E402
+
+import cosim  # noqa: E402
+import cosim.gym  # noqa: E402
+from cosim.gym.env import OBS_NAMES, CosimEnv  # noqa: E402
+from cosim.log.reader import read_summary  # noqa: E402
+from tracker.registry import make_tracker  # noqa: E402
+
+
+def test_registered_and_passes_the_checker() -> None:
+    cosim.gym.register_envs()
+    env = gymnasium.make("cosim/LaneChange-v0")
+    assert isinstance(env.unwrapped, CosimEnv)
+    check_env(env.unwrapped, skip_render_check=True)
+    observation, _ = env.reset(seed=3)
+    assert observation.shape == (len(OBS_NAMES),)
+    env.close()
+
+
+def test_a_random_policy_runs_and_logs(tmp_path: Path) -> None:
+    env = CosimEnv(overrides=("sim.duration_s=3",), log_dir=tmp_path)
+    env.action_space.seed(0)
+    env.reset(seed=1)
+    rewards, done, info = [], False, {}
+    while not done:
+        _, reward, terminated, truncated, info = env.step(env.action_space.sample())
+        rewards.append(reward)
+        done = terminated or truncated
+    assert all(r <= 0.0 for r in rewards) and len(rewards) <= 60
+    assert "cte_max_m" in info["metrics"]
+    (log,) = tmp_path.glob("*.mcap")
+    summary = read_summary(log)
+    assert not summary.truncated and summary.metrics is not None
+    assert summary.metrics["cte_max_m"] == info["metrics"]["cte_max_m"]
+    env.close()
+
+
+def test_the_mpc_as_policy_matches_cosim_run(tmp_path: Path) -> None:
+    seed = 2
+    config = cosim.load_config("lane-change", seed=seed)
+    reference_run = cosim.run(config, out=tmp_path / "run.mcap")
+    env = CosimEnv("lane-change")
+    mpc = make_tracker(config.tracker, config.maneuver)
+    env.reset(seed=seed)
+    done, info = False, {}
+    while not done:
+        assert env.estimate is not None
+        command, _ = mpc.step(env.estimate.t_s, env.estimate, env.reference)
+        _, _, terminated, truncated, info = env.step(env.action_of(command))
+        done = terminated or truncated
+    assert not terminated
+    expected = reference_run.metrics["cte_max_m"]
+    assert info["metrics"]["cte_max_m"] == pytest.approx(expected, rel=0.01)
+    assert np.isfinite(expected) and expected > 0.0
+
+
+def test_the_docs_random_policy_example_runs(tmp_path: Path) -> None:
+    text = (Path(__file__).resolve().parents[1] / "docs" / "gym.md").read_text()
+    first = re.findall(r"```python\n(.*?)```", text, flags=re.DOTALL)[0]
+    done = subprocess.run([sys.executable, "-c", first], cwd=tmp_path, capture_output=True,
+                          text=True, timeout=600, env={"MUJOCO_GL": "disable",
+                                                       "PATH": "/usr/bin:/bin"})
+    assert done.returncode == 0, done.stderr
+    cte_max_m, outcome = done.stdout.split()
+    assert float(cte_max_m) > 0.0 and outcome in ("ok", "off_road", "spun", "end_of_path")

@@ -1,0 +1,131 @@
+"""Trackers from outside cosim: load, check and guard a user's tracker class.
+
+``tracker.name`` names a class by import path (``my_pkg.my_module:MyTracker``) or by an
+entry point of the group ``cosim.trackers`` (:mod:`cosim.plugins`). The class must have a
+``step(t_s, estimate, reference) -> (Command, Plan)`` method (the
+:class:`tracker.protocol.Tracker` protocol) and is built as ``cls(params, config)``:
+
+- ``params``: the scenario's ``tracker.params`` section (``--set tracker.params.gain=2``).
+  A class that declares a schema, a dataclass as its attribute ``Params``, gets an instance
+  of it, validated by :func:`cosim.config_fields.from_dict` (unknown keys, types and the
+  ``setting`` bounds are checked, errors name ``tracker.params.KEY``); otherwise the plain
+  mapping.
+- ``config``: the whole :class:`tracker.config.TrackerConfig` (the belief ``model``, the
+  steering and acceleration bounds, ``dt_s``).
+
+The runner cannot vouch for such code, so each step goes through :class:`GuardedTracker`:
+a step that raises, returns something other than ``(Command, Plan)``, a non-finite command
+or overruns ``tracker.step_budget_s`` ends the run (``completed: false``, the log kept) with a
+reason naming the tracker.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from typing import Any
+
+from cosim.config_fields import from_dict, to_dict
+from cosim.exceptions import ConfigError, PluginError, TrackerFault
+from cosim.plugins import load_object
+from cosim.records import Command, Estimate, Plan
+from tracker.config import PLUGIN_GROUP, TrackerConfig
+from tracker.protocol import Tracker
+from tracker.reference_path import ReferencePath
+
+GROUP = PLUGIN_GROUP
+"""Entry-point group of tracker plug-ins."""
+
+
+def tracker_class(name: str) -> type:
+    """The class ``name`` refers to, checked to be a class with a ``step`` method."""
+    cls = load_object(name, GROUP, "tracker.name")
+    if not isinstance(cls, type):
+        raise PluginError(f"tracker.name = {name!r}: is a {type(cls).__name__}: expected a "
+                          "tracker class")
+    if not callable(getattr(cls, "step", None)):
+        raise PluginError(f"tracker.name = {name!r}: class {cls.__name__} has no step "
+                          "method: expected step(t_s, estimate, reference) -> (Command, Plan)")
+    return cls
+
+
+def plugin_params(cls: type, params: dict[str, Any]) -> Any:
+    """``tracker.params`` as the class's ``Params`` dataclass (validated), or the mapping."""
+    schema = getattr(cls, "Params", None)
+    if schema is None:
+        return dict(params)
+    if not dataclasses.is_dataclass(schema):
+        raise PluginError(f"{cls.__module__}:{cls.__qualname__}.Params: expected a dataclass "
+                          "(the schema of tracker.params)")
+    return from_dict(schema, params, "tracker.params")
+
+
+def resolved_params(config: TrackerConfig) -> dict[str, Any]:
+    """``tracker.params`` with the schema's defaults filled in (as given, without a schema):
+    what a sweep varies and calls nominal."""
+    params = plugin_params(tracker_class(config.name), config.params)
+    return to_dict(params) if dataclasses.is_dataclass(params) else dict(params)
+
+
+def check_plugin(config: TrackerConfig) -> None:
+    """Load and check the plug-in ``config.name`` (and its params) before any run starts."""
+    plugin_params(tracker_class(config.name), config.params)
+
+
+def make_plugin_tracker(config: TrackerConfig) -> Tracker:
+    """Build the plug-in ``config.name`` with its params, guarded."""
+    cls = tracker_class(config.name)
+    try:
+        tracker = cls(plugin_params(cls, config.params), config)
+    except ConfigError:
+        raise
+    except Exception as error:
+        raise PluginError(f"tracker.name = {config.name!r}: {cls.__name__}(params, config) "
+                          f"raised {type(error).__name__}: {error}") from None
+    return GuardedTracker(config.name, tracker, config.step_budget_s)
+
+
+class GuardedTracker:
+    """A user's tracker whose failures end the run with a reason instead of a traceback."""
+
+    def __init__(self, name: str, tracker: Any, budget_s: float) -> None:
+        self.name = name
+        self._tracker = tracker
+        self._budget_s = budget_s
+
+    def reset(self) -> None:
+        reset = getattr(self._tracker, "reset", None)
+        if callable(reset):
+            reset()
+
+    def step(self, t_s: float, estimate: Estimate,
+             reference: ReferencePath) -> tuple[Command, Plan]:
+        start_s = time.perf_counter()
+        try:
+            result = self._tracker.step(t_s, estimate, reference)
+        except Exception as error:
+            raise TrackerFault(f"tracker {self.name!r} raised {type(error).__name__} at "
+                               f"t = {t_s:.3f} s: {error}") from error
+        elapsed_s = time.perf_counter() - start_s
+        if not (isinstance(result, tuple) and len(result) == 2
+                and isinstance(result[0], Command) and isinstance(result[1], Plan)):
+            raise PluginError(f"tracker.name = {self.name!r}: step returned "
+                              f"{_describe(result)}: expected a tuple (Command, Plan) of "
+                              "cosim.records")
+        command, plan = result
+        if not (math.isfinite(command.accel_mps2) and math.isfinite(command.steer_rad)):
+            raise TrackerFault(f"tracker {self.name!r} returned a non-finite command at "
+                               f"t = {t_s:.3f} s (accel_mps2 = {command.accel_mps2}, "
+                               f"steer_rad = {command.steer_rad})")
+        if elapsed_s > self._budget_s:
+            raise TrackerFault(f"tracker {self.name!r} took {elapsed_s:.3f} s for the step at "
+                               f"t = {t_s:.3f} s: more than tracker.step_budget_s = "
+                               f"{self._budget_s:g} s")
+        return command, plan
+
+
+def _describe(value: object) -> str:
+    if isinstance(value, tuple):
+        return "(" + ", ".join(type(v).__name__ for v in value) + ")"
+    return type(value).__name__
