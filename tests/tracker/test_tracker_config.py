@@ -114,5 +114,5 @@ def test_the_mathworks_example_tyres_are_a_belief_one_can_state() -> None:
 
 def test_registry_refuses_unknown_names() -> None:
     config = dataclasses.replace(TrackerConfig(), name="follow-the-carrot")
-    with pytest.raises(ConfigError, match="tracker.name = 'follow-the-carrot'.*kinematic-nmpc"):
+    with pytest.raises(ConfigError, match="name = 'follow-the-carrot'.*kinematic-nmpc"):
         make_tracker(config)
