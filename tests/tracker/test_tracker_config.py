@@ -113,6 +113,6 @@ def test_the_mathworks_example_tyres_are_a_belief_one_can_state() -> None:
 
 
 def test_registry_refuses_unknown_names() -> None:
-    config = dataclasses.replace(TrackerConfig(), name="follow-the-carrot")
+    """The config refuses an unknown name (neither built in nor a plug-in) as it is made."""
     with pytest.raises(ConfigError, match="name = 'follow-the-carrot'.*kinematic-nmpc"):
-        make_tracker(config)
+        make_tracker(dataclasses.replace(TrackerConfig(), name="follow-the-carrot"))
