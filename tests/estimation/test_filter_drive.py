@@ -177,14 +177,11 @@ def test_side_slip_follows_the_steering_without_an_imu(name: str) -> None:
     """No gyro, no accelerometer: the side slip comes from the steering through the tyre
     model. With the steering sensor the vy error is a small fraction of vy; without it (the
     steering angle left to a random walk driven by GNSS and wheel speeds) at least twice
-    as large. Without a gyro the yaw rate rests on the bicycle model, so the filter is told
-    to trust it: the default yaw-acceleration noise is sized for a car with a gyro (so that
-    an unmodelled heading kick is followed), 10x what the model alone needs."""
+    as large."""
     profile = lane_change(0.06)
-    config = EstimatorConfig(name=name, yaw_accel_psd_rad2ps3=5e-4)
-    with_steering = run_filter(profile, estimator=name, config=config, setup=SensorSetup(
+    with_steering = run_filter(profile, estimator=name, setup=SensorSetup(
         gnss_sigma_m=COARSE_SIGMA_M, use_imu=False))
-    without = run_filter(profile, estimator=name, config=config, setup=SensorSetup(
+    without = run_filter(profile, estimator=name, setup=SensorSetup(
         gnss_sigma_m=COARSE_SIGMA_M, use_imu=False, use_steering=False))
     vy_rms = float(np.sqrt(np.mean(with_steering.truth.values["vy_mps"] ** 2)))
     print(f"{name}: vy RMS {vy_rms:.3f} m/s; vy RMSE with steering "
