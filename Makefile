@@ -18,11 +18,14 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	MUJOCO_GL=$${MUJOCO_GL:-disable} $(BIN)/cosim run $(SCENARIO)
 
+# The suite runs on every core (pytest-xdist); TEST_WORKERS=0 runs it in one process.
+TEST_WORKERS ?= auto
+
 test: $(STAMP)
-	MUJOCO_GL=$${MUJOCO_GL:-disable} $(BIN)/python -m pytest
+	MUJOCO_GL=$${MUJOCO_GL:-disable} $(BIN)/python -m pytest -n $(TEST_WORKERS)
 
 test-fast: $(STAMP)
-	MUJOCO_GL=$${MUJOCO_GL:-disable} $(BIN)/python -m pytest -m "not slow"
+	MUJOCO_GL=$${MUJOCO_GL:-disable} $(BIN)/python -m pytest -n $(TEST_WORKERS) -m "not slow"
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

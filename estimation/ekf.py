@@ -1,10 +1,15 @@
 """The extended Kalman filter: dynamic-bicycle process model, asynchronous multi-rate fusion.
 
-Built on filterpy's :class:`~filterpy.kalman.ExtendedKalmanFilter`: the nonlinear
-prediction of the mean goes through its ``predict_x`` and the covariance through its
-``P = F P F' + Q``; updates go through its ``update`` (Joseph form). The models and their
-exact Jacobians come from :mod:`estimation.models` (CasADi); when and whether a measurement
-is fused (time, gating, rejection, counters) from :class:`estimation.fusion.KalmanFusion`.
+The algorithm of filterpy's :class:`~filterpy.kalman.ExtendedKalmanFilter`: the nonlinear
+prediction of the mean, the covariance through ``P = F P' F' + Q``
+(:func:`covariance_prediction`), updates in Joseph form (:func:`joseph_update`), written
+out on the filter's own mean and covariance: filterpy's methods also store copies of
+every intermediate on the filter object at each call, which cost more than the algebra of
+a 16-state filter fed at 300 Hz, and importing filterpy imports ``scipy.stats`` (a third
+of a second of every process start). ``tests/estimation/test_ekf_update.py`` checks both
+functions against filterpy's. The models and their exact Jacobians come from
+:mod:`estimation.models` (CasADi); when and whether a measurement is fused (time, gating,
+rejection, counters) from :class:`estimation.fusion.KalmanFusion`.
 """
 
 from __future__ import annotations
@@ -12,28 +17,15 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-from filterpy.kalman import ExtendedKalmanFilter
 
 from estimation.fusion import KalmanFusion, TrialUpdate
-from estimation.models import STATE_NAMES, MeasurementModel, ProcessModel
+from estimation.models import MeasurementModel
 
 
-class _BicycleKalmanFilter(ExtendedKalmanFilter):
-    """filterpy's EKF whose state prediction is one RK4 sub-step of the process model."""
-
-    def __init__(self, process: ProcessModel) -> None:
-        super().__init__(dim_x=len(STATE_NAMES), dim_z=1)
-        self._process = process
-        self._x_next = self.x
-
-    def predict_substep(self, dt_s: float) -> None:
-        """Propagate mean and covariance over ``dt_s`` (at most the model's sub-step)."""
-        self._x_next, self.F, self.Q = self._process.step(self.x, dt_s)
-        self.predict()
-
-    def predict_x(self, u: object = 0) -> None:
-        """The nonlinear mean prediction, computed by :meth:`predict_substep`."""
-        self.x = self._x_next
+def covariance_prediction(p: np.ndarray, transition: np.ndarray,
+                          noise: np.ndarray) -> np.ndarray:
+    """``F P F' + Q``: filterpy's ``ExtendedKalmanFilter.predict`` of the covariance."""
+    return transition @ p @ transition.T + noise
 
 
 class Ekf(KalmanFusion):
@@ -45,26 +37,28 @@ class Ekf(KalmanFusion):
     kind = "EKF"
 
     def _setup_filter(self, mean: np.ndarray, covariance: np.ndarray) -> None:
-        self._kf = _BicycleKalmanFilter(self._process)
-        self._kf.x = mean.reshape(-1, 1).copy()
-        self._kf.P = covariance.copy()
+        self._mean = np.array(mean, dtype=float).reshape(-1)
+        self._covariance = np.array(covariance, dtype=float)
 
     @property
     def _x(self) -> np.ndarray:
-        return self._kf.x.reshape(-1)
+        return self._mean
 
     def _set_mean(self, mean: np.ndarray) -> None:
-        self._kf.x = np.asarray(mean, dtype=float).reshape(-1, 1)
+        self._mean = np.asarray(mean, dtype=float).reshape(-1)
 
     @property
     def _p(self) -> np.ndarray:
-        return self._kf.P
+        return self._covariance
 
     def _set_covariance(self, covariance: np.ndarray) -> None:
-        self._kf.P = covariance
+        self._covariance = covariance
 
     def _predict_substep(self, dt_s: float) -> None:
-        self._kf.predict_substep(dt_s)
+        """One RK4 sub-step of the process model for the mean; ``F P F' + Q``."""
+        mean, transition, noise = self._process.step(self._mean, dt_s)
+        self._mean = mean.reshape(-1)
+        self._covariance = covariance_prediction(self._covariance, transition, noise)
 
     def _trial_update(
         self,
@@ -75,27 +69,45 @@ class Ekf(KalmanFusion):
         residual: Callable[[np.ndarray, np.ndarray], np.ndarray],
         angle_rows: tuple[int, ...],
     ) -> TrialUpdate:
-        """filterpy's EKF update (Joseph form) with the model linearised at the mean."""
+        """filterpy's EKF update (Joseph form) with the model linearised at the mean
+        (:func:`joseph_update`, the algorithm of filterpy's ``update`` without its
+        bookkeeping)."""
         del angle_rows  # the residual wraps them
-        kf = self._kf
-        x_before, p_before = kf.x, kf.P
-        h_all, jacobian_all = model.evaluate(kf.x)
+        x = self._mean
+        h_all, jacobian_all = model.evaluate(x)
         index = list(rows)
-        h = h_all[index].reshape(-1, 1)
-        jacobian = jacobian_all[index, :]
-        try:
-            kf.update(
-                np.asarray(z, dtype=float).reshape(-1, 1),
-                HJacobian=lambda _x: jacobian,
-                Hx=lambda _x: h,
-                R=r_matrix,
-                residual=lambda a, b: residual(a.reshape(-1), b.reshape(-1)).reshape(-1, 1),
-            )
-            return TrialUpdate(
-                innovation=kf.y.reshape(-1).copy(),
-                innovation_covariance=np.array(kf.S, dtype=float),
-                mean=kf.x.reshape(-1).copy(),
-                covariance=kf.P.copy(),
-            )
-        finally:
-            kf.x, kf.P = x_before, p_before
+        return joseph_update(x, self._covariance, np.asarray(z, dtype=float).reshape(-1),
+                             h_all[index], jacobian_all[index, :], r_matrix, residual)
+
+
+def joseph_update(
+    x: np.ndarray,
+    p: np.ndarray,
+    z: np.ndarray,
+    h: np.ndarray,
+    jacobian: np.ndarray,
+    r_matrix: np.ndarray,
+    residual: Callable[[np.ndarray, np.ndarray], np.ndarray],
+) -> TrialUpdate:
+    """One EKF update, the algorithm of filterpy's ``ExtendedKalmanFilter.update``.
+
+    ``S = H P H' + R``, ``K = P H' S^-1``, ``x+ = x + K y`` with ``y = residual(z, h)``,
+    and the covariance in Joseph form ``P+ = (I - K H) P (I - K H)' + K R K'`` (valid for
+    any gain and better conditioned than ``(I - K H) P``; Bar-Shalom, Li, Kirubarajan,
+    "Estimation with Applications to Tracking and Navigation", Wiley 2001, eq. 5.2.3-18).
+    filterpy's method does the same products and also stores copies of ``z``, ``x`` and
+    ``P`` on the filter object at every call, which cost more than the algebra for a
+    16-state filter fed at 300 Hz; ``tests/estimation/test_ekf.py`` checks that both give
+    the same posterior.
+    """
+    pht = p @ jacobian.T
+    s_matrix = jacobian @ pht + r_matrix
+    gain = pht @ np.linalg.inv(s_matrix)
+    innovation = residual(z, h)
+    i_kh = np.eye(x.size) - gain @ jacobian
+    return TrialUpdate(
+        innovation=innovation,
+        innovation_covariance=s_matrix,
+        mean=x + gain @ innovation,
+        covariance=i_kh @ p @ i_kh.T + gain @ r_matrix @ gain.T,
+    )

@@ -17,7 +17,7 @@ filterpy's filters and the models of :mod:`estimation.models`:
 A subclass implements :meth:`KalmanFusion._predict_substep` and
 :meth:`KalmanFusion._trial_update` (the filter's update of a group of channels, computed
 and then undone, so that the gate can look at it first) and keeps its mean and covariance
-in :attr:`KalmanFusion._x` / :attr:`KalmanFusion._p` (properties over the filterpy object).
+in :attr:`KalmanFusion._x` / :attr:`KalmanFusion._p`.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import chi2
+from scipy.special import chdtri
 
 from cosim.exceptions import ConfigError
 from cosim.initial_state import InitialState
@@ -227,7 +227,7 @@ class KalmanFusion(ABC):
 
     @abstractmethod
     def _setup_filter(self, mean: np.ndarray, covariance: np.ndarray) -> None:
-        """Create the filterpy object with this initial belief."""
+        """Set up the filter (its mean, covariance, filterpy object) with this initial belief."""
 
     @property
     @abstractmethod
@@ -287,7 +287,10 @@ class KalmanFusion(ABC):
         if dim < 1:
             raise ValueError(f"dim = {dim}: expected at least one channel")
         if dim not in self._gate_thresholds:
-            self._gate_thresholds[dim] = float(chi2.ppf(self._config.gate_probability, dim))
+            # The chi-square quantile (scipy.stats.chi2.ppf computes it the same way,
+            # through scipy.special, which does not import all of scipy.stats).
+            probability = self._config.gate_probability
+            self._gate_thresholds[dim] = float(chdtri(dim, 1.0 - probability))
         return self._gate_thresholds[dim]
 
     # ----------------------------------------------------------------------------- predict

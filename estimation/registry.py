@@ -12,7 +12,7 @@ have ``predict(t_s)``, ``estimate() -> Estimate`` and ``update(measurement)`` re
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 import numpy as np
 
@@ -23,19 +23,20 @@ from cosim.vehicle_params import VehicleParams
 from estimation.config import ESTIMATOR_NAMES, PLUGIN_GROUP, EstimatorConfig, is_plugin_name
 from estimation.ekf import Ekf
 from estimation.truth import TruthEstimator
-from estimation.ukf import Ukf
+
+if TYPE_CHECKING:  # imported when first used: filterpy imports scipy.stats (0.3 s)
+    from estimation.ukf import Ukf
+
+    Estimator: TypeAlias = Ekf | Ukf | TruthEstimator
+    """What :func:`make_estimator` returns (plug-ins follow the same protocol)."""
 
 __all__ = [
     "ESTIMATOR_NAMES",
-    "Estimator",
     "estimator_class",
     "make_estimator",
     "required_sensors",
     "supported_sensors",
 ]
-
-
-Estimator = Ekf | Ukf | TruthEstimator
 
 
 ESTIMATOR_METHODS = ("predict", "estimate", "update")
@@ -47,6 +48,7 @@ def estimator_class(name: str) -> type[Ekf] | type[Ukf] | type[TruthEstimator]:
     if name == "ekf":
         return Ekf
     if name == "ukf":
+        from estimation.ukf import Ukf  # noqa: PLC0415 (lazy: filterpy, scipy.stats)
         return Ukf
     if name == "truth":
         return TruthEstimator

@@ -103,3 +103,18 @@ def test_whole_multiples_are_accepted() -> None:
                                                    "plant.actuator_delay_s=0.1",
                                                    "sim.physics_dt_s=0.001"])
     assert config.sim.control_period_s == 0.02
+
+
+@pytest.mark.parametrize(
+    ("override", "message"),
+    [
+        ("sim.scene_period_s=0.035", "sim.scene_period_s = 0.035: expected a whole multiple "
+                                     "of sim.log_period_s = 0.01 (e.g. 0.03 or 0.04)"),
+        ("sim.scene_period_s=0.004", "sim.scene_period_s = 0.004: expected a whole multiple "
+                                     "of sim.log_period_s = 0.01 (e.g. 0.01 or 0.02)"),
+    ],
+)
+def test_the_scene_period_is_whole_log_periods(override: str, message: str) -> None:
+    with pytest.raises(RateError) as error:
+        load_config("lane-change", overrides=[override])
+    assert str(error.value) == message

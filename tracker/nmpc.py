@@ -121,6 +121,7 @@ from types import MappingProxyType
 import casadi as ca
 import numpy as np
 
+from cosim.compiled_function import compiled_library
 from cosim.exceptions import ConfigError
 from cosim.records import Command, Estimate, Plan
 from tracker.config import TrackerConfig
@@ -143,6 +144,10 @@ REQUIRED_STATE_NAMES: tuple[str, ...] = ("x_m", "y_m", "yaw_rad", "vx_mps")
 
 _TIME_EPS_S = 1e-9
 """Slack when comparing simulated times, against float round-off of sums of periods."""
+
+_REFERENCE_BLOCKS: tuple[str, ...] = (
+    "ref_x_m", "ref_y_m", "ref_yaw_rad", "ref_speed_mps", "ref_steer_rad")
+"""The parameters of one reference point, in the order a stage takes them."""
 
 
 @dataclass(frozen=True)
@@ -546,7 +551,37 @@ class Nmpc:
                     np.empty((0, n_u), dtype=int), lbx, ubx,
                     constraints.pack(low), constraints.pack(high))
 
-    def _staged_problem(self) -> _StagedProblem:
+    def _stage_function(self) -> ca.Function:
+        """Stage ``k`` of the stage-wise NLP, the same function for every ``k``.
+
+        ``(z_k, u_k, z_{k+1}, r_k) -> (cost, dynamics, steering rate, residuals)`` with
+        ``z_k = [x_k, c_k]`` (:meth:`_staged_problem`), ``r_k`` reference point ``k``
+        (:data:`_REFERENCE_BLOCKS`), the stage's cost (:meth:`_stage_terms`), the
+        dynamics residual ``z_{k+1} - [F(x_k, u_k), u_k]``, the steering-rate row
+        ``delta_k - c_k[delta]`` and the cost's weighted residuals (the real-time
+        iteration's Gauss-Newton Hessian).
+        """
+        cfg = self.config
+        dt, n_x, n_u = cfg.dt_s, self._n_x, len(INPUT_NAMES)
+        z = ca.SX.sym("z", n_x + n_u)
+        u = ca.SX.sym("u", n_u)
+        z_next = ca.SX.sym("z_next", n_x + n_u)
+        ref = ca.SX.sym("ref", len(_REFERENCE_BLOCKS))
+        point = {name: ref[i:i + 1] for i, name in enumerate(_REFERENCE_BLOCKS)}
+        input_terms, tracking_terms, excess = self._stage_terms(
+            u, z[n_x:], z_next[:n_x], point, 0)
+        cost = dt * _weighted_squares(input_terms) + dt * _weighted_squares(tracking_terms)
+        residuals = [math.sqrt(dt * weight) * error
+                     for weight, error in input_terms + tracking_terms]
+        if excess is not None:
+            cost += dt * cfg.weights.limit_excess * ca.sumsqr(excess)
+            residuals.append(math.sqrt(dt * cfg.weights.limit_excess) * excess)
+        dynamics = z_next - ca.vertcat(self.model.step(z[:n_x], u), u)
+        steer_rate = u[INPUT["steer_rad"]] - z[n_x + INPUT["steer_rad"]]
+        return ca.Function("stage", [z, u, z_next, ref],
+                           [cost, dynamics, steer_rate, ca.vertcat(*residuals)])
+
+    def _staged_problem(self, symbol: type = ca.SX) -> _StagedProblem:
         """The same NLP posed stage by stage, for the structure-exploiting solvers.
 
         Stage ``k`` holds ``z_k = [x_k, c_k]`` and ``u_k`` (``z_N`` alone), where
@@ -559,51 +594,40 @@ class Nmpc:
 
         The cost is the same sum of stage terms as IPOPT's (:meth:`_stage_terms`), so
         the optimum is the same; only the variables' order and two extra states per stage
-        differ, which :class:`_Nlp` hides from the rest of the tracker.
+        differ, which :class:`_Nlp` hides from the rest of the tracker. Every stage is
+        :meth:`_stage_function` mapped over the horizon: with ``symbol = ca.SX`` the
+        expressions are inlined (CasADi's virtual machine evaluates them fastest); with
+        ``ca.MX`` they stay calls of one function, whose derivatives CasADi then
+        generates once, not once per stage (C code a tenth the size, for compiling).
         """
         cfg = self.config
-        w = cfg.weights
         n, dt, n_x = self._n, cfg.dt_s, self._n_x
         n_u = len(INPUT_NAMES)
         n_z = n_x + n_u
-        carried = slice(n_x, n_z)
-        steer_carried = n_x + INPUT["steer_rad"]
-        p = ca.SX.sym("p", self._params.size)
+        stage_size = n_z + n_u
+        p = symbol.sym("p", self._params.size)
         par = self._params.split(p)
-        z = [ca.SX.sym(f"z{k}", n_z) for k in range(n + 1)]
-        u = [ca.SX.sym(f"u{k}", n_u) for k in range(n)]
+        x = symbol.sym("w", stage_size * n + n_z)
+        stages = ca.reshape(x[:stage_size * n], stage_size, n)
+        z = ca.horzcat(stages[:n_z, :], x[stage_size * n:])
+        references = ca.horzcat(*(par[name] for name in _REFERENCE_BLOCKS)).T
+        costs, dynamics, steer_rates, residuals = self._stage_function().map(n)(
+            z[:, :n], stages[n_z:, :], z[:, 1:], references)
         rate_step = cfg.max_steer_rate_radps * dt
 
-        variables, rows, lbg, ubg, residuals = [], [], [], [], []
-        cost = 0
+        rows, lbg, ubg = [], [], []
         for k in range(n):
-            variables += [z[k], u[k]]
-            stage_rows = [
-                (z[k + 1] - ca.vertcat(self.model.step(z[k][:n_x], u[k]), u[k]), 0.0, 0.0),
-            ]
+            stage_rows = [(dynamics[:, k], 0.0, 0.0)]
             if k == 0:
                 stage_rows.append(
-                    (z[0] - ca.vertcat(par["state0"], par["input_prev"]), 0.0, 0.0))
-            stage_rows.append((u[k][INPUT["steer_rad"]] - z[k][steer_carried],
-                               -rate_step, rate_step))
+                    (z[:, 0] - ca.vertcat(par["state0"], par["input_prev"]), 0.0, 0.0))
+            stage_rows.append((steer_rates[k], -rate_step, rate_step))
             for row, low, high in stage_rows:
                 rows.append(row)
                 lbg.append(np.full(row.size1(), low))
                 ubg.append(np.full(row.size1(), high))
-            input_terms, tracking_terms, excess = self._stage_terms(
-                u[k], z[k][carried], z[k + 1][:n_x], par, k)
-            cost += dt * _weighted_squares(input_terms)
-            cost += dt * _weighted_squares(tracking_terms)
-            residuals += [math.sqrt(dt * weight) * error
-                          for weight, error in input_terms + tracking_terms]
-            if excess is not None:
-                cost += dt * w.limit_excess * ca.sumsqr(excess)
-                residuals.append(math.sqrt(dt * w.limit_excess) * excess)
-        variables.append(z[n])
-        x = ca.vertcat(*variables)
-        nlp = {"x": x, "p": p, "f": cost, "g": ca.vertcat(*rows)}
+        nlp = {"x": x, "p": p, "f": ca.sum2(costs), "g": ca.vertcat(*rows)}
 
-        stage_size = n_z + n_u
         starts = stage_size * np.arange(n + 1)
         state_index = starts[:, None] + np.arange(n_x)
         carried_index = starts[:, None] + np.arange(n_x, n_z)
@@ -620,15 +644,20 @@ class Nmpc:
             "carried_index": carried_index, "lbx": lbx, "ubx": ubx,
             "lbg": np.concatenate(lbg), "ubg": np.concatenate(ubg),
         })
-        return _StagedProblem(MappingProxyType(nlp), ca.vertcat(*residuals), structure,
-                              layout)
+        return _StagedProblem(MappingProxyType(nlp), ca.vec(residuals), structure, layout)
 
     def _build_fatrop(self) -> _Nlp:
         """The stage-wise NLP (:meth:`_staged_problem`) for fatrop, a structure-exploiting
         interior-point method: the same optimum as IPOPT, each iteration a Riccati
-        recursion over the stages instead of a general sparse factorisation."""
+        recursion over the stages instead of a general sparse factorisation.
+
+        With ``tracker.compiled`` the NLP's functions (cost, constraints, their
+        derivatives, the Lagrangian's Hessian) are generated as C from the mapped stage
+        function, compiled once per machine (:func:`cosim.compiled_function.compiled_library`,
+        ``-O1``: as fast as ``-O2`` here, half the compile time) and loaded by fatrop in
+        place of CasADi's virtual machine; the same NLP, so the same iterates.
+        """
         cfg = self.config
-        problem = self._staged_problem()
         # The warm start (the previous plan shifted) is near the optimum, so the barrier
         # starts small: mu_init = 1e-3 instead of fatrop's 0.1 takes 3 iterations instead
         # of 5 (median, lane change) to the same optimum. Its warm_start_init_point (the
@@ -637,12 +666,23 @@ class Nmpc:
             "print_time": False,
             "error_on_fail": False,
             "structure_detection": "manual",
-            **problem.structure,
             "fatrop": {"print_level": 0, "max_iter": cfg.max_iterations,
                        "tol": cfg.tolerance, "mu_init": 1e-3},
         }
-        solver = ca.nlpsol(self.model.name.replace("-", "_"), "fatrop", dict(problem.nlp),
-                           options)
+        name = self.model.name.replace("-", "_")
+        if cfg.compiled:
+            problem = self._staged_problem(ca.MX)
+            options.update(problem.structure)
+            oracle = ca.nlpsol(name, "fatrop", dict(problem.nlp), options)
+            # The NLP itself ("nlp": x, p -> f, g) and what the solver derived from it.
+            functions = [oracle.oracle(), *map(oracle.get_function, oracle.get_function())]
+            library = compiled_library(f"nmpc_{name}", functions, ("-O1",))
+            if library is not None:
+                solver = ca.nlpsol(name, "fatrop", str(library), options)
+                return problem.with_solver(cfg.solver, solver)
+        problem = self._staged_problem()
+        options.update(problem.structure)
+        solver = ca.nlpsol(name, "fatrop", dict(problem.nlp), options)
         return problem.with_solver(cfg.solver, solver)
 
     def _build_sqp_rti(self) -> _Nlp:

@@ -52,9 +52,9 @@ import casadi as ca
 import mujoco
 import numpy as np
 
+from cosim.compiled_function import CompiledFunction, compile_function
 from cosim.exceptions import PhysicsDivergenceError
 from cosim.initial_state import InitialState
-from cosim.plant.compiled_function import CompiledFunction, compile_function
 from cosim.plant.lead_car import (
     LeadCarConfig,
     LeadCarPath,

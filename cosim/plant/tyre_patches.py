@@ -19,7 +19,7 @@ Rill, *Road Vehicle Dynamics*, CRC 2011, ch. 3).
 The function reads MuJoCo's arrays whole (``cvel``, ``xpos``, ``xipos``, ``xmat``,
 ``subtree_com``: the wheel bodies' rows are picked inside it), so they are passed without a
 copy; per wheel, its contact (:data:`CONTACT_FIELDS`) and carcass state come in small
-buffers. It is compiled to C (:mod:`cosim.plant.compiled_function`) when a C compiler is
+buffers. It is compiled to C (:mod:`cosim.compiled_function`) when a C compiler is
 there; otherwise the plant keeps the plain reference.
 """
 

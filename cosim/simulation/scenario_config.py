@@ -12,6 +12,7 @@ import copy
 import dataclasses
 import datetime
 import importlib.resources
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -63,6 +64,11 @@ class SimConfig:
     physics_dt_s: float = setting(0.002, low=1e-4, high=0.05)
     control_period_s: float = setting(0.05, low=1e-4, high=5.0)
     log_period_s: float = setting(0.01, low=1e-4, high=5.0, doc="truth/estimate log rate")
+    scene_period_s: float = setting(
+        0.04, low=1e-4, high=5.0,
+        doc="period of the Foxglove 3D scenes of the car and the estimate (/scene/car, "
+        "/scene/estimate); a whole multiple of log_period_s (25 Hz plays smoothly and "
+        "costs a quarter of logging them at the log rate)")
     duration_s: float = setting(15.0, low=0.0, high=3600.0)
     epoch: str = setting(
         DEFAULT_EPOCH,
@@ -255,8 +261,10 @@ def _believe_actuator_delay(data: dict[str, Any]) -> None:
         tracker["latency_s"] = plant["actuator_delay_s"]
 
 
-def steps_per_period(period_s: float, physics_dt_s: float, key: str) -> int:
+def steps_per_period(period_s: float, physics_dt_s: float, key: str,
+                     base_key: str = "sim.physics_dt_s") -> int:
     """Whole physics steps in ``period_s``; a period that is not a whole multiple is refused.
+    (``base_key`` names the base period in the message when it is not the physics step.)
 
     Like dm_control's ``compute_n_steps``: rounding a rate silently would change the
     experiment, so it is an error.
@@ -264,9 +272,10 @@ def steps_per_period(period_s: float, physics_dt_s: float, key: str) -> int:
     ratio = period_s / physics_dt_s
     steps = round(ratio)
     if abs(ratio - steps) > 1e-6 * max(1.0, ratio):
-        below, above = max(steps, 1) * physics_dt_s, (steps + 1) * physics_dt_s
+        below = max(math.floor(ratio), 1) * physics_dt_s
+        above = max(math.ceil(ratio), 2) * physics_dt_s
         raise RateError(
-            f"{key} = {period_s:g}: expected a whole multiple of sim.physics_dt_s = "
+            f"{key} = {period_s:g}: expected a whole multiple of {base_key} = "
             f"{physics_dt_s:g} (e.g. {below:g} or {above:g})"
         )
     return steps
@@ -288,3 +297,5 @@ def check_rates(config: ScenarioConfig) -> None:
             raise RateError(f"{key} = {period:g}: expected at least sim.physics_dt_s = {dt:g}")
     steps_per_period(config.plant.actuator_delay_s, dt, "plant.actuator_delay_s")
     steps_per_period(config.sim.duration_s, dt, "sim.duration_s")
+    steps_per_period(config.sim.scene_period_s, config.sim.log_period_s, "sim.scene_period_s",
+                     "sim.log_period_s")

@@ -9,9 +9,9 @@ import math
 import numpy as np
 import pytest
 
+from cosim.compiled_function import CompiledFunction, compile_function
 from cosim.initial_state import InitialState
 from cosim.plant.car import MujocoPlant
-from cosim.plant.compiled_function import CompiledFunction, compile_function
 from cosim.plant.tire_model import MIN_LOAD_N, PatchState, patch_step
 from cosim.plant.tyre_patches import CONTACT_SIZE, tyre_patches_function
 from cosim.records import ActuatorCommand

@@ -321,3 +321,46 @@ def test_default_solver_plans_equal_ipopts_along_a_lane_change() -> None:
     default = _largest_differences(both.plans["fatrop", "default"], reference_plans)
     assert default.pop("accel_mps2") < 1e-4 * (config.accel_max_mps2 - config.accel_min_mps2)
     assert max(default.values()) < 1e-4, default
+
+
+class _CompiledBeside:
+    """A fatrop tracker with CasADi's virtual machine drives; the same tracker with the
+    compiled NLP (``tracker.compiled``) is fed the same estimates. Records both plans."""
+
+    def __init__(self, config: TrackerConfig) -> None:
+        self.driver = _tracker(config)
+        self.compiled = _tracker(dataclasses.replace(config, compiled=True))
+        self.plans: dict[str, list[Any]] = {"vm": [], "compiled": []}
+
+    def step(self, t_s: float, estimate: Estimate,
+             reference: ReferencePath) -> tuple[Command, Any]:
+        self.plans["compiled"].append(self.compiled.step(t_s, estimate, reference)[1])
+        command, plan = self.driver.step(t_s, estimate, reference)
+        self.plans["vm"].append(plan)
+        return command, plan
+
+
+@pytest.mark.slow
+def test_the_compiled_nlp_gives_the_virtual_machines_plans() -> None:
+    # The same NLP evaluated by C instead of CasADi's virtual machine: the same iterates up
+    # to round-off, so the same plans (every entry of every plan along the lane change's
+    # first swing, 4 s at 20 m/s) and the same iteration counts.
+    both = _CompiledBeside(_config("dynamic-nmpc", "fatrop"))
+    dynamic_bench.run_closed_loop(both, LANE_CHANGE, dynamic_bench.Car(0.0, 0.0, 0.0, 15.0),
+                                  4.0, DYNAMIC_CAR)
+    assert len(both.plans["vm"]) == 80
+    assert max(abs(p.column("steer_rad")[0]) for p in both.plans["vm"]) > 0.02
+    assert max(_largest_differences(both.plans["compiled"], both.plans["vm"]).values()) < 1e-9
+    assert [p.iterations for p in both.plans["compiled"]] == \
+        [p.iterations for p in both.plans["vm"]]
+
+
+def test_without_a_c_compiler_the_virtual_machine_solves(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("CC", "no-such-compiler")
+    config = _config("dynamic-nmpc", "fatrop")
+    compiled = _tracker(dataclasses.replace(config, compiled=True))
+    estimate = _estimate("dynamic-nmpc", 0.0, 0.3, 0.02, 15.0)
+    command, plan = compiled.step(0.0, estimate, LANE_CHANGE)
+    assert plan.success
+    assert command == _tracker(config).step(0.0, estimate, LANE_CHANGE)[0]

@@ -28,7 +28,8 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-COMPILER_FLAGS = ("-O2", "-shared", "-fPIC")
+COMPILER_FLAGS = ("-O2",)
+"""Optimisation flags (``-shared -fPIC`` are always added)."""
 
 
 def _cache_dir() -> Path:
@@ -73,25 +74,28 @@ class CompiledFunction:
             raise RuntimeError(f"{self._name}: the compiled function reported an error")
 
 
-def compile_function(function: ca.Function) -> ctypes.CDLL | None:
-    """The shared library of ``function`` (compiled or from the cache), or None when no C
-    compiler is available or compiling fails."""
+def compiled_library(name: str, functions: Sequence[ca.Function],
+                     flags: Sequence[str] = COMPILER_FLAGS) -> Path | None:
+    """The shared library holding ``functions`` (each under its own name), compiled with
+    ``flags`` or found in the cache; None when no C compiler is available or compiling
+    fails. ``name`` names the file (a C identifier)."""
     compiler = shutil.which(os.environ.get("CC", "gcc"))
     if compiler is None:
         return None
-    name = function.name()
+    flags = (*flags, "-shared", "-fPIC")
     with tempfile.TemporaryDirectory() as tmp:
         generator = ca.CodeGenerator(f"{name}.c", {"with_header": False})
-        generator.add(function)
+        for function in functions:
+            generator.add(function)
         generator.generate(f"{tmp}/")
         source = Path(tmp, f"{name}.c").read_bytes()
-        digest = hashlib.sha256(source + " ".join(COMPILER_FLAGS).encode()).hexdigest()[:16]
+        digest = hashlib.sha256(source + " ".join(flags).encode()).hexdigest()[:16]
         library = _cache_dir() / f"{name}-{digest}.so"
         if not library.is_file():
             try:
                 library.parent.mkdir(parents=True, exist_ok=True)
                 partial = Path(tmp, library.name)
-                subprocess.run([compiler, *COMPILER_FLAGS, "-o", str(partial),
+                subprocess.run([compiler, *flags, "-o", str(partial),
                                 str(Path(tmp, f"{name}.c")), "-lm"],
                                check=True, capture_output=True)
                 # Atomic: a concurrent run (a sweep's workers) never loads half a file.
@@ -99,6 +103,15 @@ def compile_function(function: ca.Function) -> ctypes.CDLL | None:
                 os.replace(f"{library}.{os.getpid()}", library)
             except (OSError, subprocess.CalledProcessError):
                 return None
+    return library
+
+
+def compile_function(function: ca.Function) -> ctypes.CDLL | None:
+    """The shared library of ``function`` (compiled or from the cache), or None when no C
+    compiler is available or compiling fails."""
+    library = compiled_library(function.name(), [function])
+    if library is None:
+        return None
     try:
         return ctypes.CDLL(str(library))
     except OSError:
