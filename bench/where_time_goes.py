@@ -1,6 +1,6 @@
 """Where a run's time goes, how the tracker step grows with the horizon, and sweep throughput.
 
-    .venv/bin/python bench/where_time_goes.py [--repeats 5] [--parts-duration S]
+    .venv/bin/python bench/where_time_goes.py [--repeats 5] [--parts-duration S] [--set K=V]
         [--horizons 10 20 40 80] [--scaling-duration 8] [--sweep-runs 20]
         [--sweep-duration 15] [--skip-scaling] [--skip-sweep]
 
@@ -99,10 +99,12 @@ def _patched(target: object, name: str, value: object) -> Iterator[None]:
         setattr(target, name, original)
 
 
-def _timed_run(out: Path, duration_s: float | None) -> dict[str, float]:
-    """One default lane change with every part timed; seconds per part, loop and total."""
+def _timed_run(out: Path, duration_s: float | None,
+               overrides: list[str]) -> dict[str, float]:
+    """One lane change (the defaults, then ``overrides``) with every part timed; seconds
+    per part, loop and total."""
     watch = _Stopwatch()
-    config = load_config("lane-change", duration_s=duration_s)
+    config = load_config("lane-change", overrides=overrides, duration_s=duration_s)
     original = {name: getattr(runner, name) for name in (
         *TIMED_BUILDERS, "make_sensors", "foxglove", "FaultInjector")}
 
@@ -181,11 +183,13 @@ def _fresh_interpreter_s(code: str) -> float:
     return time.perf_counter() - start
 
 
-def parts_table(repeats: int, duration_s: float | None = None) -> None:
+def parts_table(repeats: int, duration_s: float | None = None,
+                overrides: list[str] | None = None) -> None:
     rows: list[dict[str, float]] = []
     with tempfile.TemporaryDirectory() as tmp:
         for repeat in range(repeats):
-            rows.append(_timed_run(Path(tmp) / f"run-{repeat}.mcap", duration_s))
+            rows.append(_timed_run(Path(tmp) / f"run-{repeat}.mcap", duration_s,
+                                   overrides or []))
     start_s = [_fresh_interpreter_s("pass") for _ in range(repeats)]
     imports_s = [_fresh_interpreter_s("import cosim.cli, cosim.simulation.runner")
                  for _ in range(repeats)]
@@ -207,6 +211,8 @@ def parts_table(repeats: int, duration_s: float | None = None) -> None:
 
 SCALING_CASES: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("dynamic-nmpc fatrop", ("tracker.name=dynamic-nmpc", "tracker.solver=fatrop")),
+    ("dynamic-nmpc fatrop C", ("tracker.name=dynamic-nmpc", "tracker.solver=fatrop",
+                               "tracker.compiled=true")),
     ("dynamic-nmpc ipopt", ("tracker.name=dynamic-nmpc", "tracker.solver=ipopt")),
     ("dynamic-nmpc sqp-rti", ("tracker.name=dynamic-nmpc", "tracker.solver=sqp-rti")),
     ("ltv-mpc", ("tracker.name=ltv-mpc",)),
@@ -254,9 +260,11 @@ def main() -> None:
     parser.add_argument("--sweep-duration", type=float, default=15.0)
     parser.add_argument("--skip-scaling", action="store_true")
     parser.add_argument("--skip-sweep", action="store_true")
+    parser.add_argument("--set", action="append", default=[], dest="overrides",
+                        help="key=value for the parts' runs, e.g. tracker.compiled=true")
     args = parser.parse_args()
     print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
-    parts_table(args.repeats, args.parts_duration)
+    parts_table(args.repeats, args.parts_duration, args.overrides)
     if not args.skip_scaling:
         scaling_table(args.horizons, args.scaling_duration)
     if not args.skip_sweep:
