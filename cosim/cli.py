@@ -483,6 +483,7 @@ def _command_compare(args: argparse.Namespace) -> int:
     import time as _time
 
     from cosim.sweeps import compare
+    from cosim.sweeps.driver import sigterm_as_interrupt
     from tracker.config import is_plugin_name
     from tracker.registry import TRACKER_NAMES
 
@@ -497,8 +498,15 @@ def _command_compare(args: argparse.Namespace) -> int:
     if args.workers is not None and args.workers < 1:
         raise CosimError(f"--workers {args.workers}: expected at least 1")
     out = Path(args.out) if args.out else Path("logs") / _time.strftime("compare-%Y%m%d-%H%M%S")
-    rows = compare.run_compare(scenarios, trackers, args.seeds, args.workers, args.duration,
-                               out / "logs" if args.keep_logs else None, out / "rows.jsonl")
+    try:
+        with sigterm_as_interrupt():
+            rows = compare.run_compare(scenarios, trackers, args.seeds, args.workers,
+                                       args.duration, out / "logs" if args.keep_logs else None,
+                                       out / "rows.jsonl")
+    except KeyboardInterrupt:  # Ctrl-C or SIGTERM: the finished runs are kept
+        print(f"cosim: compare interrupted; the finished runs are in {out / 'rows.jsonl'}",
+              file=sys.stderr)
+        return EXIT_INTERRUPT
     table = compare.write_outputs(rows, out)
     if args.json:
         print(json.dumps(compare.json_rows(rows), indent=1))

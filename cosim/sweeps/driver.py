@@ -64,8 +64,9 @@ def default_out_dir(spec_path: Path) -> Path:
 
 
 @contextlib.contextmanager
-def _sigterm_as_interrupt() -> Iterator[None]:
-    """SIGTERM behaves like Ctrl-C while the sweep runs (finish cleanly, keep the rows)."""
+def sigterm_as_interrupt() -> Iterator[None]:
+    """SIGTERM behaves like Ctrl-C while a sweep or a comparison runs (finish cleanly,
+    keep the rows)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -198,7 +199,7 @@ def run_sweep(spec_path: str | Path, out_dir: str | Path | None = None,
                 on_row(row)
 
         try:
-            with _sigterm_as_interrupt():
+            with sigterm_as_interrupt():
                 runner.run(missing, land)
         except KeyboardInterrupt:
             interrupted = True

@@ -4,12 +4,16 @@ from __future__ import annotations
 
 import csv
 import json
+import os
+import signal
+import subprocess
+import time
 from pathlib import Path
 
 import pytest
 
 from cosim.sweeps.compare import league, make_tasks, markdown
-from tests.test_cli import cosim
+from tests.test_cli import COSIM, cosim
 
 
 def _row(run_id: int, scenario: str, tracker: str, seed: int, cte: float,
@@ -76,3 +80,32 @@ def test_bad_track_csv_is_one_line_and_exit_2(tmp_path: Path) -> None:
     assert result.returncode == 2
     assert result.stderr.strip() == (f"cosim: error: path.file {str(bad)!r}: data rows 2 and 3 "
                                      "are the same point, expected distinct consecutive points")
+
+
+@pytest.mark.slow
+def test_sigterm_stops_a_comparison_and_keeps_the_finished_runs(tmp_path: Path) -> None:
+    out = tmp_path / "league"
+    rows_file = out / "rows.jsonl"
+    env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "disable")}
+    process = subprocess.Popen(
+        [COSIM, "compare", "--trackers", "pid,lqr,stanley,pure-pursuit", "--scenarios",
+         "circle", "--duration", "2", "--workers", "1", "--out", str(out)],
+        env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 600
+    try:
+        while not (rows_file.is_file() and rows_file.read_text().count("\n") >= 1):
+            assert process.poll() is None, "the comparison ended before it could be stopped"
+            assert time.monotonic() < deadline, "no row landed in time"
+            time.sleep(0.05)
+        process.send_signal(signal.SIGTERM)
+        _, stderr = process.communicate(timeout=120)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 130, stderr
+    assert stderr.strip().splitlines()[-1] == (
+        f"cosim: compare interrupted; the finished runs are in {rows_file}")
+    assert "Traceback" not in stderr
+    rows = [json.loads(line) for line in rows_file.read_text().splitlines()]
+    assert 1 <= len(rows) < 4
+    assert all(row["metrics"]["completed"] for row in rows)
