@@ -72,6 +72,14 @@ apply the first input and keep the rest as the next warm start. A tracker is an
     CasADi's ``sqpmethod`` with ``max_iter = 1`` would do the same, but it ignores a
     failed QP (:class:`_RealTimeIteration`), so the iteration is written out here.
 
+  With ``tracker.compiled`` (fatrop only) the NLP's functions are C instead of CasADi's
+  virtual machine: :meth:`Nmpc._staged_problem` in MX maps one stage function over the
+  horizon, so the generated code holds each derivative once (0.8 MB of C, 13 s with
+  ``gcc -O1`` on a loaded machine, against 4 MB and 88 s for the inlined SX NLP); the
+  library is cached per machine, keyed by the code (model, belief, weights, horizon).
+  The same NLP and iterates (plans equal to 1e-9, ``tests/tracker/test_nmpc_solvers.py``);
+  the solve of the lane change about 2-3x faster (``bench/where_time_goes.py``).
+
   Measured with ``bench/solve_time.py`` (MuJoCo sedan, EKF, lane change; p50 and p99 of
   the per-step solve time, median over seeds 0/1/2; max CTE for seeds 0/1/2; 2 cores
   shared with other jobs under load, so every time is inflated, IPOPT's by about 1.5-2x
