@@ -7,7 +7,13 @@ import math
 from estimation.errors import TimeOrderError
 
 TIME_TOLERANCE_S = 1e-9
-"""Two times closer than this are the same instant (float sums of physics steps)."""
+"""Two times closer than this, relative to their size (at least 1 s), are the same instant:
+MuJoCo's clock is a float sum of physics steps, the runner's a product ``k dt``; after six
+simulated minutes they differ by about 1e-9 s, after an hour by about 1e-8 s."""
+
+
+def _tolerance_s(t_s: float) -> float:
+    return TIME_TOLERANCE_S * max(1.0, abs(t_s))
 
 
 def forward_interval_s(current_t_s: float, t_s: float, who: str) -> float:
@@ -15,15 +21,16 @@ def forward_interval_s(current_t_s: float, t_s: float, who: str) -> float:
     earlier ``t_s`` raises (an estimator cannot go back in time)."""
     if not math.isfinite(t_s):
         raise ValueError(f"predict to t_s = {t_s!r}: expected a finite time")
-    if t_s < current_t_s - TIME_TOLERANCE_S:
+    tolerance_s = _tolerance_s(current_t_s)
+    if t_s < current_t_s - tolerance_s:
         raise TimeOrderError(
             f"predict to t_s = {t_s!r} s: the {who} is at {current_t_s!r} s and cannot go "
             "back in time"
         )
     interval_s = t_s - current_t_s
-    return interval_s if interval_s > TIME_TOLERANCE_S else 0.0
+    return interval_s if interval_s > tolerance_s else 0.0
 
 
 def is_stale(current_t_s: float, t_s: float) -> bool:
     """Whether a measurement at ``t_s`` comes from before the estimator's time."""
-    return t_s < current_t_s - TIME_TOLERANCE_S
+    return t_s < current_t_s - _tolerance_s(current_t_s)
