@@ -17,8 +17,9 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+from scipy.linalg import block_diag
 
-from estimation.fusion import KalmanFusion, TrialUpdate
+from estimation.fusion import KalmanFusion, Selection, TrialUpdate, residual_function
 from estimation.models import MeasurementModel
 
 
@@ -79,6 +80,27 @@ class Ekf(KalmanFusion):
         return joseph_update(x, self._covariance, np.asarray(z, dtype=float).reshape(-1),
                              h_all[index], jacobian_all[index, :], r_matrix, residual)
 
+
+    def _joint_trial_update(
+        self, blocks: list[tuple[MeasurementModel, Selection, np.ndarray, np.ndarray]],
+    ) -> TrialUpdate:
+        """Every block's channels in one Joseph update, each model linearised at the mean:
+        the measurements stacked, their noise block-diagonal."""
+        x = self._mean
+        values, jacobians, measured, angle_rows = [], [], [], []
+        offset = 0
+        for model, selection, z, _ in blocks:
+            h_all, jacobian_all = model.evaluate(x)
+            rows = list(selection.model_rows)
+            values.append(h_all[rows])
+            jacobians.append(jacobian_all[rows, :])
+            measured.append(np.asarray(z, dtype=float).reshape(-1))
+            angle_rows += [offset + row for row in selection.angle_rows]
+            offset += len(rows)
+        noise = block_diag(*(r_matrix for *_, r_matrix in blocks))
+        return joseph_update(x, self._covariance, np.concatenate(measured),
+                             np.concatenate(values), np.vstack(jacobians), noise,
+                             residual_function(tuple(angle_rows)))
 
 def joseph_update(
     x: np.ndarray,

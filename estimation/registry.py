@@ -7,7 +7,9 @@ A name that is not built in is an estimator from outside cosim: an import path
 ``config.params``; ``rng`` draws its initial estimate), and must
 have ``predict(t_s)``, ``estimate() -> Estimate`` and ``update(measurement)`` returning an
 :class:`estimation.update_result.UpdateResult`, plus the class attributes
-``required_sensors`` and ``supported_sensors``.
+``required_sensors`` and ``supported_sensors``. It may also have
+``update_many(measurements) -> list[UpdateResult]`` for measurements of one instant (the
+built-in filters fuse them in one update); without it the runner calls ``update`` for each.
 """
 
 from __future__ import annotations

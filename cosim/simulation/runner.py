@@ -320,6 +320,7 @@ class _Run:
             self.next_live_metrics_s += LIVE_METRICS_PERIOD_S
 
     def sense(self, k: int, t_s: float) -> None:
+        delivered = []
         for sensor, steps in zip(self.sensors, self.sensor_steps, strict=True):
             if k % steps:
                 continue
@@ -332,11 +333,19 @@ class _Run:
                 self.recorder.write("/gnss/fix", t_s, foxglove.location_fix(
                     measurement["x_m"], measurement["y_m"], t_s,
                     self.config.sensors.gnss.sigma_m, self.config.geo))
-            update = self.estimator.update(measurement)
-            if sensor.name != "truth":  # noise-free: NIS is undefined
-                self.metrics.add_update(sensor.name, update)
+            delivered.append(measurement)
+        if not delivered:
+            return
+        # Measurements of one instant are fused together where the estimator can
+        # (estimation.fusion.KalmanFusion.update_many); one by one otherwise.
+        update_many = getattr(self.estimator, "update_many", None)
+        updates = update_many(delivered) if update_many is not None else [
+            self.estimator.update(measurement) for measurement in delivered]
+        for measurement, update in zip(delivered, updates, strict=True):
+            if measurement.sensor != "truth":  # noise-free: NIS is undefined
+                self.metrics.add_update(measurement.sensor, update)
                 self.recorder.write_finite("/estimator/updates", t_s, {
-                    "t_s": t_s, "sensor": sensor.name, "accepted": update.accepted,
+                    "t_s": t_s, "sensor": measurement.sensor, "accepted": update.accepted,
                     "nis": update.nis, "dof": update.dim, "reason": update.reason})
 
     def control(self, k: int, t_s: float) -> None:

@@ -400,3 +400,50 @@ def test_reasons_are_exact_codes() -> None:
         "invalid",
         "ignored",
     )
+
+
+def _same_instant(t_s: float, yaw_rate: float) -> list[Measurement]:
+    """A GNSS fix, an IMU sample and the steering angle of one instant."""
+    return [_gnss(t_s, 20.0 * t_s + 0.01, 0.03), _imu(t_s, yaw_rate, 0.1, 0.2),
+            Measurement("steering", t_s, ("steer_rad",), np.array([0.01]),
+                        np.eye(1) * 1e-6)]
+
+
+def test_measurements_of_one_instant_fused_together_equal_one_after_another(
+        name: str) -> None:
+    # For a linearised model the joint update is the sequential one (Bar-Shalom et al.
+    # 2001, 3.3.2); each measurement's NIS is its block of the innovation against the prior.
+    together = _filter(name, speed_mps=20.0)
+    apart = _filter(name, speed_mps=20.0)
+    for step in range(1, 6):
+        batch = _same_instant(0.1 * step, 0.02)
+        results = together.update_many(batch)
+        expected = [apart.update(m) for m in batch]
+        assert [r.reason for r in results] == [r.reason for r in expected] == ["accepted"] * 3
+        assert [r.dim for r in results] == [2, 3, 1]
+        # The first measurement's NIS is against the prior in both (the same prior at the
+        # first instant; later ones differ by the linearisation points, ~1e-5); the others'
+        # are against the prior only in the joint update.
+        assert results[0].nis == pytest.approx(expected[0].nis, rel=1e-9 if step == 1 else 1e-3)
+        assert all(math.isfinite(r.nis) and r.nis == r.joint_nis for r in results)
+    # The EKF's sequential updates relinearise the IMU's lateral acceleration at the
+    # GNSS-updated mean; the difference is a hair of the uncertainty.
+    joint, sequential = together.estimate(), apart.estimate()
+    sigma = np.sqrt(np.diag(sequential.covariance))
+    assert np.all(np.abs(joint.mean - sequential.mean) <= 1e-3 * sigma)
+    # Covariances in units of the standard deviations (correlation-coefficient units).
+    scaled = (joint.covariance - sequential.covariance) / np.outer(sigma, sigma)
+    assert np.abs(scaled).max() < 1e-3
+    assert together.counts() == apart.counts()
+
+
+def test_a_gated_measurement_sends_its_instant_one_by_one(name: str) -> None:
+    together = _filter(name, speed_mps=20.0)
+    apart = _filter(name, speed_mps=20.0)
+    batch = _same_instant(0.1, 0.02)
+    batch[0] = _gnss(0.1, 50.0, 30.0)  # 30 m off: gated
+    results = together.update_many(batch)
+    expected = [apart.update(m) for m in batch]
+    assert results == expected
+    assert results[0].reason == "gate"
+    np.testing.assert_array_equal(together.estimate().mean, apart.estimate().mean)
