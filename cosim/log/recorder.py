@@ -9,6 +9,13 @@ written through a stream that flushes every record the MCAP writer emits, and th
 emits a chunk at a time, so a killed process loses at most the chunk being filled (about
 ``chunk_size_bytes`` of data, a second or so of a run).
 
+The chunk size also sets the recorder's memory growth: MCAP's summary section indexes every
+chunk, so the writer keeps one chunk index per chunk until the file is finished (about
+1.5 kB each in Python). The default lane change logs about 1 MB a simulated second before
+compression: with 256 kB chunks that was 22 MB an hour (measured: RSS +1.65 MiB every 5
+simulated minutes, ``bench/long_run.py``), with the default :data:`CHUNK_SIZE_BYTES` a
+quarter of it.
+
 The file is written under a temporary name and renamed to its final name by
 :meth:`McapRecorder.publish` (see :mod:`cosim.log.safe_file`): a run refused before it
 publishes leaves the final name untouched.
@@ -59,10 +66,14 @@ def encode_message(message: dict[str, Any]) -> bytes:
     return orjson.dumps(message, option=_ORJSON_OPTIONS)
 
 
+CHUNK_SIZE_BYTES = 1024 * 1024
+"""Uncompressed bytes per MCAP chunk: about a second of the default lane change."""
+
+
 class McapRecorder:
     """Writes a run to an MCAP file. Use as a context manager; it always finishes the file."""
 
-    def __init__(self, path: Path, chunk_size_bytes: int = 256 * 1024,
+    def __init__(self, path: Path, chunk_size_bytes: int = CHUNK_SIZE_BYTES,
                  epoch_ns: int = 0) -> None:
         self.path = Path(path)
         self.epoch_ns = epoch_ns
