@@ -134,6 +134,7 @@ from tracker.fallback import (
     shifted_inputs,
     shifted_states,
 )
+from tracker.grip_speed import capped_reference_speed
 from tracker.horizon_reference import horizon_reference
 from tracker.reference_path import ReferencePath
 from tracker.vector_layout import VectorLayout
@@ -175,6 +176,13 @@ class NmpcModel:
     """Names of ``h``'s outputs, in order (units in the names)."""
     limit_bounds: tuple[float, ...] = ()
     """``h_max`` for each of ``h``'s outputs: the soft bound ``|h| <= h_max``."""
+    stage_limits: ca.Function | None = None
+    """``g(state, inputs) -> limited quantities`` of a stage's start node and its inputs
+    (e.g. the tyres' friction usage, :mod:`tracker.tyre_limits`), or None."""
+    stage_limit_names: tuple[str, ...] = ()
+    """Names of ``g``'s outputs, in order."""
+    stage_limit_bounds: tuple[float, ...] = ()
+    """``g_max`` for each of ``g``'s outputs: the soft bound ``|g| <= g_max``."""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "internal_rest_inputs",
@@ -205,6 +213,20 @@ class NmpcModel:
         if self.limits is not None and (self.limits.n_in() != 1
                                         or self.limits.size1_in(0) != len(self.state_names)):
             raise ConfigError(f"model {self.name}: limits must be a function of the state")
+        n_stage = 0 if self.stage_limits is None else self.stage_limits.size1_out(0)
+        if (len(self.stage_limit_names) != n_stage
+                or len(self.stage_limit_bounds) != n_stage):
+            raise ConfigError(f"model {self.name}: expected {n_stage} stage limit names and "
+                              "bounds")
+        if not all(math.isfinite(b) and b > 0.0 for b in self.stage_limit_bounds):
+            raise ConfigError(f"model {self.name}: stage limit bounds "
+                              f"{self.stage_limit_bounds}: expected positive numbers")
+        if self.stage_limits is not None and (
+                self.stage_limits.n_in() != 2
+                or self.stage_limits.size1_in(0) != len(self.state_names)
+                or self.stage_limits.size1_in(1) != len(self.input_names)):
+            raise ConfigError(f"model {self.name}: stage limits must be a function of the "
+                              "state and the inputs")
         n_x, n_u = len(self.state_names), len(self.input_names)
         for function, n_in in ((self.step, 2), (self.predict, 3)):
             if (function.n_in() != n_in or function.size1_in(0) != n_x
@@ -417,15 +439,19 @@ class Nmpc:
     # ------------------------------------------------------------------ construction
 
     def _stage_terms(
-        self, u: ca.SX, previous: ca.SX, x: ca.SX, par: Mapping[str, ca.SX], k: int
-    ) -> tuple[list[tuple[float, ca.SX]], list[tuple[float, ca.SX]], ca.SX | None]:
+        self, u: ca.SX, previous: ca.SX, x: ca.SX, par: Mapping[str, ca.SX], k: int,
+        x_start: ca.SX,
+    ) -> tuple[list[tuple[float, ca.SX]], list[tuple[float, ca.SX]],
+               list[tuple[float, ca.SX]]]:
         """The tracking cost of stage ``k``, as ``(weight per second, error)`` pairs.
 
         Returns the input terms (``u`` = u_k against ``previous`` = u_{k-1}), the tracking
         terms (``x`` = node k + 1 against reference point k) and the soft limits' excess
-        at node k + 1 (None for a model without limits). Every solver's cost is
-        ``dt * sum weight * error^2`` over them, plus ``dt * weights.limit_excess *
-        |excess|^2``; the Gauss-Newton Hessian of the real-time iteration uses the errors.
+        vectors: the model's limits at node k + 1 (weight ``weights.limit_excess``) and its
+        stage limits at ``x_start`` = node k with u_k (``weights.tyre_excess``); empty for
+        a model without limits. Every solver's cost is ``dt * sum weight * error^2`` over
+        them (``|excess|^2`` for a vector); the Gauss-Newton Hessian of the real-time
+        iteration uses the errors.
         """
         w = self.config.weights
         dt = self.config.dt_s
@@ -445,10 +471,16 @@ class Nmpc:
         heading_error = x[index["yaw_rad"]] - ref_yaw
         speed_error = x[index["vx_mps"]] - par["ref_speed_mps"][k]
         tracking_terms = [(w.cte, cte), (w.heading, heading_error), (w.speed, speed_error)]
-        excess = None
+        excess = []
         if self.model.limits is not None:
             h = self.model.limits(x)
-            excess = ca.fmax(ca.fabs(h) - ca.DM(list(self.model.limit_bounds)), 0.0)
+            excess.append((w.limit_excess,
+                           ca.fmax(ca.fabs(h) - ca.DM(list(self.model.limit_bounds)), 0.0)))
+        if self.model.stage_limits is not None:
+            g = self.model.stage_limits(x_start, u)
+            excess.append((w.tyre_excess,
+                           ca.fmax(ca.fabs(g) - ca.DM(list(self.model.stage_limit_bounds)),
+                                   0.0)))
         return input_terms, tracking_terms, excess
 
     def _input_bounds(self) -> tuple[np.ndarray, np.ndarray]:
@@ -478,7 +510,6 @@ class Nmpc:
         dynamics, the steering rate against the previous input (``input_prev`` for u_0).
         """
         cfg = self.config
-        w = cfg.weights
         n, dt = self._n, cfg.dt_s
         n_u = len(INPUT_NAMES)
         states = ca.SX.sym("states", self._n_x, n + 1)
@@ -495,12 +526,12 @@ class Nmpc:
             dynamics.append(states[:, k + 1] - self.model.step(states[:, k], u))
             steer_rate.append(u[INPUT["steer_rad"]] - previous[INPUT["steer_rad"]])
             input_terms, tracking_terms, excess = self._stage_terms(
-                u, previous, states[:, k + 1], par, k)
+                u, previous, states[:, k + 1], par, k, states[:, k])
             cost += dt * _weighted_squares(input_terms)
             # Tracking terms at node k + 1 against reference point k (nodes 1..N).
             cost += dt * _weighted_squares(tracking_terms)
-            if excess is not None:
-                cost += dt * w.limit_excess * ca.sumsqr(excess)
+            for weight, vector in excess:
+                cost += dt * weight * ca.sumsqr(vector)
             previous = u
 
         constraints = VectorLayout(
@@ -562,7 +593,6 @@ class Nmpc:
         differ, which :class:`_Nlp` hides from the rest of the tracker.
         """
         cfg = self.config
-        w = cfg.weights
         n, dt, n_x = self._n, cfg.dt_s, self._n_x
         n_u = len(INPUT_NAMES)
         n_z = n_x + n_u
@@ -591,14 +621,14 @@ class Nmpc:
                 lbg.append(np.full(row.size1(), low))
                 ubg.append(np.full(row.size1(), high))
             input_terms, tracking_terms, excess = self._stage_terms(
-                u[k], z[k][carried], z[k + 1][:n_x], par, k)
+                u[k], z[k][carried], z[k + 1][:n_x], par, k, z[k][:n_x])
             cost += dt * _weighted_squares(input_terms)
             cost += dt * _weighted_squares(tracking_terms)
             residuals += [math.sqrt(dt * weight) * error
                           for weight, error in input_terms + tracking_terms]
-            if excess is not None:
-                cost += dt * w.limit_excess * ca.sumsqr(excess)
-                residuals.append(math.sqrt(dt * w.limit_excess) * excess)
+            for weight, vector in excess:
+                cost += dt * weight * ca.sumsqr(vector)
+                residuals.append(math.sqrt(dt * weight) * vector)
         variables.append(z[n])
         x = ca.vertcat(*variables)
         nlp = {"x": x, "p": p, "f": cost, "g": ca.vertcat(*rows)}
@@ -722,7 +752,7 @@ class Nmpc:
             return self._fallback(t_s, state0, "non_finite_estimate", 0, 0.0)
         guess = self._initial_guess(t_s, state0)
 
-        blocks = self._reference_blocks(reference, state0, guess.states, t_s)
+        blocks, speed_reduced = self._reference_blocks(reference, state0, guess.states, t_s)
         blocks["state0"] = state0
         blocks["input_prev"] = self._previous_input
         params = self._params.pack(blocks)
@@ -746,7 +776,7 @@ class Nmpc:
         self._last_good = trajectory
         self._failures.reset()
         plan = self._plan(trajectory, cost, solution.solve_time_s, solution.iterations,
-                          solution.status, True, False)
+                          solution.status, True, False, speed_reduced)
         return self._commit(trajectory), plan
 
     # ------------------------------------------------------------------ helpers
@@ -815,11 +845,12 @@ class Nmpc:
     def _reference_blocks(
         self, reference: ReferencePath, state0: np.ndarray, guess_states: np.ndarray,
         t_s: float,
-    ) -> dict[str, np.ndarray]:
+    ) -> tuple[dict[str, np.ndarray], bool]:
         """Reference points at the arc lengths the warm start expects to cover
         (:mod:`tracker.horizon_reference`), the reference speed there (the path's speed
-        profile at each stage's arc length and time), and the steering they need in a
-        steady turn."""
+        profile at each stage's arc length and time, capped by the friction-limited speed
+        of the path ahead with ``grip.speed_planning``, :mod:`tracker.grip_speed`), and
+        the steering they need in a steady turn; and whether the cap lowered the speed."""
         cfg = self.config
         index = self._state
         speed = guess_states[:, index["vx_mps"]]
@@ -831,13 +862,20 @@ class Nmpc:
             kappa = points.curvature_1pm
             steer = (np.arctan(cfg.model.wheelbase_m * kappa)
                      + self.model.understeer_gradient_radpmps2 * speed[1:] ** 2 * kappa)
+        ref_speed = points.speed_mps(reference, t_s, cfg.dt_s)
+        speed_reduced = False
+        if cfg.grip.speed_planning:
+            cap = capped_reference_speed(reference, points.s_m, ref_speed,
+                                         float(state0[index["vx_mps"]]),
+                                         cfg.model.tire_friction, cfg.grip)
+            ref_speed, speed_reduced = cap.speed_mps, cap.reduced
         return {
             "ref_x_m": points.x_m,
             "ref_y_m": points.y_m,
             "ref_yaw_rad": points.yaw_rad,
-            "ref_speed_mps": points.speed_mps(reference, t_s, cfg.dt_s),
+            "ref_speed_mps": ref_speed,
             "ref_steer_rad": steer,
-        }
+        }, speed_reduced
 
     def _clip_inputs(self, inputs: np.ndarray) -> np.ndarray:
         """A solver may end a hair outside a bound; the command never does."""
@@ -896,6 +934,7 @@ class Nmpc:
         status: str,
         success: bool,
         fallback: bool,
+        speed_reduced: bool = False,
     ) -> Plan:
         return Plan(
             t_s=trajectory.t_s,
@@ -910,4 +949,5 @@ class Nmpc:
             status=status,
             success=success,
             fallback=fallback,
+            speed_reduced=speed_reduced,
         )
