@@ -79,7 +79,8 @@ def dynamic_model(config: TrackerConfig) -> NmpcModel:
     """
     params = SteeredBicycleParams.from_vehicle(config.model)
     tyre_limits = {}
-    if config.grip.tyre_limits:
+    grip = config.grip
+    if grip.tyre_limits and config.model.tire_friction < grip.tyre_limits_below_friction:
         tyre_limits = {
             "stage_limits": friction_usage_function(config.model, params,
                                                     config.model.tire_friction),

@@ -256,6 +256,20 @@ class _Solution:
     solve_time_s: float
 
 
+_QP_FEASIBILITY_TOL = 1e-3
+"""Largest violation of a bound or a linearised constraint a real-time iteration's step
+may leave (in the variables' and constraints' own units)."""
+
+
+def _step_feasible(w: np.ndarray, g_linear: np.ndarray, nlp: _Nlp) -> bool:
+    """Whether a QP's result honours the bounds and the linearised constraints: qrqp has
+    reported success on an infeasible QP (with the friction ellipse's Hessian, an initial
+    steering rate beyond its bound)."""
+    tol = _QP_FEASIBILITY_TOL
+    return bool(np.all(w >= nlp.lbx - tol) and np.all(w <= nlp.ubx + tol)
+                and np.all(g_linear >= nlp.lbg - tol) and np.all(g_linear <= nlp.ubg + tol))
+
+
 @dataclass(frozen=True)
 class _RealTimeIteration:
     """Gauss-Newton SQP steps on the stage-wise NLP, each one structured QP (Diehl's
@@ -288,11 +302,17 @@ class _RealTimeIteration:
             step = self.qp(h=hessian, g=gradient, a=jacobian, lbx=nlp.lbx - w,
                            ubx=nlp.ubx - w, lba=nlp.lbg - g, uba=nlp.ubg - g)
             stats = self.qp.stats()
+            dw = np.asarray(step["x"], dtype=float).ravel()
+            status = None
             if not stats.get("success", False):
                 status = f"QP_Failed ({stats.get('return_status', 'unknown')})"
+            elif not _step_feasible(w + dw, g + np.asarray(ca.mtimes(jacobian, dw)).ravel(),
+                                    nlp):
+                status = "QP_Failed (step violates the bounds)"
+            if status is not None:
                 return _Solution(w, math.nan, status, iteration, False,
                                  time.perf_counter() - start)
-            w = w + np.asarray(step["x"], dtype=float).ravel()
+            w = w + dw
         cost = float(self.cost(w, params))
         return _Solution(w, cost, "RTI_Completed", self.iterations, True,
                          time.perf_counter() - start)

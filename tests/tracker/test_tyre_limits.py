@@ -13,11 +13,16 @@ from cosim.vehicle_params import VehicleParams
 from tests.named_vectors import named_vector
 from tests.tracker.dynamic_closed_loop import Car, estimate_of
 from tracker.config import TrackerConfig
-from tracker.dynamic_nmpc import DynamicNmpc
+from tracker.dynamic_nmpc import DynamicNmpc, dynamic_model
 from tracker.paths.shapes import straight
 from tracker.reference_path import ReferencePath
 from tracker.steered_dynamic_bicycle import INPUT, STATE, SteeredBicycleParams
-from tracker.tyre_limits import AIR_DENSITY_KGPM3, friction_usage_function, usage_bounds
+from tracker.tyre_limits import (
+    AIR_DENSITY_KGPM3,
+    LIMIT_NAMES,
+    friction_usage_function,
+    usage_bounds,
+)
 
 G = 9.81
 VEHICLE = VehicleParams()
@@ -91,6 +96,19 @@ def test_bad_inputs_are_refused() -> None:
     with pytest.raises(ConfigError, match="usage_max"):
         usage_bounds(1.5)
     assert usage_bounds(0.8) == pytest.approx((0.64, 0.64))
+
+
+@pytest.mark.parametrize("friction, expected", [(1.0, False), (0.89, True), (0.6, True)])
+def test_tyre_limits_join_the_nlp_below_the_friction_threshold(friction: float,
+                                                                expected: bool) -> None:
+    config = TrackerConfig(name="dynamic-nmpc",
+                           model=dataclasses.replace(VEHICLE, tire_friction=friction))
+    model = dynamic_model(config)
+    assert (model.stage_limits is not None) is expected
+    if expected:
+        assert model.stage_limit_names == LIMIT_NAMES
+    off = dataclasses.replace(config, grip=dataclasses.replace(config.grip, tyre_limits=False))
+    assert dynamic_model(off).stage_limits is None
 
 
 def planned_accel(tyre_limits: bool) -> float:
