@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from cosim.config_fields import section, setting
 from cosim.exceptions import ConfigError
 from cosim.slip_control_params import SlipControlParams
+from cosim.suspension_params import SuspensionParams
 from cosim.tyre_params import TyreParams
 
 
@@ -94,6 +95,7 @@ class PlantConfig(VehicleParams):
     )
     tyre: TyreParams = section(TyreParams)
     slip_control: SlipControlParams = section(SlipControlParams)
+    suspension: SuspensionParams = section(SuspensionParams)
     front_cornering_stiffness_scale: float = setting(
         0.77,
         low=0.05,
