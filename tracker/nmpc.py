@@ -134,7 +134,7 @@ from tracker.fallback import (
     shifted_inputs,
     shifted_states,
 )
-from tracker.grip_speed import capped_reference_speed
+from tracker.grip_speed import CurvatureTable, capped_reference_speed
 from tracker.horizon_reference import horizon_reference
 from tracker.reference_path import ReferencePath
 from tracker.vector_layout import VectorLayout
@@ -454,6 +454,7 @@ class Nmpc:
         self._issued = IssuedInputs(latency_s + model.unmodelled_lag_s,
                                     np.zeros(len(INPUT_NAMES)))
         self._failures = FailureClock(config.fallback_time_s)
+        self._curvature: CurvatureTable | None = None
         self.reset()
 
     # ------------------------------------------------------------------ construction
@@ -885,7 +886,9 @@ class Nmpc:
         ref_speed = points.speed_mps(reference, t_s, cfg.dt_s)
         speed_reduced = False
         if cfg.grip.speed_planning:
-            cap = capped_reference_speed(reference, points.s_m, ref_speed,
+            if self._curvature is None or self._curvature.path is not reference:
+                self._curvature = CurvatureTable(reference)  # once per path
+            cap = capped_reference_speed(self._curvature, points.s_m, ref_speed,
                                          float(state0[index["vx_mps"]]),
                                          cfg.model.tire_friction, cfg.grip)
             ref_speed, speed_reduced = cap.speed_mps, cap.reduced

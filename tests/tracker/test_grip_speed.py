@@ -10,7 +10,7 @@ import pytest
 
 from tracker.double_lane_change import double_lane_change
 from tracker.grip_config import GripConfig
-from tracker.grip_speed import capped_reference_speed, cornering_speed_cap
+from tracker.grip_speed import CurvatureTable, capped_reference_speed, cornering_speed_cap
 from tracker.paths.shapes import circle, from_curvature
 from tracker.reference_path import ReferencePath
 
@@ -68,3 +68,18 @@ def test_the_dry_lane_change_is_never_slowed() -> None:
     assert np.min(wet) == pytest.approx(math.sqrt(GRIP.usage_max * 0.5 * G / kappa_max),
                                         rel=1e-3)
     assert np.min(wet) < 19.0
+
+
+def test_the_curvature_table_matches_the_spline_between_its_points() -> None:
+    """The per-path table (1 m) against the spline itself at arbitrary arc lengths, on the
+    lane change (peak curvature 0.0124 1/m; the spline's curvature wiggles between its
+    waypoints by up to 0.0003 1/m, which linear interpolation smooths: the cap's speed
+    moves by at most half the curvature's 2.4 %) and around a closed circle (wrapping)."""
+    path = double_lane_change(20.0, 1.5)
+    s = np.random.default_rng(0).uniform(0.0, path.length_m, 500)
+    exact = np.abs(path.sample(s)["curvature_1pm"])
+    np.testing.assert_allclose(CurvatureTable(path)(s), exact, atol=0.03 * np.max(exact))
+    shape = circle(50.0)
+    ring = ReferencePath(shape.x_m, shape.y_m, 20.0, closed=True)
+    beyond = np.array([ring.length_m + 3.3, -2.5])
+    np.testing.assert_allclose(CurvatureTable(ring)(beyond), 1.0 / 50.0, rtol=1e-2)
