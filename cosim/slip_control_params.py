@@ -36,7 +36,7 @@ class SlipControlParams:
         doc="share of the torque removed per unit of slip above slip_max (20: all of it "
         "at 0.05 above) [-]",
     )
-    recovery_per_s: float = setting(
+    recovery_rate: float = setting(
         2.0,
         low=0.01,
         high=1000.0,

@@ -78,7 +78,7 @@ class SlipLimiter:
         target = min(max(1.0 - p.cut_gain * (worst_slip - p.slip_max), 0.0), 1.0)  # (L2)
         if target < share:  # (L3)
             return target
-        return min(share + p.recovery_per_s * dt_s, target)
+        return min(share + p.recovery_rate * dt_s, target)
 
     def limit(self, drive_torque_nm: float, brake_torque_nm: float,
               wheel_spin_radps: Sequence[float], dt_s: float) -> SlipLimited:
