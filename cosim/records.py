@@ -138,6 +138,9 @@ class Plan:
     status: str
     success: bool
     fallback: bool
+    speed_reduced: bool = False
+    """The tracker planned below the reference speed because the path ahead cannot be
+    held at it (the believed friction; :mod:`tracker.grip_speed`)."""
 
     def column(self, name: str) -> np.ndarray:
         """One predicted state or input over the horizon, by name."""
@@ -155,6 +158,7 @@ class Plan:
             "status": self.status,
             "success": self.success,
             "fallback": self.fallback,
+            "speed_reduced": self.speed_reduced,
         }
         for name in self.state_names + self.input_names:
             message[f"predicted_{name}"] = _json_floats(self.column(name))

@@ -34,6 +34,14 @@ class TyreParams:
     )
     slip_stiffness_load_slope: float = setting(-0.163, low=-10.0, high=10.0, doc="p_Kx2")
     slip_stiffness_load_exponent: float = setting(0.245, low=-10.0, high=10.0, doc="p_Kx3")
+    peak_friction_load_slope: float = setting(
+        0.0,
+        low=-0.9,
+        high=0.9,
+        doc="p_D2 = p_Dx2 / p_Dx1 (and the same laterally): the peak friction "
+        "mu (1 + p_D2 df_z) falls with load when negative (Pacejka 2012, 4.E13, 4.E23); "
+        "0: load-independent, as before this key",
+    )
     # Lateral, pure slip.
     lateral_shape: float = setting(1.193, low=1.01, high=1.99, doc="C_y = p_Cy1")
     lateral_curvature: float = setting(-1.003, low=-10.0, high=1.0, doc="E_y = p_Ey1")

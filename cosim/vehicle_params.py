@@ -22,6 +22,8 @@ from dataclasses import dataclass
 
 from cosim.config_fields import section, setting
 from cosim.exceptions import ConfigError
+from cosim.slip_control_params import SlipControlParams
+from cosim.suspension_params import SuspensionParams
 from cosim.tyre_params import TyreParams
 
 
@@ -92,6 +94,8 @@ class PlantConfig(VehicleParams):
         "contact: MuJoCo's contact friction as the tyres (no cornering stiffness)",
     )
     tyre: TyreParams = section(TyreParams)
+    slip_control: SlipControlParams = section(SlipControlParams)
+    suspension: SuspensionParams = section(SuspensionParams)
     front_cornering_stiffness_scale: float = setting(
         0.77,
         low=0.05,

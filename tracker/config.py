@@ -79,6 +79,7 @@ from cosim.plugins import entry_point_names, is_import_path
 from cosim.vehicle_params import VehicleParams
 from tracker.baselines.config import BaselineConfig
 from tracker.dynamic_mpc_config import DynamicMpcConfig
+from tracker.grip_config import GripConfig
 from tracker.horizon_reference import REFERENCE_KINDS
 from tracker.ltv_mpc_config import LtvMpcConfig
 
@@ -117,6 +118,13 @@ class TrackerWeights:
         high=1e9,
         doc="(excess over the model's soft limits)^2; dynamic-nmpc: tyre slip angles beyond "
         "the linear range [1/(rad^2 s)]",
+    )
+    tyre_excess: float = setting(
+        1e4,
+        low=0.0,
+        high=1e9,
+        doc="dynamic-nmpc with grip.tyre_limits: (excess of an axle's squared friction usage "
+        "over grip.usage_max^2)^2 [1/s]",
     )
 
 
@@ -228,6 +236,7 @@ class TrackerConfig:
     dynamic_mpc: DynamicMpcConfig = section(DynamicMpcConfig)
     ltv_mpc: LtvMpcConfig = section(LtvMpcConfig)
     baseline: BaselineConfig = section(BaselineConfig)
+    grip: GripConfig = section(GripConfig)
 
     def __post_init__(self) -> None:
         if self.name not in TRACKER_CHOICES and not is_plugin_name(self.name):

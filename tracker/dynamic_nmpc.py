@@ -61,6 +61,7 @@ from tracker.steered_dynamic_bicycle import (
     predict_function,
     slip_angle_function,
 )
+from tracker.tyre_limits import LIMIT_NAMES, friction_usage_function, usage_bounds
 
 TRACKER_NAME = "dynamic-nmpc"
 """``tracker.name`` of this tracker."""
@@ -73,9 +74,19 @@ def dynamic_model(config: TrackerConfig) -> NmpcModel:
     internal (no estimator needs to report it): the tracker propagates it with the
     commands it applied, through the belief's actuator lag. Soft limits keep both axles'
     slip angles within the linear tyres' range at the belief's friction
-    (``model.tire_friction``).
+    (``model.tire_friction``) and, with ``grip.tyre_limits``, each axle's combined force
+    within its friction ellipse (:mod:`tracker.tyre_limits`).
     """
     params = SteeredBicycleParams.from_vehicle(config.model)
+    tyre_limits = {}
+    grip = config.grip
+    if grip.tyre_limits and config.model.tire_friction < grip.tyre_limits_below_friction:
+        tyre_limits = {
+            "stage_limits": friction_usage_function(config.model, params,
+                                                    config.model.tire_friction),
+            "stage_limit_names": LIMIT_NAMES,
+            "stage_limit_bounds": usage_bounds(config.grip.usage_max),
+        }
     return NmpcModel(
         name="dynamic_nmpc",
         state_names=STATE_NAMES,
@@ -90,6 +101,7 @@ def dynamic_model(config: TrackerConfig) -> NmpcModel:
         limits=slip_angle_function(params),
         limit_names=("front_slip_rad", "rear_slip_rad"),
         limit_bounds=linear_range_slip_rad(params, config.model.tire_friction),
+        **tyre_limits,
     )
 
 

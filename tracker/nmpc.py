@@ -143,6 +143,7 @@ from tracker.fallback import (
     shifted_inputs,
     shifted_states,
 )
+from tracker.grip_speed import CurvatureTable, capped_reference_speed
 from tracker.horizon_reference import horizon_reference
 from tracker.reference_path import ReferencePath
 from tracker.vector_layout import VectorLayout
@@ -188,6 +189,13 @@ class NmpcModel:
     """Names of ``h``'s outputs, in order (units in the names)."""
     limit_bounds: tuple[float, ...] = ()
     """``h_max`` for each of ``h``'s outputs: the soft bound ``|h| <= h_max``."""
+    stage_limits: ca.Function | None = None
+    """``g(state, inputs) -> limited quantities`` of a stage's start node and its inputs
+    (e.g. the tyres' friction usage, :mod:`tracker.tyre_limits`), or None."""
+    stage_limit_names: tuple[str, ...] = ()
+    """Names of ``g``'s outputs, in order."""
+    stage_limit_bounds: tuple[float, ...] = ()
+    """``g_max`` for each of ``g``'s outputs: the soft bound ``|g| <= g_max``."""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "internal_rest_inputs",
@@ -218,6 +226,20 @@ class NmpcModel:
         if self.limits is not None and (self.limits.n_in() != 1
                                         or self.limits.size1_in(0) != len(self.state_names)):
             raise ConfigError(f"model {self.name}: limits must be a function of the state")
+        n_stage = 0 if self.stage_limits is None else self.stage_limits.size1_out(0)
+        if (len(self.stage_limit_names) != n_stage
+                or len(self.stage_limit_bounds) != n_stage):
+            raise ConfigError(f"model {self.name}: expected {n_stage} stage limit names and "
+                              "bounds")
+        if not all(math.isfinite(b) and b > 0.0 for b in self.stage_limit_bounds):
+            raise ConfigError(f"model {self.name}: stage limit bounds "
+                              f"{self.stage_limit_bounds}: expected positive numbers")
+        if self.stage_limits is not None and (
+                self.stage_limits.n_in() != 2
+                or self.stage_limits.size1_in(0) != len(self.state_names)
+                or self.stage_limits.size1_in(1) != len(self.input_names)):
+            raise ConfigError(f"model {self.name}: stage limits must be a function of the "
+                              "state and the inputs")
         n_x, n_u = len(self.state_names), len(self.input_names)
         for function, n_in in ((self.step, 2), (self.predict, 3)):
             if (function.n_in() != n_in or function.size1_in(0) != n_x
@@ -245,6 +267,20 @@ class _Solution:
     iterations: int
     success: bool
     solve_time_s: float
+
+
+_QP_FEASIBILITY_TOL = 1e-3
+"""Largest violation of a bound or a linearised constraint a real-time iteration's step
+may leave (in the variables' and constraints' own units)."""
+
+
+def _step_feasible(w: np.ndarray, g_linear: np.ndarray, nlp: _Nlp) -> bool:
+    """Whether a QP's result honours the bounds and the linearised constraints: qrqp has
+    reported success on an infeasible QP (with the friction ellipse's Hessian, an initial
+    steering rate beyond its bound)."""
+    tol = _QP_FEASIBILITY_TOL
+    return bool(np.all(w >= nlp.lbx - tol) and np.all(w <= nlp.ubx + tol)
+                and np.all(g_linear >= nlp.lbg - tol) and np.all(g_linear <= nlp.ubg + tol))
 
 
 @dataclass(frozen=True)
@@ -279,11 +315,17 @@ class _RealTimeIteration:
             step = self.qp(h=hessian, g=gradient, a=jacobian, lbx=nlp.lbx - w,
                            ubx=nlp.ubx - w, lba=nlp.lbg - g, uba=nlp.ubg - g)
             stats = self.qp.stats()
+            dw = np.asarray(step["x"], dtype=float).ravel()
+            status = None
             if not stats.get("success", False):
                 status = f"QP_Failed ({stats.get('return_status', 'unknown')})"
+            elif not _step_feasible(w + dw, g + np.asarray(ca.mtimes(jacobian, dw)).ravel(),
+                                    nlp):
+                status = "QP_Failed (step violates the bounds)"
+            if status is not None:
                 return _Solution(w, math.nan, status, iteration, False,
                                  time.perf_counter() - start)
-            w = w + np.asarray(step["x"], dtype=float).ravel()
+            w = w + dw
         cost = float(self.cost(w, params))
         return _Solution(w, cost, "RTI_Completed", self.iterations, True,
                          time.perf_counter() - start)
@@ -425,20 +467,25 @@ class Nmpc:
         self._issued = IssuedInputs(latency_s + model.unmodelled_lag_s,
                                     np.zeros(len(INPUT_NAMES)))
         self._failures = FailureClock(config.fallback_time_s)
+        self._curvature: CurvatureTable | None = None
         self.reset()
 
     # ------------------------------------------------------------------ construction
 
     def _stage_terms(
-        self, u: ca.SX, previous: ca.SX, x: ca.SX, par: Mapping[str, ca.SX], k: int
-    ) -> tuple[list[tuple[float, ca.SX]], list[tuple[float, ca.SX]], ca.SX | None]:
+        self, u: ca.SX, previous: ca.SX, x: ca.SX, par: Mapping[str, ca.SX], k: int,
+        x_start: ca.SX,
+    ) -> tuple[list[tuple[float, ca.SX]], list[tuple[float, ca.SX]],
+               list[tuple[float, ca.SX]]]:
         """The tracking cost of stage ``k``, as ``(weight per second, error)`` pairs.
 
         Returns the input terms (``u`` = u_k against ``previous`` = u_{k-1}), the tracking
         terms (``x`` = node k + 1 against reference point k) and the soft limits' excess
-        at node k + 1 (None for a model without limits). Every solver's cost is
-        ``dt * sum weight * error^2`` over them, plus ``dt * weights.limit_excess *
-        |excess|^2``; the Gauss-Newton Hessian of the real-time iteration uses the errors.
+        vectors: the model's limits at node k + 1 (weight ``weights.limit_excess``) and its
+        stage limits at ``x_start`` = node k with u_k (``weights.tyre_excess``); empty for
+        a model without limits. Every solver's cost is ``dt * sum weight * error^2`` over
+        them (``|excess|^2`` for a vector); the Gauss-Newton Hessian of the real-time
+        iteration uses the errors.
         """
         w = self.config.weights
         dt = self.config.dt_s
@@ -458,10 +505,16 @@ class Nmpc:
         heading_error = x[index["yaw_rad"]] - ref_yaw
         speed_error = x[index["vx_mps"]] - par["ref_speed_mps"][k]
         tracking_terms = [(w.cte, cte), (w.heading, heading_error), (w.speed, speed_error)]
-        excess = None
+        excess = []
         if self.model.limits is not None:
             h = self.model.limits(x)
-            excess = ca.fmax(ca.fabs(h) - ca.DM(list(self.model.limit_bounds)), 0.0)
+            excess.append((w.limit_excess,
+                           ca.fmax(ca.fabs(h) - ca.DM(list(self.model.limit_bounds)), 0.0)))
+        if self.model.stage_limits is not None:
+            g = self.model.stage_limits(x_start, u)
+            excess.append((w.tyre_excess,
+                           ca.fmax(ca.fabs(g) - ca.DM(list(self.model.stage_limit_bounds)),
+                                   0.0)))
         return input_terms, tracking_terms, excess
 
     def _input_bounds(self) -> tuple[np.ndarray, np.ndarray]:
@@ -491,7 +544,6 @@ class Nmpc:
         dynamics, the steering rate against the previous input (``input_prev`` for u_0).
         """
         cfg = self.config
-        w = cfg.weights
         n, dt = self._n, cfg.dt_s
         n_u = len(INPUT_NAMES)
         states = ca.SX.sym("states", self._n_x, n + 1)
@@ -508,12 +560,12 @@ class Nmpc:
             dynamics.append(states[:, k + 1] - self.model.step(states[:, k], u))
             steer_rate.append(u[INPUT["steer_rad"]] - previous[INPUT["steer_rad"]])
             input_terms, tracking_terms, excess = self._stage_terms(
-                u, previous, states[:, k + 1], par, k)
+                u, previous, states[:, k + 1], par, k, states[:, k])
             cost += dt * _weighted_squares(input_terms)
             # Tracking terms at node k + 1 against reference point k (nodes 1..N).
             cost += dt * _weighted_squares(tracking_terms)
-            if excess is not None:
-                cost += dt * w.limit_excess * ca.sumsqr(excess)
+            for weight, vector in excess:
+                cost += dt * weight * ca.sumsqr(vector)
             previous = u
 
         constraints = VectorLayout(
@@ -577,13 +629,13 @@ class Nmpc:
         ref = ca.SX.sym("ref", len(_REFERENCE_BLOCKS))
         point = {name: ref[i:i + 1] for i, name in enumerate(_REFERENCE_BLOCKS)}
         input_terms, tracking_terms, excess = self._stage_terms(
-            u, z[n_x:], z_next[:n_x], point, 0)
+            u, z[n_x:], z_next[:n_x], point, 0, z[:n_x])
         cost = dt * _weighted_squares(input_terms) + dt * _weighted_squares(tracking_terms)
         residuals = [math.sqrt(dt * weight) * error
                      for weight, error in input_terms + tracking_terms]
-        if excess is not None:
-            cost += dt * cfg.weights.limit_excess * ca.sumsqr(excess)
-            residuals.append(math.sqrt(dt * cfg.weights.limit_excess) * excess)
+        for weight, vector in excess:
+            cost += dt * weight * ca.sumsqr(vector)
+            residuals.append(math.sqrt(dt * weight) * vector)
         dynamics = z_next - ca.vertcat(self.model.step(z[:n_x], u), u)
         steer_rate = u[INPUT["steer_rad"]] - z[n_x + INPUT["steer_rad"]]
         return ca.Function("stage", [z, u, z_next, ref],
@@ -770,7 +822,7 @@ class Nmpc:
             return self._fallback(t_s, state0, "non_finite_estimate", 0, 0.0)
         guess = self._initial_guess(t_s, state0)
 
-        blocks = self._reference_blocks(reference, state0, guess.states, t_s)
+        blocks, speed_reduced = self._reference_blocks(reference, state0, guess.states, t_s)
         blocks["state0"] = state0
         blocks["input_prev"] = self._previous_input
         params = self._params.pack(blocks)
@@ -794,7 +846,7 @@ class Nmpc:
         self._last_good = trajectory
         self._failures.reset()
         plan = self._plan(trajectory, cost, solution.solve_time_s, solution.iterations,
-                          solution.status, True, False)
+                          solution.status, True, False, speed_reduced)
         return self._commit(trajectory), plan
 
     # ------------------------------------------------------------------ helpers
@@ -863,11 +915,12 @@ class Nmpc:
     def _reference_blocks(
         self, reference: ReferencePath, state0: np.ndarray, guess_states: np.ndarray,
         t_s: float,
-    ) -> dict[str, np.ndarray]:
+    ) -> tuple[dict[str, np.ndarray], bool]:
         """Reference points at the arc lengths the warm start expects to cover
         (:mod:`tracker.horizon_reference`), the reference speed there (the path's speed
-        profile at each stage's arc length and time), and the steering they need in a
-        steady turn."""
+        profile at each stage's arc length and time, capped by the friction-limited speed
+        of the path ahead with ``grip.speed_planning``, :mod:`tracker.grip_speed`), and
+        the steering they need in a steady turn; and whether the cap lowered the speed."""
         cfg = self.config
         index = self._state
         speed = guess_states[:, index["vx_mps"]]
@@ -879,13 +932,22 @@ class Nmpc:
             kappa = points.curvature_1pm
             steer = (np.arctan(cfg.model.wheelbase_m * kappa)
                      + self.model.understeer_gradient_radpmps2 * speed[1:] ** 2 * kappa)
+        ref_speed = points.speed_mps(reference, t_s, cfg.dt_s)
+        speed_reduced = False
+        if cfg.grip.speed_planning:
+            if self._curvature is None or self._curvature.path is not reference:
+                self._curvature = CurvatureTable(reference)  # once per path
+            cap = capped_reference_speed(self._curvature, points.s_m, ref_speed,
+                                         float(state0[index["vx_mps"]]),
+                                         cfg.model.tire_friction, cfg.grip)
+            ref_speed, speed_reduced = cap.speed_mps, cap.reduced
         return {
             "ref_x_m": points.x_m,
             "ref_y_m": points.y_m,
             "ref_yaw_rad": points.yaw_rad,
-            "ref_speed_mps": points.speed_mps(reference, t_s, cfg.dt_s),
+            "ref_speed_mps": ref_speed,
             "ref_steer_rad": steer,
-        }
+        }, speed_reduced
 
     def _clip_inputs(self, inputs: np.ndarray) -> np.ndarray:
         """A solver may end a hair outside a bound; the command never does."""
@@ -944,6 +1006,7 @@ class Nmpc:
         status: str,
         success: bool,
         fallback: bool,
+        speed_reduced: bool = False,
     ) -> Plan:
         return Plan(
             t_s=trajectory.t_s,
@@ -958,4 +1021,5 @@ class Nmpc:
             status=status,
             success=success,
             fallback=fallback,
+            speed_reduced=speed_reduced,
         )

@@ -71,7 +71,8 @@ PLAN = {
     **object_schema(
         "cosim.Plan",
         {"t_s": NUMBER, "dt_s": NUMBER, "cost": NUMBER_OR_NULL, "solve_time_s": NUMBER,
-         "iterations": INTEGER, "status": STRING, "success": BOOLEAN, "fallback": BOOLEAN},
+         "iterations": INTEGER, "status": STRING, "success": BOOLEAN, "fallback": BOOLEAN,
+         "speed_reduced": BOOLEAN},
         "Tracker plan: predicted_<name> arrays over the horizon for each state and input.",
     ),
     "additionalProperties": NUMBERS_OR_NULL,

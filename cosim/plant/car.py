@@ -70,6 +70,7 @@ from cosim.plant.sedan_model import (
     driven_wheels,
     sedan_xml_and_assets,
 )
+from cosim.plant.slip_control import SlipLimiter
 from cosim.plant.tire_model import PATCH_AT_REST, PatchState, patch_step
 from cosim.plant.tyre_patches import (
     CONTACT_SIZE,
@@ -220,6 +221,11 @@ class MujocoPlant:
         )
         self._dof_damping = m.dof_damping  # view: brake coefficients are written here
         self._n_driven = len(self._drive_act)
+        driven = driven_wheels(cfg.drive)
+        self._slip_limiter = (
+            SlipLimiter(cfg.slip_control, cfg.wheel_radius_m,
+                        [wheel in driven for wheel in WHEEL_NAMES])
+            if cfg.slip_control.enabled else None)
 
     def _settle(self) -> None:
         """Let the car stand until its suspension is at rest; remember that equilibrium.
@@ -294,6 +300,8 @@ class MujocoPlant:
         self._check(d.time)
         self._drive_cmd_nm = 0.0
         self._brake_cmd_nm = 0.0
+        if self._slip_limiter is not None:
+            self._slip_limiter.reset()
         self._steer_cmd_rad = 0.0
         self._steer_rad = 0.0
         self._wheel_steer_rad = (0.0, 0.0)
@@ -365,12 +373,16 @@ class MujocoPlant:
         if drive > 0.0:
             spin = sum(abs(qvel[dof]) for dof in self._driven_dof) / self._n_driven
             drive = min(drive, cfg.max_drive_power_w / max(spin, MIN_POWER_SPIN_RADPS))
+        brake = self._brake_cmd_nm
+        if self._slip_limiter is not None:  # plant.slip_control (cosim.plant.slip_control)
+            limited = self._slip_limiter.limit(drive, brake,
+                                               [qvel[dof] for dof in self._spin_dof], dt)
+            drive, brake = limited.drive_torque_nm, limited.brake_torque_nm
         per_wheel = drive / self._n_driven
         for act in self._drive_act:
             ctrl[act] = per_wheel
 
         # Brakes: smooth Coulomb friction, as an implicit damping coefficient per wheel.
-        brake = self._brake_cmd_nm
         damping = self._dof_damping
         for dof, share in self._brake_share_by_dof:
             omega = qvel[dof]

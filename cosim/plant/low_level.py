@@ -13,6 +13,10 @@ Where each conversion happens in a run:
 3. The plant (:class:`cosim.plant.car.MujocoPlant`) receives the :class:`ActuatorCommand`, clips
    it to the *true* limits, splits drive torque over the driven wheels and brake torque over
    all four, and passes the steering angle through its steering-actuator model.
+4. Optionally (``plant.slip_control.enabled``, off by default so that a wrong belief shows
+   as wheel spin), the car's own traction control and ABS
+   (:mod:`cosim.plant.slip_control`) cut the drive or brake torque every physics step when
+   a wheel's slip ratio, from the four wheel speeds, exceeds ``slip_max``.
 
 Longitudinal model used for the inversion (Gillespie, Fundamentals of Vehicle Dynamics,
 1992, ch. 2 "Acceleration performance", with the wheels' rotational inertia lumped into

@@ -43,6 +43,7 @@ from typing import TYPE_CHECKING
 from cosim.exceptions import ConfigError
 from cosim.plant.headless import headless_gl
 from cosim.records import WHEEL_NAMES
+from cosim.suspension_params import SuspensionParams
 from cosim.vehicle_params import PlantConfig, VehicleParams
 
 if TYPE_CHECKING:
@@ -50,26 +51,6 @@ if TYPE_CHECKING:
 
 GRAVITY_MPS2 = 9.81
 """MuJoCo's default gravity, used for the static loads [m/s^2]."""
-
-RIDE_FREQUENCY_FRONT_HZ = 1.5
-"""Undamped body-bounce frequency of the front suspension [Hz]. Passenger cars sit at
-1-1.5 Hz (Gillespie, Fundamentals of Vehicle Dynamics, 1992, ch. 5)."""
-
-RIDE_FREQUENCY_REAR_HZ = 1.65
-"""Rear ride frequency [Hz]: about 10 % above the front ("flat ride", Olley; Milliken &
-Milliken, Race Car Vehicle Dynamics, 1995, ch. 16)."""
-
-SUSPENSION_DAMPING_RATIO = 0.5
-"""Damping ratio of each corner (passenger cars 0.2-0.4, Gillespie ch. 5); on the firm side
-so a disturbance dies out within about one cycle."""
-
-ROLL_INERTIA_RATIO = 0.2
-"""Total roll inertia / total yaw inertia. Measured passenger cars have roll inertia roughly
-a fifth and pitch inertia roughly nine tenths of their yaw inertia (NHTSA inertial parameter
-measurements, Heydinger et al., SAE 1999-01-1336)."""
-
-PITCH_INERTIA_RATIO = 0.92
-"""Total pitch inertia / total yaw inertia (see :data:`ROLL_INERTIA_RATIO`)."""
 
 TYRE_WIDTH_M = 0.205
 """Section width of a mid-size sedan tyre (205/55 R16) [m]; sets the wheel's
@@ -171,16 +152,21 @@ class SedanLayout:
     """Gain of the steering position servo [N m/rad]."""
 
 
-def sedan_layout(params: VehicleParams) -> SedanLayout:
-    """Derive chassis mass/inertia, wheel placement and suspension from ``params``.
+def sedan_layout(params: VehicleParams,
+                 suspension: SuspensionParams | None = None) -> SedanLayout:
+    """Derive chassis mass/inertia, wheel placement and suspension from ``params`` and
+    ``suspension`` (``plant.suspension``; default: its defaults).
 
     The chassis body carries everything but the four wheels. Its CoM is placed so that the
     CoM of the whole car is the frame origin (the configured CoG), and its inertia so that
     the whole car has the configured yaw inertia about the CoG (parallel-axis theorem, per
     axis: I_total = I_chassis + m_c d_c^2 + sum_wheels (I_wheel + m_w d_w^2)). Roll and pitch
-    inertia of the whole car are :data:`ROLL_INERTIA_RATIO` and :data:`PITCH_INERTIA_RATIO`
-    times the yaw inertia. Raises :class:`ConfigError` if the wheels alone exceed an inertia.
+    inertia of the whole car are ``suspension.roll_inertia_ratio`` and
+    ``pitch_inertia_ratio`` times the yaw inertia. Raises :class:`ConfigError` if the wheels
+    alone exceed an inertia.
     """
+    if suspension is None:
+        suspension = SuspensionParams()
     lf, lr = params.cog_front_m, params.cog_rear_m
     wheelbase = lf + lr
     half_track = 0.5 * params.track_m
@@ -200,8 +186,8 @@ def sedan_layout(params: VehicleParams) -> SedanLayout:
     i_diam = 0.5 * i_axle + m_w * TYRE_WIDTH_M**2 / 12.0
     wheel_inertia = (i_diam, i_axle, i_diam)
     totals = (
-        ROLL_INERTIA_RATIO * params.yaw_inertia_kgm2,
-        PITCH_INERTIA_RATIO * params.yaw_inertia_kgm2,
+        suspension.roll_inertia_ratio * params.yaw_inertia_kgm2,
+        suspension.pitch_inertia_ratio * params.yaw_inertia_kgm2,
         params.yaw_inertia_kgm2,
     )
     chassis_inertia = []
@@ -234,11 +220,12 @@ def sedan_layout(params: VehicleParams) -> SedanLayout:
         lever_other = (lr + com[0]) if axle > 0 else (lf - com[0])
         load_n = m_c * GRAVITY_MPS2 * lever_other / (2.0 * wheelbase)
         sprung_kg = load_n / GRAVITY_MPS2
-        freq = RIDE_FREQUENCY_FRONT_HZ if axle > 0 else RIDE_FREQUENCY_REAR_HZ
+        freq = (suspension.ride_frequency_front_hz if axle > 0
+                else suspension.ride_frequency_rear_hz)
         k = sprung_kg * (2.0 * math.pi * freq) ** 2
         stiffness.append(k)
         spring_ref.append(-load_n / k)
-        damping.append(2.0 * SUSPENSION_DAMPING_RATIO * math.sqrt(k * sprung_kg))
+        damping.append(2.0 * suspension.damping_ratio * math.sqrt(k * sprung_kg))
     inner_limit, _ = ackermann_angles(params.max_steer_rad, wheelbase, params.track_m)
     return SedanLayout(
         cog_height_m=height,
@@ -325,7 +312,7 @@ def build_sedan(config: PlantConfig, physics_dt_s: float,
     if not (math.isfinite(physics_dt_s) and physics_dt_s > 0.0):
         raise ConfigError(f"physics_dt_s = {physics_dt_s!r}: expected a positive number")
     mjcf = import_mjcf()
-    layout = sedan_layout(config)
+    layout = sedan_layout(config, config.suspension)
     root = mjcf.from_path(str(sedan_xml_path()))
     root.option.timestep = physics_dt_s
 
@@ -368,9 +355,26 @@ def build_sedan(config: PlantConfig, physics_dt_s: float,
             drive.ctrlrange = [0.0, drive_limit_per_wheel]
         elif drive is not None:
             drive.remove()
+    _add_anti_roll_bars(root, config)
     if lead_car:
         attach_lead_car(root)
     return root
+
+
+def _add_anti_roll_bars(root: mjcf.RootElement, config: PlantConfig) -> None:
+    """An anti-roll bar per axle with a stiffness: a fixed tendon, length ``q_left -
+    q_right`` of the suspension travels, of stiffness ``K / track^2``, so a roll ``phi =
+    (q_left - q_right) / track`` of the axle stores ``K phi^2 / 2`` (Gillespie 1992, ch. 8:
+    the bar's roll stiffness in parallel with the springs')."""
+    bars = (("front", config.suspension.anti_roll_stiffness_front_nmprad),
+            ("rear", config.suspension.anti_roll_stiffness_rear_nmprad))
+    for axle, stiffness_nmprad in bars:
+        if stiffness_nmprad <= 0.0:
+            continue
+        tendon = root.tendon.add("fixed", name=f"{axle}_anti_roll_bar",
+                                 stiffness=stiffness_nmprad / config.track_m**2)
+        tendon.add("joint", joint=f"{axle}_left_suspension", coef=1.0)
+        tendon.add("joint", joint=f"{axle}_right_suspension", coef=-1.0)
 
 
 def _shape_body(root: mjcf.RootElement, params: VehicleParams) -> None:

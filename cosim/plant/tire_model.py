@@ -9,21 +9,23 @@ without camber need: no camber, turn slip, inflation pressure, horizontal or ver
 - pure longitudinal slip (4.E9-4.E18)::
 
       F_x0 = D_x sin(C_x atan(B_x k - E_x (B_x k - atan(B_x k))))
-      D_x = mu F_z
+      D_x = mu (1 + p_D2 df_z) F_z                 (4.E13, p_D2 = p_Dx2 / p_Dx1)
       K_xk = F_z (p_Kx1 + p_Kx2 df_z) exp(p_Kx3 df_z),   df_z = (F_z - F_z0) / F_z0   (4.E15)
       B_x = K_xk / (C_x D_x)
 
 - pure lateral slip (4.E19-4.E30), with ``a = tan(alpha)`` (MF 6.1's alpha*)::
 
       F_y0 = D_y sin(C_y atan(B_y a - E_y (B_y a - atan(B_y a))))
-      D_y = mu F_z
+      D_y = mu (1 + p_D2 df_z) F_z                 (4.E23, the same relative slope)
       K_ya = p_Ky1 F_z0 sin(2 atan(F_z / (p_Ky2 F_z0)))                           (4.E25)
       B_y = K_ya / (C_y D_y)
 
   The cornering stiffness grows sub-linearly with load (the argument of the sine is held at
   pi/2 above ``F_z = p_Ky2 F_z0``, where the book's curve would turn down); the peak force is
-  ``mu F_z`` in both directions (one friction coefficient, ``PlantConfig.tire_friction``),
-  so ``mu`` sets the peak but not the slope at zero slip (``B = K / (C D)``).
+  ``mu (1 + p_D2 df_z) F_z`` in both directions (one friction coefficient,
+  ``PlantConfig.tire_friction``, and one relative load slope, ``tyre.peak_friction_load_slope``,
+  0 by default: the peak friction then does not fall with load), so ``mu`` sets the peak
+  but not the slope at zero slip (``B = K / (C D)``).
 
 - combined slip, the MF weighting functions (4.E50-4.E67, no shifts, no curvature)::
 
@@ -132,6 +134,17 @@ def _magic_formula(slip: float, stiffness: float, shape: float, curvature: float
     return peak * math.sin(shape * math.atan(bs - curvature * (bs - math.atan(bs))))
 
 
+MIN_PEAK_FRICTION_FACTOR = 0.1
+"""Lowest ``1 + p_D2 df_z`` (a steep slope at a large load must not make the peak vanish)."""
+
+
+def peak_force_n(params: TyreParams, load_n: float, friction: float) -> float:
+    """``D = mu (1 + p_D2 df_z) F_z``, the peak force in either direction (4.E13, 4.E23) [N]."""
+    dfz = (load_n - params.nominal_load_n) / params.nominal_load_n
+    factor = max(1.0 + params.peak_friction_load_slope * dfz, MIN_PEAK_FRICTION_FACTOR)
+    return friction * load_n * factor
+
+
 def pure_longitudinal_force_n(params: TyreParams, slip_ratio: float, load_n: float,
                               friction: float) -> float:
     """``F_x0``: longitudinal force at slip ratio ``k`` and no slip angle (4.E9) [N]."""
@@ -142,7 +155,7 @@ def pure_longitudinal_force_n(params: TyreParams, slip_ratio: float, load_n: flo
         slip_stiffness_n(params, load_n),
         params.longitudinal_shape,
         params.longitudinal_curvature,
-        friction * load_n,
+        peak_force_n(params, load_n, friction),
     )
 
 
@@ -156,7 +169,7 @@ def pure_lateral_force_n(params: TyreParams, tan_slip_angle: float, load_n: floa
         cornering_stiffness_nprad(params, load_n),
         params.lateral_shape,
         params.lateral_curvature,
-        friction * load_n,
+        peak_force_n(params, load_n, friction),
     )
 
 
@@ -191,7 +204,7 @@ def combined_forces_n(params: TyreParams, slip_ratio: float, tan_slip_angle: flo
     g_xa, g_yk = combined_weights(params, slip_ratio, tan_slip_angle)
     force_x = g_xa * pure_longitudinal_force_n(params, slip_ratio, load_n, friction)
     force_y = g_yk * pure_lateral_force_n(params, tan_slip_angle, load_n, friction)
-    return _onto_friction_circle(force_x, force_y, friction * load_n)
+    return _onto_friction_circle(force_x, force_y, peak_force_n(params, load_n, friction))
 
 
 def _onto_friction_circle(force_x: float, force_y: float, limit_n: float) -> tuple[float, float]:
@@ -255,7 +268,7 @@ def patch_step(params: TyreParams, friction: float, load_n: float, forward_speed
     # (Rill's "global derivative"); at zero slip, the slope there.
     slip_ratio = -(slip_velocity_x_mps + state.deflection_rate_x_mps) / speed
     tan_slip_angle = -(slip_velocity_y_mps + state.deflection_rate_y_mps) / speed
-    limit_n = friction * load_n
+    limit_n = peak_force_n(params, load_n, friction)
     g_xa, g_yk = combined_weights(params, slip_ratio, tan_slip_angle)
     stiffness_x = slip_stiffness_n(params, load_n)
     stiffness_y = cornering_stiffness_nprad(params, load_n)

@@ -29,7 +29,12 @@ from collections.abc import Sequence
 
 import casadi as ca
 
-from cosim.plant.tire_model import MIN_LOAD_N, SLIP_EPSILON, relax_deflection
+from cosim.plant.tire_model import (
+    MIN_LOAD_N,
+    MIN_PEAK_FRICTION_FACTOR,
+    SLIP_EPSILON,
+    relax_deflection,
+)
 from cosim.tyre_params import TyreParams
 
 CONTACT_FIELDS: tuple[tuple[str, int], ...] = (
@@ -87,14 +92,15 @@ def patch_step_sx(params: TyreParams, friction: float, load: ca.SX, forward_spee
     deflection_x, deflection_y, rate_x, rate_y = state
     slip_ratio = -(slip_x + rate_x) / speed
     tan_slip_angle = -(slip_y + rate_y) / speed
-    limit = friction * safe_load
+    dfz = (safe_load - p.nominal_load_n) / p.nominal_load_n
+    limit = friction * safe_load * ca.fmax(1.0 + p.peak_friction_load_slope * dfz,
+                                           MIN_PEAK_FRICTION_FACTOR)
     decay_x = p.combined_x_stiffness_decay * slip_ratio
     b_xa = p.combined_x_stiffness / ca.sqrt(1.0 + decay_x * decay_x)
     g_xa = ca.fmax(ca.cos(p.combined_x_shape * ca.atan(b_xa * tan_slip_angle)), 0.0)
     decay_y = p.combined_y_stiffness_decay * tan_slip_angle
     b_yk = p.combined_y_stiffness / ca.sqrt(1.0 + decay_y * decay_y)
     g_yk = ca.fmax(ca.cos(p.combined_y_shape * ca.atan(b_yk * slip_ratio)), 0.0)
-    dfz = (safe_load - p.nominal_load_n) / p.nominal_load_n
     stiffness_x = (safe_load * (p.slip_stiffness_per_load + p.slip_stiffness_load_slope * dfz)
                    * ca.exp(p.slip_stiffness_load_exponent * dfz))
     ratio = ca.fmin(safe_load / (p.cornering_stiffness_peak_load_ratio * p.nominal_load_n), 1.0)

@@ -111,6 +111,8 @@ class MetricsAccumulator:
     """Wall time of each whole ``tracker.step``: latency prediction, projection, linearisation,
     QP or NLP set-up and solve (measured by the runner around the call, for every tracker)."""
     solver_failures: int = 0
+    speed_reduced_steps: int = 0
+    """Control steps whose plan slowed below the reference speed (``Plan.speed_reduced``)."""
     pos_err_m: RunningStats = field(default_factory=RunningStats)
     yaw_err_rad: RunningStats = field(default_factory=RunningStats)
     speed_est_err_mps: RunningStats = field(default_factory=RunningStats)
@@ -172,6 +174,8 @@ class MetricsAccumulator:
         self.step_time_s.add(step_time_s)
         if plan.fallback:
             self.solver_failures += 1
+        if plan.speed_reduced:
+            self.speed_reduced_steps += 1
 
     def add_command(self, command: Command) -> None:
         self.steer_rad.add(command.steer_rad)
@@ -228,6 +232,7 @@ class MetricsAccumulator:
             "solve_ms_max": float(solve_ms.max()) if solve_ms.size else float("nan"),
             **_millisecond_percentiles("step_ms", self.step_time_s.as_array()),
             "solver_failures": self.solver_failures,
+            "speed_reduced_steps": self.speed_reduced_steps,
             "est_pos_rmse_m": self.pos_err_m.rms,
             "est_yaw_rmse_rad": self.yaw_err_rad.rms,
             "est_speed_rmse_mps": self.speed_est_err_mps.rms,

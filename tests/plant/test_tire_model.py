@@ -8,6 +8,7 @@ stiffness K_xk = 21.51 * 4000 = 86 040 N; relaxation lengths K / c: 86 040 / 450
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 
@@ -194,3 +195,19 @@ def test_locked_wheel_slides_at_the_tail_of_the_curve() -> None:
     assert force_x == pytest.approx(pure_longitudinal_force_n(TYRE, -1.0, 4000.0, 1.0),
                                     rel=1e-3)
     assert force_x == pytest.approx(-0.632 * 4000.0, rel=0.01)
+
+
+@pytest.mark.parametrize("load_n", LOADS_N)
+def test_peak_friction_falls_with_load_by_the_slope(load_n: float) -> None:
+    """``tyre.peak_friction_load_slope = -0.2``: the peak is ``mu (1 - 0.2 df_z) F_z``
+    (Pacejka 2012, 4.E13, 4.E23): at 7000 N (df_z = 0.75) 0.85 mu F_z, at 1000 N 1.15."""
+    tyre = dataclasses.replace(TYRE, peak_friction_load_slope=-0.2)
+    dfz = (load_n - TYRE.nominal_load_n) / TYRE.nominal_load_n
+    expected = 0.9 * load_n * (1.0 - 0.2 * dfz)
+    slips = np.linspace(0.0, 1.0, 20001)
+    longitudinal = max(pure_longitudinal_force_n(tyre, s, load_n, 0.9) for s in slips)
+    lateral = max(pure_lateral_force_n(tyre, s, load_n, 0.9) for s in slips)
+    assert longitudinal == pytest.approx(expected, rel=1e-4)
+    assert lateral == pytest.approx(expected, rel=1e-4)
+    force = combined_forces_n(tyre, 0.5, 0.5, load_n, 0.9)
+    assert math.hypot(*force) <= expected * (1.0 + 1e-12)

@@ -34,6 +34,7 @@ from tracker.config import TrackerConfig
 from tracker.double_lane_change import double_lane_change
 from tracker.dynamic_bicycle import DynamicBicycleParams
 from tracker.dynamic_nmpc import DynamicNmpc
+from tracker.grip_config import GripConfig
 from tracker.reference_path import ReferencePath
 from tracker.steered_dynamic_bicycle import (
     STATE_NAMES,
@@ -41,6 +42,7 @@ from tracker.steered_dynamic_bicycle import (
     linear_range_slip_rad,
     slip_angle_function,
 )
+from tracker.tyre_limits import friction_usage_function
 
 CONFIG = from_dict(TrackerConfig, {"name": "dynamic-nmpc"})
 """The default tuning and belief; the bench has no transport delay (``latency_s = 0``)."""
@@ -141,14 +143,38 @@ def test_low_speed_is_well_behaved() -> None:
 
 def test_slip_limits_hold_on_the_limit_lane_change() -> None:
     # Falcone's unstretched path at 20 m/s asks for 1.11 g: the plans stay (softly) within
-    # the linear range of the tyres (about 12 % over it without the limits).
+    # the linear range of the tyres (about 12 % over it without the limits). The friction
+    # awareness (tracker.grip) is off here: it would slow the car so that the slip limits
+    # no longer bind (next test).
+    config = dataclasses.replace(CONFIG, grip=GripConfig(tyre_limits=False,
+                                                         speed_planning=False))
     slip = slip_angle_function(BELIEF)
     bounds = np.array(linear_range_slip_rad(BELIEF, CONFIG.model.tire_friction))
-    result = run_closed_loop(DynamicNmpc(CONFIG), double_lane_change(20.0, 1.0),
+    result = run_closed_loop(DynamicNmpc(config), double_lane_change(20.0, 1.0),
                              Car(0.0, 0.0, 0.0, 15.0), 6.0, CAR)
     ratio = max(np.max(np.abs(np.asarray(slip(state)).ravel()) / bounds)
                 for plan in result.plans for state in plan.states[1:])
     assert 0.9 < ratio < 1.05
+    assert not any(plan.fallback for plan in result.plans)
+
+
+def test_friction_awareness_slows_down_for_the_limit_lane_change() -> None:
+    # The same 1.11 g path with tracker.grip on, the tyre limits at any friction (by
+    # default only below 0.9): the bends cannot be taken at 20 m/s within 0.85 g, so the
+    # plans lower the speed (speed_reduced) and each axle's planned friction usage stays
+    # (softly) within usage_max.
+    config = dataclasses.replace(CONFIG, grip=GripConfig(tyre_limits_below_friction=2.5))
+    usage = friction_usage_function(CONFIG.model, BELIEF, CONFIG.model.tire_friction)
+    result = run_closed_loop(DynamicNmpc(config), double_lane_change(20.0, 1.0),
+                             Car(0.0, 0.0, 0.0, 15.0), 6.0, CAR)
+    worst = max(float(np.max(np.asarray(usage(state, inputs)).ravel()))
+                for plan in result.plans
+                for state, inputs in zip(plan.states[:-1], plan.inputs, strict=True))
+    assert worst < 1.05 * CONFIG.grip.usage_max**2
+    assert any(plan.speed_reduced for plan in result.plans)
+    # Up to 20 m/s by 2 s, then slower through the bends (without grip: >= 19.95 m/s).
+    t = np.arange(result.vx_mps.size) * 0.002
+    assert np.min(result.vx_mps[t > 2.0]) < 19.5
     assert not any(plan.fallback for plan in result.plans)
 
 
