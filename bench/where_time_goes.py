@@ -50,7 +50,7 @@ PARTS = ("physics", "sensors", "filter", "tracker", "logging", "metrics")
 
 TIMED_BUILDERS: dict[str, tuple[str, tuple[str, ...]]] = {
     "MujocoPlant": ("physics", ("advance", "state", "apply", "add_yaw_rate")),
-    "make_estimator": ("filter", ("predict", "update", "estimate")),
+    "make_estimator": ("filter", ("predict", "update", "update_many", "estimate")),
     "make_tracker": ("tracker", ("step",)),
     "McapRecorder": ("logging", ("write", "write_finite", "close")),
     "MetricsAccumulator": ("metrics", ("add_truth", "add_estimate", "add_update", "add_plan",
@@ -86,7 +86,8 @@ class _Stopwatch:
 
     def wrap_methods(self, part: str, instance: object, names: tuple[str, ...]) -> None:
         for name in names:
-            setattr(instance, name, self.wrap(part, getattr(instance, name)))
+            if hasattr(instance, name):  # update_many is optional
+                setattr(instance, name, self.wrap(part, getattr(instance, name)))
 
 
 @contextlib.contextmanager
