@@ -172,9 +172,15 @@ class ExtremumSeeker:
             min(max(theta + c.amplitude * math.sin(c.frequency_radps * t_s), c.low), c.high)
             for theta, c in zip(self._estimate, self.channels, strict=True))
 
-    def update(self, t_s: float, objective: float) -> EscStep:
+    def update(self, t_s: float, objective: float,
+               active: tuple[bool, ...] | None = None) -> EscStep:
         """Take the objective measured at ``t_s`` and return the parameters to apply from
-        ``t_s`` until the next update."""
+        ``t_s`` until the next update.
+
+        ``active`` (one flag per channel, default all) names the parameters the objective
+        depends on now: an inactive one is held (its estimate and its filter do not move),
+        so it does not wander on the objective's noise while it has no effect on it.
+        """
         if not math.isfinite(objective):
             return EscStep(t_s, objective, self.estimate, self.applied(t_s),
                            tuple(self._gradient))
@@ -185,6 +191,8 @@ class ExtremumSeeker:
         self._objective_mean = mean
         highpassed = objective - mean
         for i, c in enumerate(self.channels):
+            if active is not None and not active[i]:
+                continue
             demodulated = highpassed * c.demodulation_amplitude * math.sin(
                 c.frequency_radps * t_s)
             gradient = demodulated + (self._gradient[i] - demodulated) * self._lowpass_decay
