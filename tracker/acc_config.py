@@ -107,8 +107,8 @@ class AccConfig:
     safe_standstill_gap_m: float = setting(
         2.0, low=0.0, high=100.0, doc="minimum safe gap at rest (metrics)")
     k_v: float = setting(0.4, low=0.0, high=100.0, doc="initial speed-error gain [1/s]")
-    k_x: float = setting(0.05, low=0.0, high=100.0, doc="initial gap-error gain [1/s^2]")
-    k_vrel: float = setting(0.4, low=0.0, high=100.0, doc="initial relative-speed gain [1/s]")
+    k_x: float = setting(0.1, low=0.0, high=100.0, doc="initial gap-error gain [1/s^2]")
+    k_vrel: float = setting(0.6, low=0.0, high=100.0, doc="initial relative-speed gain [1/s]")
     accel_min_mps2: float = setting(-3.5, low=-20.0, high=0.0, doc="strongest braking")
     accel_max_mps2: float = setting(2.0, low=0.0, high=20.0, doc="strongest acceleration")
     jerk_max_mps3: float = setting(2.5, low=0.01, high=1e3, doc="|d accel / dt| limit")

@@ -86,7 +86,7 @@ def acc_figure(runs: Sequence[RunLog], logs: Sequence[AccLog], path: Path) -> Pa
     axes = figure.subplots(4, 1, sharex=True)
     gap_ax, speed_ax, mode_ax, gain_ax = axes
     for index, (run, log) in enumerate(zip(runs, logs, strict=True)):
-        colour, line = run_colour(index), run_line(index)
+        colour, line = run_colour(index), {"linestyle": run_line(index)["linestyle"]}
         gap_ax.plot(log.gap_t_s, log.gap_m, color=colour, linewidth=1.6,
                     label="true gap", **line)
         gap_ax.plot(log.gap_t_s, log.safe_gap_m, color="tab:red", linewidth=1.0,
