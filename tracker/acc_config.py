@@ -19,9 +19,11 @@ rules are checked when the ACC starts (:mod:`tracker.esc`).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 from cosim.config_fields import section, setting
+from cosim.exceptions import ConfigError
 
 
 @dataclass(frozen=True)
@@ -36,34 +38,25 @@ class EscGainConfig:
     step: float = setting(0.05, low=-1e6, high=1e6, doc="integrator gain k")
 
 
-@dataclass(frozen=True)
-class EscKvConfig(EscGainConfig):
-    """ESC on ``k_v``."""
-
-    high: float = setting(2.0, low=0.0, high=100.0, doc="largest value ESC may set")
-    amplitude: float = setting(0.02, low=0.0, high=100.0, doc="modulation amplitude a")
-    frequency_radps: float = setting(0.1, low=1e-4, high=1e3, doc="perturbation omega")
-    step: float = setting(0.01, low=-1e6, high=1e6, doc="integrator gain k")
-
-
-@dataclass(frozen=True)
-class EscKxConfig(EscGainConfig):
-    """ESC on ``k_x``."""
-
-    high: float = setting(1.0, low=0.0, high=100.0, doc="largest value ESC may set")
-    amplitude: float = setting(0.01, low=0.0, high=100.0, doc="modulation amplitude a")
-    frequency_radps: float = setting(0.13, low=1e-4, high=1e3, doc="perturbation omega")
-    step: float = setting(0.002, low=-1e6, high=1e6, doc="integrator gain k")
+def _gain_config(gain: str, **defaults: float) -> type:
+    """An :class:`EscGainConfig` with this gain's defaults (so that setting one key of
+    ``tracker.acc.esc.<gain>`` keeps the others at this gain's defaults, not the base's)."""
+    fields = []
+    for field in dataclasses.fields(EscGainConfig):
+        meta = field.metadata
+        default = defaults.get(field.name, field.default)
+        fields.append((field.name, float, setting(default, low=meta["low"],
+                                                  high=meta["high"], doc=meta["doc"])))
+    cls = dataclasses.make_dataclass(f"Esc_{gain}_Config", fields, bases=(EscGainConfig,),
+                                     frozen=True, namespace={"__module__": __name__})
+    cls.__doc__ = f"ESC on ``{gain}``."
+    return cls
 
 
-@dataclass(frozen=True)
-class EscKvrelConfig(EscGainConfig):
-    """ESC on ``k_vrel``."""
-
-    high: float = setting(3.0, low=0.0, high=100.0, doc="largest value ESC may set")
-    amplitude: float = setting(0.05, low=0.0, high=100.0, doc="modulation amplitude a")
-    frequency_radps: float = setting(0.17, low=1e-4, high=1e3, doc="perturbation omega")
-    step: float = setting(0.01, low=-1e6, high=1e6, doc="integrator gain k")
+EscKvConfig = _gain_config("k_v", high=2.0, amplitude=0.02, frequency_radps=0.1, step=0.01)
+EscKxConfig = _gain_config("k_x", high=1.0, amplitude=0.01, frequency_radps=0.13, step=0.002)
+EscKvrelConfig = _gain_config("k_vrel", high=3.0, amplitude=0.05, frequency_radps=0.17,
+                              step=0.01)
 
 
 @dataclass(frozen=True)
@@ -121,3 +114,13 @@ class AccConfig:
     weight_jerk: float = setting(1.0, low=0.0, high=1e6,
                                  doc="objective: (change of acceleration / dt)^2 [s^6/m^2]")
     esc: EscConfig = section(EscConfig)
+
+    def __post_init__(self) -> None:
+        if not self.esc.enabled:
+            return
+        for gain in ("k_v", "k_x", "k_vrel"):
+            bounds = getattr(self.esc, gain)
+            value = getattr(self, gain)
+            if not bounds.low <= value <= bounds.high:
+                raise ConfigError(f"{gain} = {value:g}: expected within esc.{gain}.low = "
+                                  f"{bounds.low:g} and esc.{gain}.high = {bounds.high:g}")

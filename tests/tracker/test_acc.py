@@ -147,3 +147,20 @@ def test_the_objective_penalises_gap_error_speed_error_and_jerk() -> None:
     status = tracker.status
     assert status is not None and status.mode == "gap"
     assert status.objective == pytest.approx(2.0 * (20.0 - 25.0) ** 2 + 3.0 * 1.0**2)
+
+
+def test_setting_one_esc_key_keeps_that_gains_other_defaults() -> None:
+    config = from_dict(AccConfig, {"esc": {"k_x": {"step": 0.5}}})
+    default = AccConfig().esc
+    assert config.esc.k_x.step == 0.5
+    assert config.esc.k_x.frequency_radps == default.k_x.frequency_radps
+    assert len({default.k_v.frequency_radps, default.k_x.frequency_radps,
+                default.k_vrel.frequency_radps}) == 3
+
+
+def test_an_initial_gain_outside_the_esc_bounds_is_refused() -> None:
+    from cosim.exceptions import ConfigError
+
+    with pytest.raises(ConfigError, match="k_x = 2: expected within esc.k_x.low"):
+        from_dict(AccConfig, {"k_x": 2.0})
+    assert from_dict(AccConfig, {"k_x": 2.0, "esc": {"enabled": False}}).k_x == 2.0
