@@ -130,3 +130,14 @@ def test_acc_reaches_the_set_speed_then_keeps_the_gap(tmp_path: Path) -> None:
     assert at_switch["gap_m"] > 100.0  # gap keeping starts while the gap is large
     assert metrics["safe_gap_ok"] is True
     assert metrics["acc_speed_err_final_mps"] == pytest.approx(0.0, abs=0.5)
+
+
+def test_render_reads_the_traffic_tracks(cut_in_start: RunResult) -> None:
+    from cosim.plots.render import read_logged_scene
+
+    scene = read_logged_scene(cut_in_start.log_path)
+    assert set(scene.traffic) == {"lead", "cut_in"}
+    lead = scene.traffic["lead"]
+    assert lead[-1, 0] == pytest.approx(2.0)
+    assert lead[-1, 1] == pytest.approx(50.0 + 20.0 * 2.0)  # gap 50 m, 20 m/s for 2 s
+    assert 'name="car_lead/"' in scene.mjcf_xml or "car_lead/" in scene.mjcf_xml
