@@ -248,6 +248,18 @@ class Traffic:
         self.ego_front_m = float(model.geom_pos[self._ego_geom, 0]
                                  + model.geom_size[self._ego_geom, 0])
 
+    def lane_coordinates(self, x_m: float, y_m: float) -> tuple[float, float]:
+        """(distance along the lane line from the ego's start, offset to its left) of a
+        world point: the frame the cars' scripts are written in."""
+        lane = self._lane
+        dx, dy = x_m - lane.x0_m, y_m - lane.y0_m
+        cos_yaw, sin_yaw = math.cos(lane.yaw_rad), math.sin(lane.yaw_rad)
+        return dx * cos_yaw + dy * sin_yaw, -dx * sin_yaw + dy * cos_yaw
+
+    @property
+    def lane_yaw_rad(self) -> float:
+        return self._lane.yaw_rad
+
     def poses(self, t_s: float) -> tuple[CarPose, ...]:
         return tuple(car.pose(t_s) for car in self.cars)
 

@@ -10,6 +10,11 @@ ahead along the ego's heading) and range rate (its velocity along the ego's head
 the ego's forward speed) get white Gaussian noise. With probability ``dropout_probability``
 a sample is lost (nothing is delivered). The target's name is part of the reading, so a
 car cutting in shows as a change of target (a real radar's track identifier).
+
+The lane is the ego's x axis, straight ahead (no course prediction from the yaw rate): at
+long range a small heading error moves a car out of it (0.005 rad at 350 m is 1.75 m), so a
+target far ahead can flicker in and out until the ego is closer; the metrics judge the gap
+in the road's lane frame instead (:mod:`cosim.simulation.traffic_loop`).
 """
 
 from __future__ import annotations

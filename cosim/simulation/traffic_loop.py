@@ -15,7 +15,8 @@ calls it from its phases:
   convergence).
 
 Metrics (:meth:`TrafficLoop.result`, from the truth unless named otherwise):
-``gap_min_m`` (smallest true gap to the car ahead in the lane), ``time_gap_min_s`` (gap
+``gap_min_m`` (smallest true gap to the car ahead in the lane, :meth:`TrafficLoop.car_ahead`;
+negative once the bumpers overlap), ``time_gap_min_s`` (gap
 over the ego's speed, above 1 m/s), ``ttc_min_s`` (gap over closing speed, when closing),
 ``safe_gap_margin_min_m`` (smallest gap minus the minimum safe gap ``d_safe + h_safe v``,
 ``tracker.acc.safe_*``), ``safe_gap_ok``; with the ACC: ``acc_speed_err_rms_mps`` (true speed
@@ -43,9 +44,10 @@ from cosim.log.recorder import McapRecorder
 from cosim.plant.car import MujocoPlant
 from cosim.plant.traffic import Traffic, traffic_cars
 from cosim.records import VehicleState
-from cosim.sensing.range_sensor import RadarConfig, RangeSensor
+from cosim.sensing.range_sensor import RangeSensor
 from cosim.simulation.running_stats import RunningStats
 from cosim.simulation.scenario_config import ScenarioConfig, steps_per_period
+from cosim.traffic_records import CarPose
 from tracker.acc import AccTracker
 
 SET_SPEED_TOLERANCE_MPS = 0.5
@@ -90,10 +92,7 @@ class TrafficLoop:
         self.radar_steps = steps_per_period(radar.period_s, config.sim.physics_dt_s,
                                             "sensors.radar.period_s")
         self.rng = np.random.default_rng([config.seed, zlib.crc32(b"sensors.radar")])
-        # The truth's view: the same lane, every car ahead whatever the range or angle.
-        self.ground_truth = RangeSensor(
-            RadarConfig(fov_rad=2.0 * math.pi, max_range_m=1e4,
-                        lane_half_width_m=radar.lane_half_width_m), traffic.ego_front_m)
+        self.lane_half_width_m = radar.lane_half_width_m
         acc = config.tracker.acc
         self.safe_standstill_gap_m = acc.safe_standstill_gap_m
         self.safe_time_gap_s = acc.safe_time_gap_s
@@ -134,7 +133,7 @@ class TrafficLoop:
         self.recorder.write("/traffic/cars", t_s, {"t_s": t_s, "cars": cars})
         self.recorder.write("/scene/traffic", t_s,
                             foxglove.traffic_scene(t_s, cars, self.last_target))
-        car, gap, range_rate = self.ground_truth.true_target(truth, poses)
+        car, gap, range_rate = self.car_ahead(truth, poses)
         speed = truth.vx_mps
         safe_gap = self.safe_standstill_gap_m + self.safe_time_gap_s * max(speed, 0.0)
         time_gap = ttc = math.nan
@@ -161,6 +160,28 @@ class TrafficLoop:
         hit = self.traffic.collision(self.plant.data)
         if hit:
             raise CollisionError(hit, t_s)
+
+    def car_ahead(self, truth: VehicleState,
+                  poses: tuple[CarPose, ...]) -> tuple[CarPose | None, float, float]:
+        """The true nearest car ahead in the ego's lane, in the cars' lane frame (the road's,
+        not the ego's heading: a small heading error at 400 m is metres sideways): (car, gap
+        from the ego's front bumper to its rear [m], its speed minus the ego's along the
+        lane [m/s])."""
+        traffic = self.traffic
+        ego_along, ego_offset = traffic.lane_coordinates(truth.x_m, truth.y_m)
+        lane_yaw = traffic.lane_yaw_rad
+        ego_front = ego_along + traffic.ego_front_m * math.cos(truth.yaw_rad - lane_yaw)
+        ego_speed = truth.vx_mps * math.cos(truth.yaw_rad - lane_yaw)
+        best: tuple[CarPose | None, float, float] = (None, math.nan, math.nan)
+        for pose in poses:
+            along, offset = traffic.lane_coordinates(pose.x_m, pose.y_m)
+            relative_yaw = pose.yaw_rad - lane_yaw
+            gap = along - 0.5 * pose.length_m * math.cos(relative_yaw) - ego_front
+            if along <= ego_along or abs(offset - ego_offset) > self.lane_half_width_m:
+                continue
+            if best[0] is None or gap < best[1]:
+                best = (pose, gap, pose.speed_mps * math.cos(relative_yaw) - ego_speed)
+        return best
 
     def sense(self, k: int, t_s: float, truth: VehicleState) -> None:
         """Sample the range sensor when due and hand the reading to the tracker."""
