@@ -87,31 +87,36 @@ def acc_figure(runs: Sequence[RunLog], logs: Sequence[AccLog], path: Path) -> Pa
     gap_ax, speed_ax, mode_ax, gain_ax = axes
     for index, (run, log) in enumerate(zip(runs, logs, strict=True)):
         colour, line = run_colour(index), {"linestyle": run_line(index)["linestyle"]}
+
+        def label(text: str, index: int = index) -> str | None:
+            return text if index == 0 else None  # the run legend tells the runs apart
         gap_ax.plot(log.gap_t_s, log.gap_m, color=colour, linewidth=1.6,
-                    label="true gap", **line)
+                    label=label("true gap"), **line)
         gap_ax.plot(log.gap_t_s, log.safe_gap_m, color="tab:red", linewidth=1.0,
-                    label="minimum safe gap", **line)
+                    label=label("minimum safe gap"), **line)
         if log.mode_t_s.size:
             gap_ax.plot(log.mode_t_s, log.desired_gap_m, color="0.4", linewidth=1.0,
-                        label="desired gap (d0 + h v)", **line)
+                        label=label("desired gap (d0 + h v)"), **line)
+        last_target = log.targets[0] if log.targets else ""
         for i in range(1, len(log.targets)):
-            if log.targets[i] != log.targets[i - 1] and log.targets[i]:
+            if log.targets[i] and log.targets[i] != last_target:  # a new car ahead
+                last_target = log.targets[i]
                 gap_ax.axvline(log.gap_t_s[i], color="0.5", linewidth=0.8)
                 gap_ax.annotate(f"target: {log.targets[i]}", (log.gap_t_s[i], 0.98),
                                 xycoords=("data", "axes fraction"), fontsize=8,
                                 va="top", ha="left")
         speed_ax.plot(run.truth.t_s, run.truth.speed_mps, color=colour, linewidth=1.6,
-                      label="ego speed", **line)
+                      label=label("ego speed"), **line)
         speed_ax.plot(log.gap_t_s, log.target_speed_mps, color="tab:orange", linewidth=1.2,
-                      label="target's speed", **line)
+                      label=label("target's speed"), **line)
         set_speed = run.config.get("tracker", {}).get("acc", {}).get("set_speed_mps")
         if set_speed is not None:
             speed_ax.axhline(set_speed, color="0.4", linewidth=1.0, linestyle=":",
-                             label="set speed")
+                             label=label("set speed"))
         if log.mode_t_s.size:
             _shade_gap_mode(mode_ax, log, colour)
             mode_ax.plot(log.mode_t_s, log.accel_mps2, color=colour, linewidth=1.2,
-                         label="commanded acceleration (gap mode shaded)", **line)
+                         label=label("commanded acceleration (gap mode shaded)"), **line)
         for gain, gain_colour in zip(GAIN_NAMES, ("tab:blue", "tab:green", "tab:purple"),
                                      strict=True):
             if not log.gains_t_s.size:
@@ -119,7 +124,7 @@ def acc_figure(runs: Sequence[RunLog], logs: Sequence[AccLog], path: Path) -> Pa
             gain_ax.plot(log.gains_t_s, log.gains[gain], color=gain_colour, linewidth=0.6,
                          alpha=0.6, **line)
             gain_ax.plot(log.gains_t_s, log.gain_estimates[gain], color=gain_colour,
-                         linewidth=2.0, label=f"{gain} [{GAIN_UNITS[gain]}]", **line)
+                         linewidth=2.0, label=label(f"{gain} [{GAIN_UNITS[gain]}]"), **line)
     if not any(log.gains_t_s.size for log in logs):
         note(gain_ax, "no ACC in this run (no /acc/gains)")
     gap_ax.set_ylabel("gap [m]")
