@@ -140,11 +140,12 @@ class TrafficLoop:
         if car is not None:
             self.gap_m.add(gap)
             self.safe_margin_m.add(gap - safe_gap)
+            touching_gap = max(gap, 0.0)  # overlapping bumpers: the collision step
             if speed > MIN_SPEED_FOR_TIME_GAP_MPS:
-                time_gap = gap / speed
+                time_gap = touching_gap / speed
                 self.time_gap_s.add(time_gap)
             if -range_rate > MIN_CLOSING_SPEED_MPS:
-                ttc = gap / -range_rate
+                ttc = touching_gap / -range_rate
                 self.ttc_s.add(ttc)
         self.recorder.write_finite("/traffic/gap", t_s, {
             "t_s": t_s, "target": car.name if car is not None else "", "gap_m": gap,
