@@ -141,3 +141,22 @@ def test_render_reads_the_traffic_tracks(cut_in_start: RunResult) -> None:
     assert lead[-1, 0] == pytest.approx(2.0)
     assert lead[-1, 1] == pytest.approx(50.0 + 20.0 * 2.0)  # gap 50 m, 20 m/s for 2 s
     assert 'name="car_lead/"' in scene.mjcf_xml or "car_lead/" in scene.mjcf_xml
+
+
+def test_the_acc_foxglove_layout_names_logged_fields(cut_in_start: RunResult) -> None:
+    import json
+
+    from cosim.log.reader import iter_topics
+
+    layout = json.loads((Path(__file__).resolve().parents[1] / "examples"
+                         / "foxglove-acc-layout.json").read_text())
+    first: dict[str, dict] = {}
+    for topic, _, message in iter_topics(cut_in_start.log_path):
+        first.setdefault(topic, message)
+    panels = layout["configById"]
+    assert "/scene/traffic" in panels["3D!traffic"]["topics"]
+    for panel in panels.values():
+        for path in panel.get("paths", []):
+            topic, _, field = path["value"].partition(".")
+            assert topic in first and field in first[topic], path["value"]
+    assert panels["RawMessages!radar"]["topicPath"] in first
