@@ -244,7 +244,8 @@ class _Run:
         self.events_registered = False
         """``/events`` is registered with the first event."""
         self.traffic = None if traffic is None else \
-            TrafficLoop(config, self.plant, traffic, recorder, self.tracker)
+            TrafficLoop(config, self.plant, traffic, recorder, self.tracker,
+                        component_rng(config.seed, "sensors.radar"))
         """Traffic, range sensor and ACC topics (:mod:`cosim.simulation.traffic_loop`)."""
 
     @property

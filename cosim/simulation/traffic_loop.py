@@ -34,7 +34,6 @@ order of appearance, comma-separated) and ``acc_target_changes``.
 from __future__ import annotations
 
 import math
-import zlib
 
 import numpy as np
 
@@ -80,7 +79,7 @@ class TrafficLoop:
     """The run's traffic phases (module docstring)."""
 
     def __init__(self, config: ScenarioConfig, plant: MujocoPlant, traffic: Traffic,
-                 recorder: McapRecorder, tracker: object) -> None:
+                 recorder: McapRecorder, tracker: object, rng: np.random.Generator) -> None:
         self.config = config
         self.plant = plant
         self.traffic = traffic
@@ -91,7 +90,8 @@ class TrafficLoop:
         self.radar = RangeSensor(radar, traffic.ego_front_m) if radar.enabled else None
         self.radar_steps = steps_per_period(radar.period_s, config.sim.physics_dt_s,
                                             "sensors.radar.period_s")
-        self.rng = np.random.default_rng([config.seed, zlib.crc32(b"sensors.radar")])
+        self.rng = rng
+        """The range sensor's own generator (the runner's ``component_rng``)."""
         self.lane_half_width_m = radar.lane_half_width_m
         acc = config.tracker.acc
         self.safe_standstill_gap_m = acc.safe_standstill_gap_m
