@@ -327,11 +327,11 @@ class _Run:
             self.recorder.write_finite("/metrics/live", t_s, metrics.live(t_s))
             self.next_live_metrics_s += LIVE_METRICS_PERIOD_S
         if self.traffic is not None:
-            self.traffic.log(t_s, self.truth)
+            self.traffic.log(t_s, self.truth, scene=k % self.clock.scene_steps == 0)
 
     def sense(self, k: int, t_s: float) -> None:
-        if self.traffic is not None:
-            self.traffic.sense(k, t_s, self.truth)
+        if self.traffic is not None and self.traffic.radar_due(k):
+            self.traffic.sense(t_s, self.truth)
         for sensor, steps in zip(self.sensors, self.sensor_steps, strict=True):
             if k % steps:
                 continue

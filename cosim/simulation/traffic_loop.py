@@ -4,10 +4,11 @@ The runner builds a :class:`TrafficLoop` when the scenario has traffic (``traffi
 calls it from its phases:
 
 - at each log step (:meth:`TrafficLoop.log`): the cars' true poses on ``/traffic/cars`` and
-  as boxes on ``/scene/traffic``; the true gap to the nearest car ahead in the ego's lane,
-  its time gap, time to collision and the minimum safe gap on ``/traffic/gap`` (and into
-  the metrics); a contact between the ego's body and a car's ends the run
-  (:class:`CollisionError`: outcome ``collision``, ``completed: false``);
+  as boxes on ``/scene/traffic`` (at ``sim.scene_period_s``, like the other scenes); the
+  true gap to the nearest car ahead in the ego's lane, its time gap, time to collision and
+  the minimum safe gap on ``/traffic/gap`` (and into the metrics); a contact between the
+  ego's body and a car's ends the run (:class:`CollisionError`: outcome ``collision``,
+  ``completed: false``);
 - when the range sensor is due (:meth:`TrafficLoop.sense`): a reading on ``/sensors/radar``,
   delivered to the tracker if it takes readings (the ACC: ``observe_range``);
 - after each control step (:meth:`TrafficLoop.after_control`): the ACC's gains, objective
@@ -126,13 +127,15 @@ class TrafficLoop:
             recorder.register("/acc/objective", mcap_schemas.ACC_OBJECTIVE)
             recorder.register("/acc/mode", mcap_schemas.ACC_MODE)
 
-    def log(self, t_s: float, truth: VehicleState) -> None:
-        """Log step: poses, scene, the true gap and its metrics; raise on a collision."""
+    def log(self, t_s: float, truth: VehicleState, scene: bool = True) -> None:
+        """Log step: poses, the scene (when ``scene``: at ``sim.scene_period_s``), the true
+        gap and its metrics; raise on a collision."""
         poses = self.traffic.poses(t_s)
         cars = [pose.to_message() for pose in poses]
         self.recorder.write("/traffic/cars", t_s, {"t_s": t_s, "cars": cars})
-        self.recorder.write("/scene/traffic", t_s,
-                            foxglove.traffic_scene(t_s, cars, self.last_target))
+        if scene:
+            self.recorder.write("/scene/traffic", t_s,
+                                foxglove.traffic_scene(t_s, cars, self.last_target))
         car, gap, range_rate = self.car_ahead(truth, poses)
         speed = truth.vx_mps
         safe_gap = self.safe_standstill_gap_m + self.safe_time_gap_s * max(speed, 0.0)
@@ -184,9 +187,14 @@ class TrafficLoop:
                 best = (pose, gap, pose.speed_mps * math.cos(relative_yaw) - ego_speed)
         return best
 
-    def sense(self, k: int, t_s: float, truth: VehicleState) -> None:
-        """Sample the range sensor when due and hand the reading to the tracker."""
-        if self.radar is None or k % self.radar_steps:
+    def radar_due(self, k: int) -> bool:
+        """Whether the range sensor samples at physics step ``k``."""
+        return self.radar is not None and k % self.radar_steps == 0
+
+    def sense(self, t_s: float, truth: VehicleState) -> None:
+        """Sample the range sensor (due now: :meth:`radar_due`) and hand the reading to
+        the tracker."""
+        if self.radar is None:
             return
         reading = self.radar.sample(truth, self.traffic.poses(t_s), self.rng)
         if reading is None:  # a dropout: nothing is delivered
