@@ -77,6 +77,7 @@ from cosim.config_fields import mapping, section, setting
 from cosim.exceptions import ConfigError
 from cosim.plugins import entry_point_names, is_import_path
 from cosim.vehicle_params import VehicleParams
+from tracker.acc_config import AccConfig
 from tracker.baselines.config import BaselineConfig
 from tracker.dynamic_mpc_config import DynamicMpcConfig
 from tracker.grip_config import GripConfig
@@ -237,6 +238,9 @@ class TrackerConfig:
     ltv_mpc: LtvMpcConfig = section(LtvMpcConfig)
     baseline: BaselineConfig = section(BaselineConfig)
     grip: GripConfig = section(GripConfig)
+    acc: AccConfig = section(AccConfig)
+    """Adaptive cruise control (:mod:`tracker.acc`): when enabled it sets the acceleration
+    from the range sensor and this tracker only steers."""
 
     def __post_init__(self) -> None:
         if self.name not in TRACKER_CHOICES and not is_plugin_name(self.name):

@@ -11,6 +11,7 @@ from collections.abc import Callable
 from types import MappingProxyType
 
 from cosim.exceptions import ConfigError
+from tracker.acc import AccTracker
 from tracker.baselines.lqr import make_lqr
 from tracker.baselines.pid import make_pid
 from tracker.baselines.pure_pursuit import make_pure_pursuit
@@ -46,7 +47,17 @@ TRACKER_NAMES: tuple[str, ...] = tuple(_CONSTRUCTORS)
 
 
 def make_tracker(config: TrackerConfig, maneuver: ManeuverConfig | None = None) -> Tracker:
-    """Build the tracker ``config.name``; ``maneuver`` drives the ``open-loop`` tracker."""
+    """Build the tracker ``config.name``; ``maneuver`` drives the ``open-loop`` tracker.
+
+    With ``tracker.acc.enabled`` it steers and the ACC (:class:`tracker.acc.AccTracker`,
+    updated every ``tracker.dt_s``) sets the acceleration."""
+    tracker = _make_path_tracker(config, maneuver)
+    if config.acc.enabled:
+        return AccTracker(tracker, config.acc, config.dt_s)
+    return tracker
+
+
+def _make_path_tracker(config: TrackerConfig, maneuver: ManeuverConfig | None) -> Tracker:
     constructor = _CONSTRUCTORS.get(config.name)
     if constructor is None and is_plugin_name(config.name):
         return make_plugin_tracker(config)

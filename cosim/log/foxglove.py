@@ -295,3 +295,22 @@ def estimate_scene(estimate: Estimate, n_sigma: float = 3.0) -> dict[str, object
         })
     return _scene(_entity(estimate.t_s, WORLD_FRAME, "estimate", False, arrows=arrows,
                           spheres=spheres))
+
+
+TRAFFIC_CAR_HEIGHT_M = 1.45
+"""Height of a traffic car's box in the scene (``models/lead_car.xml``)."""
+
+
+def traffic_scene(t_s: float, cars: list[dict[str, Any]], target: str) -> dict[str, object]:
+    """``foxglove.SceneUpdate``: each traffic car (a ``cosim.CarPose`` message) as a box in
+    ``world``, the range sensor's current target in orange, the others in grey."""
+    entities = []
+    for car in cars:
+        color = _color(1.0, 0.5, 0.0, 0.8) if car["name"] == target else _color(0.5, 0.5, 0.55, 0.8)
+        box = {"pose": _pose(car["x_m"], car["y_m"], TRAFFIC_CAR_HEIGHT_M / 2,
+                             quaternion_from_euler(0.0, 0.0, car["yaw_rad"])),
+               "size": _vector(car["length_m"], car["width_m"], TRAFFIC_CAR_HEIGHT_M),
+               "color": color}
+        entities.append(_entity(t_s, WORLD_FRAME, f"traffic/{car['name']}", False,
+                                cubes=[box]))
+    return _scene(*entities)

@@ -192,3 +192,52 @@ LOCATION_FIX = object_schema(
      "position_covariance": {**NUMBERS, "minItems": 9, "maxItems": 9},
      "position_covariance_type": {"type": "integer", "enum": [0, 1, 2, 3]}},
 )
+
+TRAFFIC_CARS = object_schema(
+    "cosim.TrafficCars",
+    {"t_s": NUMBER, "cars": {"type": "array", "items": object_schema(
+        "cosim.CarPose",
+        {"name": STRING, "t_s": NUMBER, "x_m": NUMBER, "y_m": NUMBER, "yaw_rad": NUMBER,
+         "speed_mps": NUMBER, "accel_mps2": NUMBER, "length_m": NUMBER, "width_m": NUMBER})}},
+    "Every traffic car's true pose (centre of its footprint, ENU world frame) and motion.",
+)
+
+RANGE_READING = object_schema(
+    "cosim.RangeReading",
+    {"t_s": NUMBER, "target": STRING, "gap_m": NUMBER_OR_NULL,
+     "range_rate_mps": NUMBER_OR_NULL},
+    "One sample of the ego's forward range sensor: the target car's name (empty: none), "
+    "the gap from the front bumper to its rear and the range rate, with noise.",
+)
+
+TRAFFIC_GAP = object_schema(
+    "cosim.TrafficGap",
+    {"t_s": NUMBER, "target": STRING, "gap_m": NUMBER_OR_NULL,
+     "range_rate_mps": NUMBER_OR_NULL, "time_gap_s": NUMBER_OR_NULL, "ttc_s": NUMBER_OR_NULL,
+     "safe_gap_m": NUMBER_OR_NULL, "target_speed_mps": NUMBER_OR_NULL},
+    "The true gap to the nearest car ahead in the ego's lane, its time gap and time to "
+    "collision (null when not closing), and the minimum safe gap at the ego's speed.",
+)
+
+ACC_GAINS = object_schema(
+    "cosim.AccGains",
+    {"t_s": NUMBER, **{name: NUMBER for name in ("k_v", "k_x", "k_vrel", "k_v_estimate",
+                                                  "k_x_estimate", "k_vrel_estimate")}},
+    "The ACC's gains as applied (extremum seeking's estimate plus its perturbation) and "
+    "the estimates themselves.",
+)
+
+ACC_OBJECTIVE = object_schema(
+    "cosim.AccObjective",
+    {"t_s": NUMBER, "objective": NUMBER_OR_NULL},
+    "The objective extremum seeking minimises, at each control step.",
+)
+
+ACC_MODE = object_schema(
+    "cosim.AccMode",
+    {"t_s": NUMBER, "mode": STRING, "gap_mode": BOOLEAN, "target": STRING,
+     "gap_m": NUMBER_OR_NULL, "desired_gap_m": NUMBER, "range_rate_mps": NUMBER_OR_NULL,
+     "speed_mps": NUMBER, "accel_mps2": NUMBER},
+    "The ACC's mode (speed or gap) and what it decided from: the target and gap it used, "
+    "the desired gap, the estimated speed, the commanded acceleration.",
+)

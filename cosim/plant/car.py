@@ -38,7 +38,9 @@ runs the actuator models in plain Python and then exactly one MuJoCo step:
     kinematically (no cornering stiffness); kept for comparison.
 
 With ``lead_car`` (:class:`cosim.plant.lead_car.LeadCarConfig`), a kinematic lead car (a mocap
-body without colliding geoms) drives ahead; the plant advances it after each step.
+body without colliding geoms) drives ahead; the plant advances it after each step. With
+``traffic`` (:class:`cosim.plant.traffic.Traffic`), the traffic cars' mocap bodies are set
+to their scripted poses after each step; their body boxes collide with the ego's.
 """
 
 from __future__ import annotations
@@ -72,6 +74,7 @@ from cosim.plant.sedan_model import (
 )
 from cosim.plant.slip_control import SlipLimiter
 from cosim.plant.tire_model import PATCH_AT_REST, PatchState, patch_step
+from cosim.plant.traffic import Traffic
 from cosim.plant.tyre_patches import (
     CONTACT_SIZE,
     FORCE_FIELDS,
@@ -117,12 +120,15 @@ class MujocoPlant:
     """
 
     def __init__(self, config: PlantConfig, physics_dt_s: float, initial: InitialState,
-                 lead_car: LeadCarConfig | None = None, one_call_tyres: bool = True) -> None:
+                 lead_car: LeadCarConfig | None = None, one_call_tyres: bool = True,
+                 traffic: Traffic | None = None) -> None:
         self.config = config
         self.initial = initial
         self.lead_car = lead_car
+        self.traffic = traffic
         self.physics_dt_s = float(physics_dt_s)
-        xml, assets = sedan_xml_and_assets(config, self.physics_dt_s, lead_car is not None)
+        xml, assets = sedan_xml_and_assets(config, self.physics_dt_s, lead_car is not None,
+                                           traffic.names if traffic is not None else ())
         self.mjcf_xml: str = xml
         self.mjcf_assets: dict[str, bytes] = assets
         self._model = mujoco.MjModel.from_xml_string(xml, assets)
@@ -139,6 +145,8 @@ class MujocoPlant:
         self._lead: _LeadCar | None = None
         if lead_car is not None:
             self._lookup_lead_car()
+        if traffic is not None:
+            traffic.bind(self._model)
         self._settle()
         self.reset()
 
@@ -316,6 +324,9 @@ class MujocoPlant:
                 self.lead_car, path, path.state(0.0, 0.0, self.lead_car.initial_speed_mps, 0.0)
             )
             self._place_lead_car(self._lead.state)
+        if self.traffic is not None:
+            self.traffic.place(d, 0.0)
+            mujoco.mj_forward(m, d)
 
     def add_yaw_rate(self, delta_radps: float) -> None:
         """Raise the chassis's yaw rate by ``delta_radps`` at once (a yaw disturbance).
@@ -408,6 +419,8 @@ class MujocoPlant:
         if lead is not None:
             lead.state = advance_lead_car(lead.config, lead.path, lead.state, dt)
             self._place_lead_car(lead.state)
+        if self.traffic is not None:
+            self.traffic.place(d, d.time)
 
     def _place_lead_car(self, lead: LeadCarState) -> None:
         """Set the lead car's mocap pose (MuJoCo uses it from the next step on)."""

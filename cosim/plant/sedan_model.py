@@ -24,6 +24,7 @@ Model structure (all names are fixed; the plant looks everything up by name)::
                               the Magic Formula tyres, 3 with MuJoCo's contact friction)
           <wheel>_rim         visual cylinder
       lead_car/ (optional mocap body from models/lead_car.xml, :func:`attach_lead_car`)
+      car_<name>/ (traffic: one mocap copy of models/lead_car.xml per car, cosim.plant.traffic)
     actuators: <front wheel>_steer_servo, <driven wheel>_drive (motor on the spin joint)
 
 The joints of one wheel body compose in order (MuJoCo applies them as a chain), so the spin
@@ -42,6 +43,7 @@ from typing import TYPE_CHECKING
 
 from cosim.exceptions import ConfigError
 from cosim.plant.headless import headless_gl
+from cosim.plant.traffic import attach_traffic
 from cosim.records import WHEEL_NAMES
 from cosim.suspension_params import SuspensionParams
 from cosim.vehicle_params import PlantConfig, VehicleParams
@@ -298,10 +300,11 @@ def import_mjcf() -> types.ModuleType:
 
 
 def build_sedan(config: PlantConfig, physics_dt_s: float,
-                lead_car: bool = False) -> mjcf.RootElement:
+                lead_car: bool = False, traffic: tuple[str, ...] = ()) -> mjcf.RootElement:
     """The sedan for ``config`` as a PyMJCF tree, with physics step ``physics_dt_s``.
 
-    With ``lead_car``, the lead car (:func:`attach_lead_car`) is added to the world.
+    With ``lead_car``, the lead car (:func:`attach_lead_car`) is added to the world; each
+    name of ``traffic`` adds a traffic car (:func:`cosim.plant.traffic.attach_traffic`).
 
     Applies mass, yaw inertia, CoG position and height, track, wheel radius/mass/inertia,
     tyre friction and contact dimension (:func:`tyre_contact_dimension`), the steering
@@ -358,6 +361,7 @@ def build_sedan(config: PlantConfig, physics_dt_s: float,
     _add_anti_roll_bars(root, config)
     if lead_car:
         attach_lead_car(root)
+    attach_traffic(root, traffic, lambda: mjcf.from_path(str(lead_car_xml_path())))
     return root
 
 
@@ -393,8 +397,8 @@ def _shape_body(root: mjcf.RootElement, params: VehicleParams) -> None:
     cabin.size = [0.5 * params.wheelbase_m, width_half - 0.1, 0.5 * (cabin_top - shell_top)]
 
 
-def sedan_xml_and_assets(config: PlantConfig, physics_dt_s: float,
-                         lead_car: bool = False) -> tuple[str, dict[str, bytes]]:
+def sedan_xml_and_assets(config: PlantConfig, physics_dt_s: float, lead_car: bool = False,
+                         traffic: tuple[str, ...] = ()) -> tuple[str, dict[str, bytes]]:
     """The MJCF text and its assets exactly as simulated (for MuJoCo and for the run log)."""
-    root = build_sedan(config, physics_dt_s, lead_car)
+    root = build_sedan(config, physics_dt_s, lead_car, traffic)
     return root.to_xml_string(precision=12), root.get_assets()

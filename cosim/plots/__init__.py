@@ -12,6 +12,8 @@
 ``estimation.png``     estimate - truth with +-3 sigma, NEES (``estimation``)
 ``solver.png``         solve-time histogram with p50/p99, over time, fallbacks
                        (``solver``)
+``acc.png``            logs with traffic only: gap with the desired and minimum safe
+                       gaps, speeds, ACC mode and acceleration, ESC's gains (``acc``)
 =====================  ==========================================================
 
 matplotlib is used through ``Figure`` objects on their own Agg canvas (no pyplot state).
@@ -36,6 +38,7 @@ def default_out_dir(paths: Sequence[Path]) -> Path:
 
 def plot_logs(paths: Sequence[Path | str], out_dir: Path | str | None = None) -> list[Path]:
     """Write every figure of one log, or of two logs overlaid; returns the PNG paths."""
+    from cosim.plots.acc import acc_figure, load_acc
     from cosim.plots.commands import commands_figure
     from cosim.plots.data import distinct_labels, load_run
     from cosim.plots.estimation import estimation_figure
@@ -58,7 +61,14 @@ def plot_logs(paths: Sequence[Path | str], out_dir: Path | str | None = None) ->
         "commands": commands_figure, "estimation": estimation_figure,
         "solver": solver_figure,
     }
-    return [makers[name](runs, out / f"{name}.png") for name in FIGURES]
+    written = [makers[name](runs, out / f"{name}.png") for name in FIGURES]
+    acc_logs = [load_acc(run.path) for run in runs]
+    if any(log is not None for log in acc_logs):  # runs with traffic
+        with_traffic = [(r, log) for r, log in zip(runs, acc_logs, strict=True)
+                        if log is not None]
+        written.append(acc_figure([r for r, _ in with_traffic], [log for _, log in with_traffic],
+                                  out / "acc.png"))
+    return written
 
 
 def plot_command(file: str, file2: str | None, out_dir: str | None) -> int:

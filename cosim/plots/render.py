@@ -45,8 +45,10 @@ Software rendering (OSMesa's llvmpipe) costs about 12 ms per 640x360 frame and 2
 1280x720 one; MuJoCo's shadow map would cost five times that, so shadows and multisampling
 are off (the sun still shades the faces).
 
-Not drawn yet: a lead car (the attached MJCF may hold one, as a mocap body, but no topic
-logs its pose, so it would stand at the origin), wheel spin (the rims are plain cylinders).
+Traffic cars (``car_<name>/`` mocap bodies of the attached MJCF) are posed from
+``/traffic/cars``, interpolated like the ego. Not drawn yet: the older single ``lead_car/``
+(no topic logs its pose, so it would stand at the origin), wheel spin (the rims are plain
+cylinders).
 """
 
 from __future__ import annotations
@@ -262,6 +264,8 @@ class LoggedScene:
     truth: TruthTrack
     path_xy_m: np.ndarray | None
     """Reference path points (N x 2, world frame), or None if the log has no path."""
+    traffic: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
+    """Each traffic car's logged track: rows of (t_s, x_m, y_m, unwrapped yaw_rad)."""
 
 
 def read_logged_scene(log_path: Path | str) -> LoggedScene:
@@ -291,9 +295,19 @@ def read_logged_scene(log_path: Path | str) -> LoggedScene:
         path_xy = np.column_stack([message["x_m"], message["y_m"]]).astype(float)
         break
 
+    rows_by_car: dict[str, list[tuple[float, float, float, float]]] = {}
+    for _, message in iter_messages(log_path, "/traffic/cars"):
+        for car in message["cars"]:
+            rows_by_car.setdefault(car["name"], []).append(
+                (car["t_s"], car["x_m"], car["y_m"], car["yaw_rad"]))
+    traffic = {name: np.array(rows, dtype=float) for name, rows in rows_by_car.items()}
+    for track in traffic.values():
+        track[:, 3] = np.unwrap(track[:, 3])
+
     attached = read_attachment(log_path, "sedan.xml")
     if attached is not None:
-        return LoggedScene(attached.decode(), {}, "attachment sedan.xml", truth, path_xy)
+        return LoggedScene(attached.decode(), {}, "attachment sedan.xml", truth, path_xy,
+                           traffic)
     config = read_summary(log_path).config
     if not config.get("plant") or not config.get("sim"):
         raise RenderError(f"{str(log_path)!r}: neither the attachment sedan.xml nor a run "
@@ -464,6 +478,11 @@ class ChaseRenderer:
             return np.array(model.body_pos[index])
 
         self._free_qpos = joint("chassis_free")
+        self._traffic_mocap = {}
+        for name in self._scene.traffic:
+            body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"car_{name}/")
+            if body >= 0 and model.body_mocapid[body] >= 0:
+                self._traffic_mocap[name] = int(model.body_mocapid[body])
         self._steer_qpos = (joint("front_left_steer"), joint("front_right_steer"))
         front_left, rear_left = body_pos("front_left_wheel"), body_pos("rear_left_wheel")
         front_right = body_pos("front_right_wheel")
@@ -492,6 +511,11 @@ class ChaseRenderer:
         left, right = ackermann_angles(pose.steer_rad, self._wheelbase_m, self._track_m)
         data.qpos[self._steer_qpos[0]] = left
         data.qpos[self._steer_qpos[1]] = right
+        for name, slot in self._traffic_mocap.items():
+            track = self._scene.traffic[name]
+            x, y, yaw = (float(np.interp(t_s, track[:, 0], track[:, i])) for i in (1, 2, 3))
+            data.mocap_pos[slot] = (x, y, 0.0)
+            data.mocap_quat[slot] = (math.cos(0.5 * yaw), 0.0, 0.0, math.sin(0.5 * yaw))
         mujoco.mj_forward(model, data)
 
         heading = float(np.interp(t_s, self._scene.truth.t_s, self._heading))

@@ -17,6 +17,7 @@ import numpy as np
 
 from cosim.config_fields import section, setting
 from cosim.records import WHEEL_NAMES, Measurement, VehicleState
+from cosim.sensing.range_sensor import RadarConfig
 
 Sensor = Union["GnssSensor", "HeadingSensor", "ImuSensor", "WheelSpeedSensor",
                "SteeringAngleSensor",
@@ -94,6 +95,9 @@ class SensorsConfig:
     imu: ImuConfig = section(ImuConfig)
     wheel_speed: WheelSpeedConfig = section(WheelSpeedConfig)
     steering: SteeringConfig = section(SteeringConfig)
+    radar: RadarConfig = section(RadarConfig)
+    """The forward range sensor of the ACC (:mod:`cosim.sensing.range_sensor`): sampled
+    only in scenarios with traffic, and not fused by the state estimator."""
 
 
 def suite_preset(suite: str) -> dict[str, dict[str, float]]:

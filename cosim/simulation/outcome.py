@@ -16,7 +16,8 @@ kept. The thresholds are the ``outcome:`` section of the config (:class:`Outcome
   (path-tracking runs).
 - ``end_of_path``: the car reached the end of an open path with time left (path-tracking
   runs): what follows tracks nothing.
-- ``collision``: reserved for runs with traffic; not detected yet.
+- ``collision``: the ego's body touched a traffic car's (runs with traffic,
+  :mod:`cosim.simulation.traffic_loop`); the run ends there, ``completed: false``.
 
 The run's ``outcome`` metric is ``ok`` when it completed without events; else the abort
 (``interrupted``, ``diverged``, ``error``) or the most severe event's kind, in the order of
@@ -131,6 +132,13 @@ class OutcomeMonitor:
                 found.append(self._raise("end_of_path", t, s_m, self._path_length_m,
                                          "arc length reached the end of the path"))
         return [event for event in found if event is not None]
+
+    def collision(self, t_s: float, car: str) -> Event:
+        """Record the collision with traffic car ``car`` at ``t_s`` (it ends the run)."""
+        event = Event("collision", t_s, 0.0, 0.0, f"the ego touched traffic car {car!r}")
+        self._seen.add("collision")
+        self.events.append(event)
+        return event
 
     def outcome(self, abort: str) -> str:
         """``ok``, the abort (``interrupted``, ``diverged``, ``error``; empty: none), or the

@@ -51,6 +51,7 @@ from cosim.simulation.course_metrics import CourseMonitor
 from cosim.simulation.metrics import MetricsAccumulator
 from cosim.simulation.outcome import OutcomeMonitor
 from cosim.simulation.scenario_config import ScenarioConfig, steps_per_period
+from cosim.simulation.traffic_loop import CollisionError, TrafficLoop, build_traffic
 from estimation.registry import make_estimator
 from tracker.protocol import Tracker
 from tracker.reference_path import ReferencePath
@@ -204,7 +205,8 @@ class _Run:
         self.course = scenario_course(config)
         self.reference = self.course.reference
         self.course_monitor = CourseMonitor(self.course, config.plant)
-        self.plant = MujocoPlant(config.plant, self.clock.dt_s, config.initial)
+        traffic = build_traffic(config)
+        self.plant = MujocoPlant(config.plant, self.clock.dt_s, config.initial, traffic=traffic)
         self.estimator = make_estimator(
             config.estimator, config.initial, config.tracker.model,
             rng=component_rng(config.seed, "estimator.initial"))
@@ -241,6 +243,10 @@ class _Run:
         """Sim time of the next ``/metrics/live`` message."""
         self.events_registered = False
         """``/events`` is registered with the first event."""
+        self.traffic = None if traffic is None else \
+            TrafficLoop(config, self.plant, traffic, recorder, self.tracker,
+                        component_rng(config.seed, "sensors.radar"))
+        """Traffic, range sensor and ACC topics (:mod:`cosim.simulation.traffic_loop`)."""
 
     @property
     def truth(self) -> VehicleState:
@@ -256,6 +262,8 @@ class _Run:
         recorder, config = self.recorder, self.config
         _register_topics(recorder, [s.name for s in self.sensors],
                          bool(config.disturbances))
+        if self.traffic is not None:
+            self.traffic.register()
         config_dict = to_dict(config)
         versions = _versions()
         recorder.add_metadata("run", {
@@ -318,8 +326,12 @@ class _Run:
         if t_s >= self.next_live_metrics_s - 1e-9:
             self.recorder.write_finite("/metrics/live", t_s, metrics.live(t_s))
             self.next_live_metrics_s += LIVE_METRICS_PERIOD_S
+        if self.traffic is not None:
+            self.traffic.log(t_s, self.truth, scene=k % self.clock.scene_steps == 0)
 
     def sense(self, k: int, t_s: float) -> None:
+        if self.traffic is not None and self.traffic.radar_due(k):
+            self.traffic.sense(t_s, self.truth)
         delivered = []
         for sensor, steps in zip(self.sensors, self.sensor_steps, strict=True):
             if k % steps:
@@ -359,6 +371,16 @@ class _Run:
         self.write_plan_scene(t_s, plan)
         self.metrics.add_plan(plan, step_time_s)
         self.delay_line.append((k + self.clock.delay_steps, command))
+        if self.traffic is not None:
+            self.traffic.after_control(t_s)
+
+    def record_collision(self, error: CollisionError) -> None:
+        """The ``collision`` event on ``/events`` (the run ends with it)."""
+        event = self.monitor.collision(error.t_s, error.car)
+        if not self.events_registered:
+            self.recorder.register("/events", mcap_schemas.EVENT)
+            self.events_registered = True
+        self.recorder.write_finite("/events", error.t_s, event.to_message())
 
     def write_plan_scene(self, t_s: float, plan: Plan) -> None:
         scene = foxglove.plan_scene(plan)
@@ -449,6 +471,9 @@ def run(
             abort_reason, abort = str(error), "diverged"
         except TrackerFault as error:  # a plug-in tracker failed: a result, not a crash
             abort_reason, abort = str(error), "error"
+        except CollisionError as error:  # the ego hit a traffic car: a result
+            abort_reason, abort = "collision", "collision"
+            state.record_collision(error)
         except KeyboardInterrupt:
             abort_reason = abort = "interrupted"
         except Exception as error:  # the log is finished below, then the error goes on
@@ -471,6 +496,8 @@ def _finish(recorder: McapRecorder, state: _Run, wall_start: float, completed: b
     values.update(state.course_monitor.result())
     values["faults_injected"] = sum(f.injected for f in state.faults.values())
     values["outcome"] = state.monitor.outcome(abort)
+    if state.traffic is not None:
+        values.update(state.traffic.result())
     values["events"] = len(state.monitor.events)
     for event in state.monitor.events:
         values.setdefault(f"{event.kind}_t_s", event.t_s)

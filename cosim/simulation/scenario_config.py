@@ -19,11 +19,12 @@ from typing import Any
 
 import yaml
 
-from cosim.config_fields import from_dict, items, section, set_dotted, setting
+from cosim.config_fields import from_dict, items, mapping, section, set_dotted, setting
 from cosim.exceptions import ConfigError, RateError
 from cosim.initial_state import InitialState
 from cosim.log.foxglove import GeoOrigin
 from cosim.plant.disturbances import DisturbanceConfig
+from cosim.plant.traffic import traffic_cars
 from cosim.sensing.faults import FaultConfig
 from cosim.sensing.sensors import SensorsConfig, suite_preset
 from cosim.simulation.outcome import OutcomeConfig
@@ -103,6 +104,9 @@ class ScenarioConfig:
     maneuver: ManeuverConfig = section(ManeuverConfig)
     geo: GeoOrigin = section(GeoOrigin)
     outcome: OutcomeConfig = section(OutcomeConfig)
+    traffic: dict[str, Any] = mapping(
+        doc="other cars by name (cosim.plant.traffic), e.g. traffic.lead.speed_mps; each "
+        "validated as a TrafficCarConfig when the config is loaded")
 
 
 def builtin_scenarios() -> dict[str, str]:
@@ -200,6 +204,10 @@ def load_config(
     check_rates(config)
     check_required_sensors(config)
     check_faults(config)
+    traffic_cars(config.traffic)  # refuses a bad car here, before any run
+    if config.tracker.acc.enabled and not config.traffic:
+        raise ConfigError("tracker.acc.enabled = true: expected a scenario with traffic "
+                          "(a traffic: section naming at least one car)")
     # A bad plug-in is refused here, before any run starts.
     if is_plugin_name(config.tracker.name):
         check_plugin(config.tracker)

@@ -1,0 +1,162 @@
+"""Traffic and adaptive cruise control through the real loop: MuJoCo, the EKF, the range
+sensor, the ACC around the LQR path tracker, the MCAP log."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from cosim.exceptions import ConfigError
+from cosim.log.reader import iter_messages, read_summary
+from cosim.plots import plot_logs
+from cosim.simulation.runner import RunResult, run
+from cosim.simulation.scenario_config import load_config
+
+
+def run_acc(tmp_path: Path, scenario: str, *overrides: str,
+            duration_s: float | None = None, name: str = "run") -> RunResult:
+    config = load_config(scenario, overrides=["tracker.name=lqr", *overrides],
+                         duration_s=duration_s)
+    return run(config, tmp_path / f"{name}.mcap")
+
+
+@pytest.fixture(scope="module")
+def cut_in_start(tmp_path_factory: pytest.TempPathFactory) -> RunResult:
+    """The first 2 s of the cut-in scenario: following the lead, nobody cuts in yet."""
+    return run_acc(tmp_path_factory.mktemp("acc"), "acc-cut-in", duration_s=2.0)
+
+
+def test_a_traffic_run_logs_cars_radar_and_the_acc(cut_in_start: RunResult) -> None:
+    log = cut_in_start.log_path
+    topics = {channel.topic for channel in read_summary(log).channels}
+    for topic in ("/traffic/cars", "/traffic/gap", "/scene/traffic", "/sensors/radar",
+                  "/acc/gains", "/acc/objective", "/acc/mode"):
+        assert topic in topics, topic
+    cars = [m for _, m in iter_messages(log, "/traffic/cars")]
+    assert {car["name"] for car in cars[-1]["cars"]} == {"lead", "cut_in"}
+    readings = [m for _, m in iter_messages(log, "/sensors/radar")]
+    assert readings and all(r["target"] == "lead" for r in readings)
+    # 2 s at 20 Hz: 41 samples, about 5 % dropped (sensors.radar.dropout_probability).
+    assert 30 <= len(readings) < 41
+    modes = [m for _, m in iter_messages(log, "/acc/mode")]
+    assert modes[-1]["mode"] == "gap" and modes[-1]["target"] == "lead"
+    metrics = cut_in_start.metrics
+    assert metrics["acc_targets"] == "lead" and metrics["safe_gap_ok"] is True
+    assert 40.0 < metrics["gap_min_m"] < 46.0  # started at 45.45 m, the desired 41 m
+
+
+def test_one_seed_one_log(cut_in_start: RunResult, tmp_path: Path) -> None:
+    again = run_acc(tmp_path, "acc-cut-in", duration_s=2.0)
+    for topic in ("/sensors/radar", "/acc/gains", "/traffic/gap"):
+        first = [m for _, m in iter_messages(cut_in_start.log_path, topic)]
+        second = [m for _, m in iter_messages(again.log_path, topic)]
+        assert first == second, topic
+
+
+def test_cosim_plot_draws_the_acc_figure(cut_in_start: RunResult, tmp_path: Path) -> None:
+    written = plot_logs([cut_in_start.log_path], tmp_path)
+    assert tmp_path / "acc.png" in written
+    assert (tmp_path / "acc.png").stat().st_size > 10_000
+
+
+def test_driving_into_a_stopped_car_ends_the_run_as_a_collision(tmp_path: Path) -> None:
+    """Without the ACC the lane tracker holds 20 m/s into a car standing 30 m ahead."""
+    result = run_acc(tmp_path, "acc-braking", "tracker.acc.enabled=false",
+                     "traffic.lead.speed_mps=0", "traffic.lead.gap_m=30",
+                     duration_s=3.0)
+    assert not result.completed
+    assert result.outcome == "collision" and result.reason == "collision"
+    assert result.metrics["completed"] is False
+    # Bumpers meet after 30 - 2.15 - 2.4 m at 20 m/s: 1.27 s (the log step is 10 ms).
+    assert result.metrics["collision_t_s"] == pytest.approx(1.27, abs=0.03)
+    assert result.metrics["gap_min_m"] < 0.25
+    events = [m for _, m in iter_messages(result.log_path, "/events")]
+    assert [e["kind"] for e in events] == ["collision"] and "lead" in events[0]["detail"]
+
+
+def test_acc_needs_traffic() -> None:
+    with pytest.raises(ConfigError, match="tracker.acc.enabled = true: expected a scenario "
+                                          "with traffic"):
+        load_config("lane-change", overrides=["tracker.acc.enabled=true"])
+
+
+def test_a_bad_traffic_value_names_its_key() -> None:
+    with pytest.raises(ConfigError, match="traffic.lead.brake_decel_mps2 = -1"):
+        load_config("acc-braking", overrides=["traffic.lead.brake_decel_mps2=-1"])
+
+
+@pytest.mark.slow
+def test_cut_in_retargets_without_collision_or_unsafe_gap(tmp_path: Path) -> None:
+    result = run_acc(tmp_path, "acc-cut-in")
+    metrics = result.metrics
+    assert result.completed and result.outcome == "ok"
+    assert metrics["acc_targets"] == "lead,cut_in" and metrics["acc_target_changes"] == 1
+    assert metrics["safe_gap_ok"] is True and metrics["safe_gap_margin_min_m"] > 0.0
+    gaps = [m for _, m in iter_messages(result.log_path, "/traffic/gap")]
+    switch = next(m["t_s"] for m in gaps if m["target"] == "cut_in")
+    assert 9.0 < switch < 10.5  # its centre crosses into the lane half way, at 9.5 s
+    # The gap opens again towards the desired one behind the new target.
+    final = gaps[-1]
+    assert final["target"] == "cut_in" and final["gap_m"] > gaps[
+        next(i for i, m in enumerate(gaps) if m["target"] == "cut_in")]["gap_m"] + 5.0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("decel_mps2", "outcome"), [(3.0, "ok"), (9.0, "collision")])
+def test_braking_lead_within_and_beyond_the_acc_authority(tmp_path: Path, decel_mps2: float,
+                                                          outcome: str) -> None:
+    """The ACC brakes at most 3.5 m/s^2: a lead braking at 3 is followed to a stop with a
+    safe gap; one braking at 9 is hit (the documented limit, docs/acc.md)."""
+    result = run_acc(tmp_path, "acc-braking", f"traffic.lead.brake_decel_mps2={decel_mps2}")
+    assert result.outcome == outcome
+    if outcome == "ok":
+        assert result.metrics["safe_gap_ok"] is True
+        assert result.metrics["accel_min_mps2"] >= -3.5
+    else:
+        assert not result.completed
+        assert result.metrics["accel_min_mps2"] == pytest.approx(-3.5)
+
+
+@pytest.mark.slow
+def test_acc_reaches_the_set_speed_then_keeps_the_gap(tmp_path: Path) -> None:
+    """The first 60 s of the ``acc`` scenario: from 400 m behind, at 90 km/h."""
+    result = run_acc(tmp_path, "acc", duration_s=60.0)
+    metrics = result.metrics
+    assert result.completed and result.outcome == "ok"
+    assert metrics["acc_set_speed_t_s"] < metrics["acc_gap_mode_t_s"]
+    gaps = [m for _, m in iter_messages(result.log_path, "/traffic/gap")]
+    at_switch = min(gaps, key=lambda m: abs(m["t_s"] - metrics["acc_gap_mode_t_s"]))
+    assert at_switch["gap_m"] > 100.0  # gap keeping starts while the gap is large
+    assert metrics["safe_gap_ok"] is True
+    assert metrics["acc_speed_err_final_mps"] == pytest.approx(0.0, abs=0.5)
+
+
+def test_render_reads_the_traffic_tracks(cut_in_start: RunResult) -> None:
+    from cosim.plots.render import read_logged_scene
+
+    scene = read_logged_scene(cut_in_start.log_path)
+    assert set(scene.traffic) == {"lead", "cut_in"}
+    lead = scene.traffic["lead"]
+    assert lead[-1, 0] == pytest.approx(2.0)
+    assert lead[-1, 1] == pytest.approx(50.0 + 20.0 * 2.0)  # gap 50 m, 20 m/s for 2 s
+    assert 'name="car_lead/"' in scene.mjcf_xml or "car_lead/" in scene.mjcf_xml
+
+
+def test_the_acc_foxglove_layout_names_logged_fields(cut_in_start: RunResult) -> None:
+    import json
+
+    from cosim.log.reader import iter_topics
+
+    layout = json.loads((Path(__file__).resolve().parents[1] / "examples"
+                         / "foxglove-acc-layout.json").read_text())
+    first: dict[str, dict] = {}
+    for topic, _, message in iter_topics(cut_in_start.log_path):
+        first.setdefault(topic, message)
+    panels = layout["configById"]
+    assert "/scene/traffic" in panels["3D!traffic"]["topics"]
+    for panel in panels.values():
+        for path in panel.get("paths", []):
+            topic, _, field = path["value"].partition(".")
+            assert topic in first and field in first[topic], path["value"]
+    assert panels["RawMessages!radar"]["topicPath"] in first
