@@ -7,12 +7,12 @@ import json
 import os
 import signal
 import subprocess
-import time
 from pathlib import Path
 
 import pytest
 
 from cosim.sweeps.compare import league, make_tasks, markdown
+from tests.sweep.rows import wait_for_rows
 from tests.test_cli import COSIM, cosim
 
 
@@ -91,12 +91,8 @@ def test_sigterm_stops_a_comparison_and_keeps_the_finished_runs(tmp_path: Path) 
         [COSIM, "compare", "--trackers", "pid,lqr,stanley,pure-pursuit", "--scenarios",
          "circle", "--duration", "2", "--workers", "1", "--out", str(out)],
         env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    deadline = time.monotonic() + 600
     try:
-        while not (rows_file.is_file() and rows_file.read_text().count("\n") >= 1):
-            assert process.poll() is None, "the comparison ended before it could be stopped"
-            assert time.monotonic() < deadline, "no row landed in time"
-            time.sleep(0.05)
+        wait_for_rows(process, rows_file)
         process.send_signal(signal.SIGTERM)
         _, stderr = process.communicate(timeout=120)
     finally:

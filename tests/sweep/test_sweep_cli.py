@@ -7,7 +7,6 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -15,6 +14,7 @@ import pytest
 from cosim.exceptions import CosimError
 from cosim.simulation.metrics import WALL_CLOCK_KEYS
 from cosim.sweeps.execute import make_backend
+from tests.sweep.rows import wait_for_rows
 
 COSIM = str(Path(sys.executable).with_name("cosim"))
 
@@ -116,12 +116,8 @@ def test_resume_after_a_kill_runs_only_the_missing_runs(one_worker: Path, tiny_s
     process = subprocess.Popen([COSIM, "sweep", str(tiny_spec), "--out", str(out),
                                 "--workers", "1"], env=env, start_new_session=True,
                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    deadline = time.monotonic() + 600
     try:
-        while not (rows_file.is_file() and rows_file.read_text().count("\n") >= 1):
-            assert process.poll() is None, "the sweep ended before it could be killed"
-            assert time.monotonic() < deadline, "no row landed in time"
-            time.sleep(0.05)
+        wait_for_rows(process, rows_file)
     finally:
         os.killpg(process.pid, signal.SIGKILL)  # the CLI and its workers, no clean-up
         process.wait()
