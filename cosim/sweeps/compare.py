@@ -16,7 +16,7 @@ machine): on the ISO 3888-1 lane change at 60 km/h the MPCs but ``kinematic-nmpc
 gate, while every baseline hits at least one (``pid`` and ``lqr`` spin once the steering-rate
 bound saturates them); ``dynamic-mpc`` passes up to 68 km/h and hits gates at 72 km/h
 (``bench/iso_entry_speed.py``). On the ring circuit ``lqr`` edges out the MPCs (seed 0,
-quiet machine: RMS CTE 0.059 m against 0.076 m for ``dynamic-nmpc`` and ``ltv-mpc``): their
+quiet machine: RMS CTE 0.059 m against 0.077 m for ``dynamic-nmpc``, the best MPC): their
 steering-rate weight (``tracker.weights.steer_rate = 3``, tuned for the lane change's
 comfort) makes them lag the circuit's long changes of curvature, which the LQR, without a
 rate penalty, follows. With ``tracker.weights.steer_rate=0.3`` ``dynamic-nmpc`` gives
