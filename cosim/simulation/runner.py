@@ -43,7 +43,7 @@ from cosim.log.recorder import McapRecorder
 from cosim.plant import disturbances
 from cosim.plant.car import MujocoPlant
 from cosim.plant.low_level import AccelToTorque
-from cosim.records import Command, Estimate, Plan, VehicleState
+from cosim.records import Command, Estimate, Measurement, Plan, VehicleState
 from cosim.sensing.faults import FaultInjector
 from cosim.sensing.sensors import TruthSensor, make_sensors
 from cosim.simulation.course import Course, build_course
@@ -53,6 +53,7 @@ from cosim.simulation.outcome import OutcomeMonitor
 from cosim.simulation.scenario_config import ScenarioConfig, steps_per_period
 from cosim.simulation.traffic_loop import CollisionError, TrafficLoop, build_traffic
 from estimation.registry import make_estimator
+from estimation.update_result import UpdateResult
 from tracker.protocol import Tracker
 from tracker.reference_path import ReferencePath
 from tracker.registry import make_tracker
@@ -213,6 +214,10 @@ class _Run:
         self.tracker = tracker if tracker is not None else \
             make_tracker(config.tracker, config.maneuver)
         """The run's tracker; the Gymnasium environment passes one that replays its actions."""
+        self.fuse: Callable[[list[Measurement]], list[UpdateResult]] = getattr(
+            self.estimator, "update_many", None) or self._fuse_one_by_one
+        """Fuses the measurements of one instant: together where the estimator can
+        (:meth:`estimation.fusion.KalmanFusion.update_many`), else one by one."""
         self.low_level = AccelToTorque(config.tracker.model)
         self.sensors = make_sensors(config.sensors)
         if "truth" in getattr(self.estimator, "required_sensors", ()):
@@ -329,6 +334,9 @@ class _Run:
         if self.traffic is not None:
             self.traffic.log(t_s, self.truth, scene=k % self.clock.scene_steps == 0)
 
+    def _fuse_one_by_one(self, measurements: list[Measurement]) -> list[UpdateResult]:
+        return [self.estimator.update(measurement) for measurement in measurements]
+
     def sense(self, k: int, t_s: float) -> None:
         if self.traffic is not None and self.traffic.radar_due(k):
             self.traffic.sense(t_s, self.truth)
@@ -348,11 +356,7 @@ class _Run:
             delivered.append(measurement)
         if not delivered:
             return
-        # Measurements of one instant are fused together where the estimator can
-        # (estimation.fusion.KalmanFusion.update_many); one by one otherwise.
-        update_many = getattr(self.estimator, "update_many", None)
-        updates = update_many(delivered) if update_many is not None else [
-            self.estimator.update(measurement) for measurement in delivered]
+        updates = self.fuse(delivered)
         for measurement, update in zip(delivered, updates, strict=True):
             if measurement.sensor != "truth":  # noise-free: NIS is undefined
                 self.metrics.add_update(measurement.sensor, update)
