@@ -104,6 +104,13 @@ class EstimatorConfig:
     # estimate behind and the GNSS gate then refuses the fixes (2.1 m off the path); 5e-3
     # follows the kick (0.07 m) but spoils the circuit (est. position RMSE 0.03 -> 0.21 m,
     # NEES 31). One number cannot serve both: a yaw-disturbance model is needed.
+    yaw_transient_psd_s3: float = setting(
+        0.0,
+        low=0.0,
+        high=1.0,
+        doc="heading PSD per squared yaw acceleration of the bicycle: its yaw response is off "
+        "while the yaw rate changes (tyre lag, compliance) [s^3]",
+    )
     lateral_accel_psd_m2ps3: float = setting(
         5e-3, low=0.0, high=1e6, doc="white lateral acceleration driving vy_mps [m^2/s^3]"
     )
@@ -119,11 +126,25 @@ class EstimatorConfig:
     roll_accel_psd_rad2ps3: float = setting(
         1e-3, low=0.0, high=100.0, doc="roll acceleration the roll mode does not explain"
     )
+    roll_accel_relative_psd_s: float = setting(
+        0.0,
+        low=0.0,
+        high=1.0,
+        doc="roll-acceleration PSD per squared roll acceleration the tyres' lateral force "
+        "commands (omega^2 G a_y): the roll mode's error grows with the force [s]",
+    )
     lateral_residual_sigma_mps2: float = setting(
         0.1,
         low=1e-6,
         high=100.0,
         doc="stationary sigma of the lateral force the tyre model does not explain, per mass",
+    )
+    lateral_residual_relative: float = setting(
+        0.0,
+        low=0.0,
+        high=1.0,
+        doc="relative error of the tyre model's lateral force: the residual's stationary sigma "
+        "is sqrt(sigma^2 + (this * a_y)^2) at the tyres' lateral acceleration a_y",
     )
     lateral_residual_time_constant_s: float = setting(
         0.5, low=0.05, high=1e4, doc="the lateral residual relaxes to zero with this time constant"

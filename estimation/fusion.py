@@ -146,6 +146,11 @@ def process_noise(config: EstimatorConfig) -> ProcessNoise:
         accel_bias_psd_m2ps5=config.noise.accel_bias_psd_m2ps5,
         rolling_radius_scale_psd_1ps=config.rolling_radius_scale_psd_1ps,
         wheel_track_scale_psd_1ps=config.wheel_track_scale_psd_1ps,
+        lateral_residual_relative_psd_1ps=(
+            2.0 * config.lateral_residual_relative**2 / config.lateral_residual_time_constant_s
+        ),
+        yaw_transient_psd_s3=config.yaw_transient_psd_s3,
+        roll_accel_relative_psd_s=config.roll_accel_relative_psd_s,
     )
 
 
@@ -388,6 +393,13 @@ class KalmanFusion(ABC):
         if joint is None:
             counts.rejected_invalid += 1
             return UpdateResult(False, math.nan, dim, INVALID)
+        if not self._uses_gate(sensor) and joint.nis > self.gate_threshold(dim):
+            # An ungated sensor far outside its gate: a manoeuvre the model did not predict.
+            _, jacobian = model.evaluate(self._x)
+            self._inflate_for_surprise(jacobian[list(joint.rows), :], joint.trial.innovation)
+            counts.surprises += 1
+            inflated = self._innovation(model, selection, everything, z, r_matrix)
+            joint = inflated if inflated is not None else joint
         if not self._uses_gate(sensor) or joint.nis <= self.gate_threshold(dim):
             # The common case: one joint update.
             self._forget_gate_failures(model, selection, everything)
@@ -438,8 +450,7 @@ class KalmanFusion(ABC):
             except np.linalg.LinAlgError:
                 value = math.nan
             dim = block.stop - block.start
-            if not math.isfinite(value) or (self._uses_gate(c.model.sensor)
-                                              and value > self.gate_threshold(dim)):
+            if not math.isfinite(value) or value > self.gate_threshold(dim):
                 return [self.update(m) for m in measurements]
             nis.append(value)
         if not self._apply(Innovation((), math.nan, trial)):
@@ -647,6 +658,26 @@ class KalmanFusion(ABC):
         """
         spread = np.diag(self._p)[:, None] * jacobian.T
         gain = spread @ np.linalg.inv(jacobian @ spread)
+        jump = gain @ np.asarray(innovation, dtype=float).reshape(-1)
+        self._set_covariance(self._p + np.outer(jump, jump))
+
+    def _inflate_for_surprise(self, jacobian: np.ndarray, innovation: np.ndarray) -> None:
+        """Make room for a manoeuvre an ungated sensor saw and the model did not predict.
+
+        The IMU is never gated: it is the filter's one direct view of sudden motion (a yaw
+        kick, a kerb strike). When its NIS is above the gate, the innovation is taken as a
+        jump of the states the process noise drives, the adjustable process noise of
+        Bar-Shalom, Li, Kirubarajan (2001), section 11.2: the covariance grows by
+        ``G y y' G'`` with ``G = Q H' (H Q H')^-1`` and ``Q`` the process noise of one
+        sub-step at the current mean, so a gyro's surprise moves the yaw rate (driven by
+        the yaw-acceleration noise) and not the gyro bias (driven by a slow random walk).
+        """
+        shape = self._process.process_noise(self._x, self._config.max_step_s)
+        spread = shape @ jacobian.T
+        try:
+            gain = spread @ np.linalg.inv(jacobian @ spread)
+        except np.linalg.LinAlgError:
+            return
         jump = gain @ np.asarray(innovation, dtype=float).reshape(-1)
         self._set_covariance(self._p + np.outer(jump, jump))
 

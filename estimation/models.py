@@ -428,6 +428,19 @@ class ProcessNoise:
     accel_bias_psd_m2ps5: float
     rolling_radius_scale_psd_1ps: float
     wheel_track_scale_psd_1ps: float = 0.0
+    lateral_residual_relative_psd_1ps: float = 0.0
+    """The residual's PSD per squared lateral tyre acceleration: the residual is driven by
+    ``lateral_residual_psd_m2ps5 + lateral_residual_relative_psd_1ps * a_y^2`` with ``a_y``
+    the tyres' force per mass (the tyre model's error grows with the force it predicts)."""
+    yaw_transient_psd_s3: float = 0.0
+    """The heading's PSD per squared yaw acceleration of the model: ``yaw_psd_rad2ps +
+    yaw_transient_psd_s3 * r'^2``. A yaw response that lags the bicycle's by an uncertain
+    time ``tau`` (tyre relaxation, steering and suspension compliance) is off by
+    ``tau r'`` while the yaw rate changes, too briefly for the gyro's noise to resolve."""
+    roll_accel_relative_psd_s: float = 0.0
+    """The roll acceleration's PSD per squared roll acceleration the tyres' force commands,
+    ``roll_accel_psd_rad2ps3 + roll_accel_relative_psd_s * (omega^2 G a_y)^2`` (the roll
+    mode's steady gain and dynamics are known to a fraction)."""
 
     def __post_init__(self) -> None:
         for name, value in vars(self).items():
@@ -496,7 +509,7 @@ class ProcessModel:
         transition = ca.jacobian(x_next, x)
 
         a = ca.jacobian(self._derivative(x), x)
-        term = ca.SX(ca.DM(noise.diagonal()))
+        term = ca.SX(ca.DM(noise.diagonal())) + ca.diag(self._force_noise(x))
         q = ca.SX.zeros(n, n)
         factor = dt
         for k in range(NOISE_SERIES_TERMS):
@@ -520,6 +533,29 @@ class ProcessModel:
         self._mapped_step: DenseFunction | None = None
         if sigma_point_count:
             self._mapped_step = DenseFunction(mean_step.map(sigma_point_count, "serial"))
+
+    def _force_noise(self, x: ca.SX) -> ca.SX:
+        """The state-dependent part of W's diagonal: the lateral residual's PSD grows with
+        the square of the tyres' lateral acceleration (a relative error of the tyre model's
+        force, e.g. of its cornering stiffness, is an error proportional to the force)."""
+        s = _named(x)
+        force_front, force_rear = axle_forces(s, self.bicycle)
+        tyre_accel = (force_front + force_rear) / self.bicycle.mass_kg
+        bicycle = self.bicycle
+        yaw_accel = (
+            bicycle.cog_front_m * force_front - bicycle.cog_rear_m * force_rear
+        ) / bicycle.yaw_inertia_kgm2
+        extra = ca.SX.zeros(len(STATE_NAMES))
+        extra[state_index("lateral_accel_residual_mps2")] = (
+            self.noise.lateral_residual_relative_psd_1ps * tyre_accel**2
+        )
+        extra[state_index("yaw_rad")] = self.noise.yaw_transient_psd_s3 * yaw_accel**2
+        roll = bicycle.roll
+        commanded_roll_accel = roll.angular_frequency_radps**2 * roll.gradient_radpmps2 * tyre_accel
+        extra[state_index("roll_rate_radps")] = (
+            self.noise.roll_accel_relative_psd_s * commanded_roll_accel**2
+        )
+        return extra
 
     def _derivative(self, x: ca.SX) -> ca.SX:
         s = _named(x)

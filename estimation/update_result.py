@@ -79,3 +79,6 @@ class SensorCounts:
     """Channels fused although above the gate, after ``gate_release_s`` of rejections."""
     channels_gated: int = 0
     """Channels gated out, in rejected and in partly accepted measurements."""
+    surprises: int = 0
+    """Ungated measurements above the gate, fused after room was made in the directions of
+    the process noise (a manoeuvre the model did not predict)."""

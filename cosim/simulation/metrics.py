@@ -59,13 +59,16 @@ REJECTION_CAUSES = ("rejected_gate", "rejected_nonfinite", "rejected_stale",
 def rejection_counts(counts: dict[str, dict[str, int]]) -> dict[str, int]:
     """``rejected_measurements`` (whole measurements refused, all causes), the same per
     cause, and ``channels_gated`` (single channels the gate refused, also inside partly
-    fused measurements), from an estimator's per-sensor counters."""
+    fused measurements), and ``estimator_surprises`` (ungated measurements far outside the
+    gate, fused after the filter made room for a manoeuvre), from an estimator's
+    per-sensor counters."""
     totals = {cause: sum(c.get(cause, 0) for c in counts.values())
               for cause in REJECTION_CAUSES}
     return {
         "rejected_measurements": sum(totals.values()),
         **totals,
         "channels_gated": sum(c.get("channels_gated", 0) for c in counts.values()),
+        "estimator_surprises": sum(c.get("surprises", 0) for c in counts.values()),
     }
 
 
