@@ -393,8 +393,12 @@ class KalmanFusion(ABC):
         if joint is None:
             counts.rejected_invalid += 1
             return UpdateResult(False, math.nan, dim, INVALID)
-        if not self._uses_gate(sensor) and joint.nis > self.gate_threshold(dim):
-            # An ungated sensor far outside its gate: a manoeuvre the model did not predict.
+        surprise = (self._config.gate and self._config.inflate_on_surprise
+                    and not self._uses_gate(sensor) and joint.nis > self.gate_threshold(dim))
+        nis = joint.nis  # reported: a surprise's NIS is the one before the room was made
+        if surprise:
+            # A sensor exempt from the gate far outside it: a manoeuvre the model did not
+            # predict.
             _, jacobian = model.evaluate(self._x)
             self._inflate_for_surprise(jacobian[list(joint.rows), :], joint.trial.innovation)
             counts.surprises += 1
@@ -405,9 +409,9 @@ class KalmanFusion(ABC):
             self._forget_gate_failures(model, selection, everything)
             if not self._apply(joint):
                 counts.rejected_invalid += 1
-                return UpdateResult(False, joint.nis, dim, INVALID, joint.nis, dim)
+                return UpdateResult(False, nis, dim, INVALID, nis, dim)
             counts.accepted += 1
-            return UpdateResult(True, joint.nis, dim, ACCEPTED, joint.nis, dim)
+            return UpdateResult(True, nis, dim, ACCEPTED, nis, dim)
         result = self._gated_update(model, selection, z, r_matrix, t_s, counts)
         return dataclasses.replace(result, joint_nis=joint.nis, joint_dim=dim)
 
@@ -450,7 +454,9 @@ class KalmanFusion(ABC):
             except np.linalg.LinAlgError:
                 value = math.nan
             dim = block.stop - block.start
-            if not math.isfinite(value) or value > self.gate_threshold(dim):
+            # Above the gate, gated or not: one by one (a gate, or a surprise's room).
+            if not math.isfinite(value) or (self._config.gate
+                                              and value > self.gate_threshold(dim)):
                 return [self.update(m) for m in measurements]
             nis.append(value)
         if not self._apply(Innovation((), math.nan, trial)):

@@ -78,7 +78,14 @@ is wrong. ``b_g`` and ``b_x`` are the biases of the gyro and of the longitudinal
 white noise of the configured power spectral density (``estimation.config``; the values
 were set from the MuJoCo sedan's truth: e.g. the yaw-acceleration error of the model has a
 PSD of 1e-5 to 4e-4 rad^2/s^3, the residual ``d`` 0.05-0.15 m/s^2 RMS with a correlation
-time of 0.3-0.5 s). Without ``b_x`` the accelerometer's
+time of 0.3-0.5 s). Three of the PSDs grow with the tyre forces the model predicts, because
+the model's error does: the residual's with ``(eps a_y)^2`` (a tyre's force known to a
+fraction ``eps`` of itself), the roll acceleration's with the roll acceleration the force
+commands, and the heading's with the bicycle's yaw acceleration squared (a yaw response
+that lags the model's by an uncertain few milliseconds, tyre relaxation and compliance, is
+off by ``tau r'`` while the yaw rate changes, too briefly for the gyro to resolve): with
+constant PSDs the filter was under-confident on the straights and over-confident in the
+swerves of the same lane change (:class:`ProcessNoise`). Without ``b_x`` the accelerometer's
 bias (0.02 m/s^2) makes the speed from the IMU drift against the wheel speeds, and the
 filter explains the conflict with a drifting rolling radius: the speed was off by 0.11 m/s
 (0.5 %) on the lane change with 0.5 m GNSS.

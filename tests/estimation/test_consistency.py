@@ -90,7 +90,8 @@ DURATION_S = 5.0
 PROCESS_PSDS = (
     "position_psd_m2ps", "yaw_psd_rad2ps", "lateral_accel_psd_m2ps3", "yaw_accel_psd_rad2ps3",
     "jerk_psd_m2ps5", "steer_psd_rad2ps", "steer_rate_psd_rad2ps3", "roll_accel_psd_rad2ps3",
-    "rolling_radius_scale_psd_1ps", "wheel_track_scale_psd_1ps",
+    "rolling_radius_scale_psd_1ps", "wheel_track_scale_psd_1ps", "yaw_transient_psd_s3",
+    "roll_accel_relative_psd_s",
 )
 """Every process-noise PSD of the filters' model (the bias walks are in estimator.noise)."""
 
@@ -108,6 +109,7 @@ def _config(suite: str, estimator: str, q_factor: float = 1.0) -> ScenarioConfig
         config.estimator,
         **scaled,
         lateral_residual_sigma_mps2=q_factor**0.5 * config.estimator.lateral_residual_sigma_mps2,
+        lateral_residual_relative=q_factor**0.5 * config.estimator.lateral_residual_relative,
         noise=dataclasses.replace(noise, **walks),
     )
     return dataclasses.replace(config, estimator=estimator_config)
