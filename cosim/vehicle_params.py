@@ -54,16 +54,21 @@ class VehicleParams:
     )
     track_front_m: float = setting(
         0.0, low=0.0, high=MAX_TRACK_M,
-        doc="front axle's track (wheel centres); 0: track_m [m]",
+        doc="front axle's track (wheel centres); 0: track_m",
     )
     track_rear_m: float = setting(
-        0.0, low=0.0, high=MAX_TRACK_M, doc="rear axle's track; 0: track_m [m]"
+        0.0, low=0.0, high=MAX_TRACK_M, doc="rear axle's track; 0: track_m"
     )
     cog_height_m: float = setting(0.55, low=0.1, high=2.0, doc="CoG above the ground")
     wheel_radius_m: float = setting(0.31, low=0.1, high=1.0, doc="rolling radius")
     wheel_mass_kg: float = setting(20.0, low=1.0, high=200.0, doc="each wheel, part of mass_kg")
     wheel_inertia_kgm2: float = setting(1.0, low=0.05, high=20.0, doc="each wheel about its axle")
-    tire_friction: float = setting(1.0, low=0.05, high=2.0, doc="tyre-road friction coefficient")
+    tire_friction: float = setting(
+        1.0, low=0.05, high=2.0,
+        doc="tyre-road peak friction coefficient, both directions; the plant's Magic Formula "
+        "tyres scale it per direction by plant.tyre.longitudinal_friction_scale and "
+        "lateral_friction_scale (1: isotropic)",
+    )
     max_steer_rad: float = setting(
         0.5236,
         low=0.05,
