@@ -20,9 +20,10 @@ class TyreParams:
     Defaults: the book's 205/60R15 passenger-car tyre (Pacejka 2006, Appendix 3, Table A3.1;
     the MF 6.1 reference tyre, nominal load 4000 N), magnitudes of the ISO-sign table, shifts
     and camber terms dropped, with an isotropic friction circle (the peak is ``mu F_z`` in
-    both directions; the table has ``mu_x`` 1.21, ``mu_y`` 0.99). Carcass stiffnesses set the
-    relaxation lengths at nominal load to about a wheel radius laterally (Pacejka's rule of
-    thumb) and 0.2 m longitudinally; see models/README.md.
+    both directions; the table has ``mu_x`` 1.21, ``mu_y`` 0.99, which the friction scales
+    ``lambda_mux``, ``lambda_muy`` can state: 1.21 and 0.99 with friction 1). Carcass
+    stiffnesses set the relaxation lengths at nominal load to about a wheel radius laterally
+    (Pacejka's rule of thumb) and 0.2 m longitudinally; see models/README.md.
     """
 
     nominal_load_n: float = setting(4000.0, low=100.0, high=1e5, doc="F_z0")
@@ -41,6 +42,20 @@ class TyreParams:
         doc="p_D2 = p_Dx2 / p_Dx1 (and the same laterally): the peak friction "
         "mu (1 + p_D2 df_z) falls with load when negative (Pacejka 2012, 4.E13, 4.E23); "
         "0: load-independent, as before this key",
+    )
+    longitudinal_friction_scale: float = setting(
+        1.0,
+        low=0.1,
+        high=3.0,
+        doc="lambda_mux: the longitudinal peak friction over plant.tire_friction, mu_x = "
+        "lambda_mux tire_friction (Pacejka 2012, 4.E13); 1: isotropic",
+    )
+    lateral_friction_scale: float = setting(
+        1.0,
+        low=0.1,
+        high=3.0,
+        doc="lambda_muy: the lateral peak friction over plant.tire_friction, mu_y = "
+        "lambda_muy tire_friction (4.E23); 1: isotropic",
     )
     # Lateral, pure slip.
     lateral_shape: float = setting(1.193, low=1.01, high=1.99, doc="C_y = p_Cy1")

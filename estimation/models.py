@@ -738,21 +738,22 @@ def wheel_spin(
 
     The wheel centre moves with the rigid body, ``(vx - r y_w, vy_a + r x_w)`` in the
     vehicle frame at the wheel's position ``(x_w, y_w)`` (``vy_a``: the roll axis's lateral
-    velocity, (R1)) (``x_w = l_f`` or ``-l_r``, ``y_w = +-t/2``,
-    left positive); the wheel spins at the component along its own plane (steered by its
-    Ackermann angle at the front), over the believed radius times ``rolling_radius_scale``.
+    velocity, (R1)) (``x_w = l_f`` or ``-l_r``, ``y_w = +-t/2`` with ``t`` the believed
+    track of that axle times ``wheel_track_scale``, left positive); the wheel spins at the
+    component along its own plane (steered by its Ackermann angle at the front), over the
+    believed radius times ``rolling_radius_scale``.
     """
     front = wheel.startswith("front")
     left = wheel.endswith("left")
     x_w = belief.cog_front_m if front else -belief.cog_rear_m
-    y_w = (0.5 if left else -0.5) * belief.track_m * s["wheel_track_scale"]
+    track_front, track_rear = belief.axle_tracks_m
+    track = track_front if front else track_rear
+    y_w = (0.5 if left else -0.5) * track * s["wheel_track_scale"]
     r = s["yaw_rate_radps"]
     forward = s["vx_mps"] - r * y_w
     sideways = axle_lateral_velocity(s, bicycle) + r * x_w
     if front:
-        left_angle, right_angle = ackermann_angles(
-            s["steer_rad"], belief.wheelbase_m, belief.track_m
-        )
+        left_angle, right_angle = ackermann_angles(s["steer_rad"], belief.wheelbase_m, track_front)
         angle = left_angle if left else right_angle
         along = forward * ca.cos(angle) + sideways * ca.sin(angle)
     else:

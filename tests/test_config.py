@@ -53,6 +53,11 @@ def test_overrides_reach_nested_keys_with_yaml_types() -> None:
         ("plant.mass_kg.x=1", "plant.mass_kg = {'x': 1}: expected a number"),
         ("nonsense", "expected key.path=value"),
         ("sim=3", "sim = 3: expected a mapping"),
+        ("plant.track_rear_m=3.5", "plant.track_rear_m = 3.5: expected a number in [0, 3]"),
+        ("tracker.model.track_front_m=0.2",
+         "tracker.model.track_front_m = 0.2: expected 0 (track_m) or a track in [0.5, 3] m"),
+        ("plant.tyre.longitudinal_friction_scale=4",
+         "plant.tyre.longitudinal_friction_scale = 4: expected a number in [0.1, 3]"),
     ],
 )
 def test_bad_values_name_the_key_and_the_expectation(override: str, fragment: str) -> None:
@@ -118,3 +123,20 @@ def test_the_scene_period_is_whole_log_periods(override: str, message: str) -> N
     with pytest.raises(RateError) as error:
         load_config("lane-change", overrides=[override])
     assert str(error.value) == message
+
+
+def test_a_steering_limit_above_one_radian_is_a_key_the_tracker_may_use() -> None:
+    """CommonRoad's BMW 320i turns its front wheels up to 1.066 rad: plant, belief and the
+    tracker's own bound accept it (each bound at most the belief's)."""
+    config = load_config("lane-change", overrides=[
+        "plant.max_steer_rad=1.066", "tracker.model.max_steer_rad=1.066",
+        "tracker.max_steer_rad=1.066"])
+    assert config.plant.max_steer_rad == config.tracker.max_steer_rad == 1.066
+
+
+def test_axle_tracks_fall_back_to_track_m() -> None:
+    config = load_config("lane-change", overrides=["plant.track_m=1.5",
+                                                   "plant.track_rear_m=1.55"])
+    assert config.plant.axle_tracks_m == (1.5, 1.55)
+    assert config.plant.widest_track_m == 1.55
+    assert config.tracker.model.axle_tracks_m == (1.6, 1.6)  # the belief keeps its own

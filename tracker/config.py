@@ -76,7 +76,7 @@ from typing import Any
 from cosim.config_fields import mapping, section, setting
 from cosim.exceptions import ConfigError
 from cosim.plugins import entry_point_names, is_import_path
-from cosim.vehicle_params import VehicleParams
+from cosim.vehicle_params import MAX_STEER_BOUND_RAD, VehicleParams
 from tracker.acc_config import AccConfig
 from tracker.baselines.config import BaselineConfig
 from tracker.dynamic_mpc_config import DynamicMpcConfig
@@ -155,7 +155,8 @@ class TrackerConfig:
     dt_s: float = setting(0.05, low=0.005, high=1.0, doc="length of one stage [s]")
     weights: TrackerWeights = section(TrackerWeights)
     max_steer_rad: float = setting(
-        math.pi / 8.0, low=0.01, high=1.0, doc="steering bound, |delta|"
+        math.pi / 8.0, low=0.01, high=MAX_STEER_BOUND_RAD,
+        doc="steering bound, |delta|; at most model.max_steer_rad",
     )
     max_steer_rate_radps: float = setting(
         0.8, low=0.01, high=100.0, doc="steering rate bound, |d delta / dt|"

@@ -210,7 +210,7 @@ def car_scene(truth: VehicleState, params: VehicleParams) -> dict[str, object]:
     ground_z = -params.cog_height_m
     length = params.wheelbase_m + FRONT_OVERHANG_M + REAR_OVERHANG_M
     centre_x = (params.cog_front_m + FRONT_OVERHANG_M - params.cog_rear_m - REAR_OVERHANG_M) / 2
-    width = params.track_m + BODY_WIDTH_OVER_TRACK_M
+    width = params.widest_track_m + BODY_WIDTH_OVER_TRACK_M
     body = {
         "pose": _pose(centre_x, 0.0, ground_z + (GROUND_CLEARANCE_M + BELT_LINE_M) / 2),
         "size": _vector(length, width, BELT_LINE_M - GROUND_CLEARANCE_M),
@@ -223,10 +223,12 @@ def car_scene(truth: VehicleState, params: VehicleParams) -> dict[str, object]:
     }
     diameter = 2 * params.wheel_radius_m
     wheels = []
-    for x_m, steer_rad in ((params.cog_front_m, truth.steer_rad), (-params.cog_rear_m, 0.0)):
+    track_front, track_rear = params.axle_tracks_m
+    for x_m, steer_rad, track_m in ((params.cog_front_m, truth.steer_rad, track_front),
+                                    (-params.cog_rear_m, 0.0, track_rear)):
         # A cylinder's axis is its z: roll it by 90 deg onto the axle, then steer it.
         orientation = quaternion_from_euler(math.pi / 2, 0.0, steer_rad)
-        for y_m in (params.track_m / 2, -params.track_m / 2):
+        for y_m in (track_m / 2, -track_m / 2):
             wheels.append({
                 "pose": _pose(x_m, y_m, ground_z + params.wheel_radius_m, orientation),
                 "size": _vector(diameter, diameter, TYRE_WIDTH_M),

@@ -7,7 +7,7 @@ runs the actuator models in plain Python and then exactly one MuJoCo step:
 
 - steering actuator: first-order lag (``steer_time_constant_s``, exact discretisation) with
   a rate limit (``max_steer_rate_radps``) on the bicycle-model angle, clipped to
-  ``max_steer_rad``; the left and right wheels get their Ackermann angles
+  ``max_steer_rad``; the left and right wheels get their Ackermann angles (front track)
   (:func:`cosim.plant.sedan_model.ackermann_angles`) through a fast position servo with velocity
   and acceleration feed-forward, so the servo adds no lag of its own;
 - drive: the total torque clipped to ``max_drive_torque_nm`` and to the power limit
@@ -213,6 +213,7 @@ class MujocoPlant:
         tau = cfg.steer_time_constant_s
         self._steer_decay = math.exp(-dt / tau) if tau > 0.0 else 0.0
         self._steer_step_max = cfg.max_steer_rate_radps * dt
+        self._front_track_m = cfg.axle_tracks_m[0]  # the steered wheels' Ackermann geometry
         # Position servo: force = kp (ctrl - q) - kv qdot. Commanding
         # ctrl = q_ref + kv/kp qdot_ref + I/kp qddot_ref makes it
         # kp (q_ref - q) + kv (qdot_ref - qdot) + I qddot_ref: the servo follows the
@@ -363,7 +364,7 @@ class MujocoPlant:
         lagged = target + (self._steer_rad - target) * self._steer_decay
         step = min(max(lagged - self._steer_rad, -self._steer_step_max), self._steer_step_max)
         self._steer_rad += step
-        left, right = ackermann_angles(self._steer_rad, cfg.wheelbase_m, cfg.track_m)
+        left, right = ackermann_angles(self._steer_rad, cfg.wheelbase_m, self._front_track_m)
         (prev_left, prev_right), (prev_rate_left, prev_rate_right) = (
             self._wheel_steer_rad,
             self._wheel_steer_rate_radps,

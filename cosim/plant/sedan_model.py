@@ -149,7 +149,8 @@ class SedanLayout:
     damping_nspm: tuple[float, ...]
     steer_joint_limit_rad: float
     """Joint limit of each steer hinge: the inner wheel's Ackermann angle at
-    ``max_steer_rad`` (the road-wheel limit applies to the bicycle-model angle)."""
+    ``max_steer_rad`` on the front track (the road-wheel limit applies to the bicycle-model
+    angle)."""
     steer_servo_kp_nmprad: float
     """Gain of the steering position servo [N m/rad]."""
 
@@ -171,14 +172,16 @@ def sedan_layout(params: VehicleParams,
         suspension = SuspensionParams()
     lf, lr = params.cog_front_m, params.cog_rear_m
     wheelbase = lf + lr
-    half_track = 0.5 * params.track_m
+    track_front, track_rear = params.axle_tracks_m
     radius = params.wheel_radius_m
     height = params.cog_height_m
     m_w = params.wheel_mass_kg
     m_c = params.mass_kg - 4.0 * m_w
     wheel_z = radius - height
     wheel_pos = tuple(
-        ((lf if axle > 0 else -lr), side * half_track, wheel_z) for _, axle, side in WHEEL_SIDES
+        (lf, side * 0.5 * track_front, wheel_z) if axle > 0
+        else (-lr, side * 0.5 * track_rear, wheel_z)
+        for _, axle, side in WHEEL_SIDES
     )
     # Chassis CoM such that the total CoM is at the origin.
     com = tuple(-m_w * sum(p[k] for p in wheel_pos) / m_c for k in range(3))
@@ -228,7 +231,7 @@ def sedan_layout(params: VehicleParams,
         stiffness.append(k)
         spring_ref.append(-load_n / k)
         damping.append(2.0 * suspension.damping_ratio * math.sqrt(k * sprung_kg))
-    inner_limit, _ = ackermann_angles(params.max_steer_rad, wheelbase, params.track_m)
+    inner_limit, _ = ackermann_angles(params.max_steer_rad, wheelbase, track_front)
     return SedanLayout(
         cog_height_m=height,
         chassis_mass_kg=m_c,
@@ -306,7 +309,8 @@ def build_sedan(config: PlantConfig, physics_dt_s: float,
     With ``lead_car``, the lead car (:func:`attach_lead_car`) is added to the world; each
     name of ``traffic`` adds a traffic car (:func:`cosim.plant.traffic.attach_traffic`).
 
-    Applies mass, yaw inertia, CoG position and height, track, wheel radius/mass/inertia,
+    Applies mass, yaw inertia, CoG position and height, each axle's track, wheel
+    radius/mass/inertia,
     tyre friction and contact dimension (:func:`tyre_contact_dimension`), the steering
     limit (joint range), the drive layout (drive motors exist only on the driven wheels,
     added or removed as needed, with the per-wheel share of the torque limit as their
@@ -367,26 +371,28 @@ def build_sedan(config: PlantConfig, physics_dt_s: float,
 
 def _add_anti_roll_bars(root: mjcf.RootElement, config: PlantConfig) -> None:
     """An anti-roll bar per axle with a stiffness: a fixed tendon, length ``q_left -
-    q_right`` of the suspension travels, of stiffness ``K / track^2``, so a roll ``phi =
-    (q_left - q_right) / track`` of the axle stores ``K phi^2 / 2`` (Gillespie 1992, ch. 8:
-    the bar's roll stiffness in parallel with the springs')."""
-    bars = (("front", config.suspension.anti_roll_stiffness_front_nmprad),
-            ("rear", config.suspension.anti_roll_stiffness_rear_nmprad))
-    for axle, stiffness_nmprad in bars:
+    q_right`` of the suspension travels, of stiffness ``K / t^2`` (``t`` that axle's track),
+    so a roll ``phi = (q_left - q_right) / t`` of the axle stores ``K phi^2 / 2`` (Gillespie
+    1992, ch. 8: the bar's roll stiffness in parallel with the springs')."""
+    track_front, track_rear = config.axle_tracks_m
+    bars = (("front", config.suspension.anti_roll_stiffness_front_nmprad, track_front),
+            ("rear", config.suspension.anti_roll_stiffness_rear_nmprad, track_rear))
+    for axle, stiffness_nmprad, track_m in bars:
         if stiffness_nmprad <= 0.0:
             continue
         tendon = root.tendon.add("fixed", name=f"{axle}_anti_roll_bar",
-                                 stiffness=stiffness_nmprad / config.track_m**2)
+                                 stiffness=stiffness_nmprad / track_m**2)
         tendon.add("joint", joint=f"{axle}_left_suspension", coef=1.0)
         tendon.add("joint", joint=f"{axle}_right_suspension", coef=-1.0)
 
 
 def _shape_body(root: mjcf.RootElement, params: VehicleParams) -> None:
-    """Fit the visual body boxes to the wheelbase and track (no mass: explicit inertials)."""
+    """Fit the visual body boxes to the wheelbase and the wider track (no mass: explicit
+    inertials)."""
     height = params.cog_height_m
     length_half = 0.5 * params.wheelbase_m + OVERHANG_M
     centre_x = 0.5 * (params.cog_front_m - params.cog_rear_m)
-    width_half = 0.5 * params.track_m + 0.1
+    width_half = 0.5 * params.widest_track_m + 0.1
     shell = root.find("geom", "chassis_shell")
     shell_bottom, shell_top = GROUND_CLEARANCE_M, GROUND_CLEARANCE_M + 0.65
     shell.pos = [centre_x, 0.0, 0.5 * (shell_bottom + shell_top) - height]

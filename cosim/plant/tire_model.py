@@ -9,31 +9,34 @@ without camber need: no camber, turn slip, inflation pressure, horizontal or ver
 - pure longitudinal slip (4.E9-4.E18)::
 
       F_x0 = D_x sin(C_x atan(B_x k - E_x (B_x k - atan(B_x k))))
-      D_x = mu (1 + p_D2 df_z) F_z                 (4.E13, p_D2 = p_Dx2 / p_Dx1)
+      D_x = mu lambda_mux (1 + p_D2 df_z) F_z      (4.E13, p_D2 = p_Dx2 / p_Dx1)
       K_xk = F_z (p_Kx1 + p_Kx2 df_z) exp(p_Kx3 df_z),   df_z = (F_z - F_z0) / F_z0   (4.E15)
       B_x = K_xk / (C_x D_x)
 
 - pure lateral slip (4.E19-4.E30), with ``a = tan(alpha)`` (MF 6.1's alpha*)::
 
       F_y0 = D_y sin(C_y atan(B_y a - E_y (B_y a - atan(B_y a))))
-      D_y = mu (1 + p_D2 df_z) F_z                 (4.E23, the same relative slope)
+      D_y = mu lambda_muy (1 + p_D2 df_z) F_z      (4.E23, the same relative slope)
       K_ya = p_Ky1 F_z0 sin(2 atan(F_z / (p_Ky2 F_z0)))                           (4.E25)
       B_y = K_ya / (C_y D_y)
 
   The cornering stiffness grows sub-linearly with load (the argument of the sine is held at
   pi/2 above ``F_z = p_Ky2 F_z0``, where the book's curve would turn down); the peak force is
-  ``mu (1 + p_D2 df_z) F_z`` in both directions (one friction coefficient,
-  ``PlantConfig.tire_friction``, and one relative load slope, ``tyre.peak_friction_load_slope``,
-  0 by default: the peak friction then does not fall with load), so ``mu`` sets the peak
-  but not the slope at zero slip (``B = K / (C D)``).
+  ``mu lambda_mu (1 + p_D2 df_z) F_z``: one friction coefficient, ``PlantConfig.tire_friction``,
+  scaled per direction by Pacejka's ``lambda_mux``, ``lambda_muy``
+  (``tyre.longitudinal_friction_scale``, ``tyre.lateral_friction_scale``, 1 by default: the
+  same peak in both directions), and one relative load slope,
+  ``tyre.peak_friction_load_slope`` (0 by default: the peak friction then does not fall
+  with load). ``mu`` sets the peak but not the slope at zero slip (``B = K / (C D)``).
 
 - combined slip, the MF weighting functions (4.E50-4.E67, no shifts, no curvature)::
 
       F_x = G_xa F_x0,  G_xa = cos(r_Cx1 atan(B_xa a)),  B_xa = r_Bx1 cos(atan(r_Bx2 k))
       F_y = G_yk F_y0,  G_yk = cos(r_Cy1 atan(B_yk k)),  B_yk = r_By1 cos(atan(r_By2 a))
 
-  followed by a friction-circle guard: if ``|(F_x, F_y)| > mu F_z`` both are scaled down onto
-  the circle, so the resultant never exceeds ``mu F_z``.
+  followed by a friction-ellipse guard: if ``(F_x / D_x)^2 + (F_y / D_y)^2 > 1`` both are
+  scaled down onto the ellipse (a circle of radius ``mu F_z`` with isotropic friction), so
+  the resultant never exceeds the peaks.
 
 Slip signs: ``k = -V_sx / |V_cx|`` and ``tan(alpha) = -V_sy / |V_cx|``, with ``V_s`` the
 velocity of the wheel's material point at the contact (the slip velocity) and ``V_cx`` the
@@ -139,10 +142,18 @@ MIN_PEAK_FRICTION_FACTOR = 0.1
 
 
 def peak_force_n(params: TyreParams, load_n: float, friction: float) -> float:
-    """``D = mu (1 + p_D2 df_z) F_z``, the peak force in either direction (4.E13, 4.E23) [N]."""
+    """``mu (1 + p_D2 df_z) F_z`` (4.E13, 4.E23) with ``mu = friction`` [N]: the peak in a
+    direction whose friction (``tire_friction`` times that direction's scale) is given."""
     dfz = (load_n - params.nominal_load_n) / params.nominal_load_n
     factor = max(1.0 + params.peak_friction_load_slope * dfz, MIN_PEAK_FRICTION_FACTOR)
     return friction * load_n * factor
+
+
+def peak_forces_n(params: TyreParams, load_n: float, friction: float) -> tuple[float, float]:
+    """``(D_x, D_y)``: the longitudinal and lateral peak forces, ``friction`` scaled by
+    ``lambda_mux`` and ``lambda_muy`` (4.E13, 4.E23) [N]."""
+    return (peak_force_n(params, load_n, friction * params.longitudinal_friction_scale),
+            peak_force_n(params, load_n, friction * params.lateral_friction_scale))
 
 
 def pure_longitudinal_force_n(params: TyreParams, slip_ratio: float, load_n: float,
@@ -155,7 +166,7 @@ def pure_longitudinal_force_n(params: TyreParams, slip_ratio: float, load_n: flo
         slip_stiffness_n(params, load_n),
         params.longitudinal_shape,
         params.longitudinal_curvature,
-        peak_force_n(params, load_n, friction),
+        peak_force_n(params, load_n, friction * params.longitudinal_friction_scale),
     )
 
 
@@ -169,7 +180,7 @@ def pure_lateral_force_n(params: TyreParams, tan_slip_angle: float, load_n: floa
         cornering_stiffness_nprad(params, load_n),
         params.lateral_shape,
         params.lateral_curvature,
-        peak_force_n(params, load_n, friction),
+        peak_force_n(params, load_n, friction * params.lateral_friction_scale),
     )
 
 
@@ -194,24 +205,36 @@ def combined_weights(params: TyreParams, slip_ratio: float,
 
 def combined_forces_n(params: TyreParams, slip_ratio: float, tan_slip_angle: float,
                       load_n: float, friction: float) -> tuple[float, float]:
-    """Steady-state ``(F_x, F_y)`` at combined slip [N], within the friction circle ``mu F_z``.
+    """Steady-state ``(F_x, F_y)`` at combined slip [N], within the friction ellipse of the
+    peaks ``(D_x, D_y)`` (the circle ``mu F_z`` with isotropic friction).
 
-    ``F_x = G_xa F_x0``, ``F_y = G_yk F_y0`` (4.E50, 4.E58), then scaled onto the circle of
-    radius ``mu F_z`` if outside it.
+    ``F_x = G_xa F_x0``, ``F_y = G_yk F_y0`` (4.E50, 4.E58), then scaled onto the ellipse if
+    outside it.
     """
     if load_n < MIN_LOAD_N:
         return 0.0, 0.0
     g_xa, g_yk = combined_weights(params, slip_ratio, tan_slip_angle)
     force_x = g_xa * pure_longitudinal_force_n(params, slip_ratio, load_n, friction)
     force_y = g_yk * pure_lateral_force_n(params, tan_slip_angle, load_n, friction)
-    return _onto_friction_circle(force_x, force_y, peak_force_n(params, load_n, friction))
+    return _onto_friction_ellipse(force_x, force_y, friction_aspect(params),
+                                  peak_forces_n(params, load_n, friction)[1])
 
 
-def _onto_friction_circle(force_x: float, force_y: float, limit_n: float) -> tuple[float, float]:
-    """Scale ``(force_x, force_y)`` down onto the circle of radius ``limit_n`` if outside it."""
-    magnitude2 = force_x * force_x + force_y * force_y
-    if magnitude2 > limit_n * limit_n:
-        scale = limit_n / math.sqrt(magnitude2)
+def friction_aspect(params: TyreParams) -> float:
+    """``lambda_muy / lambda_mux``: the longitudinal force times this is measured against
+    the lateral peak (exactly 1 with isotropic friction)."""
+    return params.lateral_friction_scale / params.longitudinal_friction_scale
+
+
+def _onto_friction_ellipse(force_x: float, force_y: float, aspect: float,
+                           limit_y_n: float) -> tuple[float, float]:
+    """Scale ``(force_x, force_y)`` down onto the ellipse of half-axes ``limit_y_n / aspect``
+    (longitudinal) and ``limit_y_n`` (lateral) if outside it: ``(aspect F_x)^2 + F_y^2 <=
+    D_y^2``, the same as ``(F_x / D_x)^2 + (F_y / D_y)^2 <= 1``."""
+    scaled_x = force_x * aspect
+    magnitude2 = scaled_x * scaled_x + force_y * force_y
+    if magnitude2 > limit_y_n * limit_y_n:
+        scale = limit_y_n / math.sqrt(magnitude2)
         return force_x * scale, force_y * scale
     return force_x, force_y
 
@@ -257,7 +280,8 @@ def patch_step(params: TyreParams, friction: float, load_n: float, forward_speed
     normal load, ``forward_speed_mps`` the wheel centre's forward speed ``V_cx``, and the
     slip velocity ``(V_sx, V_sy)`` of the wheel's material point at the contact. The
     returned forces act on the wheel at the contact point along the heading frame's x and y
-    axes; their resultant is within ``mu F_z``. With no load the carcass unloads (state at
+    axes, within the friction ellipse of the peaks ``(D_x, D_y)`` (``mu F_z`` with isotropic
+    friction). With no load the carcass unloads (state at
     rest, no force). See the module docstring for the equations.
     """
     if load_n < MIN_LOAD_N:
@@ -268,21 +292,21 @@ def patch_step(params: TyreParams, friction: float, load_n: float, forward_speed
     # (Rill's "global derivative"); at zero slip, the slope there.
     slip_ratio = -(slip_velocity_x_mps + state.deflection_rate_x_mps) / speed
     tan_slip_angle = -(slip_velocity_y_mps + state.deflection_rate_y_mps) / speed
-    limit_n = peak_force_n(params, load_n, friction)
+    limit_x_n, limit_y_n = peak_forces_n(params, load_n, friction)
     g_xa, g_yk = combined_weights(params, slip_ratio, tan_slip_angle)
     stiffness_x = slip_stiffness_n(params, load_n)
     stiffness_y = cornering_stiffness_nprad(params, load_n)
     if abs(slip_ratio) > SLIP_EPSILON:
         secant_x = g_xa * _magic_formula(
             slip_ratio, stiffness_x, params.longitudinal_shape,
-            params.longitudinal_curvature, limit_n,
+            params.longitudinal_curvature, limit_x_n,
         ) / slip_ratio
     else:
         secant_x = g_xa * stiffness_x
     if abs(tan_slip_angle) > SLIP_EPSILON:
         secant_y = g_yk * _magic_formula(
             tan_slip_angle, stiffness_y, params.lateral_shape, params.lateral_curvature,
-            limit_n,
+            limit_y_n,
         ) / tan_slip_angle
     else:
         secant_y = g_yk * stiffness_y
@@ -302,9 +326,10 @@ def patch_step(params: TyreParams, friction: float, load_n: float, forward_speed
         state.deflection_y_m, slip_velocity_y_mps, secant_y, stiffness_cy, damping_y, speed,
         dt_s,
     )
-    force_x, force_y = _onto_friction_circle(
+    force_x, force_y = _onto_friction_ellipse(
         stiffness_cx * deflection_x + damping_x * rate_x,
         stiffness_cy * deflection_y + damping_y * rate_y,
-        limit_n,
+        friction_aspect(params),
+        limit_y_n,
     )
     return PatchForces(force_x, force_y, PatchState(deflection_x, deflection_y, rate_x, rate_y))

@@ -33,6 +33,7 @@ from cosim.plant.tire_model import (
     MIN_LOAD_N,
     MIN_PEAK_FRICTION_FACTOR,
     SLIP_EPSILON,
+    friction_aspect,
     relax_deflection,
 )
 from cosim.tyre_params import TyreParams
@@ -62,8 +63,11 @@ def _magic_formula(slip: ca.SX, stiffness: ca.SX, shape: float, curvature: float
     return peak * ca.sin(shape * ca.atan(bs - curvature * (bs - ca.atan(bs))))
 
 
-def _onto_circle(force_x: ca.SX, force_y: ca.SX, limit: ca.SX) -> tuple[ca.SX, ca.SX]:
-    magnitude2 = force_x * force_x + force_y * force_y
+def _onto_ellipse(force_x: ca.SX, force_y: ca.SX, aspect: float,
+                  limit: ca.SX) -> tuple[ca.SX, ca.SX]:
+    """The reference's friction-ellipse guard: ``(aspect F_x)^2 + F_y^2 <= D_y^2``."""
+    scaled_x = force_x * aspect
+    magnitude2 = scaled_x * scaled_x + force_y * force_y
     outside = magnitude2 > limit * limit
     scale = limit / ca.sqrt(ca.if_else(outside, magnitude2, 1.0))
     return ca.if_else(outside, force_x * scale, force_x), ca.if_else(outside, force_y * scale,
@@ -93,8 +97,9 @@ def patch_step_sx(params: TyreParams, friction: float, load: ca.SX, forward_spee
     slip_ratio = -(slip_x + rate_x) / speed
     tan_slip_angle = -(slip_y + rate_y) / speed
     dfz = (safe_load - p.nominal_load_n) / p.nominal_load_n
-    limit = friction * safe_load * ca.fmax(1.0 + p.peak_friction_load_slope * dfz,
-                                           MIN_PEAK_FRICTION_FACTOR)
+    load_factor = ca.fmax(1.0 + p.peak_friction_load_slope * dfz, MIN_PEAK_FRICTION_FACTOR)
+    limit_x = friction * p.longitudinal_friction_scale * safe_load * load_factor
+    limit_y = friction * p.lateral_friction_scale * safe_load * load_factor
     decay_x = p.combined_x_stiffness_decay * slip_ratio
     b_xa = p.combined_x_stiffness / ca.sqrt(1.0 + decay_x * decay_x)
     g_xa = ca.fmax(ca.cos(p.combined_x_shape * ca.atan(b_xa * tan_slip_angle)), 0.0)
@@ -107,9 +112,9 @@ def patch_step_sx(params: TyreParams, friction: float, load: ca.SX, forward_spee
     stiffness_y = (p.cornering_stiffness_max_prad * p.nominal_load_n * 2.0 * ratio
                    / (1.0 + ratio * ratio))
     secant_x = _secant(slip_ratio, g_xa, stiffness_x, p.longitudinal_shape,
-                       p.longitudinal_curvature, limit)
+                       p.longitudinal_curvature, limit_x)
     secant_y = _secant(tan_slip_angle, g_yk, stiffness_y, p.lateral_shape,
-                       p.lateral_curvature, limit)
+                       p.lateral_curvature, limit_y)
     abs_speed = ca.fabs(forward_speed)
     fade = ca.if_else(abs_speed >= p.low_speed_damping_fade_mps, 0.0,
                       0.5 * (1.0 + ca.cos(ca.pi * abs_speed / p.low_speed_damping_fade_mps)))
@@ -121,8 +126,9 @@ def patch_step_sx(params: TyreParams, friction: float, load: ca.SX, forward_spee
                                          dt_s, ca.exp)
     new_y, new_rate_y = relax_deflection(deflection_y, slip_y, secant_y, cy, damping_y, speed,
                                          dt_s, ca.exp)
-    force_x, force_y = _onto_circle(cx * new_x + damping_x * new_rate_x,
-                                    cy * new_y + damping_y * new_rate_y, limit)
+    force_x, force_y = _onto_ellipse(cx * new_x + damping_x * new_rate_x,
+                                     cy * new_y + damping_y * new_rate_y,
+                                     friction_aspect(p), limit_y)
 
     def unless_unloaded(value: ca.SX) -> ca.SX:
         return ca.if_else(loaded, value, 0.0)

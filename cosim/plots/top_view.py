@@ -16,7 +16,7 @@ within centimetres of the path, so one picture cannot show everything. Four pane
    nearest the CoG, with the CTE as an arrow, the estimate and the predicted path.
 
 The footprint is the simulated body's outline (``cosim.plant.sedan_model``): wheelbase plus an
-overhang of ``OVERHANG_M`` at each end, track plus 0.2 m, centred between the axles; its
+overhang of ``OVERHANG_M`` at each end, the wider track plus 0.2 m, centred between the axles; its
 front edge is drawn heavier. Plans without world-frame ``x_m``/``y_m`` states have no
 predicted paths; the panels say so (``dynamic-mpc`` adds them to its path-error plans).
 """
@@ -70,7 +70,9 @@ def footprint(config: dict[str, Any], x_m: float, y_m: float, yaw_rad: float) ->
     plant = config.get("plant", {})
     cog_front, cog_rear = plant.get("cog_front_m", 1.2), plant.get("cog_rear_m", 1.6)
     half_length = 0.5 * (cog_front + cog_rear) + OVERHANG_M
-    half_width = 0.5 * plant.get("track_m", 1.6) + 0.1
+    track = plant.get("track_m", 1.6)  # each axle's own track where it is set (not 0)
+    widest = max(plant.get("track_front_m", 0.0) or track, plant.get("track_rear_m", 0.0) or track)
+    half_width = 0.5 * widest + 0.1
     centre = 0.5 * (cog_front - cog_rear)
     body = np.array([[centre + half_length, half_width], [centre + half_length, -half_width],
                      [centre - half_length, -half_width], [centre - half_length, half_width]])

@@ -74,8 +74,8 @@ class Course:
 
 
 def body_width_m(vehicle: VehicleParams) -> float:
-    """The car's body width: the track plus the body's overhang past the wheels."""
-    return vehicle.track_m + BODY_WIDTH_OVER_TRACK_M
+    """The car's body width: the wider track plus the body's overhang past the wheels."""
+    return vehicle.widest_track_m + BODY_WIDTH_OVER_TRACK_M
 
 
 def resolve_track_file(name: str) -> Path:

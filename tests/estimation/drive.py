@@ -296,22 +296,22 @@ def synthesize(
             measurements.append((index, 2, measurement))
 
     wheel_names = tuple(f"{w}_radps" for w in WHEEL_NAMES)
-    half_track = 0.5 * belief.track_m
+    track_front, track_rear = belief.axle_tracks_m
     for index in range(WHEEL_OFFSET_MS, last_ms + 1, WHEEL_PERIOD_MS):
         vx, vy, r, ax, steer = (
             truth.at(index, n) for n in ("vx_mps", "vy_axis_mps", "yaw_rate_radps", "ax_mps2",
                                          "steer_rad")
         )
         # Front wheels: the centre's velocity along the wheel's own (Ackermann) plane.
-        left, right = ackermann_angles(steer, belief.wheelbase_m, belief.track_m)
+        left, right = ackermann_angles(steer, belief.wheelbase_m, track_front)
         front_lateral = vy + r * belief.cog_front_m
         slip = 1.0 + REAR_DRIVE_SLIP_PER_MPS2 * ax  # driven rear wheels spin faster
         speeds = np.array(
             [
-                (vx - r * half_track) * math.cos(left) + front_lateral * math.sin(left),
-                (vx + r * half_track) * math.cos(right) + front_lateral * math.sin(right),
-                (vx - r * half_track) * slip,
-                (vx + r * half_track) * slip,
+                (vx - 0.5 * r * track_front) * math.cos(left) + front_lateral * math.sin(left),
+                (vx + 0.5 * r * track_front) * math.cos(right) + front_lateral * math.sin(right),
+                (vx - 0.5 * r * track_rear) * slip,
+                (vx + 0.5 * r * track_rear) * slip,
             ]
         )
         radius_m = belief.wheel_radius_m * setup.rolling_radius_scale

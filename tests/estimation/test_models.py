@@ -347,6 +347,18 @@ def test_wheel_speed_model_by_hand() -> None:
     np.testing.assert_allclose(model.evaluate(x)[0], expected, rtol=1e-12)
 
 
+def test_wheel_speed_model_uses_each_axles_believed_track() -> None:
+    """All-wheel drive (all four fused), front track 1.5 m, rear 1.7 m: turning at 0.5 rad/s
+    at 10 m/s unsteered, the wheels' centres move at 10 -+ 0.5 * 0.75 m/s at the front and
+    10 -+ 0.5 * 0.85 m/s at the rear."""
+    belief = VehicleParams(drive="awd", track_front_m=1.5, track_rear_m=1.7)
+    radius = belief.wheel_radius_m
+    model = build_measurement_models(belief, 0.05, 0.5)["wheel_speed"]
+    h, _ = model.evaluate(_state(vx_mps=10.0, yaw_rate_radps=0.5))
+    np.testing.assert_allclose(
+        h, np.array([9.625, 10.375, 9.575, 10.425]) / radius, rtol=1e-12)
+
+
 @pytest.mark.parametrize(("drive", "fused"), [
     ("fwd", ("rear_left_radps", "rear_right_radps")),
     ("awd", ("front_left_radps", "front_right_radps", "rear_left_radps", "rear_right_radps")),

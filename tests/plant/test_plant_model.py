@@ -7,6 +7,8 @@ import numpy as np
 import pytest
 
 from cosim.exceptions import ConfigError
+from cosim.initial_state import InitialState
+from cosim.plant.car import MujocoPlant
 from cosim.plant.sedan_model import (
     ackermann_angles,
     build_sedan,
@@ -16,6 +18,7 @@ from cosim.plant.sedan_model import (
     sedan_xml_and_assets,
     sedan_xml_path,
 )
+from cosim.records import ActuatorCommand
 from cosim.vehicle_params import PlantConfig
 
 DT_S = 0.002
@@ -177,8 +180,9 @@ def test_shipped_xml_is_the_nominal_build(nominal_model: mujoco.MjModel) -> None
 
 @pytest.mark.parametrize(
     "config",
-    [PlantConfig(), PlantConfig(mass_kg=2000.0, cog_front_m=1.4, yaw_inertia_kgm2=3500.0)],
-    ids=["nominal", "heavy-cog-back"],
+    [PlantConfig(), PlantConfig(mass_kg=2000.0, cog_front_m=1.4, yaw_inertia_kgm2=3500.0),
+     PlantConfig(track_front_m=1.52, track_rear_m=1.66)],
+    ids=["nominal", "heavy-cog-back", "axle-tracks"],
 )
 def test_mass_yaw_inertia_and_cog_match_the_config(config: PlantConfig) -> None:
     model = compile_model(config)
@@ -192,7 +196,9 @@ def test_mass_yaw_inertia_and_cog_match_the_config(config: PlantConfig) -> None:
     rear = data.xpos[model.body("rear_right_wheel").id]
     assert front[0] - com[0] == pytest.approx(config.cog_front_m, abs=1e-12)
     assert com[0] - rear[0] == pytest.approx(config.cog_rear_m, abs=1e-12)
-    assert front[1] - rear[1] == pytest.approx(config.track_m, abs=1e-12)
+    track_front, track_rear = config.axle_tracks_m
+    assert 2.0 * front[1] == pytest.approx(track_front, abs=1e-12)
+    assert -2.0 * rear[1] == pytest.approx(track_rear, abs=1e-12)
     assert front[2] == pytest.approx(config.wheel_radius_m, abs=1e-12)
     # Principal axes of the car are the vehicle axes (left-right symmetry).
     assert abs(inertia[0, 1]) < 1e-9 and abs(inertia[1, 2]) < 1e-9
@@ -226,6 +232,30 @@ def test_config_values_reach_the_model() -> None:
         "front_right_drive",
     }
     assert model.opt.timestep == DT_S
+
+
+def test_front_track_and_a_steering_limit_above_one_radian_reach_the_model() -> None:
+    """CommonRoad's BMW 320i tracks (front 1.387 m, rear 1.364 m) and road-wheel limit
+    (1.066 rad) on the default sedan (wheelbase 2.8 m): the steer joints' range is the
+    inner wheel's Ackermann angle at the limit on the front track, atan2(2.8 tan 1.066, 2.8 -
+    0.693 tan 1.066) = 1.2749 rad; the servo steers both wheels by the front track's
+    Ackermann angles."""
+    config = PlantConfig(track_front_m=1.38684, track_rear_m=1.36398, max_steer_rad=1.066)
+    model = compile_model(config)
+    inner, _ = ackermann_angles(1.066, config.wheelbase_m, 1.38684)
+    assert inner == pytest.approx(1.2749, abs=1e-4)
+    np.testing.assert_allclose(model.joint("front_left_steer").range, [-inner, inner])
+    plant = MujocoPlant(config, DT_S, InitialState(speed_mps=2.0))
+    plant.apply(ActuatorCommand(0.0, 0.0, 0.0, 0.3))
+    for _ in range(1000):
+        plant.advance()
+    data = plant.data
+    left = data.qpos[model.jnt_qposadr[model.joint("front_left_steer").id]]
+    right = data.qpos[model.jnt_qposadr[model.joint("front_right_steer").id]]
+    expected = ackermann_angles(0.3, config.wheelbase_m, 1.38684)
+    assert (left, right) == pytest.approx(expected, abs=1e-3)
+    assert (left, right) != pytest.approx(  # not the geometry of track_m (1.6 m)
+        ackermann_angles(0.3, config.wheelbase_m, config.track_m), abs=1e-3)
 
 
 def test_ackermann_inner_wheel_steers_more() -> None:

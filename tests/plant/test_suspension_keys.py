@@ -51,6 +51,18 @@ def test_anti_roll_bars_are_named_tendons_of_stiffness_k_over_track_squared() ->
     assert coefficients == {"front_left_suspension": 1.0, "front_right_suspension": -1.0}
 
 
+def test_each_bar_uses_its_own_axles_track() -> None:
+    """K / t^2 with t the bar's axle's track: the same roll stiffness K per radian of that
+    axle's roll (q_left - q_right) / t."""
+    config = dataclasses.replace(
+        with_suspension(anti_roll_stiffness_front_nmprad=30000.0,
+                        anti_roll_stiffness_rear_nmprad=20000.0),
+        track_front_m=1.5, track_rear_m=1.7)
+    bars = {bar.name: bar.stiffness for bar in build_sedan(config, 0.002).find_all("tendon")}
+    assert bars == pytest.approx({"front_anti_roll_bar": 30000.0 / 1.5**2,
+                                  "rear_anti_roll_bar": 20000.0 / 1.7**2})
+
+
 def steady_yaw_rate(config: PlantConfig) -> float:
     """Yaw rate of a steady 20 m/s turn at about 0.45 g (mean over 3-4 s)."""
     steer = 0.05

@@ -19,6 +19,7 @@ from cosim.plant.tire_model import (
     PATCH_AT_REST,
     PatchState,
     combined_forces_n,
+    combined_weights,
     cornering_stiffness_nprad,
     patch_step,
     pure_lateral_force_n,
@@ -211,3 +212,72 @@ def test_peak_friction_falls_with_load_by_the_slope(load_n: float) -> None:
     assert lateral == pytest.approx(expected, rel=1e-4)
     force = combined_forces_n(tyre, 0.5, 0.5, load_n, 0.9)
     assert math.hypot(*force) <= expected * (1.0 + 1e-12)
+
+
+MU_X_SCALE, MU_Y_SCALE = 1.21, 0.99
+"""Pacejka's reference tyre's own peak frictions (Table A3.1: p_Dx1 1.21, p_Dy1 0.99) as
+the scales lambda_mux, lambda_muy of friction 1."""
+
+
+@pytest.mark.parametrize("load_n", LOADS_N)
+def test_friction_scales_set_each_directions_peak_not_the_stiffness(load_n: float) -> None:
+    """``lambda_mux`` = 1.21, ``lambda_muy`` = 0.99 with ``tire_friction`` 0.8: the peaks are
+    0.968 F_z ahead and 0.792 F_z sideways (Pacejka 2012, 4.E13, 4.E23); the slopes at zero
+    slip (K = B C D) stay those of the tyre."""
+    tyre = dataclasses.replace(TYRE, longitudinal_friction_scale=MU_X_SCALE,
+                               lateral_friction_scale=MU_Y_SCALE)
+    slips = np.linspace(0.0, 1.0, 20001)
+    longitudinal = max(pure_longitudinal_force_n(tyre, s, load_n, 0.8) for s in slips)
+    lateral = max(pure_lateral_force_n(tyre, s, load_n, 0.8) for s in slips)
+    assert longitudinal == pytest.approx(0.8 * MU_X_SCALE * load_n, rel=1e-4)
+    assert lateral == pytest.approx(0.8 * MU_Y_SCALE * load_n, rel=1e-4)
+    eps = 1e-7
+    for force, stiffness in ((pure_longitudinal_force_n, slip_stiffness_n(tyre, load_n)),
+                             (pure_lateral_force_n, cornering_stiffness_nprad(tyre, load_n))):
+        slope = (force(tyre, eps, load_n, 0.8) - force(tyre, -eps, load_n, 0.8)) / (2 * eps)
+        assert slope == pytest.approx(stiffness, rel=1e-6)
+
+
+def test_combined_forces_stay_within_the_friction_ellipse() -> None:
+    """With ``lambda_mux`` 1.21 and ``lambda_muy`` 0.99 the combined force reaches the
+    ellipse ``(F_x / D_x)^2 + (F_y / D_y)^2 = 1`` where the slips are large and never leaves
+    it; a force the isotropic circle of radius D_y would have cut (longitudinal, beyond
+    D_y) passes."""
+    tyre = dataclasses.replace(TYRE, longitudinal_friction_scale=MU_X_SCALE,
+                               lateral_friction_scale=MU_Y_SCALE)
+    load, friction = 4000.0, 0.8
+    peak_x, peak_y = friction * MU_X_SCALE * load, friction * MU_Y_SCALE * load
+    largest = 0.0
+    for kappa, tan_alpha in itertools.product(np.linspace(-1.0, 1.0, 41),
+                                              np.linspace(-1.0, 1.0, 41)):
+        fx, fy = combined_forces_n(tyre, kappa, tan_alpha, load, friction)
+        usage = (fx / peak_x) ** 2 + (fy / peak_y) ** 2
+        assert usage <= 1.0 + 1e-12
+        largest = max(largest, usage)
+    assert largest == pytest.approx(1.0)
+    fx, _ = combined_forces_n(tyre, 0.12, 0.001, load, friction)
+    assert fx > 1.05 * peak_y
+
+
+def test_isotropic_scales_leave_the_friction_circle_bit_for_bit() -> None:
+    """Scales of 1 (the default) are the tyre as it was before them: the weighted pure-slip
+    forces, scaled onto the circle of radius ``mu (1 + p_D2 df_z) F_z`` when outside it,
+    to the last bit (so a default run is unchanged)."""
+    tyre = dataclasses.replace(TYRE, peak_friction_load_slope=-0.1)
+    rng = np.random.default_rng(7)
+    cut = 0
+    for _ in range(400):
+        kappa, tan_alpha = rng.normal(0.0, 0.3, 2)
+        load = float(rng.uniform(500.0, 8000.0))
+        g_xa, g_yk = combined_weights(tyre, kappa, tan_alpha)
+        fx = g_xa * pure_longitudinal_force_n(tyre, kappa, load, 0.7)
+        fy = g_yk * pure_lateral_force_n(tyre, tan_alpha, load, 0.7)
+        dfz = (load - tyre.nominal_load_n) / tyre.nominal_load_n
+        limit = 0.7 * load * (1.0 + tyre.peak_friction_load_slope * dfz)
+        magnitude2 = fx * fx + fy * fy
+        if magnitude2 > limit * limit:
+            scale = limit / math.sqrt(magnitude2)
+            fx, fy = fx * scale, fy * scale
+            cut += 1
+        assert combined_forces_n(tyre, kappa, tan_alpha, load, 0.7) == (fx, fy)
+    assert cut > 20  # the circle's cut is exercised, not only the inside

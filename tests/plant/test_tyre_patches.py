@@ -56,11 +56,14 @@ def test_one_call_equals_patch_step_per_wheel(kind: str, compiled: bool) -> None
     # Every output of every wheel must equal the plain reference's to 1e-9 relative (the
     # same floating-point operations, reordered), evaluated by CasADi and compiled to C.
     rng = np.random.default_rng(KINDS.index(kind))
-    # The rear tyre differs, and its peak friction falls with load (tyre.peak_friction_
-    # load_slope), so the sliding cases check that term too.
+    # The rear tyre differs: its peak friction falls with load (tyre.peak_friction_
+    # load_slope) and differs by direction (tyre.longitudinal_friction_scale and
+    # lateral_friction_scale, a friction ellipse), so the sliding cases check those too.
     front, rear = TyreParams(), dataclasses.replace(TyreParams(),
                                                     cornering_stiffness_max_prad=12.0,
-                                                    peak_friction_load_slope=-0.2)
+                                                    peak_friction_load_slope=-0.2,
+                                                    longitudinal_friction_scale=1.2,
+                                                    lateral_friction_scale=0.95)
     params = (front, front, rear, rear)
     function = tyre_patches_function(params, FRICTION, DT_S, WHEEL_BODIES, ROOT, N_BODIES)
     cvel, xpos = np.zeros((N_BODIES, 6)), np.zeros((N_BODIES, 3))
