@@ -533,6 +533,9 @@ class ProcessModel:
         )
         mean_step = ca.Function("bicycle_mean_step", [x, dt], [x_next])
         noise_function = ca.Function("bicycle_noise", [x, dt], [ca.densify(q)])
+        self._psd_fast = DenseFunction(
+            ca.Function("bicycle_psd", [x], [ca.densify(ca.SX(ca.DM(noise.diagonal()))
+                                                        + ca.diag(self._force_noise(x)))]))
         self._derivative_fast = DenseFunction(self.derivative_function)
         self._step_fast = DenseFunction(self.step_function)
         self._noise_fast = DenseFunction(noise_function)
@@ -612,6 +615,11 @@ class ProcessModel:
         """
         self._check_step(dt_s)
         return self._step_fast(x, dt_s)
+
+    def noise_psd(self, x: np.ndarray) -> np.ndarray:
+        """The white-noise PSD matrix ``W`` at ``x`` (diagonal; some entries grow with the
+        tyre forces, see :class:`ProcessNoise`)."""
+        return self._psd_fast(np.asarray(x, dtype=float).reshape(-1))[0]
 
     def process_noise(self, x: np.ndarray, dt_s: float) -> np.ndarray:
         """The discrete process noise Q of a sub-step, linearised at ``x``."""

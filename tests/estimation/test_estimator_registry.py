@@ -66,6 +66,7 @@ def test_config_fields_carry_units_or_are_flags() -> None:
         "_radps",
         "_mps2",
         "_s",
+        "_s3",
         "m2ps5",
         "rad2ps3",
         "m2ps3",
@@ -77,7 +78,7 @@ def test_config_fields_carry_units_or_are_flags() -> None:
         "_hz",
     )
     dimensionless = ("gate_probability", "roll_damping_ratio", "ukf_alpha", "ukf_beta",
-                     "ukf_kappa")
+                     "ukf_kappa", "lateral_residual_relative")
     hints = typing.get_type_hints(EstimatorConfig)
     for f in dataclasses.fields(EstimatorConfig):
         if hints[f.name] is float and f.name not in dimensionless:

@@ -177,9 +177,10 @@ def test_prediction_does_not_depend_on_how_the_interval_is_split(name: str) -> N
     mean_tolerance = 1e-6 if name == "ekf" else 1e-3
     np.testing.assert_allclose(b.mean / sigma, a.mean / sigma, rtol=0, atol=mean_tolerance)
     # Compared on the scale of the standard deviations (correlation-like units): the
-    # Jacobians are taken at different points, so only nearly equal.
+    # Jacobians and the force-dependent noise PSDs are taken at each sub-step's start, so
+    # only nearly equal.
     scale = np.sqrt(np.outer(np.diag(a.covariance), np.diag(a.covariance)))
-    tolerance = 1e-5 if name == "ekf" else 0.15
+    tolerance = 1e-3 if name == "ekf" else 0.15
     np.testing.assert_allclose(b.covariance / scale, a.covariance / scale, rtol=0, atol=tolerance)
 
 
@@ -351,7 +352,7 @@ def test_a_yaw_kick_the_model_cannot_predict_moves_the_yaw_rate_not_the_gyro_bia
     state, counts = kicked(EstimatorConfig())
     assert counts["surprises"] == 1 and counts["accepted"] == 101
     assert state["yaw_rate_radps"] == pytest.approx(0.8, abs=0.02)
-    assert abs(state["gyro_bias_radps"]) < 1e-3
+    assert abs(state["gyro_bias_radps"]) < 2e-3  # within its prior's sigma
     # The kick began within the last 10 ms step: the EKF moves the yaw by 0.004 rad; the
     # UKF's sigma points, spread over the inflated yaw rate, reach the tyres' saturation in
     # the lateral-acceleration channel and move it by 0.02 rad. Both far below a kick's 0.09.

@@ -160,16 +160,43 @@ def _van_loan(a: np.ndarray, w: np.ndarray, dt_s: float) -> np.ndarray:
 
 @pytest.mark.parametrize("dt_s", [0.002, 0.01, 0.02])
 def test_process_noise_is_the_van_loan_integral(process: ProcessModel, dt_s: float) -> None:
-    w = NOISE.diagonal()
     for x in _random_states(10, seed=3):
         _, _, q = process.step(x, dt_s)
         np.testing.assert_array_equal(process.process_noise(x, dt_s), q)
         _, a = process.derivative(x)
-        reference = _van_loan(a, w, dt_s)
+        reference = _van_loan(a, process.noise_psd(x), dt_s)
         scale = np.sqrt(np.outer(np.diag(reference), np.diag(reference))) + 1e-300
         np.testing.assert_allclose(q / scale, reference / scale, atol=1e-9)
         np.testing.assert_array_equal(q, q.T)
         assert np.linalg.eigvalsh(q).min() > -1e-15
+
+
+def test_noise_psd_grows_with_the_tyre_forces(process: ProcessModel) -> None:
+    """Straight ahead the PSDs are the configured constants; in a turn the residual's grows by
+    ``2 eps^2 / tau * a_y^2``, the heading's by ``yaw_transient_psd_s3 * r'^2`` and the roll
+    acceleration's by ``roll_accel_relative_psd_s * (omega^2 G a_y)^2``, with ``a_y`` and
+    ``r'`` the bicycle's own (from its derivative at that state)."""
+    straight = _state(vx_mps=20.0)
+    np.testing.assert_array_equal(process.noise_psd(straight), NOISE.diagonal())
+    turning = _state(vx_mps=20.0, steer_rad=0.03)
+    w = np.diag(process.noise_psd(turning)) - np.diag(NOISE.diagonal())
+    derivative, _ = process.derivative(turning)
+    yaw_accel = derivative[state_index("yaw_rate_radps")]
+    # Level and at rest in roll, the roll mode is driven by omega^2 G a_y alone: (R2).
+    roll = process.bicycle.roll
+    commanded = derivative[state_index("roll_rate_radps")]
+    lateral = commanded / (roll.angular_frequency_radps**2 * roll.gradient_radpmps2)
+    assert lateral > 1.0 and abs(yaw_accel) > 0.5
+    expected = {
+        "lateral_accel_residual_mps2": (2.0 * CONFIG.lateral_residual_relative**2
+                                        / CONFIG.lateral_residual_time_constant_s * lateral**2),
+        "yaw_rad": CONFIG.yaw_transient_psd_s3 * yaw_accel**2,
+        "roll_rate_radps": CONFIG.roll_accel_relative_psd_s * commanded**2,
+    }
+    for name, value in expected.items():
+        assert w[state_index(name)] == pytest.approx(value, rel=1e-9), name
+    others = [i for i, n in enumerate(STATE_NAMES) if n not in expected]
+    np.testing.assert_array_equal(w[others], 0.0)
 
 
 def test_process_noise_grows_with_the_interval_as_expected(process: ProcessModel) -> None:
