@@ -3,6 +3,7 @@ sensor, the ACC around the LQR path tracker, the MCAP log."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import pytest
@@ -73,6 +74,27 @@ def test_driving_into_a_stopped_car_ends_the_run_as_a_collision(tmp_path: Path) 
     assert result.metrics["gap_min_m"] < 0.25
     events = [m for _, m in iter_messages(result.log_path, "/events")]
     assert [e["kind"] for e in events] == ["collision"] and "lead" in events[0]["detail"]
+
+
+def test_gain_settling_is_the_range_over_the_last_window() -> None:
+    from cosim.simulation.traffic_loop import GainSettling
+
+    settling = GainSettling(window_s=10.0)
+    assert settling.drift_pct() == ()
+    for k in range(301):  # 0 to 30 s at 0.1 s
+        t_s = 0.1 * k
+        # k_x creeps up by 1 % of its final value over the last 10 s; k_vrel oscillates by
+        # +-2 % about 0.5 with a 4 s period (no net change from 20 to 30 s: still unsettled).
+        k_x = 0.0495 + 0.0005 * max(t_s - 20.0, 0.0) / 10.0
+        k_vrel = 0.5 + 0.01 * math.sin(2.0 * math.pi * t_s / 4.0)
+        settling.add(t_s, (0.4, k_x, k_vrel), 2.0 + (t_s >= 20.0))
+        if k == 50:
+            assert not settling.full and math.isnan(settling.objective_mean())
+    k_v, k_x, k_vrel = settling.drift_pct()
+    assert k_v == 0.0
+    assert k_x == pytest.approx(100.0 * 0.0005 / 0.05)
+    assert k_vrel == pytest.approx(100.0 * 0.02 / 0.5, rel=1e-3)
+    assert settling.objective_mean() == 3.0
 
 
 def test_acc_needs_traffic() -> None:

@@ -41,7 +41,7 @@ from dataclasses import dataclass
 from cosim.records import Command, Estimate, Plan
 from cosim.traffic_records import RangeReading
 from tracker.acc_config import AccConfig, EscGainConfig
-from tracker.esc import EscChannel, EscFilters, ExtremumSeeker, warn_breaches
+from tracker.esc import EscAdaptation, EscChannel, EscFilters, ExtremumSeeker, warn_breaches
 from tracker.protocol import Tracker
 from tracker.reference_path import ReferencePath
 
@@ -76,10 +76,36 @@ class AccStatus:
                    for name, value in zip(GAIN_NAMES, self.gain_estimates, strict=True)}}
 
 
-def _channel(name: str, initial: float, gain: EscGainConfig) -> EscChannel:
+def loop_modes_radps(k_v: float, k_x: float, k_vrel: float,
+                     time_gap_s: float) -> tuple[float, float, float]:
+    """The frequency of the loop mode each gain acts through, in :data:`GAIN_NAMES` order
+    [rad/s], on the ACC's design model: a point mass ``dv/dt = a`` (actuator lag and delays,
+    a few tenths of a second, are fast beside these modes).
+
+    Speed mode: ``dv/dt = K_v (v_set - v)``, one pole at ``K_v``. Gap mode: with ``dd/dt =
+    v_lead - v`` and the gap law, the characteristic polynomial is ``s^2 + (K_vrel + h K_x)
+    s + K_x``. With ``K_x`` small its roots split into a fast one near ``K_vrel + h K_x``
+    (set by ``K_vrel``: the relative speed decays) and a slow one near ``K_x / (K_vrel + h
+    K_x)`` (set by ``K_x``: the gap creeps back to the desired gap), so ``K_vrel`` acts
+    through the fast mode and ``K_x`` through the slow one. Complex roots (``K_x`` large):
+    both at the natural frequency ``sqrt(K_x)``.
+    """
+    damping = k_vrel + time_gap_s * k_x
+    discriminant = damping * damping - 4.0 * k_x
+    if discriminant < 0.0:
+        natural = math.sqrt(k_x)
+        return k_v, natural, natural
+    root = math.sqrt(discriminant)
+    return k_v, 0.5 * (damping - root), 0.5 * (damping + root)
+
+
+def _channel(name: str, initial: float, gain: EscGainConfig,
+             plant_frequency_radps: float) -> EscChannel:
     return EscChannel(name=name, initial=initial, low=gain.low, high=gain.high,
                       amplitude=gain.amplitude, frequency_radps=gain.frequency_radps,
-                      demodulation_amplitude=gain.demodulation_amplitude, step=gain.step)
+                      demodulation_amplitude=gain.demodulation_amplitude, step=gain.step,
+                      plant_frequency_radps=plant_frequency_radps,
+                      lowpass_radps=gain.lowpass_radps if gain.lowpass_radps > 0.0 else None)
 
 
 class AccTracker:
@@ -90,15 +116,20 @@ class AccTracker:
         self.config = config
         self.period_s = period_s
         esc = config.esc
-        self._channels = (_channel("k_v", config.k_v, esc.k_v),
-                          _channel("k_x", config.k_x, esc.k_x),
-                          _channel("k_vrel", config.k_vrel, esc.k_vrel))
+        modes = loop_modes_radps(config.k_v, config.k_x, config.k_vrel, config.time_gap_s) \
+            if esc.plant_frequency_radps == 0.0 else (esc.plant_frequency_radps,) * 3
+        self._channels = tuple(
+            _channel(name, getattr(config, name), getattr(esc, name), mode)
+            for name, mode in zip(GAIN_NAMES, modes, strict=True))
         filters = EscFilters(esc.highpass_radps, esc.lowpass_radps, esc.plant_frequency_radps,
                              esc.demodulation_ratio_min)
+        adaptation = EscAdaptation(
+            normalise_by_mean=esc.normalise_by_mean, mean_floor=esc.objective_floor,
+            step_decay_s=esc.step_decay_s if esc.step_decay_s > 0.0 else math.inf)
         self.seeker: ExtremumSeeker | None = None
         if esc.enabled:
             warn_breaches(self._channels, filters, period_s)
-            self.seeker = ExtremumSeeker(self._channels, filters, period_s)
+            self.seeker = ExtremumSeeker(self._channels, filters, period_s, adaptation)
         self.reset()
 
     def reset(self) -> None:

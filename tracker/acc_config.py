@@ -7,14 +7,22 @@ control systems") sets for an ACC (harder braking is the driver's, or an emergen
 The minimum safe gap is ``safe_standstill_gap_m + safe_time_gap_s v`` (2 m and 1 s: half
 the usual recommendation of two seconds); the metrics judge a run against it.
 
-The ESC defaults are slow because the loop they tune is: with gap gains near
-``K_x = 0.05 1/s^2, K_vrel = 0.5 1/s`` the gap-keeping loop's poles sit near 0.1 and 0.4
-rad/s (``plant_frequency_radps = 0.3``), and the lead car's harmonic speed puts a strong
-component into the objective at twice its own frequency (0.63 rad/s for a 20 s period).
-So the perturbations are at 0.1, 0.13 and 0.17 rad/s, both filters at 0.02 rad/s (below the
-smallest spacing, 0.03 rad/s), the objective is taken as a logarithm (``log_objective``),
-and tuning runs only in a steady regime (``max_gap_error_m``, ``max_speed_error_mps``). The
-rules are checked when the ACC starts (:mod:`tracker.esc`).
+The ESC defaults are slow because the loop they tune is (docs/acc.md has the measurements
+behind each choice). The gap-keeping loop has two modes (:func:`tracker.acc.loop_modes_radps`):
+a fast one, about ``K_vrel``, through which ``K_vrel`` acts, and a slow one, about ``K_x /
+K_vrel`` (0.077 rad/s at the ``acc`` scenario's initial gains), through which ``K_x`` acts;
+and the lead car's harmonic speed puts a strong component into the objective at twice its
+own frequency (0.63 rad/s for a 20 s period). So ``K_vrel`` is perturbed at 0.17 rad/s and
+``K_x`` at 0.035 rad/s, below the slow mode (perturbed at 0.13 rad/s, the objective's
+response to ``K_x`` lagged by more than 90 degrees and ESC raised ``K_x`` where the objective
+wanted it lower); ``K_v`` at 0.1 rad/s; the high-pass at 0.01 and the low-pass at
+0.015 rad/s, below every perturbation and spacing. The objective is normalised by its
+running mean (``normalise_by_mean``: a relative gradient whose minimiser is that of the mean
+objective) and the step decays as ``1 / (1 + tau / step_decay_s)`` (the stochastic
+approximation schedule: with a constant step the noisy gradient keeps the gains wandering
+by several per cent). Tuning runs only in a steady regime (``max_gap_error_m``,
+``max_speed_error_mps``). The rules are checked when the ACC starts (:mod:`tracker.esc`),
+each gain's perturbation against the frequency of its own loop mode at the initial gains.
 """
 
 from __future__ import annotations
@@ -36,6 +44,8 @@ class EscGainConfig:
     frequency_radps: float = setting(0.5, low=1e-4, high=1e3, doc="perturbation omega")
     demodulation_amplitude: float = setting(1.0, low=0.0, high=1e6, doc="demodulation b")
     step: float = setting(0.05, low=-1e6, high=1e6, doc="integrator gain k")
+    lowpass_radps: float = setting(
+        0.0, low=0.0, high=1e3, doc="this gain's low-pass cut-off (0: esc.lowpass_radps)")
 
 
 def _gain_config(gain: str, **defaults: float) -> type:
@@ -53,10 +63,11 @@ def _gain_config(gain: str, **defaults: float) -> type:
     return cls
 
 
-EscKvConfig = _gain_config("k_v", high=2.0, amplitude=0.02, frequency_radps=0.1, step=0.01)
-EscKxConfig = _gain_config("k_x", high=1.0, amplitude=0.01, frequency_radps=0.13, step=0.002)
+EscKvConfig = _gain_config("k_v", high=2.0, amplitude=0.02, frequency_radps=0.25, step=0.01)
+EscKxConfig = _gain_config("k_x", high=1.0, amplitude=0.01, frequency_radps=0.035,
+                           step=0.002)
 EscKvrelConfig = _gain_config("k_vrel", high=3.0, amplitude=0.05, frequency_radps=0.17,
-                              step=0.01)
+                              step=0.04, lowpass_radps=0.05)
 
 
 @dataclass(frozen=True)
@@ -64,25 +75,48 @@ class EscConfig:
     """Extremum seeking control tuning the ACC's gains online (:mod:`tracker.esc`)."""
 
     enabled: bool = setting(True, doc="false: the gains stay at their initial values")
-    highpass_radps: float = setting(0.02, low=0.0, high=1e3, doc="high-pass cut-off omega_h")
-    lowpass_radps: float = setting(0.02, low=0.0, high=1e3, doc="low-pass cut-off omega_l")
+    highpass_radps: float = setting(0.01, low=0.0, high=1e3, doc="high-pass cut-off omega_h")
+    lowpass_radps: float = setting(0.015, low=0.0, high=1e3, doc="low-pass cut-off omega_l")
     plant_frequency_radps: float = setting(
-        0.3, low=1e-4, high=1e4, doc="the closed loop's main frequency (tuning rule)")
+        0.0, low=0.0, high=1e4,
+        doc="the plant frequency of the tuning rule 'perturbation slower than the plant', for"
+        " every gain; 0: each gain's own loop mode at the initial gains (tracker.acc."
+        "loop_modes_radps: K_v; the slow gap mode for k_x, the fast one for k_vrel)")
     demodulation_ratio_min: float = setting(
         10.0, low=1.0, high=1e6, doc="tuning rule: b at least this times a")
     log_objective: bool = setting(
-        True, doc="seek on log(J + objective_floor): the same minimum, a gradient relative "
-        "to J, so one step suits objectives of 0.1 and of 1000")
-    objective_floor: float = setting(0.01, low=1e-9, high=1e6, doc="see log_objective")
+        False, doc="seek on log(J + objective_floor) sample by sample: a gradient relative to "
+        "J, but the minimum of E[log J], not of E[J] (normalise_by_mean is the alternative)")
+    normalise_by_mean: bool = setting(
+        True, doc="divide the high-passed J by its running mean (floored at objective_floor):"
+        " a gradient relative to J, so one step suits objectives of 0.1 and of 1000, and the "
+        "minimum of E[J]")
+    objective_floor: float = setting(
+        0.01, low=1e-9, high=1e6, doc="see log_objective and normalise_by_mean")
+    step_decay_s: float = setting(
+        60.0, low=0.0, high=1e9,
+        doc="T: a gain tuned for tau seconds steps k / (1 + tau / T), the stochastic "
+        "approximation schedule that lets a noisy ESC settle (0: a constant step)")
     max_gap_error_m: float = setting(
-        10.0, low=0.0, high=1e4,
+        4.0, low=0.0, high=1e4,
         doc="tune the gap gains only while |gap - desired gap| is below this (a steady regime)")
     max_speed_error_mps: float = setting(
         2.0, low=0.0, high=100.0,
         doc="tune k_v only while |set speed - speed| is below this (a steady regime)")
+    settle_window_s: float = setting(
+        60.0, low=0.0, high=1e6,
+        doc="the gains are judged settled when none moved more than settle_tolerance_pct "
+        "over the run's last settle_window_s (metric esc_gain_drift_pct)")
+    settle_tolerance_pct: float = setting(
+        2.0, low=0.0, high=1e3, doc="see settle_window_s (metric esc_gains_settled)")
     k_v: EscKvConfig = section(EscKvConfig)
     k_x: EscKxConfig = section(EscKxConfig)
     k_vrel: EscKvrelConfig = section(EscKvrelConfig)
+
+    def __post_init__(self) -> None:
+        if self.log_objective and self.normalise_by_mean:
+            raise ConfigError("tracker.acc.esc.log_objective = true and normalise_by_mean = "
+                              "true: expected at most one of them")
 
 
 @dataclass(frozen=True)

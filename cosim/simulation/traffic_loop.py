@@ -30,11 +30,22 @@ sample), ``acc_set_speed_t_s`` (first time within 0.5 m/s of the set speed),
 tracker.acc.esc.max_gap_error_m``: the figure to compare tunings by), ``acc_k_v``, ``acc_k_x``,
 ``acc_k_vrel`` (the final gain estimates), ``acc_targets`` (the range sensor's targets in
 order of appearance, comma-separated) and ``acc_target_changes``.
+
+Whether extremum seeking has settled is judged over the run's last ``W =
+tracker.acc.esc.settle_window_s`` seconds (:class:`GainSettling`): ``acc_<gain>_drift_pct``
+is the range (largest minus smallest) of that gain's estimate over the window, in percent of
+its final value, and ``esc_gain_drift_pct`` the largest of the three; ``esc_gains_settled``
+is true when that is at most ``tracker.acc.esc.settle_tolerance_pct``. A range, not the
+change from the window's start to its end, so that a gain oscillating about a value does not
+pass for settled. NaN (and not settled) without ESC or in a run shorter than the window.
+``acc_objective_final_mean`` is the mean objective over the same window, with or without
+ESC (the figure to compare fixed gains with tuned ones once tuning is over).
 """
 
 from __future__ import annotations
 
 import math
+from collections import deque
 
 import numpy as np
 
@@ -48,7 +59,7 @@ from cosim.sensing.range_sensor import RangeSensor
 from cosim.simulation.running_stats import RunningStats
 from cosim.simulation.scenario_config import ScenarioConfig, steps_per_period
 from cosim.traffic_records import CarPose
-from tracker.acc import AccTracker
+from tracker.acc import GAIN_NAMES, AccTracker
 
 SET_SPEED_TOLERANCE_MPS = 0.5
 """The set speed counts as reached within this [m/s]."""
@@ -58,6 +69,43 @@ MIN_SPEED_FOR_TIME_GAP_MPS = 1.0
 
 MIN_CLOSING_SPEED_MPS = 0.1
 """Time to collision is computed only when closing faster than this [m/s]."""
+
+
+class GainSettling:
+    """The gain estimates and objective of the last ``window_s`` seconds of control steps, and
+    how far each gain moved over them (module docstring)."""
+
+    def __init__(self, window_s: float) -> None:
+        self.window_s = window_s
+        self._rows: deque[tuple[float, tuple[float, ...], float]] = deque()
+        self._first_t_s = math.nan
+
+    def add(self, t_s: float, estimates: tuple[float, ...], objective: float) -> None:
+        if math.isnan(self._first_t_s):
+            self._first_t_s = t_s
+        rows = self._rows
+        rows.append((t_s, estimates, objective))
+        while rows and rows[0][0] < t_s - self.window_s:
+            rows.popleft()
+
+    @property
+    def full(self) -> bool:
+        """Whether the steps seen span the whole window."""
+        return bool(self._rows) and self._rows[-1][0] - self._first_t_s >= self.window_s
+
+    def drift_pct(self) -> tuple[float, ...]:
+        """Each gain's range over the window in percent of its final value (NaN: not full)."""
+        if not self.full:
+            return (math.nan,) * len(self._rows[0][1]) if self._rows else ()
+        values = np.array([estimates for _, estimates, _ in self._rows])
+        final = np.abs(values[-1])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return tuple(float(v) for v in 100.0 * np.ptp(values, axis=0) / final)
+
+    def objective_mean(self) -> float:
+        """Mean finite objective over the window (NaN: not full)."""
+        objectives = [j for _, _, j in self._rows if math.isfinite(j)]
+        return float(np.mean(objectives)) if self.full and objectives else math.nan
 
 
 class CollisionError(Exception):
@@ -107,6 +155,8 @@ class TrafficLoop:
         self.objective_gap = RunningStats()
         self.objective_steady = RunningStats()
         self.steady_gap_error_m = acc.esc.max_gap_error_m
+        self.settling = GainSettling(acc.esc.settle_window_s)
+        self.settle_tolerance_pct = acc.esc.settle_tolerance_pct
         self.set_speed_t_s = math.nan
         self.gap_mode_t_s = math.nan
         self.gap_mode_steps = 0
@@ -223,6 +273,7 @@ class TrafficLoop:
             "desired_gap_m": status.desired_gap_m, "range_rate_mps": status.range_rate_mps,
             "speed_mps": status.speed_mps, "accel_mps2": status.accel_mps2})
         self.mode = status.mode
+        self.settling.add(t_s, status.gain_estimates, status.objective)
         if math.isfinite(status.objective):
             self.objective.add(status.objective)
         if status.mode == "gap":
@@ -247,6 +298,10 @@ class TrafficLoop:
             return values
         status = self.acc.status
         estimates = status.gain_estimates if status is not None else (math.nan,) * 3
+        drifts = self.settling.drift_pct() if self.acc.seeker is not None else ()
+        if len(drifts) != len(GAIN_NAMES):
+            drifts = (math.nan,) * len(GAIN_NAMES)
+        drift = max(drifts) if not any(math.isnan(d) for d in drifts) else math.nan
         values.update({
             "acc_speed_err_rms_mps": self.speed_err_mps.rms,
             "acc_speed_err_final_mps": self.speed_err_mps.last,
@@ -259,5 +314,10 @@ class TrafficLoop:
             "acc_k_v": estimates[0], "acc_k_x": estimates[1], "acc_k_vrel": estimates[2],
             "acc_targets": ",".join(self.targets),
             "acc_target_changes": self.target_changes,
+            **{f"acc_{name}_drift_pct": value
+               for name, value in zip(GAIN_NAMES, drifts, strict=True)},
+            "esc_gain_drift_pct": drift,
+            "esc_gains_settled": bool(drift <= self.settle_tolerance_pct),
+            "acc_objective_final_mean": self.settling.objective_mean(),
         })
         return values

@@ -164,3 +164,35 @@ def test_an_initial_gain_outside_the_esc_bounds_is_refused() -> None:
     with pytest.raises(ConfigError, match="k_x = 2: expected within esc.k_x.low"):
         from_dict(AccConfig, {"k_x": 2.0})
     assert from_dict(AccConfig, {"k_x": 2.0, "esc": {"enabled": False}}).k_x == 2.0
+
+
+@pytest.mark.parametrize(("k_x", "k_vrel"), [(0.02, 0.3), (0.1, 0.6), (0.5, 0.2)])
+def test_the_loop_modes_are_the_design_models_poles(k_x: float, k_vrel: float) -> None:
+    """Gap mode: the roots of s^2 + (K_vrel + h K_x) s + K_x; speed mode: K_v."""
+    from tracker.acc import loop_modes_radps
+
+    k_v, slow, fast = loop_modes_radps(0.4, k_x, k_vrel, 1.8)
+    poles = np.abs(np.roots([1.0, k_vrel + 1.8 * k_x, k_x]))
+    assert k_v == 0.4
+    assert (slow, fast) == pytest.approx(sorted(poles))
+
+
+def test_a_gap_gain_perturbed_faster_than_its_loop_mode_warns() -> None:
+    """With K_x = 0.02, K_vrel = 0.3 the slow gap mode is at 0.077 rad/s: K_x perturbed at
+    0.13 rad/s breaches time-scale separation, at 0.035 rad/s it does not."""
+    with pytest.warns(EscTuningWarning, match="k_x omega = 0.13 rad/s is not below the "
+                                              "frequency of the plant's mode it acts through, "
+                                              "0.07731 rad/s"):
+        acc(k_x=0.02, k_vrel=0.3, esc={"k_x": {"frequency_radps": 0.13}})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        acc(k_x=0.02, k_vrel=0.3, esc={"k_x": {"frequency_radps": 0.035}})
+
+
+def test_log_and_mean_normalisation_are_exclusive() -> None:
+    from cosim.exceptions import ConfigError
+
+    with pytest.raises(ConfigError, match="log_objective = true and normalise_by_mean = true"):
+        from_dict(AccConfig, {"esc": {"log_objective": True}})
+    assert from_dict(AccConfig, {"esc": {"log_objective": True,
+                                         "normalise_by_mean": False}}).esc.log_objective

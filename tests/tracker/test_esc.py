@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 
 import numpy as np
 import pytest
 
+from cosim.exceptions import ConfigError
 from tracker.esc import (
+    EscAdaptation,
     EscChannel,
     EscFilters,
     EscTuningWarning,
@@ -90,11 +93,16 @@ def test_bounds_hold_the_estimate() -> None:
      "distinct perturbation frequencies"),
     ((channel("a", 0.0, 1.0), channel("b", 0.0, 1.04)), FILTERS,
      "low-pass cut-off below the frequency spacing"),
-    ((channel("a", 0.0, 1.0), channel("b", 0.0, 2.0), channel("c", 0.0, 3.0)), FILTERS,
+    ((channel("a", 0.0, 1.0), channel("b", 0.0, 2.3), channel("c", 0.0, 3.3)), FILTERS,
      "no frequency the sum of two others"),
     ((channel("a", 0.0, 1.0, step=0.0),), FILTERS, "positive integrator step"),
     ((channel("a", 0.0, 70.0),), EscFilters(0.2, 0.2, 100.0),
      "perturbation below the Nyquist frequency"),
+    ((channel("a", 0.0, 1.0), channel("b", 0.0, 2.03)), FILTERS, "no frequency twice another"),
+    ((channel("a", 0.0, 1.0), channel("b", 0.0, 1.5), channel("c", 0.0, 2.53)), FILTERS,
+     "no frequency the sum of two others"),
+    ((dataclasses.replace(channel("a", 0.0, 1.0), plant_frequency_radps=0.8),), FILTERS,
+     "perturbation slower than the plant"),
 ])
 def test_each_breached_rule_is_a_warning_that_names_it(channels, filters, rule) -> None:
     with pytest.warns(EscTuningWarning, match=rule):
@@ -105,3 +113,97 @@ def test_a_good_tuning_warns_nothing() -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         warn_breaches((channel("a", 0.0, 1.1), channel("b", 0.0, 1.7)), FILTERS, DT_S)
+
+
+def test_a_channels_own_plant_frequency_replaces_the_shared_one() -> None:
+    """The shared plant frequency is 10 rad/s; a channel acting through a 0.8 rad/s mode
+    breaches the rule at 1 rad/s, one acting through a 2 rad/s mode does not."""
+    slow_mode = dataclasses.replace(channel("a", 0.0, 1.0), plant_frequency_radps=0.8)
+    fast_mode = dataclasses.replace(channel("a", 0.0, 1.0), plant_frequency_radps=2.0)
+    assert any("0.8 rad/s" in b for b in tuning_breaches((slow_mode,), FILTERS, DT_S))
+    assert not tuning_breaches((fast_mode,), FILTERS, DT_S)
+
+
+# A noisy static map: J = (theta - 2)^2 + 0.05 + theta^2 n^2, n ~ N(0, 1) afresh at every
+# sample. E[J] = (theta - 2)^2 + 0.05 + theta^2 is least at theta = 1; E[log J] is least
+# near theta = 1.75 (the logarithm discounts the heavy tail of the noise term).
+NOISY_MINIMUM = 1.0
+NOISY_DURATION_S = 1000.0
+LAST_S = 100.0
+
+
+def seek_noisy(adaptation: EscAdaptation, seed: int, log: bool = False) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    noisy = EscChannel("theta", 0.4, 0.0, 3.0, 0.1, 1.3, 1.0, 1.0)
+    seeker = ExtremumSeeker((noisy,), FILTERS, DT_S, adaptation)
+    estimates = []
+    for k in range(round(NOISY_DURATION_S / DT_S)):
+        t_s = k * DT_S
+        theta = seeker.applied(t_s)[0]
+        objective = (theta - 2.0) ** 2 + 0.05 + theta**2 * rng.standard_normal() ** 2
+        seek_on = math.log(objective + 0.01) if log else objective
+        estimates.append(seeker.update(t_s, seek_on).estimate[0])
+    return np.array(estimates)
+
+
+def last_range(estimates: np.ndarray) -> float:
+    return float(np.ptp(estimates[-round(LAST_S / DT_S):]))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_normalised_with_a_decaying_step_it_settles_at_the_minimum_of_the_mean(
+        seed: int) -> None:
+    estimates = seek_noisy(EscAdaptation(normalise_by_mean=True, step_decay_s=50.0), seed)
+    assert abs(estimates[-1] - NOISY_MINIMUM) < 0.15
+    assert last_range(estimates) < 0.1
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_with_a_constant_step_it_keeps_wandering_on_a_noisy_map(seed: int) -> None:
+    """The same seeker without the decay: its last 100 s span more than 0.3."""
+    estimates = seek_noisy(EscAdaptation(normalise_by_mean=True), seed)
+    assert last_range(estimates) > 0.3
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_seeking_on_log_j_settles_at_the_minimum_of_the_mean_log_instead(seed: int) -> None:
+    estimates = seek_noisy(EscAdaptation(step_decay_s=50.0), seed, log=True)
+    assert last_range(estimates) < 0.1
+    assert estimates[-1] > NOISY_MINIMUM + 0.3
+
+
+def test_tuning_resumes_with_a_fresh_high_pass() -> None:
+    """A stretch with no active channel (an objective of 10^4, falling) leaves no trace: once
+    tuning resumes, the estimates are those of a seeker that never saw it."""
+    optimum = 0.8
+
+    def objective(theta: float) -> float:
+        return 3.0 + (theta - optimum) ** 2
+
+    fresh = ExtremumSeeker((channel("theta", 0.0, 1.0),), FILTERS, DT_S)
+    paused = ExtremumSeeker((channel("theta", 0.0, 1.0),), FILTERS, DT_S)
+    for k in range(200):
+        paused.update(k * DT_S, 1e4 * math.exp(-k * DT_S), active=(False,))
+    for k in range(200, 2000):
+        t_s = k * DT_S
+        first = fresh.update(t_s, objective(fresh.applied(t_s)[0])).estimate
+        second = paused.update(t_s, objective(paused.applied(t_s)[0])).estimate
+        assert first == second
+    assert abs(first[0] - optimum) < abs(0.0 - optimum)
+
+
+def test_a_bad_adaptation_is_refused() -> None:
+    with pytest.raises(ConfigError, match="step decay 0"):
+        EscAdaptation(step_decay_s=0.0)
+    with pytest.raises(ConfigError, match="mean floor -1"):
+        EscAdaptation(mean_floor=-1.0)
+
+
+def test_a_channels_own_low_pass_is_checked_against_its_neighbours() -> None:
+    """The shared low-pass (0.05 rad/s) is below the 0.1 rad/s spacing; a channel of its own
+    at 0.12 rad/s is not, and the breach names it."""
+    fast = dataclasses.replace(channel("b", 0.0, 1.1), lowpass_radps=0.12)
+    breaches = tuning_breaches((channel("a", 0.0, 1.0), fast), FILTERS, DT_S)
+    assert len(breaches) == 1
+    assert "b omega_l = 0.12 rad/s >= |omega_a - omega_b|" in breaches[0]
+    assert not tuning_breaches((channel("a", 0.0, 1.0), channel("b", 0.0, 1.1)), FILTERS, DT_S)
