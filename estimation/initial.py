@@ -58,6 +58,7 @@ def nominal_belief(
         "lateral_accel_residual_mps2": 0.0,
         "gyro_bias_radps": 0.0,
         "ax_bias_mps2": 0.0,
+        "ay_bias_mps2": 0.0,
         "rolling_radius_scale": 1.0,
         "wheel_track_scale": 1.0,
     }
@@ -76,6 +77,7 @@ def nominal_belief(
         "lateral_accel_residual_mps2": config.lateral_residual_sigma_mps2,
         "gyro_bias_radps": config.init_gyro_bias_sigma_radps,
         "ax_bias_mps2": config.init_accel_bias_sigma_mps2,
+        "ay_bias_mps2": config.init_accel_bias_sigma_mps2,
         "rolling_radius_scale": config.init_rolling_radius_scale_sigma,
         "wheel_track_scale": config.init_wheel_track_scale_sigma,
     }

@@ -28,6 +28,7 @@ State (world frame ENU for the pose, vehicle frame ISO 8855 for the rates), name
                                  keeps its rate between samples
 ``gyro_bias_radps``              bias of the IMU's yaw-rate channel
 ``ax_bias_mps2``                 bias of the IMU's longitudinal acceleration channel
+``ay_bias_mps2``                 bias of the IMU's lateral acceleration channel
 ``rolling_radius_scale``         effective rolling radius of the freely rolling wheels over the
                                  believed one (tyre deflection, wear); dimensionless, ~1
 ``wheel_track_scale``            effective track of the freely rolling wheels (between their
@@ -51,7 +52,7 @@ mode, and planar rigid-body kinematics::
     x' = vx cos(yaw) - vy sin(yaw) + w_x,   y' = vx sin(yaw) + vy cos(yaw) + w_y (D6)
     yaw' = r + w_yaw,   vx' = ax + r vy,    ax' = w_j,
     delta' = delta_r + w_delta,   delta_r' = w_dr
-    d' = -d / tau_d + w_d,   b_g' = w_bg,   b_x' = w_bx,   k' = w_k,   k_t' = w_t
+    d' = -d / tau_d + w_d,   b_g' = w_bg,   b_x' = w_bx,   b_y' = w_by,   k' = w_k,   k_t' = w_t
 
 The roll mode (R1)-(R2) is a second-order system driven by the tyres' lateral
 acceleration with the steady roll gradient ``G``, natural frequency ``omega`` and damping
@@ -73,22 +74,27 @@ where ``|a_y| > 4 m/s^2``, (D3') by 0.24 m/s^2.
 ``d`` is ``lateral_accel_residual_mps2``, a first-order Gauss-Markov process: the tyre model
 is trusted on average, but the IMU's lateral acceleration can pull the force it predicts to
 what the car really does, so the side slip keeps being integrated correctly where the model
-is wrong. ``b_g`` and ``b_x`` are the biases of the gyro and of the longitudinal accelerometer
-(random walks, as the sensors' biases are), ``k`` the rolling-radius scale and every ``w``
-white noise of the configured power spectral density (``estimation.config``; the values
-were set from the MuJoCo sedan's truth: e.g. the yaw-acceleration error of the model has a
-PSD of 1e-5 to 4e-4 rad^2/s^3, the residual ``d`` 0.05-0.15 m/s^2 RMS with a correlation
-time of 0.3-0.5 s). Three of the PSDs grow with the tyre forces the model predicts, because
-the model's error does: the residual's with ``(eps a_y)^2`` (a tyre's force known to a
-fraction ``eps`` of itself), the roll acceleration's with the roll acceleration the force
-commands, and the heading's with the bicycle's yaw acceleration squared (a yaw response
-that lags the model's by an uncertain few milliseconds, tyre relaxation and compliance, is
-off by ``tau r'`` while the yaw rate changes, too briefly for the gyro to resolve): with
-constant PSDs the filter was under-confident on the straights and over-confident in the
-swerves of the same lane change (:class:`ProcessNoise`). Without ``b_x`` the accelerometer's
-bias (0.02 m/s^2) makes the speed from the IMU drift against the wheel speeds, and the
-filter explains the conflict with a drifting rolling radius: the speed was off by 0.11 m/s
-(0.5 %) on the lane change with 0.5 m GNSS.
+is wrong. ``b_g``, ``b_x`` and ``b_y`` are the biases of the gyro and of the longitudinal
+and lateral accelerometers (random walks, as the sensors' biases are), ``k`` the
+rolling-radius scale and every ``w`` white noise of the configured power spectral density
+(``estimation.config``; the values were set from the MuJoCo sedan's truth: e.g. the
+yaw-acceleration error of the model has a PSD of 1e-5 to 4e-4 rad^2/s^3, the residual ``d``
+0.05-0.15 m/s^2 RMS with a correlation time of 0.3-0.5 s). Three of the PSDs grow with the
+tyre forces the model predicts, because the model's error does: the residual's with ``(eps
+a_y)^2`` (a tyre's force known to a fraction ``eps`` of itself), the roll acceleration's
+with the roll acceleration the force commands, and the heading's with the bicycle's yaw
+acceleration squared (a yaw response that lags the model's by an uncertain few milliseconds,
+tyre relaxation and compliance, is off by ``tau r'`` while the yaw rate changes, too briefly
+for the gyro to resolve): with constant PSDs the filter was under-confident on the straights
+and over-confident in the swerves of the same lane change (:class:`ProcessNoise`). Without
+``b_x`` the accelerometer's bias (0.02 m/s^2) makes the speed from the IMU drift against the
+wheel speeds, and the filter explains the conflict with a drifting rolling radius: the speed
+was off by 0.11 m/s (0.5 %) on the lane change with 0.5 m GNSS. Without ``b_y`` the lateral
+accelerometer's bias (0.02 m/s^2 turn-on spread) is read as a yaw rate ``b_y / vx`` (about
+1e-3 rad/s at 20 m/s, since ``a_y = vy' + r vx``) and the gyro's bias estimate takes the
+opposite: on the lane change with 0.5 m GNSS it stayed up to 1.2e-3 rad/s (2.7 sigma) off
+for the whole run, the heading drifted on every straight and its NEES share was 2.4 where 1
+is expected; the constant process noises had been raised to hide it.
 
 The road-wheel angle has its rate as a state (an integrated random walk, the
 constant-velocity model of Bar-Shalom, Li, Kirubarajan, "Estimation with Applications to
@@ -148,11 +154,12 @@ the tyre model, and the rate of the road-wheel angle."""
 SENSOR_STATE_NAMES: tuple[str, ...] = (
     "gyro_bias_radps",
     "ax_bias_mps2",
+    "ay_bias_mps2",
     "rolling_radius_scale",
     "wheel_track_scale",
 )
-"""States that describe the sensors: the biases of the gyro and of the longitudinal
-accelerometer, the wheels' effective / believed rolling radius and track."""
+"""States that describe the sensors: the biases of the gyro and of the longitudinal and
+lateral accelerometers, the wheels' effective / believed rolling radius and track."""
 
 STATE_NAMES: tuple[str, ...] = VEHICLE_STATE_NAMES + MODEL_STATE_NAMES + SENSOR_STATE_NAMES
 """Names of the filters' states, in the order of their mean and covariance."""
@@ -471,6 +478,7 @@ class ProcessNoise:
             "lateral_accel_residual_mps2": self.lateral_residual_psd_m2ps5,
             "gyro_bias_radps": self.gyro_bias_psd_rad2ps3,
             "ax_bias_mps2": self.accel_bias_psd_m2ps5,
+            "ay_bias_mps2": self.accel_bias_psd_m2ps5,
             "rolling_radius_scale": self.rolling_radius_scale_psd_1ps,
             "wheel_track_scale": self.wheel_track_scale_psd_1ps,
         }
@@ -593,6 +601,7 @@ class ProcessModel:
                 ),
                 "gyro_bias_radps": 0.0,
                 "ax_bias_mps2": 0.0,
+                "ay_bias_mps2": 0.0,
                 "rolling_radius_scale": 0.0,
                 "wheel_track_scale": 0.0,
             }
@@ -822,7 +831,7 @@ def build_measurement_models(
             [
                 lambda s: s["yaw_rate_radps"] + s["gyro_bias_radps"],
                 lambda s: s["ax_mps2"] + s["ax_bias_mps2"],
-                lambda s: cog_lateral_accel(s, bicycle),
+                lambda s: cog_lateral_accel(s, bicycle) + s["ay_bias_mps2"],
             ],
             model_sigma=(0.0, 0.0, lateral_accel_model_sigma_mps2),
         ),

@@ -236,6 +236,7 @@ class SensorSetup:
     nan_imu_at_s: float | None = None
     gyro_bias_radps: float = 0.0
     ax_bias_mps2: float = 0.0
+    ay_bias_mps2: float = 0.0
     use_imu: bool = True
     use_wheels: bool = True
     use_steering: bool = True
@@ -271,7 +272,7 @@ def synthesize(
 
     imu_names = ("yaw_rate_radps", "ax_mps2", "ay_mps2")
     imu_sigma = np.array([IMU_YAW_RATE_SIGMA_RADPS, IMU_ACCEL_SIGMA_MPS2, IMU_ACCEL_SIGMA_MPS2])
-    imu_bias = np.array([setup.gyro_bias_radps, setup.ax_bias_mps2, 0.0])
+    imu_bias = np.array([setup.gyro_bias_radps, setup.ax_bias_mps2, setup.ay_bias_mps2])
     for index in range(IMU_PERIOD_MS, last_ms + 1, IMU_PERIOD_MS):
         values = np.array([truth.at(index, n) for n in imu_names]) + imu_bias
         values = values + imu_rng.normal(0, imu_sigma)

@@ -140,6 +140,30 @@ def test_constant_gyro_bias_is_learned_within_seconds(name: str) -> None:
         assert _rejections(run) == 0
 
 
+def test_lateral_accelerometer_bias_is_not_read_as_a_yaw_rate(name: str) -> None:
+    """A lateral accelerometer bias of 0.03 m/s^2 (1.5 times the sensor's turn-on spread)
+    with a 0.5 m GNSS, where the heading is weakly observed: ``a_y = vy' + r vx + b_y``, so
+    a filter without ``ay_bias_mps2`` reads the bias as a yaw rate of ``b_y / vx`` (2e-3
+    rad/s at the drive's 15 m/s) and its gyro-bias estimate takes the opposite. With the
+    state, the gyro-bias estimate stays within half of that of the truth (zero) and the ay
+    bias is learned."""
+    ay_bias_mps2 = 0.03
+    setup = SensorSetup(gnss_sigma_m=COARSE_SIGMA_M, ay_bias_mps2=ay_bias_mps2)
+    run = run_filter(lane_change(), estimator=name, setup=setup)
+    later = run.t_s >= 5.0
+    gyro_bias = run.state("gyro_bias_radps")[later]
+    ay_bias = run.state("ay_bias_mps2")
+    print(f"{name}, ay bias {ay_bias_mps2} m/s^2: gyro bias estimate after 5 s within "
+          f"{np.abs(gyro_bias).max():.2e} rad/s of 0, ay bias at the end {ay_bias[-1]:.4f} "
+          f"+- {run.sigma('ay_bias_mps2')[-1]:.4f}")
+    speed_mps = run.state("vx_mps")[later].mean()
+    assert np.abs(gyro_bias).max() < 0.5 * ay_bias_mps2 / speed_mps
+    assert abs(ay_bias[-1] - ay_bias_mps2) < 0.01
+    assert abs(ay_bias[-1] - ay_bias_mps2) < 3 * run.sigma("ay_bias_mps2")[-1]
+    assert run.rmse("yaw_rate_radps", later) < 0.004
+    assert _rejections(run) == 0
+
+
 def test_process_model_predicts_side_slip_from_the_steering() -> None:
     """Open loop, no measurement: the filter's process model, fed the steering angle (its
     ``steer_rad`` state set to the truth's every 10 ms) and the truth's ax, predicts the side
