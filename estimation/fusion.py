@@ -183,7 +183,8 @@ class KalmanFusion(ABC):
     """Sensors without which the filter cannot work (GNSS alone makes every vehicle state
     observable)."""
 
-    supported_sensors: tuple[str, ...] = ("gnss", "imu", "wheel_speed", "steering", "heading")
+    supported_sensors: tuple[str, ...] = ("gnss", "gnss_velocity", "imu", "wheel_speed",
+                                          "steering", "heading")
     """Sensors the filter fuses; measurements of any other sensor are ignored."""
 
     state_names: tuple[str, ...] = STATE_NAMES

@@ -802,6 +802,9 @@ def build_measurement_models(
     """The measurement models of every sensor the filters fuse, by sensor name.
 
     - ``gnss``: CoG position in the world frame.
+    - ``gnss_velocity`` (optional, a receiver's Doppler velocity): the CoG's velocity in the
+      world frame, ``R(yaw) (vx, vy)``; it observes the course ``yaw + vy / vx`` directly, not
+      only through the track of positions.
     - ``imu``: yaw rate plus the gyro bias; the kinematic accelerations of the CoG in the
       vehicle frame: ``ax`` a state plus the accelerometer's bias, ``ay = vy' + r vx``
       (:func:`cog_lateral_accel`, (D4)).
@@ -825,6 +828,14 @@ def build_measurement_models(
     ignored = tuple(f"{w}_radps" for w in WHEEL_NAMES if w not in fused)
     models = [
         _model("gnss", ("x_m", "y_m"), [lambda s: s["x_m"], lambda s: s["y_m"]]),
+        _model(
+            "gnss_velocity",
+            ("v_east_mps", "v_north_mps"),
+            [
+                lambda s: s["vx_mps"] * ca.cos(s["yaw_rad"]) - s["vy_mps"] * ca.sin(s["yaw_rad"]),
+                lambda s: s["vx_mps"] * ca.sin(s["yaw_rad"]) + s["vy_mps"] * ca.cos(s["yaw_rad"]),
+            ],
+        ),
         _model(
             "imu",
             ("yaw_rate_radps", "ax_mps2", "ay_mps2"),

@@ -39,6 +39,9 @@ class NoiseBelief:
     gnss_sigma_m: float = setting(
         0.02, low=1e-6, high=100.0, doc="GNSS position, per horizontal axis (rtk: 2 cm)"
     )
+    gnss_velocity_sigma_mps: float = setting(
+        0.05, low=1e-6, high=10.0, doc="GNSS (Doppler) velocity, per horizontal axis"
+    )
     heading_sigma_rad: float = setting(0.003, low=1e-7, high=1.0, doc="dual-antenna heading")
     gyro_sigma_radps: float = setting(0.005, low=1e-7, high=10.0, doc="yaw-rate white noise")
     gyro_bias_walk_radps: float = setting(
@@ -74,6 +77,10 @@ class NoiseBelief:
         accel = self.accel_sigma_mps2**2
         return {
             "gnss": {"x_m": self.gnss_sigma_m**2, "y_m": self.gnss_sigma_m**2},
+            "gnss_velocity": {
+                "v_east_mps": self.gnss_velocity_sigma_mps**2,
+                "v_north_mps": self.gnss_velocity_sigma_mps**2,
+            },
             "heading": {"yaw_rad": self.heading_sigma_rad**2},
             "imu": {
                 "yaw_rate_radps": self.gyro_sigma_radps**2,

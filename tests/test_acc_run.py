@@ -187,13 +187,14 @@ def test_the_esc_gains_settle_on_the_acc_scenario(tmp_path: Path) -> None:
 
 @pytest.mark.slow
 def test_the_earlier_esc_tuning_fails_the_settling_judgement(tmp_path: Path) -> None:
-    """The same judgement on the tuning it replaced, over the scenario's former 240 s: the
-    start-up check names the rule it breaks, and the gains are still moving at the end."""
+    """The same judgement on the tuning it replaced, over 120 s (half the scenario's former
+    240 s; its gains drift by about 60 % there, against a 2 % tolerance): the start-up check
+    names the rule it breaks, and the gains are still moving at the end."""
     from tracker.esc import EscTuningWarning
 
     with pytest.warns(EscTuningWarning, match="rule 'perturbation slower than the plant': "
                                               "k_x omega = 0.13 rad/s"):
-        result = run_acc(tmp_path, "acc", *ESC_BEFORE_SETTLING, duration_s=240.0)
+        result = run_acc(tmp_path, "acc", *ESC_BEFORE_SETTLING, duration_s=120.0)
     metrics = result.metrics
     assert result.completed
     tolerance = load_config("acc").tracker.acc.esc.settle_tolerance_pct

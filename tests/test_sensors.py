@@ -13,12 +13,15 @@ from cosim.sensing.faults import FaultConfig, FaultInjector
 from cosim.sensing.sensors import (
     GnssConfig,
     GnssSensor,
+    GnssVelocityConfig,
+    GnssVelocitySensor,
     HeadingConfig,
     HeadingSensor,
     ImuConfig,
     ImuSensor,
     WheelSpeedConfig,
     WheelSpeedSensor,
+    make_sensors,
 )
 from cosim.simulation.runner import component_rng
 from cosim.simulation.scenario_config import load_config
@@ -50,6 +53,23 @@ def test_gnss_noise_has_the_configured_spread() -> None:
                        for _ in range(4000)])
     assert np.std(errors, axis=0) == pytest.approx([0.5, 0.5], rel=0.05)
     assert np.abs(np.mean(errors, axis=0)).max() < 0.03
+
+
+def test_gnss_velocity_is_the_world_frame_velocity_with_its_noise() -> None:
+    """Doppler velocity: the vehicle-frame (vx, vy) = (20, 0.1) m/s turned by the yaw into
+    east and north; off unless enabled."""
+    assert GnssVelocityConfig().enabled is False
+    assert "gnss_velocity" not in [s.name for s in make_sensors(load_config("lane-change").sensors)]
+    exact = GnssVelocitySensor(GnssVelocityConfig(sigma_mps=0.0))
+    rng = np.random.default_rng(3)
+    np.testing.assert_allclose(exact.sample(_truth(yaw_rad=0.0), rng).values, [20.0, 0.1])
+    np.testing.assert_allclose(exact.sample(_truth(yaw_rad=math.pi / 2), rng).values,
+                               [-0.1, 20.0], atol=1e-12)
+    noisy = GnssVelocitySensor(GnssVelocityConfig(sigma_mps=0.05))
+    errors = np.array([noisy.sample(_truth(), rng).values - [20.0, 0.1] for _ in range(4000)])
+    assert np.std(errors, axis=0) == pytest.approx([0.05, 0.05], rel=0.05)
+    enabled = load_config("lane-change", overrides=["sensors.gnss_velocity.enabled=true"])
+    assert "gnss_velocity" in [s.name for s in make_sensors(enabled.sensors)]
 
 
 def test_imu_bias_is_constant_without_walk_and_wanders_with_it() -> None:

@@ -26,7 +26,7 @@ from cosim.exceptions import ConfigError
 from cosim.records import Measurement
 
 FAULT_KINDS = ("dropout", "outlier", "stuck", "nan")
-FAULT_SENSORS = ("gnss", "heading", "imu", "wheel_speed", "steering")
+FAULT_SENSORS = ("gnss", "gnss_velocity", "heading", "imu", "wheel_speed", "steering")
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,5 @@
-"""Noisy sensors: GNSS position, IMU (yaw rate and acceleration), wheel speeds, and truth.
+"""Noisy sensors: GNSS position and velocity, IMU (yaw rate and acceleration), wheel speeds,
+and truth.
 
 MuJoCo adds no sensor noise (since 3.1.4); noise, rates and later bias and faults are
 modelled here, as properties of the observation and not of the physics (as dm_control's
@@ -19,7 +20,7 @@ from cosim.config_fields import section, setting
 from cosim.records import WHEEL_NAMES, Measurement, VehicleState
 from cosim.sensing.range_sensor import RadarConfig
 
-Sensor = Union["GnssSensor", "HeadingSensor", "ImuSensor", "WheelSpeedSensor",
+Sensor = Union["GnssSensor", "GnssVelocitySensor", "HeadingSensor", "ImuSensor", "WheelSpeedSensor",
                "SteeringAngleSensor",
                "TruthSensor"]
 
@@ -34,6 +35,18 @@ class GnssConfig:
     enabled: bool = setting(True)
     period_s: float = setting(0.1, low=0.001, high=10.0)
     sigma_m: float = setting(0.02, low=0.0, high=100.0, doc="per horizontal axis")
+
+
+@dataclass(frozen=True)
+class GnssVelocityConfig:
+    """GNSS velocity from the carriers' Doppler shift: the CoG's velocity over the ground in
+    the world frame (east, north). Off by default: not every receiver outputs it."""
+
+    enabled: bool = setting(False)
+    period_s: float = setting(0.1, low=0.001, high=10.0)
+    sigma_mps: float = setting(
+        0.05, low=0.0, high=10.0, doc="per horizontal axis (0.05 m/s: automotive receivers)"
+    )
 
 
 @dataclass(frozen=True)
@@ -91,6 +104,7 @@ class SensorsConfig:
 
     suite: str = setting("rtk", choices=SENSOR_SUITES)
     gnss: GnssConfig = section(GnssConfig)
+    gnss_velocity: GnssVelocityConfig = section(GnssVelocityConfig)
     heading: HeadingConfig = section(HeadingConfig)
     imu: ImuConfig = section(ImuConfig)
     wheel_speed: WheelSpeedConfig = section(WheelSpeedConfig)
@@ -111,7 +125,8 @@ def suite_preset(suite: str) -> dict[str, dict[str, float]]:
     if suite == "gnss":
         return {"gnss": {"sigma_m": 0.5}}
     if suite == "ideal":
-        zero = {"gnss": GnssConfig, "heading": HeadingConfig, "imu": ImuConfig,
+        zero = {"gnss": GnssConfig, "gnss_velocity": GnssVelocityConfig,
+                "heading": HeadingConfig, "imu": ImuConfig,
                 "wheel_speed": WheelSpeedConfig,
                 "steering": SteeringConfig}
         return {
@@ -126,20 +141,52 @@ def _quantise(values: np.ndarray, quantum: float) -> np.ndarray:
     return np.round(values / quantum) * quantum if quantum > 0.0 else values
 
 
-class GnssSensor:
+class _HorizontalGaussianSensor:
+    """Two horizontal world-frame channels with the same white Gaussian noise on each."""
+
+    name: str
+    names: tuple[str, str]
+
+    def __init__(self, period_s: float, sigma: float) -> None:
+        self.period_s = period_s
+        self._sigma = sigma
+        self._covariance = np.eye(2) * sigma**2
+
+    def _exact(self, truth: VehicleState) -> np.ndarray:
+        raise NotImplementedError
+
+    def sample(self, truth: VehicleState, rng: np.random.Generator) -> Measurement:
+        values = self._exact(truth) + rng.normal(0.0, self._sigma, 2)
+        return Measurement(self.name, truth.t_s, self.names, values, self._covariance)
+
+
+class GnssSensor(_HorizontalGaussianSensor):
     """World-frame position of the centre of gravity with white Gaussian noise."""
 
     name = "gnss"
     names = ("x_m", "y_m")
 
     def __init__(self, config: GnssConfig) -> None:
-        self.period_s = config.period_s
-        self._sigma_m = config.sigma_m
-        self._covariance = np.eye(2) * config.sigma_m**2
+        super().__init__(config.period_s, config.sigma_m)
 
-    def sample(self, truth: VehicleState, rng: np.random.Generator) -> Measurement:
-        values = np.array([truth.x_m, truth.y_m]) + rng.normal(0.0, self._sigma_m, 2)
-        return Measurement(self.name, truth.t_s, self.names, values, self._covariance)
+    def _exact(self, truth: VehicleState) -> np.ndarray:
+        return np.array([truth.x_m, truth.y_m])
+
+
+class GnssVelocitySensor(_HorizontalGaussianSensor):
+    """World-frame velocity of the centre of gravity (Doppler) with white Gaussian noise:
+    east ``vx cos(yaw) - vy sin(yaw)``, north ``vx sin(yaw) + vy cos(yaw)``."""
+
+    name = "gnss_velocity"
+    names = ("v_east_mps", "v_north_mps")
+
+    def __init__(self, config: GnssVelocityConfig) -> None:
+        super().__init__(config.period_s, config.sigma_mps)
+
+    def _exact(self, truth: VehicleState) -> np.ndarray:
+        cos_yaw, sin_yaw = np.cos(truth.yaw_rad), np.sin(truth.yaw_rad)
+        return np.array([truth.vx_mps * cos_yaw - truth.vy_mps * sin_yaw,
+                         truth.vx_mps * sin_yaw + truth.vy_mps * cos_yaw])
 
 
 class ImuSensor:
@@ -263,6 +310,8 @@ def make_sensors(config: SensorsConfig) -> list[Sensor]:
     sensors: list[Sensor] = []
     if config.gnss.enabled:
         sensors.append(GnssSensor(config.gnss))
+    if config.gnss_velocity.enabled:
+        sensors.append(GnssVelocitySensor(config.gnss_velocity))
     if config.heading.enabled:
         sensors.append(HeadingSensor(config.heading))
     if config.imu.enabled:

@@ -227,6 +227,8 @@ class SensorSetup:
     """Noise, biases and faults of the synthetic sensors."""
 
     gnss_sigma_m: float = 0.02
+    gnss_velocity_sigma_mps: float | None = None
+    """GNSS (Doppler) velocity with this noise at the fixes' times; None: no such sensor."""
     gnss_outage_s: tuple[float, float] | None = None
     """GNSS silent in [start, end)."""
     gnss_outlier_at_s: float | None = None
@@ -269,6 +271,14 @@ def synthesize(
             values[0] += setup.gnss_outlier_m
         cov = np.eye(2) * setup.gnss_sigma_m**2
         measurements.append((index, 0, Measurement("gnss", t_s, ("x_m", "y_m"), values, cov)))
+        if setup.gnss_velocity_sigma_mps is not None:
+            yaw, vx, vy = (truth.at(index, n) for n in ("yaw_rad", "vx_mps", "vy_mps"))
+            velocity = np.array([vx * math.cos(yaw) - vy * math.sin(yaw),
+                                 vx * math.sin(yaw) + vy * math.cos(yaw)])
+            sigma = setup.gnss_velocity_sigma_mps
+            measurements.append((index, 0, Measurement(
+                "gnss_velocity", t_s, ("v_east_mps", "v_north_mps"),
+                velocity + gnss_rng.normal(0.0, sigma, 2), np.eye(2) * sigma**2)))
 
     imu_names = ("yaw_rate_radps", "ax_mps2", "ay_mps2")
     imu_sigma = np.array([IMU_YAW_RATE_SIGMA_RADPS, IMU_ACCEL_SIGMA_MPS2, IMU_ACCEL_SIGMA_MPS2])

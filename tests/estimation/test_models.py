@@ -36,7 +36,7 @@ CONFIG = EstimatorConfig()
 NOISE = process_noise(CONFIG)
 BELIEF = VehicleParams()
 ROLL = roll_params(CONFIG, BELIEF)
-SENSORS = ("gnss", "imu", "wheel_speed", "steering", "heading")
+SENSORS = ("gnss", "gnss_velocity", "imu", "wheel_speed", "steering", "heading")
 
 
 def _process(tyre_model: str = "saturating", roll: RollParams | None = ROLL) -> ProcessModel:
@@ -343,6 +343,16 @@ def test_measurement_jacobians_match_finite_differences(sensor: str, tyre_model:
         np.testing.assert_array_equal(model.value(x), h)
         numeric = _finite_difference(lambda s: model.evaluate(s)[0], x)
         np.testing.assert_allclose(jacobian, numeric, rtol=1e-6, atol=1e-6)
+
+
+def test_gnss_velocity_model_by_hand() -> None:
+    """Heading 30 deg, 20 m/s forward and 0.5 m/s to the left: east 20 cos - 0.5 sin,
+    north 20 sin + 0.5 cos."""
+    model = build_measurement_models(BELIEF, 0.05, 0.5)["gnss_velocity"]
+    yaw = math.radians(30.0)
+    h, _ = model.evaluate(_state(yaw_rad=yaw, vx_mps=20.0, vy_mps=0.5))
+    np.testing.assert_allclose(h, [20.0 * math.cos(yaw) - 0.5 * math.sin(yaw),
+                                   20.0 * math.sin(yaw) + 0.5 * math.cos(yaw)])
 
 
 def test_wheel_speed_model_by_hand() -> None:
