@@ -70,7 +70,7 @@ def _logged_measurements(path: Path, sensors: list[str]) -> list[Measurement]:
 
 def _costs(config: ScenarioConfig, log: Path, estimator: str) -> dict[str, float]:
     """Median microseconds of one prediction step and of an update per sensor."""
-    sensors = ["gnss", "imu", "wheel_speed", "steering"]
+    sensors = ["gnss", "gnss_velocity", "heading", "imu", "wheel_speed", "steering"]
     measurements = _logged_measurements(log, sensors)
     filter_ = make_estimator(dataclasses.replace(config.estimator, name=estimator),
                              config.initial, config.tracker.model)

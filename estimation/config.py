@@ -178,7 +178,8 @@ class EstimatorConfig:
         0.005, low=0.0, high=10.0, doc="tyre slip, rolling-radius error (at the wheel centre)"
     )
     lateral_accel_model_sigma_mps2: float = setting(
-        0.0, low=0.0, high=50.0, doc="IMU lateral acceleration: accelerometer bias, vibration"
+        0.0, low=0.0, high=50.0,
+        doc="IMU lateral acceleration: vibration, mounting (its bias is a state)",
     )
     steer_model_sigma_rad: float = setting(
         0.0, low=0.0, high=1.0, doc="steering sensor: mean road-wheel angle vs the bicycle's"

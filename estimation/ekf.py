@@ -5,7 +5,7 @@ prediction of the mean, the covariance through ``P = F P' F' + Q``
 (:func:`covariance_prediction`), updates in Joseph form (:func:`joseph_update`), written
 out on the filter's own mean and covariance: filterpy's methods also store copies of
 every intermediate on the filter object at each call, which cost more than the algebra of
-a 16-state filter fed at 300 Hz, and importing filterpy imports ``scipy.stats`` (a third
+a 17-state filter fed at 300 Hz, and importing filterpy imports ``scipy.stats`` (a third
 of a second of every process start). ``tests/estimation/test_ekf_update.py`` checks both
 functions against filterpy's. The models and their exact Jacobians come from
 :mod:`estimation.models` (CasADi); when and whether a measurement is fused (time, gating,
@@ -119,7 +119,7 @@ def joseph_update(
     "Estimation with Applications to Tracking and Navigation", Wiley 2001, eq. 5.2.3-18).
     filterpy's method does the same products and also stores copies of ``z``, ``x`` and
     ``P`` on the filter object at every call, which cost more than the algebra for a
-    16-state filter fed at 300 Hz; ``tests/estimation/test_ekf.py`` checks that both give
+    17-state filter fed at 300 Hz; ``tests/estimation/test_ekf.py`` checks that both give
     the same posterior.
     """
     pht = p @ jacobian.T

@@ -807,7 +807,7 @@ def build_measurement_models(
       only through the track of positions.
     - ``imu``: yaw rate plus the gyro bias; the kinematic accelerations of the CoG in the
       vehicle frame: ``ax`` a state plus the accelerometer's bias, ``ay = vy' + r vx``
-      (:func:`cog_lateral_accel`, (D4)).
+      (:func:`cog_lateral_accel`, (D4)) plus the lateral accelerometer's bias.
     - ``wheel_speed``: spin of the freely rolling wheels (:func:`free_rolling_wheels`,
       :func:`wheel_spin`); the driven wheels' channels are ignored. The difference between
       the left and the right wheel is ``r t / R`` (yaw rate, track, radius): with the gyro

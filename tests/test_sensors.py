@@ -136,6 +136,14 @@ def test_single_outlier_hits_the_first_sample_at_its_time() -> None:
     assert np.array_equal(values[2], [1.0, 2.0])
 
 
+def test_gnss_velocity_outlier_splits_east_and_north() -> None:
+    names = ("v_east_mps", "v_north_mps")
+    injector = FaultInjector((FaultConfig(kind="outlier", sensor="gnss_velocity", start_s=1.0,
+                                          offset=2.0, offset_north=-1.0),), "gnss_velocity", names)
+    velocity = Measurement("gnss_velocity", 1.0, names, np.array([20.0, 0.5]), np.eye(2))
+    assert np.array_equal(injector.apply(velocity).values, [22.0, -0.5])
+
+
 def test_stuck_and_nan_act_on_the_chosen_channel() -> None:
     channels = ("yaw_rate_radps", "ax_mps2", "ay_mps2")
     faults = (FaultConfig(kind="stuck", sensor="imu", start_s=1.0, end_s=3.0,

@@ -6,8 +6,9 @@ after ``start_s`` only. Faults act on the measurement, after the sensor's own no
 estimator sees them exactly as a real receiver would deliver them:
 
 - ``dropout``: no measurement at all (a GNSS outage in a tunnel);
-- ``outlier``: the values jump by ``offset`` (for GNSS, ``offset`` metres east and
-  ``offset_north`` metres north; for other sensors, ``offset`` on every chosen channel);
+- ``outlier``: the values jump by ``offset`` (for GNSS position and velocity, ``offset``
+  east and ``offset_north`` north, in m or m/s; for other sensors, ``offset`` on every
+  chosen channel);
 - ``stuck``: the values freeze at the last good sample;
 - ``nan``: the values are NaN (a driver or bus fault).
 
@@ -37,8 +38,8 @@ class FaultConfig:
     sensor: str = setting("gnss", choices=FAULT_SENSORS)
     start_s: float = setting(0.0, low=0.0, high=1e6)
     end_s: float = setting(-1.0, low=-1.0, high=1e6, doc="-1: only the first sample")
-    offset: float = setting(0.0, low=-1e6, high=1e6, doc="outlier jump (GNSS: east, m)")
-    offset_north: float = setting(0.0, low=-1e6, high=1e6, doc="GNSS outlier, north (m)")
+    offset: float = setting(0.0, low=-1e6, high=1e6, doc="outlier jump (GNSS: east, m or m/s)")
+    offset_north: float = setting(0.0, low=-1e6, high=1e6, doc="GNSS outlier, north (m or m/s)")
     channel: str = setting("", doc="one channel name, or empty for all")
 
     def __post_init__(self) -> None:
@@ -89,7 +90,7 @@ class FaultInjector:
                 self.injected += 1
                 return None
             if fault.kind == "outlier":
-                if measurement.sensor == "gnss" and not fault.channel:
+                if measurement.sensor in ("gnss", "gnss_velocity") and not fault.channel:
                     values = values + np.array([fault.offset, fault.offset_north])
                 else:
                     values = np.where(mask, values + fault.offset, values)

@@ -255,7 +255,7 @@ def synthesize(
 ) -> list[Measurement]:
     """Every sensor's measurements, sorted by time (gnss, imu, steering, wheels on ties)."""
     # One child generator per sensor: turning a sensor off does not change another's noise.
-    gnss_rng, imu_rng, wheel_rng, steering_rng = rng.spawn(4)
+    gnss_rng, imu_rng, wheel_rng, steering_rng, velocity_rng = rng.spawn(5)
     last_ms = len(truth.t_s) - 1
     measurements: list[tuple[int, int, Measurement]] = []
 
@@ -278,7 +278,7 @@ def synthesize(
             sigma = setup.gnss_velocity_sigma_mps
             measurements.append((index, 0, Measurement(
                 "gnss_velocity", t_s, ("v_east_mps", "v_north_mps"),
-                velocity + gnss_rng.normal(0.0, sigma, 2), np.eye(2) * sigma**2)))
+                velocity + velocity_rng.normal(0.0, sigma, 2), np.eye(2) * sigma**2)))
 
     imu_names = ("yaw_rate_radps", "ax_mps2", "ay_mps2")
     imu_sigma = np.array([IMU_YAW_RATE_SIGMA_RADPS, IMU_ACCEL_SIGMA_MPS2, IMU_ACCEL_SIGMA_MPS2])
