@@ -46,7 +46,8 @@ def _run(tree: Path, scenario: str, seed: int, overrides: list[str], out: Path) 
     env = dict(os.environ, PYTHONPATH=str(tree), MUJOCO_GL="disable")
     completed = subprocess.run(
         [sys.executable, "-c", CHILD, scenario, str(seed), str(out), *overrides],
-        env=env, capture_output=True, text=True, check=True)
+        env=env, cwd=tree, capture_output=True, text=True, check=True)
+    # cwd: ``python -c`` puts the working directory first on sys.path, ahead of PYTHONPATH.
     return json.loads(completed.stdout.strip().splitlines()[-1])
 
 
