@@ -419,6 +419,14 @@ def roll_accel(s: Mapping[str, ca.SX], bicycle: BicycleParams) -> ca.SX:
     )
 
 
+def world_velocity(s: Mapping[str, ca.SX]) -> tuple[ca.SX, ca.SX]:
+    """East and north velocity of the CoG, the vehicle-frame ``(vx, vy)`` turned by the
+    heading, (D6) [m/s]."""
+    cos_yaw, sin_yaw = ca.cos(s["yaw_rad"]), ca.sin(s["yaw_rad"])
+    return (s["vx_mps"] * cos_yaw - s["vy_mps"] * sin_yaw,
+            s["vx_mps"] * sin_yaw + s["vy_mps"] * cos_yaw)
+
+
 def cog_lateral_accel(s: Mapping[str, ca.SX], bicycle: BicycleParams) -> ca.SX:
     """Kinematic lateral acceleration of the CoG, ``vy' + r vx = a_t - h p'``: what an IMU
     at the CoG measures [m/s^2]."""
@@ -577,14 +585,14 @@ class ProcessModel:
 
     def _derivative(self, x: ca.SX) -> ca.SX:
         s = _named(x)
-        cos_yaw, sin_yaw = ca.cos(s["yaw_rad"]), ca.sin(s["yaw_rad"])
+        velocity_east, velocity_north = world_velocity(s)
         r = s["yaw_rate_radps"]
         force_front, force_rear = axle_forces(s, self.bicycle)
         bicycle = self.bicycle
         return _stack(
             {
-                "x_m": s["vx_mps"] * cos_yaw - s["vy_mps"] * sin_yaw,  # (D6)
-                "y_m": s["vx_mps"] * sin_yaw + s["vy_mps"] * cos_yaw,
+                "x_m": velocity_east,  # (D6)
+                "y_m": velocity_north,
                 "yaw_rad": r,
                 "vx_mps": s["ax_mps2"] + r * s["vy_mps"],
                 "vy_mps": cog_lateral_accel(s, bicycle) - r * s["vx_mps"],  # (D4)
@@ -831,10 +839,7 @@ def build_measurement_models(
         _model(
             "gnss_velocity",
             ("v_east_mps", "v_north_mps"),
-            [
-                lambda s: s["vx_mps"] * ca.cos(s["yaw_rad"]) - s["vy_mps"] * ca.sin(s["yaw_rad"]),
-                lambda s: s["vx_mps"] * ca.sin(s["yaw_rad"]) + s["vy_mps"] * ca.cos(s["yaw_rad"]),
-            ],
+            [lambda s: world_velocity(s)[0], lambda s: world_velocity(s)[1]],
         ),
         _model(
             "imu",
