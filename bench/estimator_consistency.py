@@ -29,11 +29,11 @@ from pathlib import Path
 
 import numpy as np
 
+from cosim.core.records import Measurement
 from cosim.log.reader import iter_messages
-from cosim.plots.ensemble import EnsembleMember, judge, run_member
-from cosim.records import Measurement
 from cosim.simulation.runner import run
 from cosim.simulation.scenario_config import ScenarioConfig, load_config
+from cosim.sweeps.ensemble import EnsembleMember, judge, run_member
 from estimation.registry import make_estimator
 
 _FIGURES = ("est_pos_rmse_m", "est_yaw_rmse_rad", "est_speed_rmse_mps", "cte_max_m",

@@ -17,10 +17,10 @@ import time
 
 import mujoco
 
-from cosim.initial_state import InitialState
+from cosim.core.initial_state import InitialState
+from cosim.core.records import ActuatorCommand
+from cosim.core.vehicle_params import PlantConfig
 from cosim.plant.car import MujocoPlant
-from cosim.records import ActuatorCommand
-from cosim.vehicle_params import PlantConfig
 
 
 def _rate(function, steps: int) -> float:  # noqa: ANN001 - any zero-argument callable

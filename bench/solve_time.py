@@ -7,7 +7,7 @@ Runs the lane change (MuJoCo sedan, EKF in the loop) in-process for each tracker
 applies to it:
 
 * the NMPCs (``kinematic-nmpc``, ``dynamic-nmpc``): every ``tracker.solver``, and for
-  ``sqp-rti`` every ``tracker.rti_qp_solver`` (:mod:`tracker.nmpc`);
+  ``sqp-rti`` every ``tracker.rti_qp_solver`` (:mod:`tracker.mpc.nmpc`);
 * ``ltv-mpc`` and ``dynamic-mpc``: every ``qp_solver`` of their section, if the tracker
   exists in this checkout;
 
@@ -35,11 +35,11 @@ from tracker.config import TrackerConfig
 from tracker.registry import TRACKER_NAMES
 
 NMPC_NAMES: tuple[str, ...] = ("kinematic-nmpc", "dynamic-nmpc")
-"""Trackers built on :class:`tracker.nmpc.Nmpc`, which take ``tracker.solver``."""
+"""Trackers built on :class:`tracker.mpc.nmpc.Nmpc`, which take ``tracker.solver``."""
 
 QP_TRACKERS: tuple[tuple[str, str, str], ...] = (
-    ("ltv-mpc", "tracker.ltv_mpc_config", "tracker.ltv_mpc.qp_solver"),
-    ("dynamic-mpc", "tracker.dynamic_mpc_config", "tracker.dynamic_mpc.qp_solver"),
+    ("ltv-mpc", "tracker.mpc.ltv_mpc_config", "tracker.ltv_mpc.qp_solver"),
+    ("dynamic-mpc", "tracker.mpc.dynamic_mpc_config", "tracker.dynamic_mpc.qp_solver"),
 )
 """QP-based trackers: name, the module holding its ``QP_SOLVERS``, the setting's key."""
 

@@ -3,7 +3,7 @@
     .venv/bin/python bench/tracker_seeds.py [--seeds 5] [--tracker NAME ...] [--set k=v ...]
 
 The bar for a delta-u MPC on this path (Rajamani's path-error model, see
-:mod:`tracker.dynamic_mpc`), on its own linear model without noise: max lateral deviation 88 mm,
+:mod:`tracker.mpc.dynamic_mpc`), on its own linear model without noise: max lateral deviation 88 mm,
 heading error under 3 deg, 20 m/s reached by 5.8 s, steering within 15 deg, acceleration
 within 3 m/s^2. Here each tracker drives the MuJoCo sedan with the ``rtk`` suite and the EKF
 (the ``lane-change`` scenario) once per seed; the table prints one row per run and the worst
@@ -18,7 +18,7 @@ import math
 import tempfile
 from pathlib import Path
 
-from cosim.exceptions import CosimError
+from cosim.core.exceptions import CosimError
 from cosim.log.reader import iter_messages
 from cosim.simulation.runner import run
 from cosim.simulation.scenario_config import load_config

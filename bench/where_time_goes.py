@@ -41,7 +41,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
-from cosim.records import Estimate, Plan, VehicleState
+from cosim.core.records import Estimate, Plan, VehicleState
 from cosim.simulation import runner
 from cosim.simulation.scenario_config import load_config
 

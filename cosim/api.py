@@ -2,7 +2,7 @@
 
 What ``cosim run`` and ``cosim sweep`` do, callable from a notebook, a tuning script or an
 optimiser, with the same validation and the same errors (every user error is a
-:class:`cosim.exceptions.CosimError` whose message is the line the command line prints)::
+:class:`cosim.core.exceptions.CosimError` whose message is the line the command line prints)::
 
     import cosim
 
@@ -22,7 +22,7 @@ import math
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from cosim.exceptions import ConfigError
+from cosim.core.exceptions import ConfigError
 from cosim.log.safe_file import check_output_path
 from cosim.simulation.runner import RunResult
 from cosim.simulation.runner import run as _run_loop
@@ -49,7 +49,7 @@ def load_config(
     YAML merged over it; then ``seed``, ``duration_s`` (``sim.duration_s``), ``tracker``
     (``tracker.name``), ``estimator`` (``estimator.name``) and the ``overrides``, each
     ``"key.path=value"`` as ``--set`` takes it (the value is read as YAML). Raises
-    :class:`cosim.exceptions.ConfigError` naming the bad key or value and what was expected.
+    :class:`cosim.core.exceptions.ConfigError` naming the bad key or value and what was expected.
     """
     if duration_s is not None and not (math.isfinite(duration_s) and duration_s >= 0):
         raise ConfigError(f"duration_s = {duration_s}: expected a number of seconds >= 0")
@@ -104,7 +104,7 @@ def sweep(
     ``workers`` parallel runs (default: the usable cores), ``backend`` ``process`` or
     ``ray``, ``keep_logs`` keeps each run's MCAP under ``out/logs``, ``resume`` finishes
     an interrupted sweep in ``out``, ``yes`` allows more than 10 000 runs. A bad spec raises
-    :class:`cosim.exceptions.CosimError` before any run; an interrupt re-raises
+    :class:`cosim.core.exceptions.CosimError` before any run; an interrupt re-raises
     ``KeyboardInterrupt`` with the finished rows kept.
 
     The ``process`` backend starts its workers fresh (multiprocessing's ``spawn``): they

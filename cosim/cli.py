@@ -47,7 +47,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
-from cosim.exceptions import CosimError
+from cosim.core.exceptions import CosimError
 
 EXIT_USAGE = 2
 EXIT_IO = 1
@@ -227,7 +227,7 @@ def _command_run(args: argparse.Namespace) -> int:
     config = load_config(args.scenario, args.config, args.overrides, args.seed,
                          args.duration, args.tracker, args.estimator)
     if args.out is None:
-        from cosim.log_names import default_log_name, override_tag
+        from cosim.log.names import default_log_name, override_tag
 
         stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
         tag = override_tag(args.overrides, args.tracker, args.estimator, args.seed,
@@ -374,7 +374,7 @@ def _command_scenarios(args: argparse.Namespace) -> int:
 
 
 def _command_trackers(args: argparse.Namespace) -> int:
-    from cosim.plugins import entry_point_names
+    from cosim.core.plugins import entry_point_names
     from tracker.config import PLUGIN_GROUP
     from tracker.registry import TRACKER_NAMES
 
@@ -384,7 +384,7 @@ def _command_trackers(args: argparse.Namespace) -> int:
 
 
 def _command_estimators(args: argparse.Namespace) -> int:
-    from cosim.plugins import entry_point_names
+    from cosim.core.plugins import entry_point_names
     from estimation.config import ESTIMATOR_NAMES, PLUGIN_GROUP
 
     del args

@@ -8,7 +8,7 @@
 order, same validation) and prints it as YAML; that YAML is itself a scenario file, which
 runs the same configuration. ``keys`` lists every key with its type, unit (from the
 name's suffix: ``_s`` seconds, ``_mps`` m/s ...), default, accepted values and a line of
-documentation, read from the config dataclasses themselves (:func:`cosim.config_fields.
+documentation, read from the config dataclasses themselves (:func:`cosim.core.config_fields.
 key_infos`), so the list cannot drift from what the validation accepts.
 """
 
@@ -17,7 +17,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from cosim.exceptions import ConfigError
+from cosim.core.exceptions import ConfigError
 
 
 def add_parser(commands: Any, parser_class: type[argparse.ArgumentParser]) -> None:
@@ -48,7 +48,7 @@ def resolved_yaml(config: Any) -> str:
     """The configuration as the YAML a run logs (metadata ``run``, ``config_yaml``)."""
     import yaml
 
-    from cosim.config_fields import to_dict
+    from cosim.core.config_fields import to_dict
 
     return yaml.safe_dump(to_dict(config), sort_keys=False)
 
@@ -64,7 +64,7 @@ def _format_default(value: Any) -> str:
 def keys_table(prefix: str = "") -> list[tuple[str, str, str, str, str]]:
     """``(key, unit, default, accepted values, doc)`` rows of every key starting with
     ``prefix``; an unknown prefix is a :class:`ConfigError` naming the sections."""
-    from cosim.config_fields import key_infos
+    from cosim.core.config_fields import key_infos
     from cosim.simulation.scenario_config import ScenarioConfig
 
     infos = key_infos(ScenarioConfig)

@@ -1,8 +1,8 @@
 """Configuration of a state estimator: the ``estimator:`` section of a scenario.
 
-Every key is a validated :func:`cosim.config_fields.setting`, so a scenario file or the
+Every key is a validated :func:`cosim.core.config_fields.setting`, so a scenario file or the
 command line (``--set estimator.gate=false``, ``--set estimator.jerk_psd_m2ps5=10``) is
-checked by :func:`cosim.config_fields.from_dict` and a bad value names its dotted key.
+checked by :func:`cosim.core.config_fields.from_dict` and a bad value names its dotted key.
 
 Process noise is given as continuous-time power spectral densities (PSD) of white noise
 driving one state each; the filter integrates them over every prediction interval
@@ -21,9 +21,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from cosim.config_fields import mapping, section, setting
-from cosim.exceptions import ConfigError
-from cosim.plugins import entry_point_names, is_import_path
+from cosim.core.config_fields import mapping, section, setting
+from cosim.core.exceptions import ConfigError
+from cosim.core.plugins import entry_point_names, is_import_path
 from estimation.models import TYRE_MODELS
 from estimation.noise_config import NoiseBelief
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from cosim.exceptions import CosimError
+from cosim.core.exceptions import CosimError
 
 
 class EstimatorError(CosimError):

@@ -31,10 +31,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import chdtri
 
-from cosim.exceptions import ConfigError
-from cosim.initial_state import InitialState
-from cosim.records import Estimate, Measurement
-from cosim.vehicle_params import VehicleParams
+from cosim.core.exceptions import ConfigError
+from cosim.core.initial_state import InitialState
+from cosim.core.records import Estimate, Measurement
+from cosim.core.vehicle_params import VehicleParams
 from estimation.config import EstimatorConfig
 from estimation.errors import EstimatorError
 from estimation.initial import initial_belief

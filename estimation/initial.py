@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cosim.initial_state import InitialState
+from cosim.core.initial_state import InitialState
 from estimation.config import EstimatorConfig
 from estimation.models import STATE_NAMES, VEHICLE_STATE_NAMES, wrap_angle
 

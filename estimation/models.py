@@ -36,7 +36,7 @@ State (world frame ENU for the pose, vehicle frame ISO 8855 for the rates), name
 ===============================  ============================================================
 
 Process model: the dynamic bicycle (Rajamani, "Vehicle Dynamics and
-Control", 2nd ed., section 2.3; the equations of :mod:`tracker.dynamic_bicycle`, written
+Control", 2nd ed., section 2.3; the equations of :mod:`tracker.models.dynamic_bicycle`, written
 again here so that the filter can guard the slip angles at low speed and add what follows),
 with the measured steering angle as its input through the state ``steer_rad``, a body roll
 mode, and planar rigid-body kinematics::
@@ -127,8 +127,8 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from cosim.records import WHEEL_NAMES
-from cosim.vehicle_params import VehicleParams
+from cosim.core.records import WHEEL_NAMES
+from cosim.core.vehicle_params import VehicleParams
 
 VEHICLE_STATE_NAMES: tuple[str, ...] = (
     "x_m",

@@ -28,8 +28,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from cosim.config_fields import setting
-from cosim.records import WHEEL_NAMES
+from cosim.core.config_fields import setting
+from cosim.core.records import WHEEL_NAMES
 
 
 @dataclass(frozen=True)

@@ -2,7 +2,7 @@
 
 A name that is not built in is an estimator from outside cosim: an import path
 ``my_pkg.my_module:MyFilter`` or an entry point of the group ``cosim.estimators``
-(:mod:`cosim.plugins`). Its class is built as the built-in ones are,
+(:mod:`cosim.core.plugins`). Its class is built as the built-in ones are,
 ``cls(config, initial, belief, t0_s=..., rng=...)`` (its own settings in
 ``config.params``; ``rng`` draws its initial estimate), and must
 have ``predict(t_s)``, ``estimate() -> Estimate`` and ``update(measurement)`` returning an
@@ -18,10 +18,10 @@ from typing import TYPE_CHECKING, Any, TypeAlias
 
 import numpy as np
 
-from cosim.exceptions import ConfigError, PluginError
-from cosim.initial_state import InitialState
-from cosim.plugins import load_object
-from cosim.vehicle_params import VehicleParams
+from cosim.core.exceptions import ConfigError, PluginError
+from cosim.core.initial_state import InitialState
+from cosim.core.plugins import load_object
+from cosim.core.vehicle_params import VehicleParams
 from estimation.config import ESTIMATOR_NAMES, PLUGIN_GROUP, EstimatorConfig, is_plugin_name
 from estimation.ekf import Ekf
 from estimation.truth import TruthEstimator

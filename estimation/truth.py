@@ -1,7 +1,7 @@
 """The debugging estimator: hands the true state through as the estimate.
 
 It reads the noise-free ``truth`` sensor (every scalar field of
-:class:`cosim.records.VehicleState`) and returns it with a zero covariance (it is certain;
+:class:`cosim.core.records.VehicleState`) and returns it with a zero covariance (it is certain;
 consistency figures such as NEES are undefined for it), so a tracker can be tested without
 estimation error. Between two truth samples the motion is extrapolated with the measured
 accelerations and yaw rate. Every other sensor is ignored (not a rejection).
@@ -14,9 +14,9 @@ import math
 
 import numpy as np
 
-from cosim.initial_state import InitialState
-from cosim.records import Estimate, Measurement
-from cosim.vehicle_params import VehicleParams
+from cosim.core.initial_state import InitialState
+from cosim.core.records import Estimate, Measurement
+from cosim.core.vehicle_params import VehicleParams
 from estimation.config import EstimatorConfig
 from estimation.models import VEHICLE_STATE_NAMES, wrap_angle
 from estimation.timing import forward_interval_s, is_stale

@@ -17,7 +17,7 @@ import pytest
 import cosim
 from cosim import api
 from cosim.cli import main
-from cosim.exceptions import CosimError
+from cosim.core.exceptions import CosimError
 from cosim.simulation.metrics import WALL_CLOCK_KEYS
 
 ROOT = Path(__file__).resolve().parents[1]

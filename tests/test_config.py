@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from cosim.exceptions import ConfigError, RateError
+from cosim.core.exceptions import ConfigError, RateError
 from cosim.simulation.scenario_config import builtin_scenarios, load_config
 
 

@@ -7,16 +7,16 @@ import math
 import numpy as np
 import pytest
 
-from cosim.config_fields import from_dict
-from cosim.initial_state import InitialState
-from cosim.records import VehicleState
+from cosim.core.config_fields import from_dict
+from cosim.core.initial_state import InitialState
+from cosim.core.records import VehicleState
+from cosim.core.vehicle_params import PlantConfig
 from cosim.simulation.course import Course, TrackBounds, build_course
 from cosim.simulation.course_metrics import CourseMonitor
 from cosim.simulation.metrics import MetricsAccumulator
 from cosim.simulation.path_config import PathConfig
-from cosim.vehicle_params import PlantConfig
+from tracker.paths.reference_path import ReferencePath
 from tracker.paths.speed_profile import TimedSpeed
-from tracker.reference_path import ReferencePath
 
 
 def _state(t: float, x: float = 0.0, y: float = 0.0, yaw: float = 0.0, vx: float = 10.0,

@@ -14,7 +14,7 @@ from cosim.plant.disturbances import DisturbanceConfig, schedule
 from cosim.simulation.runner import RunResult, component_rng
 from cosim.simulation.scenario_config import load_config
 from tests.conftest import run_scenario
-from tracker.reference_path import ReferencePath
+from tracker.paths.reference_path import ReferencePath
 
 
 def test_the_tracker_believes_the_plant_delay_unless_told_otherwise() -> None:
@@ -92,7 +92,7 @@ def test_heading_steps_are_drawn_per_seed_within_their_bound() -> None:
 
 
 def test_a_fixed_step_larger_than_its_bound_is_refused() -> None:
-    from cosim.exceptions import ConfigError
+    from cosim.core.exceptions import ConfigError
 
     with pytest.raises(ConfigError, match="angle_rad = 0.2"):
         DisturbanceConfig(random=False, angle_rad=0.2, max_rad=0.1)

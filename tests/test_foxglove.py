@@ -10,12 +10,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from cosim.core.records import Estimate, Plan, VehicleState
+from cosim.core.vehicle_params import VehicleParams
 from cosim.log import foxglove
 from cosim.log.reader import iter_messages, iter_topics, read_summary
 from cosim.plant.car import _quat_zyx
-from cosim.records import Estimate, Plan, VehicleState
 from cosim.simulation.runner import RunResult
-from cosim.vehicle_params import VehicleParams
 from tests.conftest import run_scenario
 
 LAYOUT = Path(__file__).resolve().parents[1] / "examples" / "foxglove-layout.json"
@@ -278,7 +278,7 @@ def test_log_times_are_the_epoch_plus_sim_time(short_run: RunResult) -> None:
 
 
 def test_the_epoch_is_configurable_and_checked(tmp_path: Path) -> None:
-    from cosim.exceptions import ConfigError
+    from cosim.core.exceptions import ConfigError
     from cosim.simulation.scenario_config import load_config
 
     result = run_scenario(tmp_path, "lane-change", "sim.epoch=2030-06-01T12:00:00+02:00",

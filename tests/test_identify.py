@@ -22,7 +22,8 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from cosim.exceptions import ConfigError
+from cosim.core.exceptions import ConfigError
+from cosim.core.vehicle_params import VehicleParams
 from cosim.identification import IdentifiedModel
 from cosim.identification.data import IdentificationError, LateralResponse, SteadyTurn, StepResponse
 from cosim.identification.fits import (
@@ -31,9 +32,8 @@ from cosim.identification.fits import (
     fit_wheelbase,
     simulate_first_order,
 )
-from cosim.vehicle_params import VehicleParams
 from tests.named_vectors import named_vector
-from tracker.dynamic_bicycle import (
+from tracker.models.dynamic_bicycle import (
     INPUT,
     INPUT_NAMES,
     LATERAL_STATE,

@@ -16,11 +16,11 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 
 LAYERS: dict[str, int] = {
-    "cosim.cli": 6,
-    "cosim.api": 6,
+    "cosim.cli": 7,
+    "cosim.api": 7,
+    "cosim.sweeps": 6,
     "cosim.config_cli": 5,
     "cosim.identification": 5,
-    "cosim.sweeps": 5,
     "cosim.gym": 5,
     "cosim.plots": 5,
     "cosim.simulation": 4,

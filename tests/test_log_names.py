@@ -7,7 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from cosim.log_names import MAX_TAG_CHARS, default_log_name, override_tag
+from cosim.log.names import MAX_TAG_CHARS, default_log_name, override_tag
 
 COSIM = str(Path(sys.executable).with_name("cosim"))
 SAFE = re.compile(r"[A-Za-z0-9.+-]*")

@@ -11,8 +11,8 @@ from pathlib import Path
 import pytest
 
 from cosim.cli import EXIT_BAD_OUTCOME, main
+from cosim.core.records import VehicleState
 from cosim.log.reader import iter_messages
-from cosim.records import VehicleState
 from cosim.simulation.outcome import OutcomeConfig, OutcomeMonitor
 from cosim.simulation.runner import run
 from cosim.simulation.scenario_config import load_config

@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from cosim.records import VehicleState
+from cosim.core.records import VehicleState
+from cosim.core.traffic_records import CarPose
 from cosim.sensing.range_sensor import RadarConfig, RangeSensor
-from cosim.traffic_records import CarPose
 
 FRONT_M = 2.0
 

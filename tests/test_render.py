@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from cosim.cli import main
-from cosim.exceptions import GlBackendError, RenderError
+from cosim.core.exceptions import GlBackendError, RenderError
 from cosim.plots import render
 from cosim.plots.render import RenderOptions
 from cosim.simulation.runner import RunResult

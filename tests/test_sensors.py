@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from cosim.exceptions import ConfigError
-from cosim.records import Measurement, VehicleState
+from cosim.core.exceptions import ConfigError
+from cosim.core.records import Measurement, VehicleState
 from cosim.sensing.faults import FaultConfig, FaultInjector
 from cosim.sensing.sensors import (
     GnssConfig,

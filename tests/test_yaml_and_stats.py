@@ -8,12 +8,12 @@ import math
 import numpy as np
 import pytest
 
-from cosim.exceptions import ConfigError
+from cosim.core.exceptions import ConfigError
+from cosim.core.yaml_io import SHOWN_CHARS, loads, shown
 from cosim.simulation.running_stats import RunningStats, Samples
 from cosim.simulation.scenario_config import load_config
 from cosim.sweeps.spec import load_spec
-from cosim.yaml_io import SHOWN_CHARS, loads, shown
-from tracker.reference_path import ReferencePath
+from tracker.paths.reference_path import ReferencePath
 
 
 @pytest.mark.parametrize(("text", "value"), [

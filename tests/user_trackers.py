@@ -9,8 +9,8 @@ from typing import Any
 
 import numpy as np
 
-from cosim.config_fields import setting
-from cosim.records import Command, Estimate, Plan
+from cosim.core.config_fields import setting
+from cosim.core.records import Command, Estimate, Plan
 
 
 def _plan(t_s: float, accel_mps2: float, steer_rad: float) -> Plan:

@@ -1,8 +1,8 @@
 """Configuration of a path tracker: the ``tracker:`` section of a scenario.
 
-Every key is a validated :func:`cosim.config_fields.setting`, so a scenario file or the
+Every key is a validated :func:`cosim.core.config_fields.setting`, so a scenario file or the
 command line (``--set tracker.horizon=30``, ``--set tracker.weights.cte=5``) is checked by
-:func:`cosim.config_fields.from_dict` and a bad value names its dotted key.
+:func:`cosim.core.config_fields.from_dict` and a bad value names its dotted key.
 
 The cost the weights enter (a tracking MPC cost: Rawlings, Mayne, Diehl 2017; Kong et al.
 2015) is integrated over the horizon::
@@ -20,7 +20,7 @@ off). Each weight multiplies the square of an SI quantity per second of horizon,
 Default tuning, shared by both NMPCs and made for the default tracker ``dynamic-nmpc``
 (measured on the MuJoCo sedan with Pacejka tyres and the EKF in the loop, stretched double
 lane change at 20 m/s from 15 m/s, about 0.5 g; max CTE for seeds 0/1/2, ``plant.mass_kg=
-2000``, ``plant.tire_friction=0.7``; details in :mod:`tracker.dynamic_nmpc`):
+2000``, ``plant.tire_friction=0.7``; details in :mod:`tracker.mpc.dynamic_nmpc`):
 
 * ``steer_rate = 3`` against ``cte = 10``. The dynamic model carries the yaw and sideslip
   dynamics and the steering actuator, so the loop can be much faster than the kinematic
@@ -44,11 +44,11 @@ lane change at 20 m/s from 15 m/s, about 0.5 g; max CTE for seeds 0/1/2, ``plant
   ``lane-change-limit``) it keeps the car from spinning (0.70 m instead of 15.7 m).
 * ``latency_compensation = true``, ``latency_s`` = ``plant.actuator_delay_s`` unless set:
   the command's transport delay, which no model contains. The estimate is predicted over it
-  with the commands already in the delay line (:mod:`tracker.delay_line`). With a 100 ms
+  with the commands already in the delay line (:mod:`tracker.mpc.delay_line`). With a 100 ms
   delay (seed 0): 0.073 m against 0.057 m without delay; without compensation the car
   spins (8.2 m). The steering actuator's lag is not latency: the dynamic model contains
   it, and the kinematic model, which lacks it, adds ``model.steer_time_constant_s`` to the
-  delay it predicts over (see :mod:`tracker.kinematic_nmpc`).
+  delay it predicts over (see :mod:`tracker.mpc.kinematic_nmpc`).
 * ``reference = spline`` with ``curvature_feedforward``: a cubic fitted in the vehicle
   frame (``cubic-polynomial``) gives 0.047 / 0.063 / 0.074 m (seeds 0/1/2, dynamic-nmpc)
   against 0.058 / 0.046 / 0.047 m; the feed-forward changes less than a millimetre on
@@ -58,13 +58,13 @@ lane change at 20 m/s from 15 m/s, about 0.5 g; max CTE for seeds 0/1/2, ``plant
   one steering swing of the lane change (longer horizons at higher speed). 20
   stages: 0.094 m; 30 stages: 0.052 m at about 15 % more solve time.
 * ``solver = fatrop``: IPOPT's optimum (the same NLP to the same tolerance; plans agree
-  to 1e-4 along a closed-loop lane change, ``tests/tracker/test_nmpc_solvers.py``) 2-3
+  to 1e-4 along a closed-loop lane change, ``tests/tracker/mpc/test_nmpc_solvers.py``) 2-3
   times faster, each interior-point iteration a Riccati recursion over the stages.
   ``ipopt`` stays selectable as the reference (``--set tracker.solver=ipopt``);
   ``sqp-rti`` (one Gauss-Newton SQP step per control step, hpipm for the QP) gives the
   same max CTE on the lane change (seeds 0/1/2, both NMPCs) 6-10 times faster:
   ``kinematic-nmpc`` at N = 20 0.5-0.6 ms median against 2.4-3.5 ms; ``dynamic-nmpc``
-  0.7-0.9 ms against 5-10 ms (a loaded 2-core machine; table in :mod:`tracker.nmpc`).
+  0.7-0.9 ms against 5-10 ms (a loaded 2-core machine; table in :mod:`tracker.mpc.nmpc`).
 """
 
 from __future__ import annotations
@@ -73,16 +73,16 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from cosim.config_fields import mapping, section, setting
-from cosim.exceptions import ConfigError
-from cosim.plugins import entry_point_names, is_import_path
-from cosim.vehicle_params import MAX_STEER_BOUND_RAD, VehicleParams
-from tracker.acc_config import AccConfig
+from cosim.core.config_fields import mapping, section, setting
+from cosim.core.exceptions import ConfigError
+from cosim.core.plugins import entry_point_names, is_import_path
+from cosim.core.vehicle_params import MAX_STEER_BOUND_RAD, VehicleParams
+from tracker.acc.config import AccConfig
 from tracker.baselines.config import BaselineConfig
-from tracker.dynamic_mpc_config import DynamicMpcConfig
-from tracker.grip_config import GripConfig
-from tracker.horizon_reference import REFERENCE_KINDS
-from tracker.ltv_mpc_config import LtvMpcConfig
+from tracker.mpc.dynamic_mpc_config import DynamicMpcConfig
+from tracker.mpc.grip_config import GripConfig
+from tracker.mpc.horizon_reference import REFERENCE_KINDS
+from tracker.mpc.ltv_mpc_config import LtvMpcConfig
 
 TRACKER_CHOICES: tuple[str, ...] = (
     "kinematic-nmpc", "dynamic-nmpc", "dynamic-mpc", "ltv-mpc", "open-loop",
@@ -166,14 +166,14 @@ class TrackerConfig:
     reference: str = setting(
         "spline",
         choices=REFERENCE_KINDS,
-        doc="reference over the horizon (tracker.horizon_reference): spline, the path "
+        doc="reference over the horizon (tracker.mpc.horizon_reference): spline, the path "
         "itself at the arc lengths to be covered; cubic-polynomial, a cubic "
         "fitted to the waypoints in the vehicle frame",
     )
     kinematic_understeer: bool = setting(
         True,
         doc="kinematic-nmpc: turn at the steady-state yaw rate and slip of the belief's "
-        "linear tyres (tracker.kinematic_bicycle (U1)-(U2)) instead of the kinematic ones; "
+        "linear tyres (tracker.models.kinematic_bicycle (U1)-(U2)) instead of the kinematic ones; "
         "false is the pure kinematic model (max CTE 0.80 m against 0.054 m on the sedan)",
     )
     curvature_feedforward: bool = setting(
@@ -185,7 +185,7 @@ class TrackerConfig:
     solver: str = setting(
         "fatrop",
         choices=("ipopt", "fatrop", "sqp-rti"),
-        doc="NLP solver of kinematic-nmpc and dynamic-nmpc (measured table in tracker.nmpc): "
+        doc="NLP solver of kinematic-nmpc and dynamic-nmpc (measured table in tracker.mpc.nmpc): "
         "fatrop (default: interior point over the stages; IPOPT's optimum 2-3x faster), "
         "ipopt (interior point, general sparse; the reference), sqp-rti (real-time iteration: "
         "rti_iterations Gauss-Newton SQP steps per control step from the shifted plan, "
@@ -240,7 +240,7 @@ class TrackerConfig:
     baseline: BaselineConfig = section(BaselineConfig)
     grip: GripConfig = section(GripConfig)
     acc: AccConfig = section(AccConfig)
-    """Adaptive cruise control (:mod:`tracker.acc`): when enabled it sets the acceleration
+    """Adaptive cruise control (:mod:`tracker.acc.law`): when enabled it sets the acceleration
     from the range sensor and this tracker only steers."""
 
     def __post_init__(self) -> None:

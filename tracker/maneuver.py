@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from cosim.config_fields import setting
+from cosim.core.config_fields import setting
 
 MANEUVER_KINDS = ("steady-circle", "step-steer", "ramp-steer")
 

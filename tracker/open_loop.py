@@ -11,10 +11,10 @@ import time
 
 import numpy as np
 
-from cosim.records import Command, Estimate, Plan
+from cosim.core.records import Command, Estimate, Plan
 from tracker.config import TrackerConfig
 from tracker.maneuver import ManeuverConfig
-from tracker.reference_path import ReferencePath
+from tracker.paths.reference_path import ReferencePath
 
 STATE_NAMES = ("vx_mps",)
 INPUT_NAMES = ("accel_mps2", "steer_rad")

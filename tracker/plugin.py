@@ -1,13 +1,13 @@
 """Trackers from outside cosim: load, check and guard a user's tracker class.
 
 ``tracker.name`` names a class by import path (``my_pkg.my_module:MyTracker``) or by an
-entry point of the group ``cosim.trackers`` (:mod:`cosim.plugins`). The class must have a
+entry point of the group ``cosim.trackers`` (:mod:`cosim.core.plugins`). The class must have a
 ``step(t_s, estimate, reference) -> (Command, Plan)`` method (the
 :class:`tracker.protocol.Tracker` protocol) and is built as ``cls(params, config)``:
 
 - ``params``: the scenario's ``tracker.params`` section (``--set tracker.params.gain=2``).
   A class that declares a schema, a dataclass as its attribute ``Params``, gets an instance
-  of it, validated by :func:`cosim.config_fields.from_dict` (unknown keys, types and the
+  of it, validated by :func:`cosim.core.config_fields.from_dict` (unknown keys, types and the
   ``setting`` bounds are checked, errors name ``tracker.params.KEY``); otherwise the plain
   mapping.
 - ``config``: the whole :class:`tracker.config.TrackerConfig` (the belief ``model``, the
@@ -26,13 +26,13 @@ import math
 import time
 from typing import Any
 
-from cosim.config_fields import from_dict, to_dict
-from cosim.exceptions import ConfigError, PluginError, TrackerFault
-from cosim.plugins import load_object
-from cosim.records import Command, Estimate, Plan
+from cosim.core.config_fields import from_dict, to_dict
+from cosim.core.exceptions import ConfigError, PluginError, TrackerFault
+from cosim.core.plugins import load_object
+from cosim.core.records import Command, Estimate, Plan
 from tracker.config import PLUGIN_GROUP, TrackerConfig
+from tracker.paths.reference_path import ReferencePath
 from tracker.protocol import Tracker
-from tracker.reference_path import ReferencePath
 
 GROUP = PLUGIN_GROUP
 """Entry-point group of tracker plug-ins."""
@@ -112,7 +112,7 @@ class GuardedTracker:
                 and isinstance(result[0], Command) and isinstance(result[1], Plan)):
             raise PluginError(f"tracker.name = {self.name!r}: step returned "
                               f"{_describe(result)}: expected a tuple (Command, Plan) of "
-                              "cosim.records")
+                              "cosim.core.records")
         command, plan = result
         if not (math.isfinite(command.accel_mps2) and math.isfinite(command.steer_rad)):
             raise TrackerFault(f"tracker {self.name!r} returned a non-finite command at "

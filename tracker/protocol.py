@@ -1,15 +1,15 @@
 """The interface every path tracker implements (the runner calls nothing else).
 
 It lives with the trackers rather than at the base of ``cosim/`` because its argument, the
-:class:`~tracker.reference_path.ReferencePath`, is the trackers' own type.
+:class:`~tracker.paths.reference_path.ReferencePath`, is the trackers' own type.
 """
 
 from __future__ import annotations
 
 from typing import Protocol
 
-from cosim.records import Command, Estimate, Plan
-from tracker.reference_path import ReferencePath
+from cosim.core.records import Command, Estimate, Plan
+from tracker.paths.reference_path import ReferencePath
 
 
 class Tracker(Protocol):

@@ -1,7 +1,7 @@
 """Trackers by name: ``tracker.name`` in a scenario picks the constructor.
 
 A tracker is anything with ``step(t_s, estimate, reference) -> (Command, Plan)`` and
-``reset()`` (the :class:`cosim.protocols.Tracker` protocol). A name that is not built in is a
+``reset()`` (the :class:`cosim.core.protocols.Tracker` protocol). A name that is not built in is a
 tracker from outside cosim (an import path or an installed plug-in: :mod:`tracker.plugin`).
 """
 
@@ -10,18 +10,18 @@ from __future__ import annotations
 from collections.abc import Callable
 from types import MappingProxyType
 
-from cosim.exceptions import ConfigError
-from tracker.acc import AccTracker
+from cosim.core.exceptions import ConfigError
+from tracker.acc.law import AccTracker
 from tracker.baselines.lqr import make_lqr
 from tracker.baselines.pid import make_pid
 from tracker.baselines.pure_pursuit import make_pure_pursuit
 from tracker.baselines.stanley import make_stanley
 from tracker.config import TrackerConfig, is_plugin_name
-from tracker.dynamic_mpc import DynamicMpc
-from tracker.dynamic_nmpc import DynamicNmpc
-from tracker.kinematic_nmpc import KinematicNmpc
-from tracker.ltv_mpc import LtvMpc
 from tracker.maneuver import ManeuverConfig
+from tracker.mpc.dynamic_mpc import DynamicMpc
+from tracker.mpc.dynamic_nmpc import DynamicNmpc
+from tracker.mpc.kinematic_nmpc import KinematicNmpc
+from tracker.mpc.ltv_mpc import LtvMpc
 from tracker.open_loop import OpenLoopTracker
 from tracker.plugin import make_plugin_tracker
 from tracker.protocol import Tracker
@@ -49,7 +49,7 @@ TRACKER_NAMES: tuple[str, ...] = tuple(_CONSTRUCTORS)
 def make_tracker(config: TrackerConfig, maneuver: ManeuverConfig | None = None) -> Tracker:
     """Build the tracker ``config.name``; ``maneuver`` drives the ``open-loop`` tracker.
 
-    With ``tracker.acc.enabled`` it steers and the ACC (:class:`tracker.acc.AccTracker`,
+    With ``tracker.acc.enabled`` it steers and the ACC (:class:`tracker.acc.law.AccTracker`,
     updated every ``tracker.dt_s``) sets the acceleration."""
     tracker = _make_path_tracker(config, maneuver)
     if config.acc.enabled:

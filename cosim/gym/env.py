@@ -34,11 +34,11 @@ from typing import Any
 import gymnasium
 import numpy as np
 
+from cosim.core.records import Command, Estimate, Plan
 from cosim.log.recorder import McapRecorder
-from cosim.records import Command, Estimate, Plan
 from cosim.simulation.runner import RunState, finish_run
 from cosim.simulation.scenario_config import ScenarioConfig, load_config
-from tracker.reference_path import ReferencePath
+from tracker.paths.reference_path import ReferencePath
 
 ESTIMATE_NAMES = ("vx_mps", "vy_mps", "yaw_rate_radps", "steer_rad", "ax_mps2")
 PREVIEW_M = (0.0, 10.0, 20.0, 30.0)

@@ -4,7 +4,7 @@ The plant is driven directly through scripted manoeuvres (:mod:`.manoeuvres`); p
 (:mod:`.fits`) turn the measurements into the kinematic bicycle's effective wheelbase, the
 linear-tyre dynamic bicycle's axle cornering stiffnesses and understeer gradient
 (Rajamani, "Vehicle Dynamics and Control", 2nd ed., Springer 2012, sec. 2.3 and 3.5;
-:mod:`tracker.dynamic_bicycle`), and the steering and longitudinal
+:mod:`tracker.models.dynamic_bicycle`), and the steering and longitudinal
 actuator lags; :func:`identify` runs it all (:mod:`.procedure`) and returns an
 :class:`IdentifiedModel`. ``cosim identify`` is its command line.
 """

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cosim.exceptions import CosimError
+from cosim.core.exceptions import CosimError
 
 
 class IdentificationError(CosimError):

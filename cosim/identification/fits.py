@@ -12,7 +12,7 @@ samples.
   ``R = L sqrt(q^2 + cot^2 delta)`` (W1), solved by linear least squares on the radii of
   low-speed steady circles.
 - :func:`fit_cornering_stiffness`: the linear-tyre dynamic bicycle
-  (:mod:`tracker.dynamic_bicycle`; Rajamani 2012, sec. 2.3) with known mass, yaw inertia and
+  (:mod:`tracker.models.dynamic_bicycle`; Rajamani 2012, sec. 2.3) with known mass, yaw inertia and
   CoG position; ``C_f``, ``C_r`` by ``scipy.optimize.least_squares`` on steady turns
   (closed forms (S2)-(S3) of yaw rate and lateral velocity) and on transients (the CasADi
   model simulated by RK4 from the measured road-wheel angle and speed), with the exact
@@ -34,14 +34,14 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.signal import lfilter
 
+from cosim.core.vehicle_params import VehicleParams
 from cosim.identification.data import (
     IdentificationError,
     LateralResponse,
     SteadyTurn,
     StepResponse,
 )
-from cosim.vehicle_params import VehicleParams
-from tracker.dynamic_bicycle import (
+from tracker.models.dynamic_bicycle import (
     LATERAL_STATE,
     PARAM_NAMES,
     DynamicBicycleParams,

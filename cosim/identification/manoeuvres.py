@@ -1,10 +1,10 @@
 """Scripted manoeuvres of the MuJoCo plant for system identification.
 
 The plant is driven directly (no runner, no sensors, no estimator): every physics step a
-script sets a :class:`~cosim.records.Command`; it passes the plant's transport delay
+script sets a :class:`~cosim.core.records.Command`; it passes the plant's transport delay
 (``actuator_delay_s``, in whole physics steps, as in the runner) and
 :class:`~cosim.plant.low_level.AccelToTorque` with the controller's belief, and the plant
-advances one step. Measurements are the true :class:`~cosim.records.VehicleState`.
+advances one step. Measurements are the true :class:`~cosim.core.records.VehicleState`.
 
 Where the speed must be held (steady turns, step steers, steering steps), a PI loop on the
 forward speed sets ``accel_mps2``. The manoeuvres follow the test practice of ISO 4138
@@ -20,18 +20,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cosim.core.initial_state import InitialState
+from cosim.core.records import Command, VehicleState
+from cosim.core.vehicle_params import PlantConfig, VehicleParams
 from cosim.identification.data import (
     IdentificationError,
     LateralResponse,
     SteadyTurn,
     StepResponse,
 )
-from cosim.initial_state import InitialState
 from cosim.plant.car import MujocoPlant
 from cosim.plant.low_level import AccelToTorque
-from cosim.records import Command, VehicleState
 from cosim.simulation.scenario_config import steps_per_period
-from cosim.vehicle_params import PlantConfig, VehicleParams
 
 SPEED_GAIN_PER_S = 1.5
 """Proportional gain of the speed loop: accel demand per m/s of speed error [1/s]."""

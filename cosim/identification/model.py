@@ -7,7 +7,7 @@ import math
 from dataclasses import dataclass
 
 from cosim.identification.data import IdentificationError
-from tracker.dynamic_bicycle import DynamicBicycleParams
+from tracker.models.dynamic_bicycle import DynamicBicycleParams
 
 
 @dataclass(frozen=True)
@@ -16,7 +16,7 @@ class IdentifiedModel:
 
     Every fitted value comes with the RMS of its fit's residual (model minus measurement,
     in the unit named) and the number of samples behind it. The dynamic bicycle is the
-    linear-tyre model of Rajamani 2012, sec. 2.3 (:mod:`tracker.dynamic_bicycle`) with the
+    linear-tyre model of Rajamani 2012, sec. 2.3 (:mod:`tracker.models.dynamic_bicycle`) with the
     known mass, yaw inertia and CoG position listed here and the fitted axle stiffnesses.
     """
 
@@ -64,7 +64,7 @@ class IdentifiedModel:
 
     @property
     def understeer_gradient_radpmps2(self) -> float:
-        """The understeer gradient in rad per m/s^2 ((S1) of :mod:`tracker.dynamic_bicycle`;
+        """The understeer gradient in rad per m/s^2 ((S1) of :mod:`tracker.models.dynamic_bicycle`;
         Rajamani 2012, sec. 3.5)."""
         return self.dynamic_bicycle().understeer_gradient_radpmps2
 

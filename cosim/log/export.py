@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from cosim.exceptions import CosimError
+from cosim.core.exceptions import CosimError
 from cosim.log.reader import LogSummary, iter_messages, iter_topics
 
 PLAN_TOPIC = "/control/plan"

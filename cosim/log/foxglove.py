@@ -25,9 +25,9 @@ from typing import Any
 
 import numpy as np
 
-from cosim.config_fields import setting
-from cosim.records import Estimate, Plan, VehicleState
-from cosim.vehicle_params import VehicleParams
+from cosim.core.config_fields import setting
+from cosim.core.records import Estimate, Plan, VehicleState
+from cosim.core.vehicle_params import VehicleParams
 
 WGS84_A_M = 6_378_137.0
 """WGS-84 semi-major axis (equatorial radius)."""

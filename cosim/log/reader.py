@@ -26,7 +26,7 @@ from mcap.records import Attachment, Channel, Footer, Header, Message, Metadata,
 from mcap.stream_reader import StreamReader
 from zstandard import ZstdError
 
-from cosim.exceptions import LogReadError
+from cosim.core.exceptions import LogReadError
 
 
 @dataclass(frozen=True)

@@ -31,7 +31,7 @@ import orjson
 from mcap.writer import CompressionType, Writer
 
 from cosim import __version__
-from cosim.exceptions import ConfigError
+from cosim.core.exceptions import ConfigError
 from cosim.log.safe_file import PendingFile
 
 

@@ -25,7 +25,7 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import IO
 
-from cosim.exceptions import ConfigError
+from cosim.core.exceptions import ConfigError
 
 
 def partial_path(path: Path) -> Path:

@@ -54,9 +54,12 @@ import casadi as ca
 import mujoco
 import numpy as np
 
-from cosim.compiled_function import CompiledFunction, compile_function
-from cosim.exceptions import PhysicsDivergenceError
-from cosim.initial_state import InitialState
+from cosim.core.compiled_function import CompiledFunction, compile_function
+from cosim.core.exceptions import PhysicsDivergenceError
+from cosim.core.initial_state import InitialState
+from cosim.core.records import WHEEL_NAMES, ActuatorCommand, VehicleState
+from cosim.core.tyre_params import TyreParams
+from cosim.core.vehicle_params import PlantConfig
 from cosim.plant.lead_car import (
     LeadCarConfig,
     LeadCarPath,
@@ -81,9 +84,6 @@ from cosim.plant.tyre_patches import (
     PATCH_STATE_SIZE,
     tyre_patches_function,
 )
-from cosim.records import WHEEL_NAMES, ActuatorCommand, VehicleState
-from cosim.tyre_params import TyreParams
-from cosim.vehicle_params import PlantConfig
 
 SETTLE_DURATION_S = 1.5
 """Simulated time the car stands at construction to find its static equilibrium [s]. The

@@ -26,8 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cosim.config_fields import setting
-from cosim.exceptions import ConfigError
+from cosim.core.config_fields import setting
+from cosim.core.exceptions import ConfigError
 
 DISTURBANCE_KINDS: tuple[str, ...] = ("heading_step",)
 """Values ``disturbances[i].kind`` accepts."""

@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from cosim.exceptions import ConfigError
+from cosim.core.exceptions import ConfigError
 
 
 @dataclass(frozen=True)

@@ -2,7 +2,7 @@
 
 Where each conversion happens in a run:
 
-1. The tracker outputs a :class:`~cosim.records.Command` (``accel_mps2``, ``steer_rad``).
+1. The tracker outputs a :class:`~cosim.core.records.Command` (``accel_mps2``, ``steer_rad``).
 2. :class:`AccelToTorque` (this module; in a real car, the powertrain/brake controller)
    turns ``accel_mps2`` into a total drive torque or a total brake torque at the wheels,
    using the controller's *belief* about the car (a :class:`VehicleParams`): effective mass
@@ -29,8 +29,8 @@ from __future__ import annotations
 
 import math
 
-from cosim.records import ActuatorCommand, Command
-from cosim.vehicle_params import VehicleParams
+from cosim.core.records import ActuatorCommand, Command
+from cosim.core.vehicle_params import VehicleParams
 
 AIR_DENSITY_KGPM3 = 1.225
 """ISA sea-level air density [kg/m^3]."""

@@ -3,7 +3,7 @@
 ``models/sedan.xml`` is the sedan of The MathWorks' lane-keeping MPC example
 (m = 1575 kg, I_z = 2875 kg m^2, l_f = 1.2 m, l_r = 1.6 m; see ``models/README.md``).
 :func:`build_sedan` loads it with dm_control's PyMJCF and edits the tree for any
-:class:`~cosim.vehicle_params.PlantConfig` (the pattern of dm_control's ``suite/cartpole.py``
+:class:`~cosim.core.vehicle_params.PlantConfig` (the pattern of dm_control's ``suite/cartpole.py``
 beside ``cartpole.xml``): XML is never copied to make a variant. :func:`sedan_layout` derives every
 number the XML holds (chassis mass and inertia so that the *total* car has the configured mass, CoG
 and yaw inertia; suspension springs for the configured ride frequencies at the static corner loads;
@@ -41,12 +41,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from cosim.exceptions import ConfigError
+from cosim.core.exceptions import ConfigError
+from cosim.core.records import WHEEL_NAMES
+from cosim.core.suspension_params import SuspensionParams
+from cosim.core.vehicle_params import PlantConfig, VehicleParams
 from cosim.plant.headless import headless_gl
 from cosim.plant.traffic import attach_traffic
-from cosim.records import WHEEL_NAMES
-from cosim.suspension_params import SuspensionParams
-from cosim.vehicle_params import PlantConfig, VehicleParams
 
 if TYPE_CHECKING:
     from dm_control import mjcf

@@ -38,7 +38,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from cosim.slip_control_params import SlipControlParams
+from cosim.core.slip_control_params import SlipControlParams
 
 
 @dataclass(frozen=True)

@@ -75,7 +75,7 @@ import math
 from collections.abc import Callable
 from typing import Any, NamedTuple
 
-from cosim.tyre_params import TyreParams
+from cosim.core.tyre_params import TyreParams
 
 MIN_LOAD_N = 1.0
 """Below this normal load the tyre carries no force (a wheel in the air) [N]."""

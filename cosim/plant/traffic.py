@@ -35,11 +35,11 @@ from typing import TYPE_CHECKING, Any
 
 import mujoco
 
-from cosim.config_fields import from_dict, items, setting
-from cosim.exceptions import ConfigError
-from cosim.initial_state import InitialState
-from cosim.traffic_records import CarPose
-from cosim.yaml_io import shown
+from cosim.core.config_fields import from_dict, items, setting
+from cosim.core.exceptions import ConfigError
+from cosim.core.initial_state import InitialState
+from cosim.core.traffic_records import CarPose
+from cosim.core.yaml_io import shown
 
 if TYPE_CHECKING:
     from dm_control import mjcf

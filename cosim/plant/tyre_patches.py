@@ -19,7 +19,7 @@ Rill, *Road Vehicle Dynamics*, CRC 2011, ch. 3).
 The function reads MuJoCo's arrays whole (``cvel``, ``xpos``, ``xipos``, ``xmat``,
 ``subtree_com``: the wheel bodies' rows are picked inside it), so they are passed without a
 copy; per wheel, its contact (:data:`CONTACT_FIELDS`) and carcass state come in small
-buffers. It is compiled to C (:mod:`cosim.compiled_function`) when a C compiler is
+buffers. It is compiled to C (:mod:`cosim.core.compiled_function`) when a C compiler is
 there; otherwise the plant keeps the plain reference.
 """
 
@@ -29,6 +29,7 @@ from collections.abc import Sequence
 
 import casadi as ca
 
+from cosim.core.tyre_params import TyreParams
 from cosim.plant.tire_model import (
     MIN_LOAD_N,
     MIN_PEAK_FRICTION_FACTOR,
@@ -36,7 +37,6 @@ from cosim.plant.tire_model import (
     friction_aspect,
     relax_deflection,
 )
-from cosim.tyre_params import TyreParams
 
 CONTACT_FIELDS: tuple[tuple[str, int], ...] = (
     ("in_contact", 1),        # 1 with a ground contact, 0 without (wheel in the air)

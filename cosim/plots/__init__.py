@@ -24,7 +24,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from cosim.exceptions import CosimError
+from cosim.core.exceptions import CosimError
 
 FIGURES = ("top_view", "tracking", "commands", "estimation", "solver")
 """The PNG files written, in this order (``<name>.png``)."""

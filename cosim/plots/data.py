@@ -18,10 +18,10 @@ from typing import Any
 
 import numpy as np
 
-from cosim.exceptions import CosimError, LogReadError
+from cosim.core.exceptions import CosimError, LogReadError
 from cosim.log.reader import iter_topics, read_summary
 from cosim.simulation.metrics import NEES_STATES
-from tracker.reference_path import ReferencePath, wrap_angle
+from tracker.paths.reference_path import ReferencePath, wrap_angle
 
 TOPICS = {"/vehicle/truth", "/vehicle/estimate", "/control/command", "/control/plan",
           "/reference/path", "/estimator/updates", "/control/errors"}
@@ -391,7 +391,7 @@ def _label_value(value: Any) -> str:
     return "n/a" if value is None else str(value)
 def load_estimation(path: Path | str) -> EstimationErrors | None:
     """The estimation errors of a log (and their NEES) alone: reads only the truth and the
-    estimate, for ensembles of many runs (:mod:`cosim.plots.ensemble`)."""
+    estimate, for ensembles of many runs (:mod:`cosim.sweeps.ensemble`)."""
     topics = ("/vehicle/truth", "/vehicle/estimate")
     messages: dict[str, list[tuple[int, dict[str, Any]]]] = {topic: [] for topic in topics}
     for topic, log_time_ns, message in iter_topics(Path(path), set(topics)):

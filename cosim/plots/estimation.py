@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from cosim.config_fields import unit_of
+from cosim.core.config_fields import unit_of
 from cosim.plots.data import RunLog
 from cosim.plots.style import (
     REFERENCE_COLOUR,

@@ -39,7 +39,7 @@ back-end; the caller may have imported ``mujoco`` any way it liked. Back-ends
 (:data:`GL_BACKENDS`): ``osmesa`` renders in software on any CPU (the default unless
 ``MUJOCO_GL`` names another one; Debian/Ubuntu package ``libosmesa6``), ``egl`` renders
 headless on a GPU (``libegl1`` and the GPU's driver), ``glfw`` needs a display. A missing
-back-end is a :class:`~cosim.exceptions.GlBackendError` naming the package to install.
+back-end is a :class:`~cosim.core.exceptions.GlBackendError` naming the package to install.
 
 Software rendering (OSMesa's llvmpipe) costs about 12 ms per 640x360 frame and 27 ms per
 1280x720 one; MuJoCo's shadow map would cost five times that, so shadows and multisampling
@@ -69,7 +69,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cosim.exceptions import CosimError, GlBackendError, RenderError
+from cosim.core.exceptions import CosimError, GlBackendError, RenderError
 
 if TYPE_CHECKING:
     import mujoco
@@ -312,9 +312,9 @@ def read_logged_scene(log_path: Path | str) -> LoggedScene:
     if not config.get("plant") or not config.get("sim"):
         raise RenderError(f"{str(log_path)!r}: neither the attachment sedan.xml nor a run "
                           "config to rebuild the model from")
-    from cosim.config_fields import from_dict
+    from cosim.core.config_fields import from_dict
+    from cosim.core.vehicle_params import PlantConfig
     from cosim.plant.sedan_model import sedan_xml_and_assets
-    from cosim.vehicle_params import PlantConfig
 
     plant = from_dict(PlantConfig, config["plant"], "plant")
     xml, assets = sedan_xml_and_assets(plant, float(config["sim"]["physics_dt_s"]))

@@ -22,9 +22,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cosim.config_fields import setting
-from cosim.exceptions import ConfigError
-from cosim.records import Measurement
+from cosim.core.config_fields import setting
+from cosim.core.exceptions import ConfigError
+from cosim.core.records import Measurement
 
 FAULT_KINDS = ("dropout", "outlier", "stuck", "nan")
 FAULT_SENSORS = ("gnss", "gnss_velocity", "heading", "imu", "wheel_speed", "steering")

@@ -25,9 +25,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cosim.config_fields import setting
-from cosim.records import VehicleState
-from cosim.traffic_records import CarPose, RangeReading
+from cosim.core.config_fields import setting
+from cosim.core.records import VehicleState
+from cosim.core.traffic_records import CarPose, RangeReading
 
 
 @dataclass(frozen=True)

@@ -16,8 +16,8 @@ from typing import Union
 
 import numpy as np
 
-from cosim.config_fields import section, setting
-from cosim.records import WHEEL_NAMES, Measurement, VehicleState
+from cosim.core.config_fields import section, setting
+from cosim.core.records import WHEEL_NAMES, Measurement, VehicleState
 from cosim.sensing.range_sensor import RadarConfig
 
 Sensor = Union["GnssSensor", "GnssVelocitySensor", "HeadingSensor", "ImuSensor", "WheelSpeedSensor",

@@ -1,7 +1,7 @@
 """The course of a run: the reference path with its speed profile, and what lines it.
 
 :func:`build_course` turns the ``path:`` section into a :class:`Course`: the
-:class:`~tracker.reference_path.ReferencePath` the tracker follows, plus what the run checks
+:class:`~tracker.paths.reference_path.ReferencePath` the tracker follows, plus what the run checks
 and draws but the tracker never sees as such: the ISO 3888-1 cone gates
 (:mod:`tracker.paths.iso3888`), the slalom's cones, and a circuit's track bounds (half-widths
 to each side of the centre line, from the CSV).
@@ -20,13 +20,14 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.exceptions import ConfigError
-from cosim.initial_state import InitialState
+from cosim.core.exceptions import ConfigError
+from cosim.core.initial_state import InitialState
+from cosim.core.vehicle_params import VehicleParams
 from cosim.log.foxglove import BODY_WIDTH_OVER_TRACK_M
 from cosim.simulation.path_config import PathConfig
-from cosim.vehicle_params import VehicleParams
-from tracker.double_lane_change import double_lane_change
 from tracker.paths import iso3888, shapes
+from tracker.paths.double_lane_change import double_lane_change
+from tracker.paths.reference_path import ReferencePath
 from tracker.paths.speed_profile import (
     ConstantSpeed,
     SpatialSpeed,
@@ -35,7 +36,6 @@ from tracker.paths.speed_profile import (
     stop_and_go,
 )
 from tracker.paths.track_csv import load_track
-from tracker.reference_path import ReferencePath
 
 
 @dataclass(frozen=True)

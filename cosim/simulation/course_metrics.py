@@ -13,10 +13,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from cosim.core.records import VehicleState
+from cosim.core.vehicle_params import VehicleParams
 from cosim.log.foxglove import FRONT_OVERHANG_M, REAR_OVERHANG_M
-from cosim.records import VehicleState
 from cosim.simulation.course import Course, body_width_m
-from cosim.vehicle_params import VehicleParams
 from tracker.paths.iso3888 import corners, gate_hit
 
 

@@ -16,8 +16,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from cosim.exceptions import ConfigError
-from cosim.yaml_io import shown
+from cosim.core.exceptions import ConfigError
+from cosim.core.yaml_io import shown
 
 _OPERATORS: dict[str, Callable[[Any, Any], bool]] = {
     "<=": operator.le, ">=": operator.ge, "==": operator.eq, "!=": operator.ne,

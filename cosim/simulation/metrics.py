@@ -27,12 +27,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from cosim.records import Command, Estimate, Plan, VehicleState
+from cosim.core.records import Command, Estimate, Plan, VehicleState
 from cosim.simulation.maneuver_metrics import maneuver_metrics
 from cosim.simulation.running_stats import RunningStats, Samples
 from estimation.update_result import UpdateResult
 from tracker.maneuver import ManeuverConfig
-from tracker.reference_path import ReferencePath, wrap_angle
+from tracker.paths.reference_path import ReferencePath, wrap_angle
 
 NEES_STATES = ("x_m", "y_m", "yaw_rad", "vx_mps")
 """The states NEES is computed over (4 degrees of freedom)."""

@@ -29,8 +29,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from cosim.config_fields import setting
-from cosim.records import VehicleState
+from cosim.core.config_fields import setting
+from cosim.core.records import VehicleState
 
 OUTCOMES = ("ok", "rolled_over", "spun", "collision", "off_road", "end_of_path",
             "diverged", "interrupted", "error")

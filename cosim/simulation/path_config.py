@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from cosim.config_fields import setting
+from cosim.core.config_fields import setting
 
 PATH_KINDS: tuple[str, ...] = (
     "double-lane-change", "straight", "iso-lane-change", "circle", "figure-eight", "slalom",

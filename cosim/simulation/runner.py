@@ -35,15 +35,15 @@ import yaml
 from threadpoolctl import threadpool_limits
 
 from cosim import __version__
-from cosim.config_fields import to_dict
-from cosim.exceptions import PhysicsDivergenceError, TrackerFault
+from cosim.core.config_fields import to_dict
+from cosim.core.exceptions import PhysicsDivergenceError, TrackerFault
+from cosim.core.records import Command, Estimate, Measurement, Plan, VehicleState
 from cosim.log import foxglove
 from cosim.log import schemas as mcap_schemas
 from cosim.log.recorder import McapRecorder
 from cosim.plant import disturbances
 from cosim.plant.car import MujocoPlant
 from cosim.plant.low_level import AccelToTorque
-from cosim.records import Command, Estimate, Measurement, Plan, VehicleState
 from cosim.sensing.faults import FaultInjector
 from cosim.sensing.sensors import TruthSensor, make_sensors
 from cosim.simulation.course import Course, build_course
@@ -54,8 +54,8 @@ from cosim.simulation.scenario_config import ScenarioConfig, steps_per_period
 from cosim.simulation.traffic_loop import CollisionError, TrafficLoop, build_traffic
 from estimation.registry import make_estimator
 from estimation.update_result import UpdateResult
+from tracker.paths.reference_path import ReferencePath
 from tracker.protocol import Tracker
-from tracker.reference_path import ReferencePath
 from tracker.registry import make_tracker
 
 

@@ -19,9 +19,12 @@ from typing import Any
 
 import yaml
 
-from cosim.config_fields import from_dict, items, mapping, section, set_dotted, setting
-from cosim.exceptions import ConfigError, RateError
-from cosim.initial_state import InitialState
+from cosim.core.config_fields import from_dict, items, mapping, section, set_dotted, setting
+from cosim.core.exceptions import ConfigError, RateError
+from cosim.core.initial_state import InitialState
+from cosim.core.vehicle_params import PlantConfig
+from cosim.core.yaml_io import loads as yaml_loads
+from cosim.core.yaml_io import read_yaml_file, shown
 from cosim.log.foxglove import GeoOrigin
 from cosim.plant.disturbances import DisturbanceConfig
 from cosim.plant.traffic import traffic_cars
@@ -29,9 +32,6 @@ from cosim.sensing.faults import FaultConfig
 from cosim.sensing.sensors import SensorsConfig, suite_preset
 from cosim.simulation.outcome import OutcomeConfig
 from cosim.simulation.path_config import PathConfig
-from cosim.vehicle_params import PlantConfig
-from cosim.yaml_io import loads as yaml_loads
-from cosim.yaml_io import read_yaml_file, shown
 from estimation.config import ESTIMATOR_NAMES, EstimatorConfig
 from estimation.noise_config import suite_noise_preset
 from estimation.registry import estimator_class, required_sensors

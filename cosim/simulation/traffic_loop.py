@@ -49,17 +49,17 @@ from collections import deque
 
 import numpy as np
 
+from cosim.core.records import VehicleState
+from cosim.core.traffic_records import CarPose
 from cosim.log import foxglove
 from cosim.log import schemas as mcap_schemas
 from cosim.log.recorder import McapRecorder
 from cosim.plant.car import MujocoPlant
 from cosim.plant.traffic import Traffic, traffic_cars
-from cosim.records import VehicleState
 from cosim.sensing.range_sensor import RangeSensor
 from cosim.simulation.running_stats import RunningStats
 from cosim.simulation.scenario_config import ScenarioConfig, steps_per_period
-from cosim.traffic_records import CarPose
-from tracker.acc import GAIN_NAMES, AccTracker
+from tracker.acc.law import GAIN_NAMES, AccTracker
 
 SET_SPEED_TOLERANCE_MPS = 0.5
 """The set speed counts as reached within this [m/s]."""

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from cosim.exceptions import ConfigError
+from cosim.core.exceptions import ConfigError
 from cosim.sweeps.spec import RunTask
 
 DEFAULT_TRACKERS: tuple[str, ...] = (

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from cosim.exceptions import CosimError
+from cosim.core.exceptions import CosimError
 from cosim.sweeps.execute import make_backend
 from cosim.sweeps.plots import heat_map, metric_plots
 from cosim.sweeps.results import (
@@ -164,7 +164,7 @@ def run_sweep(spec_path: str | Path, out_dir: str | Path | None = None,
 
     ``workers``: processes (``process``) or tasks in flight (``ray``); default: the cores
     this process may use (``process``), Ray's own scheduling (``ray``). ``on_row`` is called
-    with each raw row as it lands (tests use it). Raises :class:`cosim.exceptions.CosimError`
+    with each raw row as it lands (tests use it). Raises :class:`cosim.core.exceptions.CosimError`
     on bad input (a sweep above :data:`RUN_LIMIT` runs without ``yes`` included),
     ``KeyboardInterrupt`` after an interrupt (rows kept, tables written, plots skipped so
     that the interrupt acts at once), ``OSError`` when a row cannot be written (a full

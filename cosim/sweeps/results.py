@@ -29,7 +29,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
-from cosim.exceptions import CosimError
+from cosim.core.exceptions import CosimError
 from cosim.simulation.metrics import METRIC_KEYS
 from cosim.sweeps.spec import Parameter, SweepSpec, axis_label, unit_of
 

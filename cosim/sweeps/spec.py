@@ -51,9 +51,9 @@ from typing import Any
 
 import yaml
 
-from cosim.exceptions import ConfigError
+from cosim.core.exceptions import ConfigError
+from cosim.core.yaml_io import read_yaml_file, shown
 from cosim.simulation.metrics import METRIC_KEYS
-from cosim.yaml_io import read_yaml_file, shown
 from tracker.config import is_plugin_name
 from tracker.plugin import resolved_params
 
@@ -399,7 +399,7 @@ def load_spec(path: str | Path) -> SweepSpec:
 
     Raises :class:`ConfigError` naming the file, the bad key or value and what was expected.
     """
-    from cosim.config_fields import to_dict
+    from cosim.core.config_fields import to_dict
     from cosim.simulation.scenario_config import load_config
 
     reader = _SpecReader(Path(path))

@@ -11,11 +11,11 @@ from collections.abc import Callable
 
 import numpy as np
 
-from cosim.initial_state import InitialState
+from cosim.core.initial_state import InitialState
+from cosim.core.records import ActuatorCommand, Command, VehicleState
+from cosim.core.vehicle_params import PlantConfig, VehicleParams
 from cosim.plant.car import MujocoPlant
 from cosim.plant.low_level import AccelToTorque
-from cosim.records import ActuatorCommand, Command, VehicleState
-from cosim.vehicle_params import PlantConfig, VehicleParams
 
 DT_S = 0.002
 """Physics step [s], the runner's default."""

@@ -76,9 +76,9 @@ from vehiclemodels.parameters_vehicle2 import parameters_vehicle2
 from vehiclemodels.vehicle_dynamics_mb import vehicle_dynamics_mb
 from vehiclemodels.vehicle_dynamics_st import vehicle_dynamics_st
 
+from cosim.core.vehicle_params import PlantConfig
 from cosim.plant.low_level import resistance_force_n
 from cosim.plant.sedan_model import sedan_layout
-from cosim.vehicle_params import PlantConfig
 from tests.conformance.driving import drive, plant_at, speed_loop
 
 pytestmark = [pytest.mark.conformance]

@@ -22,8 +22,8 @@ import math
 
 import pytest
 
-from cosim.records import VehicleState
-from cosim.vehicle_params import PlantConfig
+from cosim.core.records import VehicleState
+from cosim.core.vehicle_params import PlantConfig
 from tests.conformance.driving import (
     GRAVITY_MPS2,
     WHEELBASE_M,

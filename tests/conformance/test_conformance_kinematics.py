@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 
-from cosim.vehicle_params import PlantConfig
+from cosim.core.vehicle_params import PlantConfig
 from tests.conformance.driving import (
     WHEELBASE_M,
     circle_radius_m,

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import pytest
 
-from cosim.vehicle_params import PlantConfig, VehicleParams
+from cosim.core.vehicle_params import PlantConfig, VehicleParams
 from tests.conformance.driving import constant_accel, drive, plant_at
 
 pytestmark = pytest.mark.conformance

@@ -11,11 +11,11 @@ import math
 import mujoco
 import pytest
 
-from cosim.initial_state import InitialState
+from cosim.core.initial_state import InitialState
+from cosim.core.records import VehicleState
+from cosim.core.vehicle_params import PlantConfig
 from cosim.plant.car import MujocoPlant
 from cosim.plant.lead_car import LeadCarConfig
-from cosim.records import VehicleState
-from cosim.vehicle_params import PlantConfig
 from tests.conformance.driving import DT_S, drive, plant_at, speed_loop
 
 pytestmark = pytest.mark.conformance

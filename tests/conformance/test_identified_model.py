@@ -17,9 +17,9 @@ from __future__ import annotations
 
 import pytest
 
+from cosim.core.vehicle_params import PlantConfig, VehicleParams
 from cosim.identification import IdentifiedModel, identify
 from cosim.identification.manoeuvres import Rig, steady_turn
-from cosim.vehicle_params import PlantConfig, VehicleParams
 
 pytestmark = pytest.mark.conformance
 

@@ -21,10 +21,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from cosim.initial_state import InitialState
+from cosim.core.initial_state import InitialState
+from cosim.core.records import WHEEL_NAMES, Measurement
+from cosim.core.vehicle_params import VehicleParams
 from cosim.plant.sedan_model import ackermann_angles
-from cosim.records import WHEEL_NAMES, Measurement
-from cosim.vehicle_params import VehicleParams
 from estimation.config import EstimatorConfig
 from estimation.models import (
     DEFAULT_CORNERING_STIFFNESS_FRONT_NPR,

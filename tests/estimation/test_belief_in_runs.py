@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cosim.exceptions import ConfigError
+from cosim.core.exceptions import ConfigError
 from cosim.log.reader import iter_messages
 from cosim.simulation.runner import run
 from cosim.simulation.scenario_config import load_config

@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cosim.plots.ensemble import judge, run_member
 from cosim.simulation.scenario_config import ScenarioConfig, load_config
+from cosim.sweeps.ensemble import judge, run_member
 from estimation.consistency import chi_square_band, ensemble_consistency, nees_band
 
 

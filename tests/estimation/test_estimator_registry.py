@@ -7,9 +7,9 @@ import typing
 
 import pytest
 
-from cosim.exceptions import ConfigError
-from cosim.initial_state import InitialState
-from cosim.vehicle_params import VehicleParams
+from cosim.core.exceptions import ConfigError
+from cosim.core.initial_state import InitialState
+from cosim.core.vehicle_params import VehicleParams
 from estimation.config import EstimatorConfig
 from estimation.ekf import Ekf
 from estimation.registry import (

@@ -9,11 +9,11 @@ import math
 import numpy as np
 import pytest
 
-from cosim.config_fields import from_dict
-from cosim.exceptions import ConfigError
-from cosim.initial_state import InitialState
-from cosim.records import Measurement
-from cosim.vehicle_params import VehicleParams
+from cosim.core.config_fields import from_dict
+from cosim.core.exceptions import ConfigError
+from cosim.core.initial_state import InitialState
+from cosim.core.records import Measurement
+from cosim.core.vehicle_params import VehicleParams
 from estimation.config import EstimatorConfig
 from estimation.errors import TimeOrderError
 from estimation.fusion import KalmanFusion

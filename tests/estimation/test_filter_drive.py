@@ -12,8 +12,8 @@ import math
 import numpy as np
 import pytest
 
-from cosim.initial_state import InitialState
-from cosim.vehicle_params import VehicleParams
+from cosim.core.initial_state import InitialState
+from cosim.core.vehicle_params import VehicleParams
 from estimation.config import EstimatorConfig
 from estimation.fusion import process_noise, roll_params
 from estimation.models import STATE_NAMES, BicycleParams, ProcessModel, state_index

@@ -21,14 +21,14 @@ import pytest
 import scipy.linalg
 from filterpy.kalman import KalmanFilter
 
-from cosim.initial_state import InitialState
-from cosim.records import Measurement
-from cosim.vehicle_params import VehicleParams
+from cosim.core.initial_state import InitialState
+from cosim.core.records import Measurement
+from cosim.core.vehicle_params import VehicleParams
 from estimation.config import EstimatorConfig
 from estimation.models import MODEL_STATE_NAMES, STATE_NAMES, VEHICLE_STATE_NAMES
 from estimation.noise_config import NoiseBelief
 from estimation.registry import make_estimator
-from tracker.dynamic_bicycle import DynamicBicycleParams
+from tracker.models.dynamic_bicycle import DynamicBicycleParams
 
 SPEED_MPS = 10.0
 GNSS_PERIOD_S = 0.1

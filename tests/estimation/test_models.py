@@ -2,7 +2,7 @@
 
 Hand-derived references: finite differences for every Jacobian (as pink's
 ``tests/test_jacobians.py`` does), scipy's matrix exponential for the process noise (Van
-Loan 1978), the tracker's own dynamic bicycle (``tracker.dynamic_bicycle``: its state-space
+Loan 1978), the tracker's own dynamic bicycle (``tracker.models.dynamic_bicycle``: its state-space
 matrices and steady turn) for the lateral dynamics, and numbers one can check by hand.
 """
 
@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 import scipy.linalg
 
+from cosim.core.vehicle_params import VehicleParams
 from cosim.plant.sedan_model import ackermann_angles
-from cosim.vehicle_params import VehicleParams
 from estimation.config import EstimatorConfig
 from estimation.fusion import process_noise, roll_params
 from estimation.models import (
@@ -30,7 +30,7 @@ from estimation.models import (
     state_index,
     wrap_angle,
 )
-from tracker.dynamic_bicycle import DynamicBicycleParams
+from tracker.models.dynamic_bicycle import DynamicBicycleParams
 
 CONFIG = EstimatorConfig()
 NOISE = process_noise(CONFIG)
@@ -235,7 +235,7 @@ def test_linearised_lateral_dynamics_match_the_trackers_bicycle(
     linear_process: ProcessModel, vx_mps: float
 ) -> None:
     """d(vy', r')/d(vy, r, delta) at a straight run equals the textbook a11 .. b21 as
-    tracker.dynamic_bicycle writes them (an independent implementation of the same model)."""
+    tracker.models.dynamic_bicycle writes them (an independent implementation of the same model)."""
     reference = DynamicBicycleParams.from_vehicle(BELIEF, 72550.0, 79580.0)
     a_ref, b_ref = reference.lateral_state_space(vx_mps)
     for process in (linear_process, _process("saturating", roll=None)):  # same slope at 0

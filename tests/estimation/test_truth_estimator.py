@@ -8,9 +8,9 @@ import math
 import numpy as np
 import pytest
 
-from cosim.initial_state import InitialState
-from cosim.records import Measurement, VehicleState
-from cosim.vehicle_params import VehicleParams
+from cosim.core.initial_state import InitialState
+from cosim.core.records import Measurement, VehicleState
+from cosim.core.vehicle_params import VehicleParams
 from estimation.config import EstimatorConfig
 from estimation.errors import TimeOrderError
 from estimation.models import VEHICLE_STATE_NAMES

@@ -87,7 +87,7 @@ def test_friction_0_6_known_to_the_tracker(tmp_path: Path) -> None:
     """Friction 0.6 on the road and in the belief: no spin, max CTE <= 0.30 m.
 
     The friction-aware ``dynamic-nmpc`` (``tracker.grip``, on by default) keeps each axle's
-    planned force within 0.85 of ``mu F_z`` (:mod:`tracker.tyre_limits`): it accelerates from
+    planned force within 0.85 of ``mu F_z`` (:mod:`tracker.models.tyre_limits`): it accelerates from
     15 to 20 m/s at about 2.2 m/s^2 instead of the 3 m/s^2 that spun the rear wheels and
     turned the car round (max CTE 11.3 m before). The lane change's 0.5 g fits within 0.85
     of 0.6 g, so the speed is not reduced. Measured 0.209 / 0.131 / 0.165 / 0.223 / 0.149 m
@@ -101,7 +101,7 @@ def test_friction_0_6_known_to_the_tracker(tmp_path: Path) -> None:
 
 def test_friction_0_5_known_slows_down(tmp_path: Path) -> None:
     """Friction 0.5, known: the 0.5 g bends need all the grip at 20 m/s, so the tracker
-    slows down before them (:mod:`tracker.grip_speed`) and says so in its plans.
+    slows down before them (:mod:`tracker.mpc.grip_speed`) and says so in its plans.
 
     Measured: ``speed_reduced`` in 64 of 300 plans (2.9-6.05 s), the car down to 18.4 m/s,
     max CTE 0.292 / 0.309 / 0.242 / 0.326 / 0.247 m (seeds 0-4), no fallback. Bound 1.5 x

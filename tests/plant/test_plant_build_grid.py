@@ -8,11 +8,11 @@ import dataclasses
 
 import pytest
 
-from cosim.initial_state import InitialState
+from cosim.core.initial_state import InitialState
+from cosim.core.records import ActuatorCommand
+from cosim.core.vehicle_params import PlantConfig
 from cosim.plant.car import MujocoPlant
-from cosim.records import ActuatorCommand
 from cosim.sweeps.spec import load_spec
-from cosim.vehicle_params import PlantConfig
 
 DT_S = 0.002
 GRAVITY_MPS2 = 9.81

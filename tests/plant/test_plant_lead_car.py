@@ -12,12 +12,12 @@ import math
 import mujoco
 import pytest
 
-from cosim.exceptions import ConfigError
-from cosim.initial_state import InitialState
+from cosim.core.exceptions import ConfigError
+from cosim.core.initial_state import InitialState
+from cosim.core.records import ActuatorCommand
+from cosim.core.vehicle_params import PlantConfig
 from cosim.plant.car import MujocoPlant
 from cosim.plant.lead_car import LeadCarConfig
-from cosim.records import ActuatorCommand
-from cosim.vehicle_params import PlantConfig
 
 DT_S = 0.002
 

@@ -11,9 +11,9 @@ import math
 
 import pytest
 
+from cosim.core.records import ActuatorCommand, Command
+from cosim.core.vehicle_params import VehicleParams
 from cosim.plant.low_level import AccelToTorque, effective_mass_kg
-from cosim.records import ActuatorCommand, Command
-from cosim.vehicle_params import VehicleParams
 
 BELIEF = VehicleParams()
 

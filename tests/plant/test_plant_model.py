@@ -6,8 +6,10 @@ import mujoco
 import numpy as np
 import pytest
 
-from cosim.exceptions import ConfigError
-from cosim.initial_state import InitialState
+from cosim.core.exceptions import ConfigError
+from cosim.core.initial_state import InitialState
+from cosim.core.records import ActuatorCommand
+from cosim.core.vehicle_params import PlantConfig
 from cosim.plant.car import MujocoPlant
 from cosim.plant.sedan_model import (
     ackermann_angles,
@@ -18,8 +20,6 @@ from cosim.plant.sedan_model import (
     sedan_xml_and_assets,
     sedan_xml_path,
 )
-from cosim.records import ActuatorCommand
-from cosim.vehicle_params import PlantConfig
 
 DT_S = 0.002
 

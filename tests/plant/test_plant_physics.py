@@ -13,13 +13,13 @@ import mujoco
 import numpy as np
 import pytest
 
-from cosim.exceptions import PhysicsDivergenceError
-from cosim.initial_state import InitialState
+from cosim.core.exceptions import PhysicsDivergenceError
+from cosim.core.initial_state import InitialState
+from cosim.core.records import ActuatorCommand, Command, VehicleState
+from cosim.core.vehicle_params import PlantConfig, VehicleParams
 from cosim.plant.car import MujocoPlant
 from cosim.plant.low_level import AccelToTorque
 from cosim.plant.sedan_model import ackermann_angles
-from cosim.records import ActuatorCommand, Command, VehicleState
-from cosim.vehicle_params import PlantConfig, VehicleParams
 
 DT_S = 0.002
 CONTROL_STEPS = 25  # 50 ms control period

@@ -7,12 +7,12 @@ import dataclasses
 
 import pytest
 
-from cosim.initial_state import InitialState
+from cosim.core.initial_state import InitialState
+from cosim.core.records import ActuatorCommand
+from cosim.core.slip_control_params import SlipControlParams
+from cosim.core.vehicle_params import PlantConfig
 from cosim.plant.car import MujocoPlant
 from cosim.plant.slip_control import SlipLimiter
-from cosim.records import ActuatorCommand
-from cosim.slip_control_params import SlipControlParams
-from cosim.vehicle_params import PlantConfig
 
 PARAMS = SlipControlParams(enabled=True)  # slip_max 0.05, cut_gain 20, recovery 2 /s
 RADIUS_M = 0.3

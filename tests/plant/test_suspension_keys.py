@@ -8,9 +8,9 @@ import math
 
 import pytest
 
+from cosim.core.suspension_params import SuspensionParams
+from cosim.core.vehicle_params import PlantConfig
 from cosim.plant.sedan_model import WHEEL_SIDES, build_sedan, sedan_layout
-from cosim.suspension_params import SuspensionParams
-from cosim.vehicle_params import PlantConfig
 from tests.conformance.driving import drive, plant_at, speed_loop
 
 BASE = PlantConfig()

@@ -15,6 +15,7 @@ import math
 import numpy as np
 import pytest
 
+from cosim.core.tyre_params import TyreParams
 from cosim.plant.tire_model import (
     PATCH_AT_REST,
     PatchState,
@@ -27,7 +28,6 @@ from cosim.plant.tire_model import (
     relaxation_lengths_m,
     slip_stiffness_n,
 )
-from cosim.tyre_params import TyreParams
 
 TYRE = TyreParams()
 LOADS_N = (1000.0, 3300.0, 4000.0, 4400.0, 7000.0)

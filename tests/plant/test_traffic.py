@@ -8,11 +8,11 @@ import mujoco
 import pytest
 from scipy.integrate import quad
 
-from cosim.exceptions import ConfigError
-from cosim.initial_state import InitialState
+from cosim.core.exceptions import ConfigError
+from cosim.core.initial_state import InitialState
+from cosim.core.vehicle_params import PlantConfig
 from cosim.plant.car import MujocoPlant
 from cosim.plant.traffic import CAR_PREFIX, Traffic, TrafficCar, TrafficCarConfig, traffic_cars
-from cosim.vehicle_params import PlantConfig
 
 
 def car(**settings: object) -> TrafficCar:

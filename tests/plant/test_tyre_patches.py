@@ -9,14 +9,14 @@ import math
 import numpy as np
 import pytest
 
-from cosim.compiled_function import CompiledFunction, compile_function
-from cosim.initial_state import InitialState
+from cosim.core.compiled_function import CompiledFunction, compile_function
+from cosim.core.initial_state import InitialState
+from cosim.core.records import ActuatorCommand
+from cosim.core.tyre_params import TyreParams
+from cosim.core.vehicle_params import PlantConfig
 from cosim.plant.car import MujocoPlant
 from cosim.plant.tire_model import MIN_LOAD_N, PatchState, patch_step
 from cosim.plant.tyre_patches import CONTACT_SIZE, tyre_patches_function
-from cosim.records import ActuatorCommand
-from cosim.tyre_params import TyreParams
-from cosim.vehicle_params import PlantConfig
 
 DT_S = 0.002
 FRICTION = 0.9

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from cosim.exceptions import ConfigError, CosimError
+from cosim.core.exceptions import ConfigError, CosimError
 from cosim.simulation.scenario_config import parse_override
 from cosim.sweeps.execute import execute_task
 from cosim.sweeps.plots import heat_map, metric_plots

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from cosim.exceptions import CosimError
+from cosim.core.exceptions import CosimError
 from cosim.simulation.metrics import WALL_CLOCK_KEYS
 from cosim.sweeps.execute import make_backend
 from tests.sweep.rows import wait_for_rows

@@ -1,6 +1,6 @@
 """A plain-numpy kinematic bicycle and a closed loop around a tracker, for the tests.
 
-The car is integrated independently of the CasADi model in :mod:`tracker.kinematic_bicycle`
+The car is integrated independently of the CasADi model in :mod:`tracker.models.kinematic_bicycle`
 (same equations, Rajamani 2012 sec. 2.2 at the centre of gravity, fine RK4 at the physics
 step), so the tests compare the controller's model against a plain reference.
 """
@@ -11,9 +11,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cosim.records import Command, Estimate, Plan
-from cosim.vehicle_params import VehicleParams
-from tracker.reference_path import ReferencePath, wrap_angle
+from cosim.core.records import Command, Estimate, Plan
+from cosim.core.vehicle_params import VehicleParams
+from tracker.paths.reference_path import ReferencePath, wrap_angle
 
 ESTIMATE_NAMES: tuple[str, ...] = ("x_m", "y_m", "yaw_rad", "vx_mps")
 

@@ -6,7 +6,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from cosim.records import Command, Plan
+from cosim.core.records import Command, Plan
 from tracker.config import TrackerConfig
 
 

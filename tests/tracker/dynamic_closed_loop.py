@@ -2,9 +2,9 @@
 around a tracker, for the tests.
 
 The car is integrated independently of the CasADi model in
-:mod:`tracker.steered_dynamic_bicycle`: the lateral dynamics are the state-space form
+:mod:`tracker.models.steered_dynamic_bicycle`: the lateral dynamics are the state-space form
 ``[vy, r]' = A(vx) [vy, r] + B delta`` (Rajamani 2012, sec. 2.3, a11 ... b21, from
-:meth:`tracker.dynamic_bicycle.DynamicBicycleParams.lateral_state_space`), the pose is
+:meth:`tracker.models.dynamic_bicycle.DynamicBicycleParams.lateral_state_space`), the pose is
 integrated from the body velocities, ``vx' = a``, all by RK4 at the physics step (2 ms).
 The steering actuator is the plant's (:mod:`cosim.plant.car`): a first-order lag of the command,
 exactly discretised, then a rate limit.
@@ -17,9 +17,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from cosim.records import Command, Estimate, Plan
-from tracker.dynamic_bicycle import LATERAL_STATE, DynamicBicycleParams
-from tracker.reference_path import ReferencePath, wrap_angle
+from cosim.core.records import Command, Estimate, Plan
+from tracker.models.dynamic_bicycle import LATERAL_STATE, DynamicBicycleParams
+from tracker.paths.reference_path import ReferencePath, wrap_angle
 
 ESTIMATE_NAMES: tuple[str, ...] = ("x_m", "y_m", "yaw_rad", "vx_mps", "vy_mps",
                                    "yaw_rate_radps")

@@ -8,15 +8,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cosim.exceptions import ConfigError
-from cosim.records import Estimate
+from cosim.core.exceptions import ConfigError
+from cosim.core.records import Estimate
 from cosim.simulation.maneuver_metrics import maneuver_metrics
 from cosim.simulation.runner import run
 from cosim.simulation.scenario_config import load_config
 from tracker.config import TrackerConfig
-from tracker.double_lane_change import double_lane_change
 from tracker.maneuver import ManeuverConfig
 from tracker.open_loop import OpenLoopTracker
+from tracker.paths.double_lane_change import double_lane_change
 
 
 def _estimate(vx_mps: float) -> Estimate:

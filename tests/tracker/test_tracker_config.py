@@ -7,12 +7,12 @@ import math
 
 import pytest
 
-from cosim.config_fields import describe, from_dict, to_dict
-from cosim.exceptions import ConfigError
-from cosim.vehicle_params import VehicleParams
+from cosim.core.config_fields import describe, from_dict, to_dict
+from cosim.core.exceptions import ConfigError
+from cosim.core.vehicle_params import VehicleParams
 from tracker.config import TRACKER_CHOICES, TrackerConfig, TrackerWeights
-from tracker.dynamic_nmpc import DynamicNmpc
-from tracker.kinematic_nmpc import KinematicNmpc
+from tracker.mpc.dynamic_nmpc import DynamicNmpc
+from tracker.mpc.kinematic_nmpc import KinematicNmpc
 from tracker.registry import TRACKER_NAMES, make_tracker
 
 

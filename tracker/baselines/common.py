@@ -15,7 +15,7 @@ A baseline is a law ``steer = f(pose, path)`` (:class:`LateralLaw`) inside
   K v^2 kappa`` with the belief's understeer gradient ``K`` (Rajamani 2012, eq. 3.15 without
   the small-angle ``atan``; the MPCs use the same term), where the law itself has no
   such term (pure pursuit and LQR have their own);
-* a :class:`cosim.records.Plan` with two nodes (now and one control period ahead on a
+* a :class:`cosim.core.records.Plan` with two nodes (now and one control period ahead on a
   kinematic bicycle) and one input, so logs, plots and metrics treat it like an MPC's.
 
 A non-finite estimate commands a safe stop (steering held, ``tracker.safe_stop_accel_mps2``)
@@ -30,10 +30,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cosim.records import Command, Estimate, Plan
+from cosim.core.records import Command, Estimate, Plan
 from tracker.config import TrackerConfig
-from tracker.dynamic_bicycle import DynamicBicycleParams
-from tracker.reference_path import Projection, ReferencePath, wrap_angle
+from tracker.models.dynamic_bicycle import DynamicBicycleParams
+from tracker.paths.reference_path import Projection, ReferencePath, wrap_angle
 
 PLAN_STATES = ("x_m", "y_m", "yaw_rad", "vx_mps")
 """The plan's state columns."""

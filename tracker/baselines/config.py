@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from cosim.config_fields import section, setting
+from cosim.core.config_fields import section, setting
 
 
 @dataclass(frozen=True)

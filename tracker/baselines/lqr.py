@@ -37,8 +37,8 @@ from scipy.linalg import expm, solve_discrete_are
 from tracker.baselines.common import BaselineTracker, LateralLaw, Pose, bicycle
 from tracker.baselines.config import LqrConfig
 from tracker.config import TrackerConfig
-from tracker.dynamic_bicycle import DynamicBicycleParams
-from tracker.reference_path import ReferencePath
+from tracker.models.dynamic_bicycle import DynamicBicycleParams
+from tracker.paths.reference_path import ReferencePath
 
 ERROR_STATES = ("e1_m", "e1_rate_mps", "e2_rad", "e2_rate_radps")
 """The path-error state, in vector order."""

@@ -29,7 +29,7 @@ from tracker.baselines.common import (
     curvature_feedforward,
 )
 from tracker.config import TrackerConfig
-from tracker.reference_path import ReferencePath
+from tracker.paths.reference_path import ReferencePath
 
 
 def pid_steer(cte_m: float, cte_rate_mps: float, cte_integral_ms: float,

@@ -24,7 +24,7 @@ import numpy as np
 from tracker.baselines.common import BaselineTracker, LateralLaw, Pose, bicycle
 from tracker.baselines.config import PurePursuitConfig
 from tracker.config import TrackerConfig
-from tracker.reference_path import ReferencePath, wrap_angle
+from tracker.paths.reference_path import ReferencePath, wrap_angle
 
 SEARCH_STEP_M = 0.25
 """Spacing of the arc lengths searched for the goal point [m]."""

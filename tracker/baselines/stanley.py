@@ -29,7 +29,7 @@ from tracker.baselines.common import (
     curvature_feedforward,
 )
 from tracker.config import TrackerConfig
-from tracker.reference_path import ReferencePath, wrap_angle
+from tracker.paths.reference_path import ReferencePath, wrap_angle
 
 
 def stanley_steer(heading_error_rad: float, front_cte_m: float, speed_mps: float,

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cosim.exceptions import ConfigError
+from cosim.core.exceptions import ConfigError
 
 
 class SpeedProfile:

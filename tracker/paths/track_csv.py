@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.exceptions import ConfigError
+from cosim.core.exceptions import ConfigError
 
 RACETRACK_COLUMNS = ("x_m", "y_m", "w_tr_right_m", "w_tr_left_m")
 """The racetrack-database columns, in order."""

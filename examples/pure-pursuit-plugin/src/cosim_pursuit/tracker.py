@@ -15,8 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from cosim.config_fields import setting
-from cosim.records import Command, Estimate, Plan
+from cosim.core.config_fields import setting
+from cosim.core.records import Command, Estimate, Plan
 
 
 class PurePursuit:

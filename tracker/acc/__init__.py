@@ -1,0 +1,1 @@
+"""Adaptive cruise control: the ACC law, its settings and extremum seeking."""

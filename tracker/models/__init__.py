@@ -1,0 +1,1 @@
+"""The controllers' vehicle models: bicycle models as CasADi expressions, tyre limits."""

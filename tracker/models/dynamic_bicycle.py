@@ -1,0 +1,353 @@
+"""The linear-tyre dynamic bicycle as CasADi expressions (Rajamani 2012, sec. 2.3).
+
+Lateral state ``[vy_mps, yaw_rate_radps]``: lateral velocity of the centre of gravity (CoG)
+and yaw rate, both in the vehicle frame (ISO 8855: x forward, y left, z up; yaw
+counter-clockwise positive). Input ``steer_rad``: front road-wheel angle, positive to the
+left. The forward speed ``vx_mps`` is a scheduling variable of the lateral model. For
+simulation the state is extended to ``[x_m, y_m, yaw_rad, vx_mps, vy_mps, yaw_rate_radps]``
+(position of the CoG in the world frame, ENU) with the inputs ``[accel_mps2, steer_rad]``,
+where ``accel_mps2`` is ``vx'`` (the longitudinal input).
+
+Parameters ``[mass_kg, yaw_inertia_kgm2, cog_front_m, cog_rear_m,
+cornering_stiffness_front_npr, cornering_stiffness_rear_npr]`` (:data:`PARAM_NAMES`) are an
+input of every Function, so one Function serves a controller (numbers) and system
+identification (symbols, exact Jacobians). The cornering stiffnesses are per *axle* (both
+tyres): Rajamani writes ``2 C_alpha`` for the same quantity.
+
+Equations (Rajamani, "Vehicle Dynamics and Control", 2nd ed., ch. 2,
+the bicycle model of lateral vehicle dynamics), small angles::
+
+    alpha_f = delta - (vy + l_f r) / vx                                   (D1)
+    alpha_r = -(vy - l_r r) / vx                                          (D2)
+    F_yf = C_f alpha_f,   F_yr = C_r alpha_r                              (D3)
+    vy'  = (F_yf + F_yr) / m - vx r                                       (D4)
+    r'   = (l_f F_yf - l_r F_yr) / I_z                                    (D5)
+    x' = vx cos(yaw) - vy sin(yaw),  y' = vx sin(yaw) + vy cos(yaw),
+    yaw' = r,  vx' = a                                                    (D6)
+
+(D4)-(D5) are the state-space form ``vy' = a11 vy + a12 r + b11 delta``, ``r' = a21 vy + a22 r +
+b21 delta`` (:meth:`DynamicBicycleParams.lateral_state_space`).
+
+Steady-state cornering (Rajamani ch. 3, steady-state steering and the understeer gradient):
+with ``L = l_f + l_r``, the understeer gradient
+
+    K = (m / L) (l_r / C_f - l_f / C_r)          [rad per m/s^2]          (S1)
+
+gives the steering of a steady turn ``delta = L / R + K a_y`` and hence the yaw-rate gain
+
+    r / delta = vx / (L + K vx^2) = (vx / L) / (1 + K_g vx^2 / (g L))     (S2)
+
+where ``K_g = K g`` is the same gradient in rad per g (a form of (S2) often printed needs K in
+rad/g, not rad/(m/s^2)). The lateral velocity of the steady turn follows from the rear
+axle's share of the centripetal force, ``F_yr = m vx r l_f / L``, and (D2):
+
+    vy = r (l_r - m l_f vx^2 / (L C_r))                                   (S3)
+
+(D1)-(D6) and (S1)-(S3) are written with plain arithmetic and CasADi's ``sin``/``cos``, so
+they accept CasADi symbols as well as floats.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from types import MappingProxyType
+
+import casadi as ca
+import numpy as np
+
+from cosim.core.exceptions import ConfigError
+from cosim.core.vehicle_params import VehicleParams
+
+GRAVITY_MPS2 = 9.81
+"""Gravitational acceleration used to express gradients per g [m/s^2]."""
+
+LATERAL_STATE_NAMES: tuple[str, ...] = ("vy_mps", "yaw_rate_radps")
+"""State of the lateral model, in vector order."""
+
+STATE_NAMES: tuple[str, ...] = ("x_m", "y_m", "yaw_rad", "vx_mps", "vy_mps", "yaw_rate_radps")
+"""State of the full (simulation) model, in vector order."""
+
+INPUT_NAMES: tuple[str, ...] = ("accel_mps2", "steer_rad")
+"""Inputs of the full model, in vector order (the lateral model takes ``steer_rad`` alone)."""
+
+PARAM_NAMES: tuple[str, ...] = (
+    "mass_kg",
+    "yaw_inertia_kgm2",
+    "cog_front_m",
+    "cog_rear_m",
+    "cornering_stiffness_front_npr",
+    "cornering_stiffness_rear_npr",
+)
+"""Parameters of the model, in vector order (stiffnesses per axle, N/rad)."""
+
+LATERAL_STATE = MappingProxyType({name: i for i, name in enumerate(LATERAL_STATE_NAMES)})
+"""Read-only map from lateral state name to its index."""
+
+STATE = MappingProxyType({name: i for i, name in enumerate(STATE_NAMES)})
+"""Read-only map from state name to its index in the full state vector."""
+
+INPUT = MappingProxyType({name: i for i, name in enumerate(INPUT_NAMES)})
+"""Read-only map from input name to its index in the input vector."""
+
+PARAM = MappingProxyType({name: i for i, name in enumerate(PARAM_NAMES)})
+"""Read-only map from parameter name to its index in the parameter vector."""
+
+Symbolic = ca.SX | ca.MX | ca.DM
+
+
+@dataclass(frozen=True)
+class DynamicBicycleParams:
+    """Numbers of the linear-tyre dynamic bicycle (SI; stiffnesses per axle)."""
+
+    mass_kg: float
+    yaw_inertia_kgm2: float
+    cog_front_m: float
+    cog_rear_m: float
+    cornering_stiffness_front_npr: float
+    cornering_stiffness_rear_npr: float
+
+    def __post_init__(self) -> None:
+        for name in PARAM_NAMES:
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0.0):
+                raise ConfigError(f"DynamicBicycleParams.{name} = {value!r}: expected a "
+                                  "positive finite number")
+
+    @classmethod
+    def from_vehicle(cls, vehicle: VehicleParams, cornering_stiffness_front_npr: float,
+                     cornering_stiffness_rear_npr: float) -> DynamicBicycleParams:
+        """Mass, yaw inertia and CoG position of ``vehicle`` plus the two axle cornering
+        stiffnesses."""
+        return cls(
+            mass_kg=vehicle.mass_kg,
+            yaw_inertia_kgm2=vehicle.yaw_inertia_kgm2,
+            cog_front_m=vehicle.cog_front_m,
+            cog_rear_m=vehicle.cog_rear_m,
+            cornering_stiffness_front_npr=cornering_stiffness_front_npr,
+            cornering_stiffness_rear_npr=cornering_stiffness_rear_npr,
+        )
+
+    def as_vector(self) -> np.ndarray:
+        """The parameter vector in :data:`PARAM_NAMES` order (the Functions' ``params``)."""
+        return np.array([float(getattr(self, name)) for name in PARAM_NAMES])
+
+    @property
+    def wheelbase_m(self) -> float:
+        """L = l_f + l_r [m]."""
+        return self.cog_front_m + self.cog_rear_m
+
+    @property
+    def understeer_gradient_radpmps2(self) -> float:
+        """K of (S1) [rad per m/s^2]; > 0 understeer, < 0 oversteer."""
+        return float(understeer_gradient(self.as_vector()))
+
+    @property
+    def understeer_gradient_degpg(self) -> float:
+        """K of (S1) in degrees of steering per g of lateral acceleration [deg/g]."""
+        return radpmps2_to_degpg(self.understeer_gradient_radpmps2)
+
+    def yaw_rate_gain_per_s(self, vx_mps: float) -> float:
+        """Steady-state yaw-rate gain r/delta of (S2) at forward speed ``vx_mps`` [1/s]."""
+        return float(steady_yaw_rate_gain(vx_mps, self.as_vector()))
+
+    def steady_state(self, vx_mps: float, steer_rad: float) -> dict[str, float]:
+        """The steady turn at ``vx_mps`` and ``steer_rad``: ``vy_mps``, ``yaw_rate_radps``
+        (S2, S3) and ``ay_mps2 = vx r``."""
+        yaw_rate = self.yaw_rate_gain_per_s(vx_mps) * steer_rad
+        vy = float(steady_lateral_velocity(vx_mps, yaw_rate, self.as_vector()))
+        return {"vy_mps": vy, "yaw_rate_radps": yaw_rate, "ay_mps2": vx_mps * yaw_rate}
+
+    def lateral_state_space(self, vx_mps: float) -> tuple[np.ndarray, np.ndarray]:
+        """``(A, B)`` of ``[vy, r]' = A [vy, r] + B delta`` at ``vx_mps`` (a11 ...
+        b21), rows and columns in :data:`LATERAL_STATE_NAMES` order."""
+        if not (math.isfinite(vx_mps) and vx_mps > 0.0):
+            raise ConfigError(f"vx_mps = {vx_mps!r}: expected a positive forward speed")
+        m, i_z = self.mass_kg, self.yaw_inertia_kgm2
+        l_f, l_r = self.cog_front_m, self.cog_rear_m
+        c_f, c_r = self.cornering_stiffness_front_npr, self.cornering_stiffness_rear_npr
+        vy, r = LATERAL_STATE["vy_mps"], LATERAL_STATE["yaw_rate_radps"]
+        a = np.zeros((2, 2))
+        b = np.zeros((2, 1))
+        a[vy, vy] = -(c_f + c_r) / (m * vx_mps)  # a11
+        a[vy, r] = (l_r * c_r - l_f * c_f) / (m * vx_mps) - vx_mps  # a12
+        a[r, vy] = (l_r * c_r - l_f * c_f) / (i_z * vx_mps)  # a21
+        a[r, r] = -(l_f**2 * c_f + l_r**2 * c_r) / (i_z * vx_mps)  # a22
+        b[vy, 0] = c_f / m  # b11
+        b[r, 0] = l_f * c_f / i_z  # b21
+        return a, b
+
+
+def radpmps2_to_degpg(gradient_radpmps2: float) -> float:
+    """A gradient in rad per m/s^2 expressed in degrees per g."""
+    return math.degrees(gradient_radpmps2) * GRAVITY_MPS2
+
+
+def _param(params: Symbolic | np.ndarray, name: str) -> Symbolic:
+    return params[PARAM[name]]
+
+
+def understeer_gradient(params: Symbolic | np.ndarray) -> Symbolic:
+    """K of (S1) [rad per m/s^2] from the parameter vector."""
+    m = _param(params, "mass_kg")
+    l_f, l_r = _param(params, "cog_front_m"), _param(params, "cog_rear_m")
+    c_f = _param(params, "cornering_stiffness_front_npr")
+    c_r = _param(params, "cornering_stiffness_rear_npr")
+    return m / (l_f + l_r) * (l_r / c_f - l_f / c_r)
+
+
+def steady_yaw_rate_gain(vx_mps: Symbolic | float, params: Symbolic | np.ndarray) -> Symbolic:
+    """Steady-state yaw-rate gain r/delta of (S2) [1/s]."""
+    wheelbase = _param(params, "cog_front_m") + _param(params, "cog_rear_m")
+    return vx_mps / (wheelbase + understeer_gradient(params) * vx_mps**2)
+
+
+def steady_lateral_velocity(vx_mps: Symbolic | float, yaw_rate_radps: Symbolic | float,
+                            params: Symbolic | np.ndarray) -> Symbolic:
+    """Lateral velocity of the CoG in a steady turn of yaw rate ``yaw_rate_radps``, (S3)."""
+    m = _param(params, "mass_kg")
+    l_f, l_r = _param(params, "cog_front_m"), _param(params, "cog_rear_m")
+    c_r = _param(params, "cornering_stiffness_rear_npr")
+    return yaw_rate_radps * (l_r - m * l_f * vx_mps**2 / ((l_f + l_r) * c_r))
+
+
+def slip_angles(lateral_state: Symbolic, steer_rad: Symbolic, vx_mps: Symbolic,
+                params: Symbolic, min_slip_speed_mps: float = 0.0) -> tuple[Symbolic, Symbolic]:
+    """Front and rear axle slip angles, (D1)-(D2) [rad].
+
+    With ``min_slip_speed_mps > 0`` the speed in the denominators is ``fmax(vx,
+    min_slip_speed_mps)``: (D1)-(D2) are singular at standstill, and a controller's model
+    must stay finite (and not too stiff) at any speed its optimiser tries.
+    """
+    vy = lateral_state[LATERAL_STATE["vy_mps"]]
+    r = lateral_state[LATERAL_STATE["yaw_rate_radps"]]
+    l_f, l_r = _param(params, "cog_front_m"), _param(params, "cog_rear_m")
+    if min_slip_speed_mps > 0.0:
+        vx_mps = ca.fmax(vx_mps, min_slip_speed_mps)
+    alpha_f = steer_rad - (vy + l_f * r) / vx_mps
+    alpha_r = -(vy - l_r * r) / vx_mps
+    return alpha_f, alpha_r
+
+
+def lateral_dynamics(lateral_state: Symbolic, steer_rad: Symbolic, vx_mps: Symbolic,
+                     params: Symbolic, min_slip_speed_mps: float = 0.0) -> Symbolic:
+    """``[vy', r']`` of (D1)-(D5) as a 2x1 expression (``vx_mps`` must be positive unless
+    ``min_slip_speed_mps > 0`` guards the slip angles, see :func:`slip_angles`)."""
+    r = lateral_state[LATERAL_STATE["yaw_rate_radps"]]
+    alpha_f, alpha_r = slip_angles(lateral_state, steer_rad, vx_mps, params,
+                                   min_slip_speed_mps)
+    force_front = _param(params, "cornering_stiffness_front_npr") * alpha_f  # (D3)
+    force_rear = _param(params, "cornering_stiffness_rear_npr") * alpha_r
+    derivative = {
+        "vy_mps": (force_front + force_rear) / _param(params, "mass_kg") - vx_mps * r,
+        "yaw_rate_radps": (_param(params, "cog_front_m") * force_front
+                           - _param(params, "cog_rear_m") * force_rear)
+        / _param(params, "yaw_inertia_kgm2"),
+    }
+    return ca.vertcat(*(derivative[name] for name in LATERAL_STATE_NAMES))
+
+
+def continuous_dynamics(state: Symbolic, inputs: Symbolic, params: Symbolic,
+                        min_slip_speed_mps: float = 0.0) -> Symbolic:
+    """Time derivative of the full state, (D1)-(D6), as a 6x1 expression
+    (``min_slip_speed_mps``: see :func:`slip_angles`)."""
+    yaw = state[STATE["yaw_rad"]]
+    vx = state[STATE["vx_mps"]]
+    vy = state[STATE["vy_mps"]]
+    r = state[STATE["yaw_rate_radps"]]
+    lateral = lateral_dynamics(ca.vertcat(vy, r), inputs[INPUT["steer_rad"]], vx, params,
+                               min_slip_speed_mps)
+    derivative = {
+        "x_m": vx * ca.cos(yaw) - vy * ca.sin(yaw),
+        "y_m": vx * ca.sin(yaw) + vy * ca.cos(yaw),
+        "yaw_rad": r,
+        "vx_mps": inputs[INPUT["accel_mps2"]],
+        "vy_mps": lateral[LATERAL_STATE["vy_mps"]],
+        "yaw_rate_radps": lateral[LATERAL_STATE["yaw_rate_radps"]],
+    }
+    return ca.vertcat(*(derivative[name] for name in STATE_NAMES))
+
+
+def _rk4(f, state: Symbolic, h: Symbolic | float) -> Symbolic:
+    k1 = f(state)
+    k2 = f(state + 0.5 * h * k1)
+    k3 = f(state + 0.5 * h * k2)
+    k4 = f(state + h * k3)
+    return state + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+
+
+def _check_step(dt_s: float, substeps: int) -> None:
+    if not (math.isfinite(dt_s) and dt_s > 0.0):
+        raise ConfigError(f"dt_s = {dt_s!r}: expected a positive step")
+    if not (isinstance(substeps, int) and substeps >= 1):
+        raise ConfigError(f"substeps = {substeps!r}: expected an integer >= 1")
+
+
+def lateral_function() -> ca.Function:
+    """``f(lateral_state, steer_rad, vx_mps, params) -> lateral_state_dot``, (D1)-(D5)."""
+    state = ca.SX.sym("lateral_state", len(LATERAL_STATE_NAMES))
+    steer = ca.SX.sym("steer_rad")
+    vx = ca.SX.sym("vx_mps")
+    params = ca.SX.sym("params", len(PARAM_NAMES))
+    return ca.Function(
+        "dynamic_bicycle_lateral",
+        [state, steer, vx, params],
+        [lateral_dynamics(state, steer, vx, params)],
+        ["lateral_state", "steer_rad", "vx_mps", "params"],
+        ["lateral_state_dot"],
+    )
+
+
+def lateral_discrete_function(dt_s: float, substeps: int = 1) -> ca.Function:
+    """``F(lateral_state, steer_rad, vx_mps, params) -> next_lateral_state`` over ``dt_s``
+    by ``substeps`` RK4 steps, steer and speed held."""
+    _check_step(dt_s, substeps)
+    state = ca.SX.sym("lateral_state", len(LATERAL_STATE_NAMES))
+    steer = ca.SX.sym("steer_rad")
+    vx = ca.SX.sym("vx_mps")
+    params = ca.SX.sym("params", len(PARAM_NAMES))
+    h = dt_s / substeps
+    next_state = state
+    for _ in range(substeps):
+        next_state = _rk4(lambda s: lateral_dynamics(s, steer, vx, params), next_state, h)
+    return ca.Function(
+        "dynamic_bicycle_lateral_rk4",
+        [state, steer, vx, params],
+        [next_state],
+        ["lateral_state", "steer_rad", "vx_mps", "params"],
+        ["next_lateral_state"],
+    )
+
+
+def continuous_function() -> ca.Function:
+    """``f(state, inputs, params) -> state_dot``, (D1)-(D6); callable with numpy arrays
+    (``np.asarray(f(x, u, p))``)."""
+    state = ca.SX.sym("state", len(STATE_NAMES))
+    inputs = ca.SX.sym("inputs", len(INPUT_NAMES))
+    params = ca.SX.sym("params", len(PARAM_NAMES))
+    return ca.Function(
+        "dynamic_bicycle",
+        [state, inputs, params],
+        [continuous_dynamics(state, inputs, params)],
+        ["state", "inputs", "params"],
+        ["state_dot"],
+    )
+
+
+def discrete_function(dt_s: float, substeps: int = 1) -> ca.Function:
+    """``F(state, inputs, params) -> next_state`` over ``dt_s`` by ``substeps`` RK4 steps."""
+    _check_step(dt_s, substeps)
+    state = ca.SX.sym("state", len(STATE_NAMES))
+    inputs = ca.SX.sym("inputs", len(INPUT_NAMES))
+    params = ca.SX.sym("params", len(PARAM_NAMES))
+    h = dt_s / substeps
+    next_state = state
+    for _ in range(substeps):
+        next_state = _rk4(lambda s: continuous_dynamics(s, inputs, params), next_state, h)
+    return ca.Function(
+        "dynamic_bicycle_rk4",
+        [state, inputs, params],
+        [next_state],
+        ["state", "inputs", "params"],
+        ["next_state"],
+    )

@@ -1,0 +1,121 @@
+"""The tyres' friction limit as a soft constraint of the dynamic NMPC: one ellipse per axle.
+
+Why: the dynamic bicycle's linear tyres (:mod:`tracker.models.dynamic_bicycle`, (D3)) give any
+force the plan asks for, and the acceleration input ``vx' = a`` costs no grip at all. On a
+wet road the plan then asks more of the rear axle than it has: at friction 0.6 the
+rear-driven sedan, accelerating at the 3 m/s^2 bound from 15 to 20 m/s, spun its rear wheels
+(0.5 s into the lane change the car reached 1.2 m/s^2 of the 3 asked for) and turned round
+at 3 s, max CTE 11.3 m, even with the belief knowing the friction. The soft slip-angle
+limits (lateral only) could not see it.
+
+The constraint (the friction circle of each axle, e.g. Rajamani 2012, sec. 13.2 "tire
+force limits"; the per-axle form used for MPC by Beal and Gerdes, "Model predictive control
+for vehicle stabilization at the limits of handling", IEEE TCST 21(4), 2013) at stage ``k``
+from the state ``x_k`` and the planned acceleration ``a_k``::
+
+    F_x = m a + 1/2 rho C_d A vx^2 + C_rr m g            total longitudinal tyre force  (T1)
+    F_zf = m (g l_r - a h) / L,  F_zr = m (g l_f + a h) / L   (longitudinal load transfer) (T2)
+    F_xf, F_xr: F_x > 0 on the driven axle(s) (split equally when all four are driven);
+                F_x < 0 over both axles in proportion to their loads (ideal braking)     (T3)
+    F_yf = C_f alpha_f,  F_yr = C_r alpha_r               (D1)-(D3) at the actuator's angle
+    u_i = (F_xi^2 + F_yi^2) / (mu F_zi)^2 <= usage_max^2                                 (T4)
+
+soft, like the slip limits (:class:`tracker.mpc.nmpc.NmpcModel`, a quadratic exterior penalty
+weighted ``weights.tyre_excess``): a car already beyond its grip never makes the NLP
+infeasible. The drive force is ``fmax(F_x, 0)``, whose square is continuously
+differentiable, so the penalty is too. Lateral load transfer is left out (it lowers an
+axle's grip through the tyres' load sensitivity); ``usage_max`` < 1 covers it.
+
+Measured (MuJoCo sedan, EKF, ``lane-change`` at 20 m/s, 0.5 g, ``plant.tire_friction`` =
+``tracker.model.tire_friction``; with speed planning, :mod:`tracker.mpc.grip_speed`):
+
+* friction 0.6: the car accelerates at about 2.2 m/s^2 (the rear axle's 0.85 mu F_z) and
+  tracks: max CTE 0.209 / 0.131 / 0.165 / 0.223 / 0.149 m (seeds 0-4), no fallback, no
+  speed reduction (before: spun at 3 s, 11.3 m);
+* friction 0.5: speed planning slows the car to 18.4 m/s for the bends (``speed_reduced``
+  in 64 of 300 plans): 0.292 / 0.309 / 0.242 / 0.326 / 0.247 m;
+* the belief left at 1.0 on a 0.6 road still spins (28 m): the tracker can only respect
+  the friction it believes in; the car's own traction control (``plant.slip_control``)
+  saves that case (0.166 m).
+
+Cost: on the linear bench the NLP with the ellipse took about 15 % longer per step (same
+iterations), so it is added only when the believed friction is below
+``grip.tyre_limits_below_friction`` (0.9).
+"""
+
+from __future__ import annotations
+
+import math
+
+import casadi as ca
+
+from cosim.core.exceptions import ConfigError
+from cosim.core.vehicle_params import VehicleParams
+from tracker.models import dynamic_bicycle as bicycle
+from tracker.models.steered_dynamic_bicycle import INPUT, STATE, STATE_NAMES, SteeredBicycleParams
+
+AIR_DENSITY_KGPM3 = 1.225
+"""ISA sea-level air density [kg/m^3] (as the low-level layer's belief)."""
+
+LIMIT_NAMES: tuple[str, ...] = ("front_friction_usage_sq", "rear_friction_usage_sq")
+"""The outputs of :func:`friction_usage_function`: ``u_f`` and ``u_r`` of (T4)."""
+
+
+def _drive_shares(drive: str) -> tuple[float, float]:
+    """The share of the drive force on the front and the rear axle."""
+    shares = {"rwd": (0.0, 1.0), "fwd": (1.0, 0.0), "awd": (0.5, 0.5)}
+    if drive not in shares:
+        raise ConfigError(f"model.drive = {drive!r}: expected one of {', '.join(shares)}")
+    return shares[drive]
+
+
+def friction_usage_function(vehicle: VehicleParams, params: SteeredBicycleParams,
+                            friction: float, low_speed_mps: float | None = None
+                            ) -> ca.Function:
+    """``h(state, inputs) -> [u_f, u_r]`` of (T1)-(T4) for the belief ``vehicle`` (mass,
+    CoG height, drag, rolling resistance, driven axles) with the axle stiffnesses of
+    ``params`` and the friction ``friction``; the slip angles guarded at low speed as the
+    model's (default: ``params.low_speed_mps``)."""
+    if not (math.isfinite(friction) and friction > 0.0):
+        raise ConfigError(f"friction = {friction!r}: expected a positive number")
+    guard = params.low_speed_mps if low_speed_mps is None else low_speed_mps
+    b = params.bicycle
+    g = bicycle.GRAVITY_MPS2
+    state = ca.SX.sym("state", len(STATE_NAMES))
+    inputs = ca.SX.sym("inputs", len(INPUT))
+    accel = inputs[INPUT["accel_mps2"]]
+    vx = state[STATE["vx_mps"]]
+    mass, height, wheelbase = b.mass_kg, vehicle.cog_height_m, b.wheelbase_m
+
+    resistance = (0.5 * AIR_DENSITY_KGPM3 * vehicle.drag_area_m2 * vx * ca.fabs(vx)
+                  + vehicle.rolling_resistance * mass * g)
+    force_x = mass * accel + resistance  # (T1)
+    load_front = mass * (g * b.cog_rear_m - accel * height) / wheelbase  # (T2)
+    load_rear = mass * (g * b.cog_front_m + accel * height) / wheelbase
+    drive = ca.fmax(force_x, 0.0)
+    brake = ca.fmin(force_x, 0.0)
+    front_share, rear_share = _drive_shares(vehicle.drive)
+    weight = mass * g
+    force_x_front = front_share * drive + brake * load_front / weight  # (T3)
+    force_x_rear = rear_share * drive + brake * load_rear / weight
+
+    lateral = ca.vertcat(state[STATE["vy_mps"]], state[STATE["yaw_rate_radps"]])
+    alpha_f, alpha_r = bicycle.slip_angles(lateral, state[STATE["road_wheel_angle_rad"]], vx,
+                                           b.as_vector(), guard)
+    force_y_front = b.cornering_stiffness_front_npr * alpha_f
+    force_y_rear = b.cornering_stiffness_rear_npr * alpha_r
+    # A load cannot fall below a tenth of the static one in the formula (a plan braking
+    # or accelerating beyond any road's grip must not divide by zero).
+    grip_front = friction * ca.fmax(load_front, 0.1 * weight * b.cog_rear_m / wheelbase)
+    grip_rear = friction * ca.fmax(load_rear, 0.1 * weight * b.cog_front_m / wheelbase)
+    usage = ca.vertcat((force_x_front**2 + force_y_front**2) / grip_front**2,  # (T4)
+                       (force_x_rear**2 + force_y_rear**2) / grip_rear**2)
+    return ca.Function("tyre_friction_usage", [state, inputs], [usage],
+                       ["state", "inputs"], ["usage_sq"])
+
+
+def usage_bounds(usage_max: float) -> tuple[float, float]:
+    """``usage_max^2`` for both axles, the bounds of (T4)."""
+    if not (math.isfinite(usage_max) and 0.0 < usage_max <= 1.0):
+        raise ConfigError(f"grip.usage_max = {usage_max!r}: expected a share in (0, 1]")
+    return usage_max**2, usage_max**2

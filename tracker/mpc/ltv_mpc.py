@@ -1,0 +1,446 @@
+"""Linear time-varying MPC on the steered dynamic bicycle, one QP per step.
+
+Falcone, Borrelli, Asgari, Tseng, Hrovat ("Predictive active steering control for
+autonomous vehicle systems", IEEE TCST 15(3), 2007, sec. IV) linearise the vehicle model
+about a trajectory, subtract it and solve the resulting linear time-varying MPC as a QP
+(so do Lages and Alves, "Real-time control of a mobile robot using linearized model
+predictive control", IFAC 2006, about the reference trajectory). This tracker does the job of
+``dynamic-nmpc`` (:mod:`tracker.mpc.nmpc` on :mod:`tracker.models.steered_dynamic_bicycle`)
+that way: the same model (the linear-tyre dynamic bicycle of Rajamani 2012, sec. 2.3, with the
+steering actuator as a state), the same cost and reference, the same bounds, latency
+handling, fallback and plan; only the solver differs. The QP and the linearisation are
+:mod:`tracker.mpc.ltv_qp`.
+
+Per step:
+
+1. **Initial state** (as :mod:`tracker.mpc.nmpc`): the estimate's six vehicle states by name;
+   the road-wheel angle, which no estimator reports, is an internal state: last step's
+   angle propagated through the commands the car has applied since (exact for the lag
+   (A2) the actuator is). The state is then predicted from ``estimate.t_s`` to
+   ``max(t_s, estimate.t_s) + latency_s`` (latency compensation; ``latency_s``
+   only with ``latency_compensation``) piece by piece through the commands in the delay
+   line (:class:`tracker.mpc.delay_line.IssuedInputs`): the estimate's age and the transport
+   delay, each with the input the car actually applies then.
+2. **Warm start**: the previous plan shifted by the elapsed time (its tail extended
+   through the model), node 0 replaced by the initial state; on the first step the last
+   applied input held over the horizon and rolled out through the model.
+3. **Reference** (as :mod:`tracker.mpc.nmpc`): the initial state's projection on the path;
+   reference points at the arc lengths the warm start expects to cover,
+   ``s_k = s_0 + sum_j (v_j + v_{j+1}) dt / 2``; the path yaw unwrapped along the horizon
+   and shifted by whole turns to within pi of the car's yaw; the reference speed.
+4. **Linearisation trajectory** ``(xbar, ubar)``, ``tracker.ltv_mpc.linearize_about``:
+
+   * ``previous-plan`` (default): the warm start itself, the real-time-iteration scheme
+     (one SQP iteration per step, the previous solution as the linearisation point). Its
+     defects ``c_k`` (L3) are the previous solution's error against the nonlinear model.
+   * ``reference``: the reference trajectory ``(X_r, U_r)`` of Lages and Alves 2006. Nodes 1..N sit
+   on the reference
+     points with the path yaw and the warm start's speeds, in the steady turn of the
+     path's curvature ``kappa`` (:mod:`tracker.models.dynamic_bicycle`, (S1)-(S3))::
+
+         r = v kappa,   delta = kappa (L + K v^2),   vy = r (l_r - m l_f v^2 / (L C_r))
+
+     the road-wheel angle and the steering input at ``delta``, the acceleration from
+     the speeds. Node 0 is the initial state in both modes: it is known exactly, so
+     linearising about anything else would only add error.
+
+5. **QP** (:class:`tracker.mpc.ltv_qp.LtvQp`): the NMPC's cost, bounds and soft slip-angle
+   limits (``tracker.ltv_mpc.slip_limits``) on the LTV model, one solve. The first input
+   is applied (clipped onto the bounds and the steering-rate limit against the previous
+   command, which removes the back-end's round-off); the solution is the next warm
+   start.
+
+Failures (:mod:`tracker.mpc.fallback`): a non-finite initial state, a back-end failure, an
+exception anywhere in steps 2-5 or a non-finite solution never raise: the last good plan
+is replayed, shifted (``fallback (...)``), and once failures have lasted longer than
+``fallback_time_s`` a safe stop is commanded (``safe_stop (...)``); ``success=False``,
+``fallback=True``. A success ends either.
+
+The plan's ``solve_time_s`` is the QP back-end's call alone (what the runner's
+``solve_ms`` reports); the linearisation and the rest of the step are in
+:attr:`LtvMpc.timing`. Nothing depends on wall-clock time except those timings, so equal
+inputs give equal outputs.
+
+Measurements (MuJoCo sedan, EKF, stretched lane change at 20 m/s, seeds 0-4; 2-core
+machine shared with other jobs, ``OPENBLAS_NUM_THREADS=1``):
+
+* Max CTE 0.0575 / 0.0462 / 0.0469 / 0.0671 / 0.0634 m, the same as ``dynamic-nmpc`` to
+  0.1 mm (0.0575 / 0.0462 / 0.0469 / 0.0671 / 0.0634 m): linearised about the previous
+  plan, one QP per step converges along the run to the NMPC's solution (on the bench
+  every plan after the first second is a trajectory of the nonlinear model to 0.25 mm).
+  QP solve 0.64-0.70 ms median, 0.8-1.05 ms 99th percentile, 4 HPIPM iterations median
+  (8 at most), against IPOPT's 5.5 ms median; the linearisation adds about 0.27 ms.
+* Every back-end gives the same commands (to 1e-5, HPIPM's interior point staying that
+  far inside an active acceleration bound) and the same CTE; solve medians: hpipm 0.52,
+  qpOASES 0.53, qrqp 0.85, OSQP 1.0 ms (best of five per QP on the bench's QPs).
+* ``previous-plan`` against ``reference``: the same on the lane change (0.0575 against
+  0.0576 m) and on Falcone's unstretched path (0.673 against 0.672 m); from a 0.3 rad
+  heading error on the bench 2.57 against 2.63 m max CTE (the reference's steady turn is
+  no trajectory of a car pointing off the path), from a 3 m offset 2 % less overshoot for
+  the reference (0.294 against 0.301 m). ``previous-plan`` is the default: it needs no
+  model of steady cornering, and a good trajectory to linearise about is one the car can
+  drive.
+* Slip limits: on Falcone's unstretched path (1.11 g) max CTE 0.67 m (``dynamic-nmpc``:
+  0.70 m); without them the car spins (4.7 m, heading error pi). They cost about 0.13 ms
+  per solve (0.39 ms median without).
+
+Without ``OPENBLAS_NUM_THREADS=1`` the 99th percentile of every back-end's solve time is
+about 5 ms on the shared machine: numpy's BLAS threads (the estimator's) spin on the
+second core after each call and compete with the solver. The median is unaffected.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from types import MappingProxyType
+
+import numpy as np
+
+from cosim.core.exceptions import ConfigError
+from cosim.core.records import Command, Estimate, Plan
+from tracker.config import TrackerConfig
+from tracker.models import dynamic_bicycle as bicycle
+from tracker.models.steered_dynamic_bicycle import (
+    STATE,
+    STATE_NAMES,
+    VEHICLE_STATE_NAMES,
+    SteeredBicycleParams,
+    discrete_function,
+    linear_range_slip_rad,
+    predict_function,
+    slip_angle_function,
+)
+from tracker.mpc.delay_line import IssuedInputs
+from tracker.mpc.fallback import (
+    INPUT,
+    INPUT_NAMES,
+    FailureClock,
+    first_command,
+    safe_stop_inputs,
+    shifted_inputs,
+    shifted_states,
+)
+from tracker.mpc.horizon_reference import horizon_reference
+from tracker.mpc.ltv_qp import REFERENCE_NAMES, Linearisation, LtvQp, QpProblem, QpResult
+from tracker.paths.reference_path import ReferencePath
+
+TRACKER_NAME = "ltv-mpc"
+"""``tracker.name`` of this tracker."""
+
+INTERNAL_STATE_REST_INPUTS = MappingProxyType({"road_wheel_angle_rad": "steer_rad"})
+"""The model's states no estimator reports, and the input each one rests at."""
+
+
+@dataclass(frozen=True)
+class StepTiming:
+    """Wall times of the last :meth:`LtvMpc.step` [s]."""
+
+    linearise_s: float
+    """Evaluating (L2), (L3) and (L5) of :mod:`tracker.mpc.ltv_qp` along the horizon."""
+    solve_s: float
+    """The QP back-end's call (the plan's ``solve_time_s``)."""
+    step_s: float
+    """The whole step, from the estimate to the command."""
+
+
+@dataclass(frozen=True)
+class _Trajectory:
+    """States (N+1 rows) and inputs (N rows) over the horizon starting at ``t_s``."""
+
+    t_s: float
+    states: np.ndarray
+    inputs: np.ndarray
+
+
+class LtvMpc:
+    """LTV-MPC path tracker: the steered dynamic bicycle linearised, one QP per step.
+
+    Args:
+      config: the tracker configuration; ``config.ltv_mpc`` picks the QP back-end, the
+        formulation and the linearisation trajectory; ``config.model`` is the belief
+        (as for ``dynamic-nmpc``).
+
+    The estimate must hold ``x_m, y_m, yaw_rad, vx_mps, vy_mps, yaw_rate_radps``. The
+    plan's states are :data:`tracker.models.steered_dynamic_bicycle.STATE_NAMES` as the LTV
+    model predicts them; node 0 is the initial state (the car at ``t_s + latency``); the
+    plan's and the command's ``t_s`` are the time of the step.
+    """
+
+    def __init__(self, config: TrackerConfig) -> None:
+        if config.name != TRACKER_NAME:
+            raise ConfigError(f"name = {config.name!r}: LtvMpc expects {TRACKER_NAME!r}")
+        self.config = config
+        self.state_names: tuple[str, ...] = STATE_NAMES
+        self.input_names: tuple[str, ...] = INPUT_NAMES
+        params = SteeredBicycleParams.from_vehicle(config.model)
+        self._bicycle = params.bicycle
+        self._n = config.horizon
+        self._n_x = len(STATE_NAMES)
+        self._step_function = discrete_function(params, config.dt_s)
+        self._predict_function = predict_function(params)
+        self._rollout_function = self._step_function.mapaccum(self._n)
+        slip_limits = config.ltv_mpc.slip_limits
+        self._linearisation = Linearisation(
+            self._step_function, self._n, slip_angle_function(params) if slip_limits else None)
+        self._qp = LtvQp(config, STATE_NAMES, self._linearisation,
+                         linear_range_slip_rad(params, config.model.tire_friction)
+                         if slip_limits else ())
+        self._latency_s = config.latency_s if config.latency_compensation else 0.0
+        self._issued = IssuedInputs(self._latency_s, np.zeros(len(INPUT_NAMES)))
+        self._clock = FailureClock(config.fallback_time_s)
+        self.timing = StepTiming(math.nan, math.nan, math.nan)
+        self.reset()
+
+    # ------------------------------------------------------------------ public API
+
+    def reset(self, previous_command: Command | None = None) -> None:
+        """Forget every previous solution and issued command.
+
+        ``previous_command`` is the actuation already applied to the car (default: zero
+        acceleration and steering); the first step warm-starts from it held over the
+        horizon, takes its first input rate against it and starts the road-wheel angle at
+        rest at it.
+        """
+        previous = np.zeros(len(INPUT_NAMES))
+        if previous_command is not None:
+            previous[INPUT["accel_mps2"]] = previous_command.accel_mps2
+            previous[INPUT["steer_rad"]] = previous_command.steer_rad
+        self._previous_input = previous
+        self._previous_t_s: float | None = None
+        self._issued.reset(previous)
+        self._clock.reset()
+        self._warm: _Trajectory | None = None
+        self._last_good: _Trajectory | None = None
+        self._last_state: tuple[float, np.ndarray] | None = None
+
+    def step(
+        self, t_s: float, estimate: Estimate, reference: ReferencePath
+    ) -> tuple[Command, Plan]:
+        """One control step: the command to apply at ``t_s`` and the plan behind it."""
+        start = time.perf_counter()
+        state0 = self._initial_state(t_s, estimate)
+        if not np.all(np.isfinite(state0)):
+            return self._fallback(t_s, state0, "non_finite_estimate", 0, 0.0, start)
+        linearise_s = 0.0
+        try:
+            warm = self._warm_start(t_s, state0)
+            ref = self._reference(reference, state0, warm.states, t_s)
+            bar = (warm if self.config.ltv_mpc.linearize_about == "previous-plan"
+                   else self._reference_trajectory(t_s, state0, warm, ref))
+            lin_start = time.perf_counter()
+            linearisation = self._linearisation(bar.states, bar.inputs)
+            linearise_s = time.perf_counter() - lin_start
+            result = self._qp.solve(QpProblem(
+                state_bar=bar.states, input_bar=bar.inputs, linearisation=linearisation,
+                state0=state0, input_prev=self._previous_input,
+                reference={name: ref[name] for name in REFERENCE_NAMES},
+            ))
+        except Exception as error:  # a step never raises for a failed solve (module doc)
+            return self._fallback(t_s, state0, f"error: {type(error).__name__}: {error}", 0,
+                                  0.0, start, linearise_s)
+        if not (result.success and np.all(np.isfinite(result.states))
+                and np.all(np.isfinite(result.inputs))):
+            return self._fallback(t_s, state0, result.status, result.iterations,
+                                  result.solve_time_s, start, linearise_s)
+
+        trajectory = _Trajectory(t_s, result.states, self._clip_inputs(result.inputs))
+        self._last_good = trajectory
+        self._clock.reset()
+        plan = self._plan(trajectory, result, True, False, result.status)
+        command = self._commit(trajectory)
+        self.timing = StepTiming(linearise_s, result.solve_time_s, time.perf_counter() - start)
+        return command, plan
+
+    # ------------------------------------------------------------------ initial state
+
+    def _predict(self, state: np.ndarray, start_s: float, end_s: float) -> np.ndarray:
+        """``state`` at ``start_s`` moved to ``end_s`` through the inputs the car applies
+        (the delay line), one held input per piece."""
+        for duration_s, inputs in self._issued.segments(start_s, end_s):
+            state = np.asarray(self._predict_function(state, inputs, duration_s),
+                               dtype=float).ravel()
+        return state
+
+    def _internal_states(self, t_s: float) -> dict[str, float]:
+        """The internal states at ``t_s``: last step's propagated through the applied
+        commands (exact for the actuator they drive), else at rest at the applied input."""
+        applied = self._issued.applied_at(t_s)
+        rest = {name: float(applied[INPUT[input_name]])
+                for name, input_name in INTERNAL_STATE_REST_INPUTS.items()}
+        if self._last_state is None:
+            return rest
+        last_t_s, last_state = self._last_state
+        state = self._predict(np.where(np.isfinite(last_state), last_state, 0.0),
+                              last_t_s, t_s)
+        values = {name: float(state[STATE[name]]) for name in rest}
+        return values if all(math.isfinite(v) for v in values.values()) else rest
+
+    def _initial_state(self, t_s: float, estimate: Estimate) -> np.ndarray:
+        """The estimate's states and the internal ones at ``estimate.t_s``, predicted to
+        ``t_s`` plus the latency."""
+        missing = [name for name in VEHICLE_STATE_NAMES if name not in estimate]
+        if missing:
+            raise ConfigError(f"tracker {TRACKER_NAME}: the estimate has no "
+                              f"{', '.join(missing)}: expected an estimator that reports them")
+        state = np.full(self._n_x, np.nan)
+        for name in VEHICLE_STATE_NAMES:
+            state[STATE[name]] = estimate[name]
+        for name, value in self._internal_states(estimate.t_s).items():
+            state[STATE[name]] = value
+        self._last_state = (estimate.t_s, state.copy())
+        self._issued.forget_before(estimate.t_s)
+        if np.all(np.isfinite(state)):
+            state = self._predict(state, estimate.t_s, max(t_s, estimate.t_s) + self._latency_s)
+        return state
+
+    # ------------------------------------------------------------------ trajectories
+
+    def _rollout(self, state0: np.ndarray, inputs: np.ndarray) -> np.ndarray:
+        """``state0`` and the model's states under ``inputs`` (N rows): N+1 rows."""
+        states = np.asarray(self._rollout_function(state0, inputs.T), dtype=float).T
+        return np.vstack((state0, states))
+
+    def _warm_start(self, t_s: float, state0: np.ndarray) -> _Trajectory:
+        """Previous solution shifted by the elapsed time, else the last input held."""
+        if self._warm is None:
+            inputs = np.tile(self._previous_input, (self._n, 1))
+            return _Trajectory(t_s, self._rollout(state0, inputs), inputs)
+        warm, dt_s = self._warm, self.config.dt_s
+        states = shifted_states(warm.states, warm.inputs, warm.t_s, t_s, dt_s,
+                                self._step_function, state0, STATE["yaw_rad"])
+        return _Trajectory(t_s, states, shifted_inputs(warm.inputs, warm.t_s, t_s, dt_s))
+
+    def _reference(self, reference: ReferencePath, state0: np.ndarray,
+                   warm_states: np.ndarray, t_s: float) -> dict[str, np.ndarray]:
+        """Reference points at the arc lengths the warm start expects to cover
+        (:mod:`tracker.mpc.horizon_reference`, ``tracker.reference``), with the reference's
+        curvature there (``curvature_1pm``) and the speed profile at each stage."""
+        points = horizon_reference(self.config.reference, reference, state0[STATE["x_m"]],
+                                   state0[STATE["y_m"]], state0[STATE["yaw_rad"]],
+                                   warm_states[:, STATE["vx_mps"]], self.config.dt_s)
+        return {
+            "ref_x_m": points.x_m,
+            "ref_y_m": points.y_m,
+            "ref_yaw_rad": points.yaw_rad,
+            "ref_speed_mps": points.speed_mps(reference, t_s, self.config.dt_s),
+            "curvature_1pm": points.curvature_1pm,
+        }
+
+    def _reference_trajectory(self, t_s: float, state0: np.ndarray, warm: _Trajectory,
+                              ref: dict[str, np.ndarray]) -> _Trajectory:
+        """The reference trajectory ``(X_r, U_r)``: the reference points in the steady turn of
+        the path's curvature at the warm start's speeds (module docstring, item 4)."""
+        b = self._bicycle
+        speed = warm.states[1:, STATE["vx_mps"]]
+        curvature = ref["curvature_1pm"]
+        yaw_rate = speed * curvature
+        steer = curvature * (b.wheelbase_m + b.understeer_gradient_radpmps2 * speed**2)  # (S2)
+        states = np.empty((self._n + 1, self._n_x))
+        states[0] = state0
+        nodes = {
+            "x_m": ref["ref_x_m"], "y_m": ref["ref_y_m"], "yaw_rad": ref["ref_yaw_rad"],
+            "vx_mps": speed,
+            "vy_mps": np.asarray(bicycle.steady_lateral_velocity(speed, yaw_rate,
+                                                                 b.as_vector())),  # (S3)
+            "yaw_rate_radps": yaw_rate, "road_wheel_angle_rad": steer,
+        }
+        for name, values in nodes.items():
+            states[1:, STATE[name]] = values
+        inputs = np.empty((self._n, len(INPUT_NAMES)))
+        inputs[:, INPUT["steer_rad"]] = np.clip(steer, -self.config.max_steer_rad,
+                                                self.config.max_steer_rad)
+        inputs[:, INPUT["accel_mps2"]] = np.clip(
+            np.diff(warm.states[:, STATE["vx_mps"]]) / self.config.dt_s,
+            self.config.accel_min_mps2, self.config.accel_max_mps2)
+        return _Trajectory(t_s, states, inputs)
+
+    # ------------------------------------------------------------------ outputs
+
+    def _clip_inputs(self, inputs: np.ndarray) -> np.ndarray:
+        """The QP's inputs exactly within the bounds and the steering-rate limit (the
+        back-ends meet them only to their tolerance)."""
+        clipped = np.clip(inputs, self._qp.input_low, self._qp.input_high)
+        steer = INPUT["steer_rad"]
+        rate_step = self.config.max_steer_rate_radps * self.config.dt_s
+        previous = self._previous_input[steer]
+        for k in range(clipped.shape[0]):
+            low = max(self._qp.input_low[steer], previous - rate_step)
+            high = min(self._qp.input_high[steer], previous + rate_step)
+            clipped[k, steer] = min(max(clipped[k, steer], low), high)
+            previous = clipped[k, steer]
+        return clipped
+
+    def _commit(self, trajectory: _Trajectory) -> Command:
+        """Apply the trajectory's first input: record it and keep the rest as warm start."""
+        first = trajectory.inputs[0]
+        self._previous_input = first.copy()
+        self._previous_t_s = trajectory.t_s
+        self._issued.record(trajectory.t_s, first)
+        self._warm = trajectory
+        return first_command(trajectory.t_s, trajectory.inputs)
+
+    def _fallback(self, t_s: float, state0: np.ndarray, status: str, iterations: int,
+                  solve_time_s: float, start: float, linearise_s: float = 0.0,
+                  ) -> tuple[Command, Plan]:
+        """Replay the last good plan shifted; after ``fallback_time_s``, a safe stop."""
+        cfg = self.config
+        if self._clock.fail(t_s):
+            first_period_s = cfg.dt_s if self._previous_t_s is None else t_s - self._previous_t_s
+            inputs = safe_stop_inputs(
+                self._n, cfg.dt_s, first_period_s,
+                steer_rad=float(self._previous_input[INPUT["steer_rad"]]),
+                speed_mps=self._believed_speed(t_s, state0),
+                max_steer_rate_radps=cfg.max_steer_rate_radps,
+                accel_mps2=cfg.safe_stop_accel_mps2,
+            )
+            status = f"safe_stop ({status})"
+        elif self._last_good is not None:
+            inputs = shifted_inputs(self._last_good.inputs, self._last_good.t_s, t_s, cfg.dt_s)
+            status = f"fallback ({status})"
+        else:
+            inputs = np.tile(self._previous_input, (self._n, 1))
+            status = f"fallback ({status})"
+        inputs = np.clip(inputs, self._qp.input_low, self._qp.input_high)
+        if np.all(np.isfinite(state0)):
+            states = self._rollout(state0, inputs)
+        else:
+            states = np.full((self._n + 1, self._n_x), np.nan)
+        trajectory = _Trajectory(t_s, states, inputs)
+        report = QpResult(states, inputs, math.nan, solve_time_s, iterations, status, False)
+        plan = self._plan(trajectory, report, False, True, status)
+        command = self._commit(trajectory)
+        if not np.all(np.isfinite(states)):
+            self._warm = None  # never warm-start from a non-finite guess
+        self.timing = StepTiming(linearise_s, solve_time_s, time.perf_counter() - start)
+        return command, plan
+
+    def _believed_speed(self, t_s: float, state0: np.ndarray) -> float:
+        """The speed a safe stop brakes from: the initial state's; without one (a
+        non-finite estimate), the last good plan's at ``t_s`` (held past its end); with
+        neither, 0 (the car is believed at rest)."""
+        speed = float(state0[STATE["vx_mps"]])
+        if math.isfinite(speed) or self._last_good is None:
+            return speed if math.isfinite(speed) else 0.0
+        plan = self._last_good
+        node = min(max(0, int(round((t_s - plan.t_s) / self.config.dt_s))), self._n)
+        speed = float(plan.states[node, STATE["vx_mps"]])
+        return speed if math.isfinite(speed) else 0.0
+
+    def _plan(self, trajectory: _Trajectory, result: QpResult, success: bool, fallback: bool,
+              status: str) -> Plan:
+        return Plan(
+            t_s=trajectory.t_s,
+            dt_s=self.config.dt_s,
+            state_names=self.state_names,
+            states=trajectory.states.copy(),
+            input_names=self.input_names,
+            inputs=trajectory.inputs.copy(),
+            cost=result.cost if success else math.nan,
+            solve_time_s=result.solve_time_s,
+            iterations=result.iterations,
+            status=status,
+            success=success,
+            fallback=fallback,
+        )
