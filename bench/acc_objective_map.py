@@ -36,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
+from cosim.log import topics
 from cosim.log.reader import iter_messages
 from cosim.simulation.runner import run
 from cosim.simulation.scenario_config import load_config
@@ -69,8 +70,8 @@ def steady_start(seed: int, tracker: str, extra: list[str], duration_s: float) -
 
 
 def measure(log: Path, from_s: float, floor: float) -> dict[str, float]:
-    modes = [m for _, m in iter_messages(log, "/acc/mode")]
-    objective = np.array([m["objective"] for _, m in iter_messages(log, "/acc/objective")])
+    modes = [m for _, m in iter_messages(log, topics.ACC_MODE)]
+    objective = np.array([m["objective"] for _, m in iter_messages(log, topics.ACC_OBJECTIVE)])
 
     def column(key: str) -> np.ndarray:
         return np.array([np.nan if m[key] is None else m[key] for m in modes])
@@ -100,7 +101,7 @@ def phase(args: argparse.Namespace, start: list[str], out: Path) -> None:
         *(f"tracker.acc.esc.{gain}.step={FROZEN_STEP}" for gain in ("k_v", "k_x", "k_vrel"))],
         seed=args.seed, duration_s=args.duration)
     result = run(config, out / f"phase-{k_x:g}-{k_vrel:g}-{args.wx:g}-{args.wvrel:g}.mcap")
-    rows = [m for _, m in iter_messages(result.log_path, "/acc/objective")]
+    rows = [m for _, m in iter_messages(result.log_path, topics.ACC_OBJECTIVE)]
     t_s = np.array([r["t_s"] for r in rows])
     objective = np.array([r["objective"] for r in rows])
     window = t_s >= args.from_s

@@ -19,6 +19,7 @@ import tempfile
 from pathlib import Path
 
 from cosim.core.exceptions import CosimError
+from cosim.log import topics
 from cosim.log.reader import iter_messages
 from cosim.simulation.runner import run
 from cosim.simulation.scenario_config import load_config
@@ -28,7 +29,7 @@ DEFAULT_TRACKERS: tuple[str, ...] = ("dynamic-nmpc", "ltv-mpc", "dynamic-mpc", "
 
 def _time_to_speed_s(log_path: Path, speed_mps: float) -> float:
     """First time the true forward speed reaches ``speed_mps`` (nan if never)."""
-    for _, message in iter_messages(log_path, "/vehicle/truth"):
+    for _, message in iter_messages(log_path, topics.VEHICLE_TRUTH):
         if message["vx_mps"] >= speed_mps:
             return float(message["t_s"])
     return math.nan

@@ -34,6 +34,7 @@ from scipy.special import chdtri
 from cosim.core.exceptions import ConfigError
 from cosim.core.initial_state import InitialState
 from cosim.core.records import Estimate, Measurement
+from cosim.core.sensor_names import FUSED_SENSORS, GNSS
 from cosim.core.vehicle_params import VehicleParams
 from estimation.config import EstimatorConfig
 from estimation.errors import EstimatorError
@@ -179,12 +180,11 @@ class KalmanFusion(ABC):
     a real filter cannot know, and is not used.
     """
 
-    required_sensors: tuple[str, ...] = ("gnss",)
+    required_sensors: tuple[str, ...] = (GNSS,)
     """Sensors without which the filter cannot work (GNSS alone makes every vehicle state
     observable)."""
 
-    supported_sensors: tuple[str, ...] = ("gnss", "gnss_velocity", "imu", "wheel_speed",
-                                          "steering", "heading")
+    supported_sensors: tuple[str, ...] = FUSED_SENSORS
     """Sensors the filter fuses; measurements of any other sensor are ignored."""
 
     state_names: tuple[str, ...] = STATE_NAMES

@@ -16,6 +16,7 @@ import numpy as np
 
 from cosim.core.initial_state import InitialState
 from cosim.core.records import Estimate, Measurement
+from cosim.core.sensor_names import TRUTH
 from cosim.core.vehicle_params import VehicleParams
 from estimation.config import EstimatorConfig
 from estimation.models import VEHICLE_STATE_NAMES, wrap_angle
@@ -46,8 +47,8 @@ class TruthEstimator:
     truth sample it reports ``initial`` (at rest except for the forward speed).
     """
 
-    required_sensors: tuple[str, ...] = ("truth",)
-    supported_sensors: tuple[str, ...] = ("truth",)
+    required_sensors: tuple[str, ...] = (TRUTH,)
+    supported_sensors: tuple[str, ...] = (TRUTH,)
     state_names: tuple[str, ...] = TRUTH_STATE_NAMES
 
     def __init__(
@@ -103,7 +104,7 @@ class TruthEstimator:
         """Take a ``truth`` sample as the estimate; ignore every other sensor."""
         sensor = measurement.sensor
         counts = self._counts.setdefault(sensor, SensorCounts())
-        if sensor != "truth":
+        if sensor != TRUTH:
             counts.ignored += 1
             return UpdateResult(False, math.nan, 0, IGNORED)
         missing = [name for name in TRUTH_STATE_NAMES if name not in measurement.names]

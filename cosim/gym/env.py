@@ -20,7 +20,7 @@ with the simulator's true tracking errors (the reward is the experimenter's, not
 agent's, knowledge) and ``steer_rate`` the change of commanded steering per second.
 Terminated on an outcome event (off the road, spun, rolled over, end of the path);
 truncated at ``sim.duration_s``. ``info["metrics"]`` at the episode's end holds the run's
-metrics (:data:`cosim.simulation.metrics.METRIC_KEYS`), as ``cosim run`` prints them.
+metrics (:data:`cosim.simulation.metric_keys.METRIC_KEYS`), as ``cosim run`` prints them.
 ``reset(seed=s)`` runs seed ``s`` (the same noise as ``cosim run --seed s``).
 """
 
@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -71,7 +72,7 @@ class _ActionTracker:
 class _NoLog:
     """A recorder that keeps nothing (an episode without ``log_dir``)."""
 
-    def register(self, topic: str, schema: dict[str, Any]) -> None: ...
+    def register(self, topic: str, schema: Mapping[str, Any] | None = None) -> None: ...
     def write(self, topic: str, t_s: float, message: dict[str, Any]) -> None: ...
     def write_finite(self, topic: str, t_s: float, message: dict[str, Any]) -> None: ...
     def add_metadata(self, name: str, values: dict[str, str]) -> None: ...

@@ -27,9 +27,10 @@ from pathlib import Path
 from typing import Any
 
 from cosim.core.exceptions import CosimError
+from cosim.log import topics
 from cosim.log.reader import LogSummary, iter_messages, iter_topics
 
-PLAN_TOPIC = "/control/plan"
+PLAN_TOPIC = topics.CONTROL_PLAN
 
 
 def _counted(counter: Counter[str]) -> str:

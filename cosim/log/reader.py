@@ -27,6 +27,7 @@ from mcap.stream_reader import StreamReader
 from zstandard import ZstdError
 
 from cosim.core.exceptions import LogReadError
+from cosim.log import topics
 
 
 @dataclass(frozen=True)
@@ -193,7 +194,7 @@ def _indexed_summary(path: Path) -> LogSummary | None:
                 ))
             summary.metadata = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
             summary.attachments = [a.name for a in found.attachment_indexes]
-            for _, _, message in reader.iter_messages(topics=["/metrics"]):
+            for _, _, message in reader.iter_messages(topics=[topics.METRICS]):
                 summary.metrics = _metrics(message.data)
             return summary
     except (McapError, EOFError, ValueError, OSError, struct.error, KeyError, ZstdError):
@@ -233,7 +234,7 @@ def _scan_summary(path: Path) -> LogSummary:
             if summary.end_ns is None or record.log_time > summary.end_ns:
                 summary.end_ns = record.log_time
             channel = channels.get(record.channel_id)
-            if channel is not None and channel.topic == "/metrics":
+            if channel is not None and channel.topic == topics.METRICS:
                 summary.metrics = _metrics(record.data)
         elif isinstance(record, Metadata):
             summary.metadata[record.name] = dict(record.metadata)

@@ -24,6 +24,7 @@ publishes leaves the final name untouched.
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
 from pathlib import Path
 from typing import IO, Any
 
@@ -32,6 +33,7 @@ from mcap.writer import CompressionType, Writer
 
 from cosim import __version__
 from cosim.core.exceptions import ConfigError
+from cosim.log import topics
 from cosim.log.safe_file import PendingFile
 
 
@@ -116,8 +118,11 @@ class McapRecorder:
         self._closed = True
         self._pending.close()
 
-    def register(self, topic: str, schema: dict[str, Any]) -> None:
-        """Declare a topic with its JSON schema; the schema's title is its name."""
+    def register(self, topic: str, schema: Mapping[str, Any] | None = None) -> None:
+        """Declare a topic with its JSON schema (by default the one :mod:`cosim.log.topics`
+        gives it); the schema's title is its name."""
+        if schema is None:
+            schema = topics.schema_of(topic)
         schema_id = self._writer.register_schema(
             name=schema["title"], encoding="jsonschema", data=json.dumps(schema).encode()
         )

@@ -18,11 +18,12 @@ from typing import Any
 
 import numpy as np
 
+from cosim.log import topics
 from cosim.log.reader import iter_topics
 from cosim.plots.data import RunLog
 from cosim.plots.style import finish, new_figure, note, run_colour, run_line, time_axis
 
-ACC_TOPICS = {"/traffic/gap", "/acc/mode", "/acc/gains"}
+ACC_TOPICS = {topics.TRAFFIC_GAP, topics.ACC_MODE, topics.ACC_GAINS}
 GAIN_NAMES = ("k_v", "k_x", "k_vrel")
 GAIN_UNITS = {"k_v": "1/s", "k_x": "1/s^2", "k_vrel": "1/s"}
 
@@ -54,7 +55,8 @@ def load_acc(path: Path) -> AccLog | None:
     messages: dict[str, list[dict[str, Any]]] = {topic: [] for topic in ACC_TOPICS}
     for topic, _, message in iter_topics(path, ACC_TOPICS):
         messages[topic].append(message)
-    gap, mode, gains = (messages[t] for t in ("/traffic/gap", "/acc/mode", "/acc/gains"))
+    gap, mode, gains = (messages[t] for t in (topics.TRAFFIC_GAP, topics.ACC_MODE,
+                                              topics.ACC_GAINS))
     if not gap:
         return None
     return AccLog(

@@ -19,12 +19,14 @@ from typing import Any
 import numpy as np
 
 from cosim.core.exceptions import CosimError, LogReadError
+from cosim.log import topics
 from cosim.log.reader import iter_topics, read_summary
 from cosim.simulation.metrics import NEES_STATES
 from tracker.paths.reference_path import ReferencePath, wrap_angle
 
-TOPICS = {"/vehicle/truth", "/vehicle/estimate", "/control/command", "/control/plan",
-          "/reference/path", "/estimator/updates", "/control/errors"}
+TOPICS = {topics.VEHICLE_TRUTH, topics.VEHICLE_ESTIMATE, topics.CONTROL_COMMAND,
+          topics.CONTROL_PLAN, topics.REFERENCE_PATH, topics.ESTIMATOR_UPDATES,
+          topics.CONTROL_ERRORS}
 
 TRUTH_FIELDS = ("x_m", "y_m", "yaw_rad", "vx_mps", "vy_mps", "yaw_rate_radps", "ax_mps2",
                 "steer_rad", "roll_rad")
@@ -319,21 +321,21 @@ def load_run(path: Path | str) -> RunLog:
     messages: dict[str, list[tuple[int, dict[str, Any]]]] = {topic: [] for topic in TOPICS}
     for topic, log_time_ns, message in iter_topics(path, TOPICS):
         messages[topic].append((log_time_ns, message))
-    if not messages["/vehicle/truth"]:
+    if not messages[topics.VEHICLE_TRUTH]:
         raise LogReadError(f"{str(path)!r}: no /vehicle/truth messages (nothing to plot)")
-    truth = _truth(messages["/vehicle/truth"])
-    estimate = _estimate(messages["/vehicle/estimate"])
-    reference = _reference(messages["/reference/path"])
+    truth = _truth(messages[topics.VEHICLE_TRUTH])
+    estimate = _estimate(messages[topics.VEHICLE_ESTIMATE])
+    reference = _reference(messages[topics.REFERENCE_PATH])
     config = summary.config
     label = f"{config.get('name', path.stem)} / {config.get('tracker', {}).get('name', '?')}"
     return RunLog(
         path=path, label=label, config=config, metrics=summary.metrics,
         truncated=summary.truncated, truth=truth, estimate=estimate,
-        commands=_commands(messages["/control/command"]),
-        plans=_plans(messages["/control/plan"]), reference=reference,
-        tracking=_tracking(truth, reference, messages["/control/errors"]),
+        commands=_commands(messages[topics.CONTROL_COMMAND]),
+        plans=_plans(messages[topics.CONTROL_PLAN]), reference=reference,
+        tracking=_tracking(truth, reference, messages[topics.CONTROL_ERRORS]),
         estimation=_estimation(truth, estimate),
-        nis=_nis(messages["/estimator/updates"]),
+        nis=_nis(messages[topics.ESTIMATOR_UPDATES]),
     )
 
 
@@ -392,13 +394,14 @@ def _label_value(value: Any) -> str:
 def load_estimation(path: Path | str) -> EstimationErrors | None:
     """The estimation errors of a log (and their NEES) alone: reads only the truth and the
     estimate, for ensembles of many runs (:mod:`cosim.sweeps.ensemble`)."""
-    topics = ("/vehicle/truth", "/vehicle/estimate")
-    messages: dict[str, list[tuple[int, dict[str, Any]]]] = {topic: [] for topic in topics}
-    for topic, log_time_ns, message in iter_topics(Path(path), set(topics)):
+    wanted = (topics.VEHICLE_TRUTH, topics.VEHICLE_ESTIMATE)
+    messages: dict[str, list[tuple[int, dict[str, Any]]]] = {topic: [] for topic in wanted}
+    for topic, log_time_ns, message in iter_topics(Path(path), set(wanted)):
         messages[topic].append((log_time_ns, message))
-    if not messages["/vehicle/truth"]:
+    if not messages[topics.VEHICLE_TRUTH]:
         raise LogReadError(f"{str(path)!r}: no /vehicle/truth messages")
-    return _estimation(_truth(messages["/vehicle/truth"]), _estimate(messages["/vehicle/estimate"]))
+    return _estimation(_truth(messages[topics.VEHICLE_TRUTH]),
+                       _estimate(messages[topics.VEHICLE_ESTIMATE]))
 
 
 def distinct_labels(runs: list[RunLog]) -> list[RunLog]:

@@ -70,6 +70,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cosim.core.exceptions import CosimError, GlBackendError, RenderError
+from cosim.log import topics
 
 if TYPE_CHECKING:
     import mujoco
@@ -276,7 +277,7 @@ def read_logged_scene(log_path: Path | str) -> LoggedScene:
     from cosim.log.reader import iter_messages, read_attachment, read_summary
 
     log_path = Path(log_path)
-    rows = [message for _, message in iter_messages(log_path, "/vehicle/truth")]
+    rows = [message for _, message in iter_messages(log_path, topics.VEHICLE_TRUTH)]
     if len(rows) < 2:
         raise RenderError(f"{str(log_path)!r}: {len(rows)} /vehicle/truth messages; expected "
                           "at least 2 to make a video")
@@ -291,12 +292,12 @@ def read_logged_scene(log_path: Path | str) -> LoggedScene:
                           "a value is not finite")
 
     path_xy = None
-    for _, message in iter_messages(log_path, "/reference/path"):
+    for _, message in iter_messages(log_path, topics.REFERENCE_PATH):
         path_xy = np.column_stack([message["x_m"], message["y_m"]]).astype(float)
         break
 
     rows_by_car: dict[str, list[tuple[float, float, float, float]]] = {}
-    for _, message in iter_messages(log_path, "/traffic/cars"):
+    for _, message in iter_messages(log_path, topics.TRAFFIC_CARS):
         for car in message["cars"]:
             rows_by_car.setdefault(car["name"], []).append(
                 (car["t_s"], car["x_m"], car["y_m"], car["yaw_rad"]))

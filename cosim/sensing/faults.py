@@ -25,9 +25,11 @@ import numpy as np
 from cosim.core.config_fields import setting
 from cosim.core.exceptions import ConfigError
 from cosim.core.records import Measurement
+from cosim.core.sensor_names import FUSED_SENSORS, GNSS, GNSS_VELOCITY
 
 FAULT_KINDS = ("dropout", "outlier", "stuck", "nan")
-FAULT_SENSORS = ("gnss", "gnss_velocity", "heading", "imu", "wheel_speed", "steering")
+FAULT_SENSORS = FUSED_SENSORS
+"""Sensors a fault can act on: every one the estimator fuses."""
 
 
 @dataclass(frozen=True)
@@ -35,7 +37,7 @@ class FaultConfig:
     """One fault of one sensor over a time window."""
 
     kind: str = setting("dropout", choices=FAULT_KINDS)
-    sensor: str = setting("gnss", choices=FAULT_SENSORS)
+    sensor: str = setting(GNSS, choices=FAULT_SENSORS)
     start_s: float = setting(0.0, low=0.0, high=1e6)
     end_s: float = setting(-1.0, low=-1.0, high=1e6, doc="-1: only the first sample")
     offset: float = setting(0.0, low=-1e6, high=1e6, doc="outlier jump (GNSS: east, m or m/s)")
@@ -90,7 +92,7 @@ class FaultInjector:
                 self.injected += 1
                 return None
             if fault.kind == "outlier":
-                if measurement.sensor in ("gnss", "gnss_velocity") and not fault.channel:
+                if measurement.sensor in (GNSS, GNSS_VELOCITY) and not fault.channel:
                     values = values + np.array([fault.offset, fault.offset_north])
                 else:
                     values = np.where(mask, values + fault.offset, values)

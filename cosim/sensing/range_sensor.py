@@ -27,6 +27,7 @@ import numpy as np
 
 from cosim.core.config_fields import setting
 from cosim.core.records import VehicleState
+from cosim.core.sensor_names import RADAR
 from cosim.core.traffic_records import CarPose, RangeReading
 
 
@@ -50,7 +51,7 @@ class RadarConfig:
 class RangeSensor:
     """Samples :class:`RangeReading`s of the cars around the ego (module docstring)."""
 
-    name = "radar"
+    name = RADAR
 
     def __init__(self, config: RadarConfig, front_m: float) -> None:
         self.config = config

@@ -16,6 +16,7 @@ from typing import Union
 
 import numpy as np
 
+from cosim.core import sensor_names
 from cosim.core.config_fields import section, setting
 from cosim.core.records import WHEEL_NAMES, Measurement, VehicleState
 from cosim.sensing.range_sensor import RadarConfig
@@ -123,12 +124,12 @@ def suite_preset(suite: str) -> dict[str, dict[str, float]]:
     - ``ideal``: every sensor noise-free, unbiased and unquantised, for debugging.
     """
     if suite == "gnss":
-        return {"gnss": {"sigma_m": 0.5}}
+        return {sensor_names.GNSS: {"sigma_m": 0.5}}
     if suite == "ideal":
-        zero = {"gnss": GnssConfig, "gnss_velocity": GnssVelocityConfig,
-                "heading": HeadingConfig, "imu": ImuConfig,
-                "wheel_speed": WheelSpeedConfig,
-                "steering": SteeringConfig}
+        zero = {sensor_names.GNSS: GnssConfig, sensor_names.GNSS_VELOCITY: GnssVelocityConfig,
+                sensor_names.HEADING: HeadingConfig, sensor_names.IMU: ImuConfig,
+                sensor_names.WHEEL_SPEED: WheelSpeedConfig,
+                sensor_names.STEERING: SteeringConfig}
         return {
             name: {f.name: 0.0 for f in dataclasses.fields(cls)
                    if f.name not in ("enabled", "period_s")}
@@ -163,7 +164,7 @@ class _HorizontalGaussianSensor:
 class GnssSensor(_HorizontalGaussianSensor):
     """World-frame position of the centre of gravity with white Gaussian noise."""
 
-    name = "gnss"
+    name = sensor_names.GNSS
     names = ("x_m", "y_m")
 
     def __init__(self, config: GnssConfig) -> None:
@@ -177,7 +178,7 @@ class GnssVelocitySensor(_HorizontalGaussianSensor):
     """World-frame velocity of the centre of gravity (Doppler) with white Gaussian noise:
     east ``vx cos(yaw) - vy sin(yaw)``, north ``vx sin(yaw) + vy cos(yaw)``."""
 
-    name = "gnss_velocity"
+    name = sensor_names.GNSS_VELOCITY
     names = ("v_east_mps", "v_north_mps")
 
     def __init__(self, config: GnssVelocityConfig) -> None:
@@ -196,7 +197,7 @@ class ImuSensor:
     Gravity is taken as already removed (an ideal attitude-compensated IMU).
     """
 
-    name = "imu"
+    name = sensor_names.IMU
     names = ("yaw_rate_radps", "ax_mps2", "ay_mps2")
 
     def __init__(self, config: ImuConfig) -> None:
@@ -230,7 +231,7 @@ class ImuSensor:
 class WheelSpeedSensor:
     """Spin rate of each wheel (positive rolling forward), in WHEEL_NAMES order."""
 
-    name = "wheel_speed"
+    name = sensor_names.WHEEL_SPEED
     names = tuple(f"{wheel}_radps" for wheel in WHEEL_NAMES)
 
     def __init__(self, config: WheelSpeedConfig) -> None:
@@ -251,7 +252,7 @@ class WheelSpeedSensor:
 class HeadingSensor:
     """Dual-antenna GNSS heading with white Gaussian noise, wrapped to (-pi, pi]."""
 
-    name = "heading"
+    name = sensor_names.HEADING
     names = ("yaw_rad",)
 
     def __init__(self, config: HeadingConfig) -> None:
@@ -268,7 +269,7 @@ class HeadingSensor:
 class SteeringAngleSensor:
     """The steering-angle sensor, expressed as the mean front road-wheel angle."""
 
-    name = "steering"
+    name = sensor_names.STEERING
     names = ("steer_rad",)
 
     def __init__(self, config: SteeringConfig) -> None:
@@ -292,7 +293,7 @@ TRUTH_FIELDS = (
 class TruthSensor:
     """The true state as a noise-free measurement: feeds only the ``truth`` estimator."""
 
-    name = "truth"
+    name = sensor_names.TRUTH
     names = TRUTH_FIELDS
 
     def __init__(self, period_s: float) -> None:

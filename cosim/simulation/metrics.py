@@ -1,4 +1,5 @@
-"""Run metrics (the keys of docs/architecture.md's metrics table), from the logged records.
+"""Run metrics, from what the loop saw (every key, its unit and meaning:
+:mod:`cosim.simulation.metric_keys`, ``docs/metrics.md``).
 
 Tracking errors use the true centre of gravity projected onto the reference path (not
 y - y_ref); heading error is the true yaw minus the path's yaw at that projection, wrapped
@@ -29,6 +30,7 @@ import numpy as np
 
 from cosim.core.records import Command, Estimate, Plan, VehicleState
 from cosim.simulation.maneuver_metrics import maneuver_metrics
+from cosim.simulation.metric_keys import METRIC_KEYS, WALL_CLOCK_KEYS
 from cosim.simulation.running_stats import RunningStats, Samples
 from estimation.update_result import UpdateResult
 from tracker.maneuver import ManeuverConfig
@@ -37,19 +39,8 @@ from tracker.paths.reference_path import ReferencePath, wrap_angle
 NEES_STATES = ("x_m", "y_m", "yaw_rad", "vx_mps")
 """The states NEES is computed over (4 degrees of freedom)."""
 
-METRIC_KEYS = (
-    "cte_max_m", "cte_rms_m", "heading_err_max_rad", "heading_err_rms_rad",
-    "speed_err_rms_mps", "steer_max_rad", "accel_max_mps2", "accel_min_mps2",
-    "solve_ms_p50", "solve_ms_p99", "solve_ms_max", "solver_failures",
-    "est_pos_rmse_m", "est_yaw_rmse_rad", "est_speed_rmse_mps", "nees_mean", "nis_mean",
-    "sim_duration_s", "wall_time_s", "realtime_factor", "completed",
-    "step_ms_p50", "step_ms_p99", "step_ms_max",
-)
-"""Keys every run's metrics hold (a contract: outside tests read them)."""
-
-WALL_CLOCK_KEYS = ("wall_time_s", "realtime_factor", "solve_ms_p50", "solve_ms_p99",
-                   "solve_ms_max", "step_ms_p50", "step_ms_p99", "step_ms_max")
-"""Metrics that measure the machine, not the run: they differ between two runs of one seed."""
+__all__ = ["METRIC_KEYS", "NEES_STATES", "WALL_CLOCK_KEYS", "MetricsAccumulator",
+           "rejection_counts"]
 
 
 REJECTION_CAUSES = ("rejected_gate", "rejected_nonfinite", "rejected_stale",

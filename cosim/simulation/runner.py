@@ -38,8 +38,8 @@ from cosim import __version__
 from cosim.core.config_fields import to_dict
 from cosim.core.exceptions import PhysicsDivergenceError, TrackerFault
 from cosim.core.records import Command, Estimate, Measurement, Plan, VehicleState
-from cosim.log import foxglove
-from cosim.log import schemas as mcap_schemas
+from cosim.core.sensor_names import GNSS, RADAR, TRUTH
+from cosim.log import foxglove, topics
 from cosim.log.recorder import McapRecorder
 from cosim.plant import disturbances
 from cosim.plant.car import MujocoPlant
@@ -61,8 +61,8 @@ from tracker.registry import make_tracker
 
 @dataclass(frozen=True)
 class RunResult:
-    """What a run produced: its log, its metrics (:data:`cosim.simulation.metrics.METRIC_KEYS`
-    and the outcome's), whether it ran to the end, and why not."""
+    """What a run produced: its log, its metrics (every key declared in
+    :mod:`cosim.simulation.metric_keys`), whether it ran to the end, and why not."""
 
     log_path: Path
     metrics: dict[str, float | int | bool | str]
@@ -145,26 +145,23 @@ LIVE_METRICS_PERIOD_S = 1.0
 Foxglove's metrics panel fills during playback (``/metrics`` comes only at the end)."""
 
 
+_EVERY_RUN_TOPICS = (
+    topics.VEHICLE_TRUTH, topics.VEHICLE_ESTIMATE, topics.CONTROL_COMMAND, topics.CONTROL_PLAN,
+    topics.REFERENCE_PATH, topics.METRICS, topics.METRICS_LIVE, topics.ESTIMATOR_UPDATES,
+    topics.CONTROL_ERRORS, topics.TF, topics.SCENE, topics.SCENE_CAR, topics.SCENE_ESTIMATE,
+    topics.GNSS_FIX,
+)
+"""Channels every run registers before its first step (in this order)."""
+
+
 def _register_topics(recorder: McapRecorder, sensor_names: list[str],
                      disturbed: bool) -> None:
-    recorder.register("/vehicle/truth", mcap_schemas.VEHICLE_STATE)
-    recorder.register("/vehicle/estimate", mcap_schemas.ESTIMATE)
-    recorder.register("/control/command", mcap_schemas.COMMAND)
-    recorder.register("/control/plan", mcap_schemas.PLAN)
-    recorder.register("/reference/path", mcap_schemas.REFERENCE_PATH)
-    recorder.register("/metrics", mcap_schemas.METRICS)
-    recorder.register("/metrics/live", mcap_schemas.LIVE_METRICS)
-    recorder.register("/estimator/updates", mcap_schemas.ESTIMATOR_UPDATE)
-    recorder.register("/control/errors", mcap_schemas.TRACKING_ERRORS)
-    recorder.register("/tf", mcap_schemas.FRAME_TRANSFORM)
-    recorder.register("/scene", mcap_schemas.SCENE_UPDATE)
-    recorder.register("/scene/car", mcap_schemas.SCENE_UPDATE)
-    recorder.register("/scene/estimate", mcap_schemas.SCENE_UPDATE)
-    recorder.register("/gnss/fix", mcap_schemas.LOCATION_FIX)
+    for topic in _EVERY_RUN_TOPICS:
+        recorder.register(topic)
     if disturbed:  # a channel exists only when it will carry messages
-        recorder.register("/plant/disturbance", mcap_schemas.DISTURBANCE)
+        recorder.register(topics.PLANT_DISTURBANCE)
     for name in sensor_names:
-        recorder.register(f"/sensors/{name}", mcap_schemas.MEASUREMENT)
+        recorder.register(topics.sensor_topic(name))
 
 
 @dataclass
@@ -220,7 +217,7 @@ class _Run:
         (:meth:`estimation.fusion.KalmanFusion.update_many`), else one by one."""
         self.low_level = AccelToTorque(config.tracker.model)
         self.sensors = make_sensors(config.sensors)
-        if "truth" in getattr(self.estimator, "required_sensors", ()):
+        if TRUTH in getattr(self.estimator, "required_sensors", ()):
             period_s = min(config.sim.log_period_s, config.sim.control_period_s)
             self.sensors.append(TruthSensor(period_s))
         self.sensor_steps = [
@@ -250,7 +247,7 @@ class _Run:
         """``/events`` is registered with the first event."""
         self.traffic = None if traffic is None else \
             TrafficLoop(config, self.plant, traffic, recorder, self.tracker,
-                        component_rng(config.seed, "sensors.radar"))
+                        component_rng(config.seed, f"sensors.{RADAR}"))
         """Traffic, range sensor and ACC topics (:mod:`cosim.simulation.traffic_loop`)."""
 
     @property
@@ -283,7 +280,7 @@ class _Run:
         })
         recorder.add_attachment("sedan.xml", "application/xml", self.plant.mjcf_xml.encode())
         samples = self.reference.sample(np.arange(0.0, self.reference.length_m, 1.0))
-        recorder.write("/reference/path", 0.0, {
+        recorder.write(topics.REFERENCE_PATH, 0.0, {
             **{k: [float(v) for v in samples[k]] for k in samples},
             "speed_mps": self.reference.speed_mps,
             "ref_speed_mps": [float(v) for v in self.reference.speed_ref(samples["s_m"], 0.0)],
@@ -291,7 +288,7 @@ class _Run:
         })
         course = self.course
         edges = course.bounds.edges(self.reference) if course.bounds is not None else None
-        recorder.write("/scene", 0.0, foxglove.static_scene(
+        recorder.write(topics.SCENE, 0.0, foxglove.static_scene(
             samples["x_m"], samples["y_m"], course.cones_xy_m, edges,
             closed=self.reference.closed))
 
@@ -303,13 +300,13 @@ class _Run:
 
     def log(self, k: int, t_s: float) -> None:
         estimate = self.current_estimate(t_s)
-        self.recorder.write_finite("/vehicle/truth", t_s, self.truth.to_message())
-        self.recorder.write_finite("/vehicle/estimate", t_s, estimate.to_message())
-        self.recorder.write("/tf", t_s, foxglove.frame_transform(self.truth))
+        self.recorder.write_finite(topics.VEHICLE_TRUTH, t_s, self.truth.to_message())
+        self.recorder.write_finite(topics.VEHICLE_ESTIMATE, t_s, estimate.to_message())
+        self.recorder.write(topics.TF, t_s, foxglove.frame_transform(self.truth))
         if k % self.clock.scene_steps == 0:
-            self.recorder.write("/scene/car", t_s,
+            self.recorder.write(topics.SCENE_CAR, t_s,
                                 foxglove.car_scene(self.truth, self.config.plant))
-            self.recorder.write("/scene/estimate", t_s, foxglove.estimate_scene(estimate))
+            self.recorder.write(topics.SCENE_ESTIMATE, t_s, foxglove.estimate_scene(estimate))
         metrics = self.metrics
         metrics.add_truth(self.truth)
         metrics.add_estimate(estimate, self.truth)
@@ -318,18 +315,18 @@ class _Run:
                 self.truth, metrics.cte_m.last, metrics.heading_err_rad.last, metrics.last_path_s_m,
                 None if forces is None else tuple(f.load_n for f in forces)):
             if not self.events_registered:  # a channel exists only when it carries messages
-                self.recorder.register("/events", mcap_schemas.EVENT)
+                self.recorder.register(topics.EVENTS)
                 self.events_registered = True
-            self.recorder.write_finite("/events", t_s, event.to_message())
+            self.recorder.write_finite(topics.EVENTS, t_s, event.to_message())
         self.course_monitor.add_truth(self.truth, metrics.cte_m.last, metrics.last_path_s_m)
-        self.recorder.write_finite("/control/errors", t_s, {
+        self.recorder.write_finite(topics.CONTROL_ERRORS, t_s, {
             "t_s": t_s, "cte_m": metrics.cte_m.last,
             "heading_err_rad": metrics.heading_err_rad.last,
             "speed_err_mps": metrics.speed_err_mps.last, "speed_mps": self.truth.speed_mps,
             "ref_speed_mps": metrics.last_ref_speed_mps,
         })
         if t_s >= self.next_live_metrics_s - 1e-9:
-            self.recorder.write_finite("/metrics/live", t_s, metrics.live(t_s))
+            self.recorder.write_finite(topics.METRICS_LIVE, t_s, metrics.live(t_s))
             self.next_live_metrics_s += LIVE_METRICS_PERIOD_S
         if self.traffic is not None:
             self.traffic.log(t_s, self.truth, scene=k % self.clock.scene_steps == 0)
@@ -348,9 +345,10 @@ class _Run:
                 sensor.sample(self.truth, self.rngs[sensor.name]))
             if measurement is None:  # a dropout: nothing is delivered
                 continue
-            self.recorder.write_finite(f"/sensors/{sensor.name}", t_s, measurement.to_message())
-            if sensor.name == "gnss" and np.all(np.isfinite(measurement.values)):
-                self.recorder.write("/gnss/fix", t_s, foxglove.location_fix(
+            self.recorder.write_finite(topics.sensor_topic(sensor.name), t_s,
+                                       measurement.to_message())
+            if sensor.name == GNSS and np.all(np.isfinite(measurement.values)):
+                self.recorder.write(topics.GNSS_FIX, t_s, foxglove.location_fix(
                     measurement["x_m"], measurement["y_m"], t_s,
                     self.config.sensors.gnss.sigma_m, self.config.geo))
             delivered.append(measurement)
@@ -358,9 +356,9 @@ class _Run:
             return
         updates = self.fuse(delivered)
         for measurement, update in zip(delivered, updates, strict=True):
-            if measurement.sensor != "truth":  # noise-free: NIS is undefined
+            if measurement.sensor != TRUTH:  # noise-free: NIS is undefined
                 self.metrics.add_update(measurement.sensor, update)
-                self.recorder.write_finite("/estimator/updates", t_s, {
+                self.recorder.write_finite(topics.ESTIMATOR_UPDATES, t_s, {
                     "t_s": t_s, "sensor": measurement.sensor, "accepted": update.accepted,
                     "nis": update.nis, "dof": update.dim, "reason": update.reason})
 
@@ -371,7 +369,7 @@ class _Run:
         start_s = time.perf_counter()
         command, plan = self.tracker.step(t_s, estimate, self.reference)
         step_time_s = time.perf_counter() - start_s
-        self.recorder.write_finite("/control/plan", t_s, plan.to_message())
+        self.recorder.write_finite(topics.CONTROL_PLAN, t_s, plan.to_message())
         self.write_plan_scene(t_s, plan)
         self.metrics.add_plan(plan, step_time_s)
         self.delay_line.append((k + self.clock.delay_steps, command))
@@ -382,18 +380,18 @@ class _Run:
         """The ``collision`` event on ``/events`` (the run ends with it)."""
         event = self.monitor.collision(error.t_s, error.car)
         if not self.events_registered:
-            self.recorder.register("/events", mcap_schemas.EVENT)
+            self.recorder.register(topics.EVENTS)
             self.events_registered = True
-        self.recorder.write_finite("/events", error.t_s, event.to_message())
+        self.recorder.write_finite(topics.EVENTS, error.t_s, event.to_message())
 
     def write_plan_scene(self, t_s: float, plan: Plan) -> None:
         scene = foxglove.plan_scene(plan)
         if scene is None:  # no world positions in this tracker's plans
             return
         if not self.plan_scene_registered:
-            self.recorder.register("/scene/plan", mcap_schemas.SCENE_UPDATE)
+            self.recorder.register(topics.SCENE_PLAN)
             self.plan_scene_registered = True
-        self.recorder.write("/scene/plan", t_s, scene)
+        self.recorder.write(topics.SCENE_PLAN, t_s, scene)
 
     def actuate(self, k: int, t_s: float) -> None:
         """Apply the commands that leave the delay line at step ``k``."""
@@ -402,7 +400,7 @@ class _Run:
             actuator = self.low_level.convert(command, self.estimated_speed_mps)
             self.plant.apply(actuator)
             self.metrics.add_command(command)
-            self.recorder.write("/control/command", t_s, {
+            self.recorder.write(topics.CONTROL_COMMAND, t_s, {
                 "t_s": t_s, "accel_mps2": command.accel_mps2, "steer_rad": command.steer_rad,
                 "drive_torque_nm": actuator.drive_torque_nm,
                 "brake_torque_nm": actuator.brake_torque_nm,
@@ -414,7 +412,7 @@ class _Run:
             change = self.yaw_rate_changes.popleft()
             self.plant.add_yaw_rate(change.delta_radps)
             self._truth = None
-            self.recorder.write("/plant/disturbance", t_s, {
+            self.recorder.write(topics.PLANT_DISTURBANCE, t_s, {
                 "t_s": t_s, "kind": "heading_step", "heading_step_rad": change.angle_rad,
                 "yaw_rate_change_radps": change.delta_radps})
 
@@ -507,7 +505,7 @@ def _finish(recorder: McapRecorder, state: _Run, wall_start: float, completed: b
         values.setdefault(f"{event.kind}_t_s", event.t_s)
     if abort_reason:
         values["abort_reason"] = abort_reason
-    recorder.write_finite("/metrics", metrics.last_t_s, values)
+    recorder.write_finite(topics.METRICS, metrics.last_t_s, values)
     recorder.add_metadata("metrics", {"json": json.dumps(
         {k: (v if not isinstance(v, float) or np.isfinite(v) else None)
          for k, v in values.items()})})

@@ -50,9 +50,9 @@ from collections import deque
 import numpy as np
 
 from cosim.core.records import VehicleState
+from cosim.core.sensor_names import RADAR
 from cosim.core.traffic_records import CarPose
-from cosim.log import foxglove
-from cosim.log import schemas as mcap_schemas
+from cosim.log import foxglove, topics
 from cosim.log.recorder import McapRecorder
 from cosim.plant.car import MujocoPlant
 from cosim.plant.traffic import Traffic, traffic_cars
@@ -167,24 +167,24 @@ class TrafficLoop:
 
     def register(self) -> None:
         recorder = self.recorder
-        recorder.register("/traffic/cars", mcap_schemas.TRAFFIC_CARS)
-        recorder.register("/traffic/gap", mcap_schemas.TRAFFIC_GAP)
-        recorder.register("/scene/traffic", mcap_schemas.SCENE_UPDATE)
+        recorder.register(topics.TRAFFIC_CARS)
+        recorder.register(topics.TRAFFIC_GAP)
+        recorder.register(topics.SCENE_TRAFFIC)
         if self.radar is not None:
-            recorder.register("/sensors/radar", mcap_schemas.RANGE_READING)
+            recorder.register(topics.sensor_topic(RADAR))
         if self.acc is not None:
-            recorder.register("/acc/gains", mcap_schemas.ACC_GAINS)
-            recorder.register("/acc/objective", mcap_schemas.ACC_OBJECTIVE)
-            recorder.register("/acc/mode", mcap_schemas.ACC_MODE)
+            recorder.register(topics.ACC_GAINS)
+            recorder.register(topics.ACC_OBJECTIVE)
+            recorder.register(topics.ACC_MODE)
 
     def log(self, t_s: float, truth: VehicleState, scene: bool = True) -> None:
         """Log step: poses, the scene (when ``scene``: at ``sim.scene_period_s``), the true
         gap and its metrics; raise on a collision."""
         poses = self.traffic.poses(t_s)
         cars = [pose.to_message() for pose in poses]
-        self.recorder.write("/traffic/cars", t_s, {"t_s": t_s, "cars": cars})
+        self.recorder.write(topics.TRAFFIC_CARS, t_s, {"t_s": t_s, "cars": cars})
         if scene:
-            self.recorder.write("/scene/traffic", t_s,
+            self.recorder.write(topics.SCENE_TRAFFIC, t_s,
                                 foxglove.traffic_scene(t_s, cars, self.last_target))
         car, gap, range_rate = self.car_ahead(truth, poses)
         speed = truth.vx_mps
@@ -200,7 +200,7 @@ class TrafficLoop:
             if -range_rate > MIN_CLOSING_SPEED_MPS:
                 ttc = touching_gap / -range_rate
                 self.ttc_s.add(ttc)
-        self.recorder.write_finite("/traffic/gap", t_s, {
+        self.recorder.write_finite(topics.TRAFFIC_GAP, t_s, {
             "t_s": t_s, "target": car.name if car is not None else "", "gap_m": gap,
             "range_rate_mps": range_rate, "time_gap_s": time_gap, "ttc_s": ttc,
             "safe_gap_m": safe_gap,
@@ -249,7 +249,7 @@ class TrafficLoop:
         reading = self.radar.sample(truth, self.traffic.poses(t_s), self.rng)
         if reading is None:  # a dropout: nothing is delivered
             return
-        self.recorder.write_finite("/sensors/radar", t_s, reading.to_message())
+        self.recorder.write_finite(topics.sensor_topic(RADAR), t_s, reading.to_message())
         if reading.target and reading.target != self.last_target:
             if self.last_target:
                 self.target_changes += 1
@@ -265,9 +265,10 @@ class TrafficLoop:
         if status is None:
             return
         recorder = self.recorder
-        recorder.write("/acc/gains", t_s, status.gains_message())
-        recorder.write_finite("/acc/objective", t_s, {"t_s": t_s, "objective": status.objective})
-        recorder.write_finite("/acc/mode", t_s, {
+        recorder.write(topics.ACC_GAINS, t_s, status.gains_message())
+        recorder.write_finite(topics.ACC_OBJECTIVE, t_s,
+                              {"t_s": t_s, "objective": status.objective})
+        recorder.write_finite(topics.ACC_MODE, t_s, {
             "t_s": t_s, "mode": status.mode, "gap_mode": status.mode == "gap",
             "target": status.target, "gap_m": status.gap_m,
             "desired_gap_m": status.desired_gap_m, "range_rate_mps": status.range_rate_mps,

@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from cosim.core.exceptions import CosimError
-from cosim.simulation.metrics import METRIC_KEYS
+from cosim.simulation.metric_keys import METRIC_KEYS
 from cosim.sweeps.spec import Parameter, SweepSpec, axis_label, unit_of
 
 SWEEP_FILE = "sweep.json"

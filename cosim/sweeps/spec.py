@@ -30,7 +30,7 @@ a model mismatch; the summary shows both sides.
 Validation happens here, before any run: every dotted path must be a key of the scenario's
 configuration, every grid value and both ends of every random range must pass the
 configuration's own checks (``ConfigError`` names the key and the accepted range), and
-every pass criterion must name a metric of :data:`cosim.simulation.metrics.METRIC_KEYS`.
+every pass criterion must name a metric of :data:`cosim.simulation.metric_keys.METRIC_KEYS`.
 
 The list of runs (:meth:`SweepSpec.tasks`) depends on the spec only: per-run seeds are the
 spec's seeds, random values come from a generator seeded by ``random.seed``, and run ids
@@ -53,7 +53,7 @@ import yaml
 
 from cosim.core.exceptions import ConfigError
 from cosim.core.yaml_io import read_yaml_file, shown
-from cosim.simulation.metrics import METRIC_KEYS
+from cosim.simulation.metric_keys import METRIC_KEYS, metric_key
 from tracker.config import is_plugin_name
 from tracker.plugin import resolved_params
 
@@ -63,7 +63,7 @@ Scalar = float | int | bool | str
 MAX_SEEDS = 1_000_000
 """A seed count above this is refused outright (the list alone would fill memory)."""
 
-BOOLEAN_METRICS = ("completed",)
+BOOLEAN_METRICS = tuple(key for key in METRIC_KEYS if metric_key(key).unit == "bool")
 """Metrics that are true or false; every other metric of METRIC_KEYS is a number."""
 
 DEFAULT_METRIC = "cte_max_m"
