@@ -19,7 +19,6 @@ LAYERS: dict[str, int] = {
     "cosim.cli": 7,
     "cosim.api": 7,
     "cosim.sweeps": 6,
-    "cosim.config_cli": 5,
     "cosim.identification": 5,
     "cosim.gym": 5,
     "cosim.plots": 5,

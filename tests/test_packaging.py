@@ -25,6 +25,6 @@ def test_wheel_holds_models_and_scenarios(tmp_path: Path) -> None:
     assert "cosim/models/README.md" in names
     assert "cosim/scenarios/lane-change.yaml" in names
     assert "cosim/scenarios/lane-change-limit.yaml" in names
-    assert {"tracker/mpc/kinematic_nmpc.py", "estimation/ekf.py", "cosim/cli.py"} <= names
+    assert {"tracker/mpc/kinematic_nmpc.py", "estimation/ekf.py", "cosim/cli/__init__.py"} <= names
     entry_points = next(n for n in names if n.endswith("entry_points.txt"))
     assert "cosim = cosim.cli:main" in zipfile.ZipFile(wheel).read(entry_points).decode()

@@ -17,17 +17,18 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from cosim.cli.common import Handler, Parser
 from cosim.core.exceptions import ConfigError
 
 
-def add_parser(commands: Any, parser_class: type[argparse.ArgumentParser]) -> None:
+def add_parsers(commands: Any) -> dict[str, Handler]:
     """Add ``config show`` and ``config keys`` to the ``cosim`` sub-commands."""
     config = commands.add_parser(
         "config", help="print the resolved configuration of a run, or the list of keys",
         description="Print the resolved configuration of a run (show), or every "
         "configuration key with its unit, default and accepted values (keys).")
     actions = config.add_subparsers(dest="config_command", required=True,
-                                    parser_class=parser_class)
+                                    parser_class=Parser)
     show = actions.add_parser(
         "show", help="the configuration a run would use, as YAML (a valid scenario file)")
     show.add_argument("scenario", help="built-in scenario name (see `cosim scenarios`) or YAML")
@@ -42,6 +43,7 @@ def add_parser(commands: Any, parser_class: type[argparse.ArgumentParser]) -> No
         "keys", help="every configuration key: unit, default, accepted values, meaning")
     keys.add_argument("prefix", nargs="?", default="",
                       help="only keys starting with this, e.g. tracker or plant.tyre")
+    return {"config": command}
 
 
 def resolved_yaml(config: Any) -> str:

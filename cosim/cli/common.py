@@ -1,0 +1,84 @@
+"""What every ``cosim`` command shares: exit codes, the one-line parser, tables and lines.
+
+The exit codes are a stable interface (scripts and outside tests rely on them): 0 done, 1 a
+file or a standard stream could not be written, 2 bad input, 3 a run ended badly or a
+``--fail-if`` holds, 130 an interrupt.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import math
+import os
+import sys
+from collections.abc import Callable
+from typing import Any, NoReturn
+
+EXIT_USAGE = 2
+EXIT_IO = 1
+EXIT_BAD_OUTCOME = 3
+EXIT_INTERRUPT = 130
+
+Handler = Callable[[argparse.Namespace], int]
+"""A command: its parsed arguments in, its exit code out."""
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse, but a usage error is one line (not usage + error) and exit code 2."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message}\n")
+
+
+def format_value(value: Any) -> str:
+    """A metric's value for a table: 4 significant digits, ``n/a`` for NaN and None."""
+    if isinstance(value, bool) or value is None:
+        return {True: "true", False: "false", None: "n/a"}[value]
+    if isinstance(value, float):
+        return "n/a" if not math.isfinite(value) else f"{value:.4g}"
+    return str(value)
+
+
+def print_table(title: str, rows: list[tuple[str, str]]) -> None:
+    """Two columns (key, value): a rich table on a terminal, plain aligned text otherwise."""
+    if sys.stdout.isatty():
+        from rich.console import Console
+        from rich.table import Table
+
+        table = Table(title=title)
+        table.add_column("metric")
+        table.add_column("value", justify="right")
+        for key, value in rows:
+            table.add_row(key, value)
+        Console().print(table)
+        return
+    width = max(len(key) for key, _ in rows)
+    print(title)
+    for key, value in rows:
+        print(f"  {key:<{width}}  {value}")
+
+
+def json_ready(values: dict[str, Any]) -> dict[str, Any]:
+    """``values`` with NaN and infinity as None (JSON has neither)."""
+    return {k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+            for k, v in values.items()}
+
+
+def one_line_warning(message: Warning | str, category: type[Warning], filename: str,
+                     lineno: int, file: Any = None, line: str | None = None) -> None:
+    """A warning as one line on stderr (``cosim: warning: ...``), without source lines."""
+    print(f"cosim: warning: {message}", file=sys.stderr)
+
+
+def say(line: str) -> None:
+    """One line on stderr, even when stderr itself is gone."""
+    with contextlib.suppress(OSError):
+        print(line, file=sys.stderr, flush=True)
+
+
+def silence_stdout() -> None:
+    """Point stdout at /dev/null so that Python's exit does not fail flushing it again."""
+    with contextlib.suppress(OSError, ValueError):
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())

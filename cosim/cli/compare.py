@@ -1,0 +1,91 @@
+"""``cosim compare``: every tracker on every scenario and seed, as a league table."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from cosim.cli.common import EXIT_INTERRUPT, Handler
+from cosim.core.exceptions import CosimError
+
+
+def add_parsers(commands: Any) -> dict[str, Handler]:
+    compare = commands.add_parser(
+        "compare", help="every tracker on every scenario and seed: a league table")
+    compare.add_argument("--trackers", metavar="A,B,..",
+                         help="trackers to compare (default: every closed-loop tracker)")
+    compare.add_argument("--scenarios", metavar="X,Y,..",
+                         help="scenarios, built-in names or YAML paths (default: the library)")
+    compare.add_argument("--seeds", type=int, default=1, metavar="N",
+                         help="seeds 0..N-1 per combination (default 1)")
+    compare.add_argument("--workers", type=int, metavar="N",
+                         help="parallel runs (default: the usable cores)")
+    compare.add_argument("--duration", type=float, metavar="S",
+                         help="override every scenario's sim.duration_s")
+    compare.add_argument("--json", action="store_true",
+                         help="print every run as {scenario, tracker, seed, metrics}")
+    compare.add_argument("--out", metavar="DIR",
+                         help="write league.md, league.csv, league.png, rows.json "
+                         "(default logs/compare-<time>)")
+    compare.add_argument("--keep-logs", action="store_true",
+                         help="keep every run's MCAP log in DIR/logs")
+    return {"compare": command}
+
+
+def command(args: argparse.Namespace) -> int:
+    from cosim.sweeps import compare
+    from cosim.sweeps.driver import sigterm_as_interrupt
+    from tracker.config import is_plugin_name
+    from tracker.registry import TRACKER_NAMES
+
+    closed_loop = [name for name in TRACKER_NAMES if name != "open-loop"]
+    trackers = compare.parse_names(args.trackers, compare.DEFAULT_TRACKERS, None, "trackers")
+    for name in trackers:  # built-in closed-loop trackers, or trackers from outside cosim
+        if name not in closed_loop and not is_plugin_name(name):
+            raise CosimError(f"--trackers: {name!r} is not one of {', '.join(closed_loop)}, "
+                             "an installed plug-in or module:Class")
+    scenarios = compare.parse_names(args.scenarios, compare.DEFAULT_SCENARIOS, None,
+                                    "scenarios")
+    if args.workers is not None and args.workers < 1:
+        raise CosimError(f"--workers {args.workers}: expected at least 1")
+    out = Path(args.out) if args.out else Path("logs") / time.strftime("compare-%Y%m%d-%H%M%S")
+    try:
+        with sigterm_as_interrupt():
+            rows = compare.run_compare(scenarios, trackers, args.seeds, args.workers,
+                                       args.duration, out / "logs" if args.keep_logs else None,
+                                       out / "rows.jsonl")
+    except KeyboardInterrupt:  # Ctrl-C or SIGTERM: the finished runs are kept
+        print(f"cosim: compare interrupted; the finished runs are in {out / 'rows.jsonl'}",
+              file=sys.stderr)
+        return EXIT_INTERRUPT
+    table = compare.write_outputs(rows, out)
+    if args.json:
+        print(json.dumps(compare.json_rows(rows), indent=1))
+        return 0
+    _print_league(table)
+    for name in ("league.md", "league.csv", "league.png", "rows.json"):
+        print(f"  {out / name}")
+    return 0
+
+
+def _print_league(table: list[Any]) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    from cosim.sweeps.compare import LEAGUE_METRICS, by_scenario
+
+    console = Console()
+    for scenario, rows in by_scenario(table).items():
+        view = Table(title=scenario)
+        view.add_column("tracker")
+        for _, title, _ in LEAGUE_METRICS:
+            view.add_column(title, justify="right")
+        view.add_column("failures", justify="right")
+        for r in rows:
+            view.add_row(r.tracker, *[("-" if r.values[k] is None else f"{r.values[k]:.4g}")
+                                      for k, _, _ in LEAGUE_METRICS], str(r.failures))
+        console.print(view)

@@ -1,0 +1,98 @@
+"""``cosim inspect``: a log's channels, configuration, versions, warnings and metrics."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+from typing import Any
+
+from cosim.cli.common import Handler, format_value, print_table
+from cosim.core.exceptions import CosimError
+
+
+def add_parsers(commands: Any) -> dict[str, Handler]:
+    inspect = commands.add_parser("inspect", help="summarise an MCAP log")
+    inspect.add_argument("file", metavar="FILE.mcap")
+    inspect.add_argument("--json", action="store_true", help="print one JSON object")
+    inspect.add_argument("--topic", metavar="T", help="print this topic's messages (JSON lines)")
+    inspect.add_argument("--head", type=int, metavar="N", help="only the first N messages")
+    inspect.add_argument("--csv", metavar="DIR",
+                         help="write each topic (or only --topic) as DIR/<topic>.csv")
+    return {"inspect": command}
+
+
+def command(args: argparse.Namespace) -> int:
+    from cosim.log.export import csv_command, log_warnings
+    from cosim.log.reader import read_summary
+
+    path = Path(args.file)
+    if not path.is_file():
+        raise CosimError(f"{args.file!r}: no such file (expected an MCAP log)")
+    summary = read_summary(path)
+    if args.csv is not None:
+        return csv_command(summary, args.csv, args.topic, args.head)
+    if args.topic is not None:
+        return _print_topic(path, summary, args.topic, args.head)
+    document = {
+        "file": str(path),
+        "truncated": summary.truncated,
+        "duration_s": summary.duration_s,
+        "message_count": summary.message_count,
+        "channels": [
+            {"topic": c.topic, "schema": c.schema_name, "schema_encoding": c.schema_encoding,
+             "message_encoding": c.message_encoding, "count": c.message_count}
+            for c in sorted(summary.channels, key=lambda c: c.topic)
+        ],
+        "attachments": summary.attachments,
+        "versions": summary.versions,
+        "config": summary.config,
+        "metrics": summary.metrics or {},
+        "warnings": log_warnings(summary),
+    }
+    if args.json:
+        print(json.dumps(document))
+        return 0
+    _print_summary(path, summary, document)
+    return 0
+
+
+def _print_topic(path: Path, summary: Any, topic: str, head: int | None) -> int:
+    """One topic's messages as JSON lines (the first ``head`` only, if given)."""
+    from cosim.log.reader import iter_messages
+
+    topics = [c.topic for c in summary.channels]
+    if topic not in topics:
+        raise CosimError(f"--topic {topic!r}: expected one of "
+                         f"{', '.join(topics) or '(none: the log has no channels)'}")
+    if head is not None and head < 0:
+        raise CosimError(f"--head {head}: expected a count >= 0")
+    for n, (log_time_ns, message) in enumerate(iter_messages(path, topic)):
+        if head is not None and n >= head:
+            break
+        print(json.dumps({"log_time_ns": log_time_ns, **message}))
+    return 0
+
+
+def _print_summary(path: Path, summary: Any, document: dict[str, Any]) -> None:
+    print(f"{path}  {summary.duration_s:.3f} s  {summary.message_count} messages"
+          + ("  (TRUNCATED: read up to the last complete record)" if summary.truncated else ""))
+    if summary.metrics:
+        print(f"outcome {summary.metrics.get('outcome', 'n/a (logged before outcomes)')}  "
+              f"completed {format_value(summary.metrics.get('completed'))}")
+    width = max((len(c["topic"]) for c in document["channels"]), default=0)
+    for channel in document["channels"]:
+        print(f"  {channel['topic']:<{width}}  {channel['count']:>7}  {channel['schema']}")
+    config = summary.config
+    if config:
+        print(f"scenario {config.get('name')}  seed {config.get('seed')}  tracker "
+              f"{config.get('tracker', {}).get('name')}  estimator "
+              f"{config.get('estimator', {}).get('name')}")
+    if summary.versions:
+        print("versions " + "  ".join(f"{k} {v}" for k, v in summary.versions.items()))
+    for warning in document["warnings"]:
+        print(f"WARNING: {warning}")
+    if summary.metrics:
+        print_table("metrics", [(k, format_value(v)) for k, v in summary.metrics.items()])
+    elif summary.written_by_cosim:
+        print("metrics: none (the run did not finish)")

@@ -1,0 +1,140 @@
+"""``cosim run``: run a scenario, log it to MCAP, print its metrics, exit by its outcome."""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+from cosim.cli.common import (
+    EXIT_BAD_OUTCOME,
+    EXIT_INTERRUPT,
+    Handler,
+    format_value,
+    json_ready,
+    print_table,
+)
+from cosim.core.exceptions import CosimError
+
+PATH_TRACKING_METRICS = ("cte_max_m", "cte_rms_m", "heading_err_max_rad",
+                         "heading_err_rms_rad", "speed_err_rms_mps")
+"""Not shown in an open-loop run's table: it follows no path (they stay in the log)."""
+
+
+def add_parsers(commands: Any) -> dict[str, Handler]:
+    run = commands.add_parser("run", help="run a scenario and log it to MCAP")
+    run.add_argument("scenario", help="built-in scenario name (see `cosim scenarios`) or YAML")
+    run.add_argument("--config", metavar="FILE.yaml", help="YAML merged over the scenario")
+    run.add_argument("--tracker", metavar="NAME",
+                     help="path tracker: dynamic-nmpc (default), kinematic-nmpc, ltv-mpc, "
+                     "dynamic-mpc, open-loop ... (`cosim trackers`), an installed plug-in or "
+                     "my_pkg.my_module:MyTracker")
+    run.add_argument("--estimator", metavar="NAME",
+                     help="state estimator: ekf (default), ukf, truth (debugging)")
+    run.add_argument("--seed", type=int, metavar="N", help="seed of every noise source")
+    run.add_argument("--duration", type=float, metavar="S",
+                     help="simulated seconds (sim.duration_s)")
+    run.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                     dest="overrides", help="override a config key, e.g. tracker.horizon=30 "
+                     "(repeatable; every key, its unit and range: `cosim config keys`)")
+    run.add_argument("--out", metavar="FILE.mcap",
+                     help="log file (default logs/<scenario>[-<overrides>]-<time>.mcap)")
+    run.add_argument("--force", action="store_true",
+                     help="replace --out if it exists (refused otherwise)")
+    run.add_argument("--fail-if", action="append", default=[], metavar="'METRIC>VALUE'",
+                     dest="fail_if", help="exit 3 when this holds for the run's metrics "
+                     "(<, <=, >, >=, ==, !=; repeatable), e.g. 'cte_max_m>0.3'")
+    run.add_argument("--json", action="store_true", help="print the metrics as JSON")
+    run.add_argument("--video", metavar="FILE.mp4",
+                     help="also render the run to this video (see `cosim render`)")
+    return {"run": command}
+
+
+def command(args: argparse.Namespace) -> int:
+    from cosim.log.safe_file import check_output_path
+    from cosim.simulation.fail_if import parse_conditions
+    from cosim.simulation.runner import run
+    from cosim.simulation.scenario_config import load_config
+
+    conditions = parse_conditions(args.fail_if)
+    if args.video is not None:
+        from cosim.plots.render import check_video_path
+
+        check_video_path(args.video, "--video")
+    if args.duration is not None and not (math.isfinite(args.duration) and args.duration >= 0):
+        raise CosimError(f"--duration {args.duration}: expected a number of seconds >= 0")
+    config = load_config(args.scenario, args.config, args.overrides, args.seed,
+                         args.duration, args.tracker, args.estimator)
+    out = _out_path(args, config.name)
+    check_output_path(out, "--out", args.force, (args.config, args.scenario, args.video))
+    if sys.stderr.isatty():
+        from rich.progress import Progress
+
+        with Progress(transient=True) as bar:
+            task = bar.add_task(f"{config.name}", total=1.0)
+            result = run(config, out, lambda done: bar.update(task, completed=done))
+    else:
+        result = run(config, out)
+    shown = shown_metrics(result.metrics, config.tracker.name == "open-loop")
+    if args.json:
+        print(json.dumps({"log": str(result.log_path), "metrics": json_ready(result.metrics)}))
+    else:
+        print_table(f"{config.name} (seed {config.seed}) -> {result.log_path}",
+                    [(k, format_value(v)) for k, v in shown.items()])
+    if result.abort_reason == "interrupted":
+        print(f"cosim: interrupted; log written up to the interrupt: {result.log_path}",
+              file=sys.stderr)
+        return EXIT_INTERRUPT
+    if args.video is not None:
+        from cosim.plots.render import RenderOptions, describe, render_for_cli
+
+        print(describe(render_for_cli(result.log_path, args.video, RenderOptions())),
+              file=sys.stderr if args.json else sys.stdout)
+    return _exit_code(result, conditions)
+
+
+def _out_path(args: argparse.Namespace, scenario: str) -> Path:
+    """``--out``, or ``logs/<scenario>-<tag>-<time>.mcap`` naming what was changed."""
+    if args.out is not None:
+        return Path(args.out)
+    from cosim.log.names import default_log_name, override_tag
+
+    stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+    tag = override_tag(args.overrides, args.tracker, args.estimator, args.seed,
+                       args.duration, args.config)
+    return Path("logs") / default_log_name(scenario, tag, stamp)
+
+
+def _exit_code(result: Any, conditions: list[Any]) -> int:
+    """0 for a completed ``ok`` run with no ``--fail-if`` holding, else 3 with one line why."""
+    if not result.completed:
+        print(f"cosim: run aborted ({result.metrics.get('outcome')}): {result.abort_reason}; "
+              f"log: {result.log_path}", file=sys.stderr)
+        return EXIT_BAD_OUTCOME
+    if result.metrics.get("outcome", "ok") != "ok":
+        when = result.metrics.get(f"{result.metrics['outcome']}_t_s")
+        at = f" at t = {when:.2f} s" if isinstance(when, float) else ""
+        print(f"cosim: run ended badly: outcome {result.metrics['outcome']}{at} "
+              f"(see /events in {result.log_path})", file=sys.stderr)
+        return EXIT_BAD_OUTCOME
+    held = [c for c in conditions if c.holds(result.metrics)]
+    if held:
+        missing = "" if held[0].metric in result.metrics else \
+            f" (this run has no metric {held[0].metric!r})"
+        print(f"cosim: --fail-if {held[0].text!r} holds{missing}"
+              + (f" (and {len(held) - 1} more)" if len(held) > 1 else ""), file=sys.stderr)
+        return EXIT_BAD_OUTCOME
+    return 0
+
+
+def shown_metrics(metrics: dict[str, Any], open_loop: bool) -> dict[str, Any]:
+    """The metrics a run prints: the outcome first; an open-loop run's manoeuvre figures
+    instead of path-tracking errors."""
+    shown = {"outcome": metrics.get("outcome", "ok"), **metrics}
+    if open_loop:
+        shown = {k: v for k, v in shown.items() if k not in PATH_TRACKING_METRICS}
+    return shown

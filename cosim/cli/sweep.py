@@ -1,0 +1,67 @@
+"""``cosim sweep``: one scenario over a grid or a random sample of parameters and seeds."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+from cosim.cli.common import EXIT_INTERRUPT, EXIT_IO, Handler
+from cosim.core.exceptions import CosimError
+
+
+def add_parsers(commands: Any) -> dict[str, Handler]:
+    sweep = commands.add_parser(
+        "sweep", help="run a scenario over a grid or random sample of parameters and seeds")
+    sweep.add_argument("spec", metavar="SPEC.yaml", help="the sweep spec (see cosim.sweeps.spec)")
+    sweep.add_argument("--workers", type=int, metavar="N",
+                       help="parallel runs (default: the number of cores)")
+    sweep.add_argument("--backend", choices=("process", "ray"), default="process",
+                       help="process pool on this machine (default) or Ray")
+    sweep.add_argument("--out", metavar="DIR",
+                       help="output directory (default logs/sweep-<spec>-<time>)")
+    sweep.add_argument("--keep-logs", action="store_true",
+                       help="keep every run's MCAP log under DIR/logs")
+    sweep.add_argument("--resume", action="store_true",
+                       help="finish the interrupted sweep in --out DIR (same spec)")
+    sweep.add_argument("--yes", action="store_true",
+                       help="run a sweep of more than 10 000 runs (refused otherwise)")
+    return {"sweep": command}
+
+
+def command(args: argparse.Namespace) -> int:
+    from cosim.sweeps.driver import check_sweep_dir, default_out_dir, run_sweep
+    from cosim.sweeps.execute import WorkerCrashError
+
+    if args.resume and args.out is None:
+        raise CosimError("--resume: expected --out DIR, the directory of the sweep to finish")
+    if not Path(args.spec).is_file():
+        raise CosimError(f"{args.spec!r}: no such file (expected a sweep spec YAML)")
+    out = Path(args.out) if args.out is not None else default_out_dir(Path(args.spec))
+    check_sweep_dir(out)
+    resume_hint = f"resume with `cosim sweep {args.spec} --out {out} --resume`"
+    try:
+        outcome = run_sweep(args.spec, out, args.workers, args.backend, args.keep_logs,
+                            args.resume, yes=args.yes)
+    except WorkerCrashError as error:
+        print(f"cosim: sweep aborted: {error}", file=sys.stderr)
+        return EXIT_IO
+    except KeyboardInterrupt:
+        print(f"cosim: sweep interrupted; finished rows are kept: {resume_hint}",
+              file=sys.stderr)
+        return EXIT_INTERRUPT
+    except OSError as error:  # a full disk while a row or a table was written
+        where = repr(error.filename) if error.filename else "the sweep's files"
+        print(f"cosim: error: cannot write {where}: {error.strerror or error}; the rows "
+              f"written so far are kept: {resume_hint}", file=sys.stderr)
+        return EXIT_IO
+    earlier = outcome.finished - outcome.ran
+    print(f"sweep: {outcome.runs} runs (ran {outcome.ran} now"
+          + (f", {earlier} from before" if earlier else "")
+          + f") in {outcome.wall_time_s:.1f} s; {outcome.passed} pass, "
+          f"{outcome.finished - outcome.passed} fail"
+          + (f" ({outcome.errors} with an error)" if outcome.errors else ""))
+    for path in outcome.files:
+        print(f"  {path}")
+    return 0
