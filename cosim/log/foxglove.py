@@ -300,7 +300,7 @@ def estimate_scene(estimate: Estimate, n_sigma: float = 3.0) -> dict[str, object
 
 
 TRAFFIC_CAR_HEIGHT_M = 1.45
-"""Height of a traffic car's box in the scene (``models/lead_car.xml``)."""
+"""Height of a traffic car's box in the scene (``models/traffic_car.xml``)."""
 
 
 def traffic_scene(t_s: float, cars: list[dict[str, Any]], target: str) -> dict[str, object]:

@@ -37,9 +37,7 @@ runs the actuator models in plain Python and then exactly one MuJoCo step:
     friction ``tire_friction``): nearly rigid until it slides, so the car steers
     kinematically (no cornering stiffness); kept for comparison.
 
-With ``lead_car`` (:class:`cosim.plant.lead_car.LeadCarConfig`), a kinematic lead car (a mocap
-body without colliding geoms) drives ahead; the plant advances it after each step. With
-``traffic`` (:class:`cosim.plant.traffic.Traffic`), the traffic cars' mocap bodies are set
+With ``traffic`` (:class:`cosim.plant.traffic.Traffic`), the traffic cars' mocap bodies are set
 to their scripted poses after each step; their body boxes collide with the ego's.
 """
 
@@ -60,17 +58,9 @@ from cosim.core.initial_state import InitialState
 from cosim.core.records import WHEEL_NAMES, ActuatorCommand, VehicleState
 from cosim.core.tyre_params import TyreParams
 from cosim.core.vehicle_params import PlantConfig
-from cosim.plant.lead_car import (
-    LeadCarConfig,
-    LeadCarPath,
-    LeadCarState,
-    advance_lead_car,
-    lead_car_path,
-)
 from cosim.plant.low_level import resistance_force_n
 from cosim.plant.sedan_model import (
     FRONT_WHEELS,
-    LEAD_CAR_PREFIX,
     ackermann_angles,
     driven_wheels,
     sedan_xml_and_assets,
@@ -120,14 +110,12 @@ class MujocoPlant:
     """
 
     def __init__(self, config: PlantConfig, physics_dt_s: float, initial: InitialState,
-                 lead_car: LeadCarConfig | None = None, one_call_tyres: bool = True,
-                 traffic: Traffic | None = None) -> None:
+                 one_call_tyres: bool = True, traffic: Traffic | None = None) -> None:
         self.config = config
         self.initial = initial
-        self.lead_car = lead_car
         self.traffic = traffic
         self.physics_dt_s = float(physics_dt_s)
-        xml, assets = sedan_xml_and_assets(config, self.physics_dt_s, lead_car is not None,
+        xml, assets = sedan_xml_and_assets(config, self.physics_dt_s,
                                            traffic.names if traffic is not None else ())
         self.mjcf_xml: str = xml
         self.mjcf_assets: dict[str, bytes] = assets
@@ -142,9 +130,6 @@ class MujocoPlant:
         )
         if self._tyres is not None:
             self._tyres.bind(self._data)
-        self._lead: _LeadCar | None = None
-        if lead_car is not None:
-            self._lookup_lead_car()
         if traffic is not None:
             traffic.bind(self._model)
         self._settle()
@@ -196,16 +181,6 @@ class MujocoPlant:
         self._tyre_radius_m = self.config.wheel_radius_m
         self._tyre_geom = {self._id(geom, f"{w}_tyre"): w for w in WHEEL_NAMES}
         self._warnings = d.warning.number  # view of MuJoCo's warning counters
-
-    def _lookup_lead_car(self) -> None:
-        """Mocap slot of the lead car and its rear overhang (centre to rear-bumper site)."""
-        m = self._model
-        body = self._id(mujoco.mjtObj.mjOBJ_BODY, LEAD_CAR_PREFIX)
-        self._lead_mocap = int(m.body_mocapid[body])
-        if self._lead_mocap < 0:
-            raise ValueError(f"the lead car body {LEAD_CAR_PREFIX!r} is not a mocap body")
-        site = self._id(mujoco.mjtObj.mjOBJ_SITE, f"{LEAD_CAR_PREFIX}rear_bumper")
-        self._lead_rear_overhang_m = -float(m.site_pos[site, 0])
 
     def _configure_actuators(self) -> None:
         """Constants of the actuator models, from the true config and the compiled model."""
@@ -283,8 +258,8 @@ class MujocoPlant:
         equilibrium found at construction, so the car starts without a bounce; each wheel
         spins at ``v / r_roll``, its rolling radius, so the tyres start without slip (Magic
         Formula tyres: undeflected, carrying their static loads). Actuator states and
-        commands are zero (no drive, no brake, steering straight). The lead car, if any, is
-        back at its start.
+        commands are zero (no drive, no brake, steering straight). Traffic cars, if any, are
+        back at their start.
         """
         m, d, init = self._model, self._data, self.initial
         mujoco.mj_resetData(m, d)
@@ -317,14 +292,6 @@ class MujocoPlant:
         self._wheel_steer_rate_radps = (0.0, 0.0)
         self._prev_linvel = self._linvel_view.tolist()
         self._last_command: ActuatorCommand | None = None
-        if self.lead_car is not None:
-            path = lead_car_path(
-                self.lead_car, init.x_m, init.y_m, init.yaw_rad, self._lead_rear_overhang_m
-            )
-            self._lead = _LeadCar(
-                self.lead_car, path, path.state(0.0, 0.0, self.lead_car.initial_speed_mps, 0.0)
-            )
-            self._place_lead_car(self._lead.state)
         if self.traffic is not None:
             self.traffic.place(d, 0.0)
             mujoco.mj_forward(m, d)
@@ -416,19 +383,8 @@ class MujocoPlant:
         t_before = d.time
         self._physics_step()
         self._check(t_before + dt)
-        lead = self._lead
-        if lead is not None:
-            lead.state = advance_lead_car(lead.config, lead.path, lead.state, dt)
-            self._place_lead_car(lead.state)
         if self.traffic is not None:
             self.traffic.place(d, d.time)
-
-    def _place_lead_car(self, lead: LeadCarState) -> None:
-        """Set the lead car's mocap pose (MuJoCo uses it from the next step on)."""
-        d = self._data
-        d.mocap_pos[self._lead_mocap] = (lead.x_m, lead.y_m, 0.0)
-        half_yaw = 0.5 * lead.yaw_rad
-        d.mocap_quat[self._lead_mocap] = (math.cos(half_yaw), 0.0, 0.0, math.sin(half_yaw))
 
     def _physics_step(self) -> None:
         """One MuJoCo step; with Magic Formula tyres, their forces are applied mid-step.
@@ -520,12 +476,6 @@ class MujocoPlant:
         """Each wheel's loaded rolling radius at static equilibrium, WHEEL_NAMES order."""
         return self._rolling_radius_m  # type: ignore[return-value]
 
-    def lead_state(self) -> LeadCarState:
-        """The lead car at the plant's time; raises ``ValueError`` when it has none."""
-        if self._lead is None:
-            raise ValueError("this plant has no lead car (MujocoPlant(..., lead_car=None))")
-        return self._lead.state
-
     def tyre_forces(self) -> tuple[TyreForces, ...] | None:
         """Each tyre's load, slip and forces of the last step, ``WHEEL_NAMES`` order;
         ``None`` with ``tire_model = contact`` (MuJoCo's contacts are the tyres)."""
@@ -555,15 +505,6 @@ class MujocoPlant:
                 f"|qvel| = {float(np.linalg.norm(qvel)):.3g}; physics_dt_s = "
                 f"{self.physics_dt_s})"
             )
-
-
-@dataclasses.dataclass
-class _LeadCar:
-    """The lead car's configuration, its path and its current state (mutable: per step)."""
-
-    config: LeadCarConfig
-    path: LeadCarPath
-    state: LeadCarState
 
 
 class TyreForces(NamedTuple):

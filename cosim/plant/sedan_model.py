@@ -23,8 +23,7 @@ Model structure (all names are fixed; the plant looks everything up by name)::
           <wheel>_tyre        sphere: the only colliding geom of the car (condim 1 with
                               the Magic Formula tyres, 3 with MuJoCo's contact friction)
           <wheel>_rim         visual cylinder
-      lead_car/ (optional mocap body from models/lead_car.xml, :func:`attach_lead_car`)
-      car_<name>/ (traffic: one mocap copy of models/lead_car.xml per car, cosim.plant.traffic)
+      car_<name>/ (traffic: one mocap copy of models/traffic_car.xml per car, cosim.plant.traffic)
     actuators: <front wheel>_steer_servo, <driven wheel>_drive (motor on the spin joint)
 
 The joints of one wheel body compose in order (MuJoCo applies them as a chain), so the spin
@@ -266,27 +265,9 @@ def sedan_xml_path() -> Path:
     return models_dir() / "sedan.xml"
 
 
-def lead_car_xml_path() -> Path:
-    """Path of the lead car model (:mod:`cosim.plant.lead_car`)."""
-    return models_dir() / "lead_car.xml"
-
-
-LEAD_CAR_PREFIX = "lead_car/"
-"""PyMJCF prefixes every name of the attached lead car with its model name: the mocap body
-is ``lead_car/``, its site ``lead_car/rear_bumper``."""
-
-
-def attach_lead_car(root: mjcf.RootElement) -> None:
-    """Attach ``models/lead_car.xml`` to the world of ``root`` as a mocap body.
-
-    The attachment frame (body ``lead_car/``, a child of the world) is made a mocap body:
-    no mass, no degrees of freedom, its pose set by the plant through ``mocap_pos`` and
-    ``mocap_quat``. Its geoms do not collide, so it cannot act on the ego car.
-    """
-    mjcf = import_mjcf()
-    lead = mjcf.from_path(str(lead_car_xml_path()))
-    frame = root.attach(lead)
-    frame.mocap = True
+def traffic_car_xml_path() -> Path:
+    """Path of the traffic car model (:mod:`cosim.plant.traffic`)."""
+    return models_dir() / "traffic_car.xml"
 
 
 def import_mjcf() -> types.ModuleType:
@@ -303,11 +284,10 @@ def import_mjcf() -> types.ModuleType:
 
 
 def build_sedan(config: PlantConfig, physics_dt_s: float,
-                lead_car: bool = False, traffic: tuple[str, ...] = ()) -> mjcf.RootElement:
+                traffic: tuple[str, ...] = ()) -> mjcf.RootElement:
     """The sedan for ``config`` as a PyMJCF tree, with physics step ``physics_dt_s``.
 
-    With ``lead_car``, the lead car (:func:`attach_lead_car`) is added to the world; each
-    name of ``traffic`` adds a traffic car (:func:`cosim.plant.traffic.attach_traffic`).
+    Each name of ``traffic`` adds a traffic car (:func:`cosim.plant.traffic.attach_traffic`).
 
     Applies mass, yaw inertia, CoG position and height, each axle's track, wheel
     radius/mass/inertia,
@@ -363,9 +343,7 @@ def build_sedan(config: PlantConfig, physics_dt_s: float,
         elif drive is not None:
             drive.remove()
     _add_anti_roll_bars(root, config)
-    if lead_car:
-        attach_lead_car(root)
-    attach_traffic(root, traffic, lambda: mjcf.from_path(str(lead_car_xml_path())))
+    attach_traffic(root, traffic, lambda: mjcf.from_path(str(traffic_car_xml_path())))
     return root
 
 
@@ -403,8 +381,8 @@ def _shape_body(root: mjcf.RootElement, params: VehicleParams) -> None:
     cabin.size = [0.5 * params.wheelbase_m, width_half - 0.1, 0.5 * (cabin_top - shell_top)]
 
 
-def sedan_xml_and_assets(config: PlantConfig, physics_dt_s: float, lead_car: bool = False,
+def sedan_xml_and_assets(config: PlantConfig, physics_dt_s: float,
                          traffic: tuple[str, ...] = ()) -> tuple[str, dict[str, bytes]]:
     """The MJCF text and its assets exactly as simulated (for MuJoCo and for the run log)."""
-    root = build_sedan(config, physics_dt_s, lead_car, traffic)
+    root = build_sedan(config, physics_dt_s, traffic)
     return root.to_xml_string(precision=12), root.get_assets()

@@ -16,7 +16,7 @@ A lane change (``lane_change_s > 0``) moves the car from ``lateral_offset_m`` to
 speed at both ends), heading along its velocity. Every pose is a closed-form function of
 time, so the plant, the sensors and the log agree at any instant.
 
-In MuJoCo every car is a copy of ``models/lead_car.xml`` attached to the world as a mocap
+In MuJoCo every car is a copy of ``models/traffic_car.xml`` attached to the world as a mocap
 body ``car_<name>/`` (:func:`attach_traffic`); the plant sets the mocap poses after every
 physics step (:meth:`Traffic.place`). The cars' body boxes and the ego's body box
 (``chassis_shell``) collide with each other only (contact bit :data:`CAR_CONTACT_BIT`; the
@@ -57,7 +57,7 @@ EGO_BODY_GEOM = "chassis_shell"
 """The ego car's body box, made to collide with traffic when there is traffic."""
 
 TRAFFIC_BODY_GEOM = "shell"
-"""The body box of ``models/lead_car.xml``."""
+"""The body box of ``models/traffic_car.xml``."""
 
 PARKED_POS_M = (0.0, 0.0, -1000.0)
 """Where a car's body sits in the model, below the ground (it does not collide with it),
@@ -286,7 +286,7 @@ class Traffic:
 
 def attach_traffic(root: mjcf.RootElement, names: tuple[str, ...],
                    load_car: Callable[[], mjcf.RootElement]) -> None:
-    """Attach a car from ``load_car()`` (``models/lead_car.xml``) per name as a mocap body
+    """Attach a car from ``load_car()`` (``models/traffic_car.xml``) per name as a mocap body
     ``car_<name>/`` whose body box collides with the ego's body box only."""
     if not names:
         return

@@ -46,8 +46,7 @@ Software rendering (OSMesa's llvmpipe) costs about 12 ms per 640x360 frame and 2
 are off (the sun still shades the faces).
 
 Traffic cars (``car_<name>/`` mocap bodies of the attached MJCF) are posed from
-``/traffic/cars``, interpolated like the ego. Not drawn yet: the older single ``lead_car/``
-(no topic logs its pose, so it would stand at the origin), wheel spin (the rims are plain
+``/traffic/cars``, interpolated like the ego. Not drawn yet: wheel spin (the rims are plain
 cylinders).
 """
 

@@ -15,7 +15,7 @@ from cosim.core.initial_state import InitialState
 from cosim.core.records import VehicleState
 from cosim.core.vehicle_params import PlantConfig
 from cosim.plant.car import MujocoPlant
-from cosim.plant.lead_car import LeadCarConfig
+from cosim.plant.traffic import Traffic, TrafficCarConfig
 from tests.conformance.driving import DT_S, drive, plant_at, speed_loop
 
 pytestmark = pytest.mark.conformance
@@ -52,13 +52,15 @@ def test_two_plants_with_one_config_are_bit_identical(tire_model: str) -> None:
 
 
 @pytest.mark.parametrize("tire_model", TIRE_MODELS)
-@pytest.mark.parametrize("with_lead_car", [False, True])
-def test_every_element_is_named(tire_model: str, with_lead_car: bool) -> None:
+@pytest.mark.parametrize("with_traffic", [False, True])
+def test_every_element_is_named(tire_model: str, with_traffic: bool) -> None:
+    traffic = Traffic((("lead", TrafficCarConfig()),), InitialState()) if with_traffic \
+        else None
     plant = MujocoPlant(PlantConfig(tire_model=tire_model), DT_S, InitialState(),
-                        lead_car=LeadCarConfig() if with_lead_car else None)
+                        traffic=traffic)
     model = plant.model
     for kind, size_field in NAMED_OBJECTS:
         first = 1 if kind == mujoco.mjtObj.mjOBJ_BODY else 0  # body 0 is MuJoCo's world
         for index in range(first, getattr(model, size_field)):
             assert mujoco.mj_id2name(model, kind, index), f"unnamed {kind.name} {index}"
-    assert (model.nmocap == 1) == with_lead_car
+    assert (model.nmocap == 1) == with_traffic
