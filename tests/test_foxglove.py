@@ -7,6 +7,7 @@ import math
 import re
 from pathlib import Path
 
+import mujoco
 import numpy as np
 import pytest
 
@@ -14,7 +15,6 @@ from cosim.core.records import Estimate, Plan, VehicleState
 from cosim.core.vehicle_params import VehicleParams
 from cosim.log import foxglove
 from cosim.log.reader import iter_messages, iter_topics, read_summary
-from cosim.plant.car import _quat_zyx
 from cosim.simulation.runner import RunResult
 from tests.conftest import run_scenario
 
@@ -44,8 +44,9 @@ def _truth(steer_rad: float = 0.0) -> VehicleState:
 def test_frame_transform_rotation_is_the_plants_quaternion(roll: float, pitch: float,
                                                            yaw: float) -> None:
     q = foxglove.quaternion_from_euler(roll, pitch, yaw)
-    w, x, y, z = _quat_zyx(yaw, pitch, roll)  # how the plant sets the chassis' quaternion
-    assert [q["w"], q["x"], q["y"], q["z"]] == pytest.approx([w, x, y, z], abs=1e-12)
+    reference = np.empty(4)  # MuJoCo's own intrinsic z-y'-x'' conversion
+    mujoco.mju_euler2Quat(reference, np.array([yaw, pitch, roll]), "zyx")
+    assert [q["w"], q["x"], q["y"], q["z"]] == pytest.approx(list(reference), abs=1e-12)
 
 
 def test_frame_transform_puts_base_link_at_the_cog_with_its_heading() -> None:

@@ -93,21 +93,6 @@ def test_path_segments_join_consecutive_points() -> None:
     assert np.allclose(headings, [0.0, math.pi / 2])
 
 
-def test_orientation_is_yaw_then_pitch_then_roll() -> None:
-    """Against R = Rz(yaw) Ry(pitch) Rx(roll), written out."""
-    import mujoco
-
-    yaw, pitch, roll = 0.7, -0.1, 0.05
-    cz, sz, cy, sy, cx, sx = (math.cos(yaw), math.sin(yaw), math.cos(pitch), math.sin(pitch),
-                              math.cos(roll), math.sin(roll))
-    rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
-    ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
-    rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
-    matrix = np.empty(9)
-    mujoco.mju_quat2Mat(matrix, render.orientation_quat(yaw, pitch, roll))
-    assert np.allclose(matrix.reshape(3, 3), rz @ ry @ rx)
-
-
 def test_missing_back_end_names_the_package_to_install() -> None:
     with pytest.raises(GlBackendError, match=r"apt-get install libosmesa6"):
         render.check_gl_backend("osmesa", find_library=lambda name: None)

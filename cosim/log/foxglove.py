@@ -27,6 +27,7 @@ import numpy as np
 
 from cosim.core.config_fields import setting
 from cosim.core.records import Estimate, Plan, VehicleState
+from cosim.core.rotations import quaternion_zyx
 from cosim.core.vehicle_params import VehicleParams
 
 WGS84_A_M = 6_378_137.0
@@ -122,16 +123,10 @@ def _scene(*entities: dict[str, Any]) -> dict[str, Any]:
 
 
 def quaternion_from_euler(roll_rad: float, pitch_rad: float, yaw_rad: float) -> dict[str, float]:
-    """Z-Y-X (yaw, pitch, roll) Euler angles to a unit quaternion."""
-    cr, sr = math.cos(roll_rad / 2), math.sin(roll_rad / 2)
-    cp, sp = math.cos(pitch_rad / 2), math.sin(pitch_rad / 2)
-    cy, sy = math.cos(yaw_rad / 2), math.sin(yaw_rad / 2)
-    return {
-        "x": sr * cp * cy - cr * sp * sy,
-        "y": cr * sp * cy + sr * cp * sy,
-        "z": cr * cp * sy - sr * sp * cy,
-        "w": cr * cp * cy + sr * sp * sy,
-    }
+    """Z-Y-X (yaw, pitch, roll) Euler angles to a ``foxglove.Quaternion``
+    (:func:`cosim.core.rotations.quaternion_zyx`, as the plant sets the chassis)."""
+    w, x, y, z = quaternion_zyx(yaw_rad, pitch_rad, roll_rad)
+    return {"x": x, "y": y, "z": z, "w": w}
 
 
 def frame_transform(truth: VehicleState) -> dict[str, object]:

@@ -5,10 +5,10 @@ The model is built once with PyMJCF (:mod:`cosim.plant.sedan_model`) and compile
 address is looked up by name at construction. Per physics step, :meth:`MujocoPlant.advance`
 runs the actuator models in plain Python and then exactly one MuJoCo step:
 
-- steering actuator: first-order lag (``steer_time_constant_s``, exact discretisation) with
-  a rate limit (``max_steer_rate_radps``) on the bicycle-model angle, clipped to
-  ``max_steer_rad``; the left and right wheels get their Ackermann angles (front track)
-  (:func:`cosim.plant.sedan_model.ackermann_angles`) through a fast position servo with velocity
+- steering actuator (:mod:`cosim.plant.steering`): first-order lag
+  (``steer_time_constant_s``, exact discretisation) with a rate limit
+  (``max_steer_rate_radps``) on the bicycle-model angle, clipped to ``max_steer_rad``; the
+  left and right wheels get their Ackermann angles through position servos with velocity
   and acceleration feed-forward, so the servo adds no lag of its own;
 - drive: the total torque clipped to ``max_drive_torque_nm`` and to the power limit
   ``max_drive_power_w / omega`` (mean spin of the driven wheels), split equally over the
@@ -32,7 +32,8 @@ runs the actuator models in plain Python and then exactly one MuJoCo step:
     of the previous step, :func:`cosim.plant.tire_model.patch_step` (Magic Formula with a
     relaxing contact patch) gives the longitudinal and lateral tyre force, applied to
     the wheel body at the contact point (``xfrc_applied``: the force and its moment
-    about the wheel centre). ``tire_friction`` is the tyres' peak friction;
+    about the wheel centre; :mod:`cosim.plant.tyre_forces`). ``tire_friction`` is the
+    tyres' peak friction;
   - ``contact``: MuJoCo's contact friction is the tyre (``condim`` 3, elliptic cone,
     friction ``tire_friction``): nearly rigid until it slides, so the car steers
     kinematically (no cornering stiffness); kept for comparison.
@@ -43,37 +44,22 @@ to their scripted poses after each step; their body boxes collide with the ego's
 
 from __future__ import annotations
 
-import ctypes
-import dataclasses
 import math
-from typing import NamedTuple
 
-import casadi as ca
 import mujoco
 import numpy as np
 
-from cosim.core.compiled_function import CompiledFunction, compile_function
 from cosim.core.exceptions import PhysicsDivergenceError
 from cosim.core.initial_state import InitialState
 from cosim.core.records import WHEEL_NAMES, ActuatorCommand, VehicleState
-from cosim.core.tyre_params import TyreParams
+from cosim.core.rotations import euler_zyx, quaternion_zyx
 from cosim.core.vehicle_params import PlantConfig
 from cosim.plant.low_level import resistance_force_n
-from cosim.plant.sedan_model import (
-    FRONT_WHEELS,
-    ackermann_angles,
-    driven_wheels,
-    sedan_xml_and_assets,
-)
+from cosim.plant.sedan_model import FRONT_WHEELS, driven_wheels, sedan_xml_and_assets
 from cosim.plant.slip_control import SlipLimiter
-from cosim.plant.tire_model import PATCH_AT_REST, PatchState, patch_step
+from cosim.plant.steering import SteeringActuator
 from cosim.plant.traffic import Traffic
-from cosim.plant.tyre_patches import (
-    CONTACT_SIZE,
-    FORCE_FIELDS,
-    PATCH_STATE_SIZE,
-    tyre_patches_function,
-)
+from cosim.plant.tyre_forces import MagicFormulaTyres, TyreForces
 
 SETTLE_DURATION_S = 1.5
 """Simulated time the car stands at construction to find its static equilibrium [s]. The
@@ -123,8 +109,8 @@ class MujocoPlant:
         self._data = mujoco.MjData(self._model)
         self._lookup_names()
         self._configure_actuators()
-        self._tyres: _MagicFormulaTyres | None = (
-            _MagicFormulaTyres(config, self._model, self.physics_dt_s, one_call_tyres)
+        self._tyres: MagicFormulaTyres | None = (
+            MagicFormulaTyres(config, self._model, self.physics_dt_s, one_call_tyres)
             if config.tire_model == "pacejka"
             else None
         )
@@ -173,7 +159,8 @@ class MujocoPlant:
         self._suspension_qpos = tuple(qpos_adr(f"{w}_suspension") for w in WHEEL_NAMES)
         self._spin_dof = tuple(dof_adr(f"{w}_spin") for w in WHEEL_NAMES)
         self._steer_qpos = tuple(qpos_adr(f"{w}_steer") for w in FRONT_WHEELS)
-        self._steer_act = tuple(self._id(actuator, f"{w}_steer_servo") for w in FRONT_WHEELS)
+        steer_servos = tuple(self._id(actuator, f"{w}_steer_servo") for w in FRONT_WHEELS)
+        self._steering = SteeringActuator(self.config, m, self.physics_dt_s, steer_servos)
         self._drive_act = tuple(
             self._id(actuator, f"{w}_drive") for w in driven_wheels(self.config.drive)
         )
@@ -184,20 +171,7 @@ class MujocoPlant:
 
     def _configure_actuators(self) -> None:
         """Constants of the actuator models, from the true config and the compiled model."""
-        cfg, m, dt = self.config, self._model, self.physics_dt_s
-        tau = cfg.steer_time_constant_s
-        self._steer_decay = math.exp(-dt / tau) if tau > 0.0 else 0.0
-        self._steer_step_max = cfg.max_steer_rate_radps * dt
-        self._front_track_m = cfg.axle_tracks_m[0]  # the steered wheels' Ackermann geometry
-        # Position servo: force = kp (ctrl - q) - kv qdot. Commanding
-        # ctrl = q_ref + kv/kp qdot_ref + I/kp qddot_ref makes it
-        # kp (q_ref - q) + kv (qdot_ref - qdot) + I qddot_ref: the servo follows the
-        # actuator model's output with no lag or overshoot of its own (feed-forward).
-        left_servo = self._steer_act[0]
-        kp = float(m.actuator_gainprm[left_servo, 0])
-        self._servo_kv_over_kp = -float(m.actuator_biasprm[left_servo, 2]) / kp
-        steer_joint = int(m.actuator_trnid[left_servo, 0])
-        self._servo_inertia_over_kp = float(m.dof_M0[int(m.jnt_dofadr[steer_joint])]) / kp
+        cfg, m = self.config, self._model
         front_share = (cfg.cog_rear_m + cfg.cog_height_m * BRAKE_DESIGN_DECEL_G) / cfg.wheelbase_m
         self._brake_share_by_dof = tuple(
             (dof, 0.5 * (front_share if wheel in FRONT_WHEELS else 1.0 - front_share))
@@ -231,7 +205,7 @@ class MujocoPlant:
         self._check(d.time)
         qpos = d.qpos.tolist()
         qw, qx, qy, qz = qpos[self._quat_slice]
-        roll, pitch, _ = _euler_zyx(qw, qx, qy, qz)
+        roll, pitch, _ = euler_zyx(qw, qx, qy, qz)
         self._eq_z_m = qpos[self._pos_slice][2]
         self._eq_roll_rad, self._eq_pitch_rad = roll, pitch
         self._eq_suspension_m = tuple(qpos[a] for a in self._suspension_qpos)
@@ -265,7 +239,7 @@ class MujocoPlant:
         mujoco.mj_resetData(m, d)
         qpos, qvel = d.qpos, d.qvel
         qpos[self._pos_slice] = (init.x_m, init.y_m, self._eq_z_m)
-        qpos[self._quat_slice] = _quat_zyx(init.yaw_rad, self._eq_pitch_rad, self._eq_roll_rad)
+        qpos[self._quat_slice] = quaternion_zyx(init.yaw_rad, self._eq_pitch_rad, self._eq_roll_rad)
         for adr, value in zip(self._suspension_qpos, self._eq_suspension_m, strict=True):
             qpos[adr] = value
         speed = init.speed_mps
@@ -286,10 +260,7 @@ class MujocoPlant:
         self._brake_cmd_nm = 0.0
         if self._slip_limiter is not None:
             self._slip_limiter.reset()
-        self._steer_cmd_rad = 0.0
-        self._steer_rad = 0.0
-        self._wheel_steer_rad = (0.0, 0.0)
-        self._wheel_steer_rate_radps = (0.0, 0.0)
+        self._steering.reset()
         self._prev_linvel = self._linvel_view.tolist()
         self._last_command: ActuatorCommand | None = None
         if self.traffic is not None:
@@ -316,38 +287,28 @@ class MujocoPlant:
         cfg = self.config
         self._drive_cmd_nm = min(actuator.drive_torque_nm, cfg.max_drive_torque_nm)
         self._brake_cmd_nm = min(actuator.brake_torque_nm, cfg.max_brake_torque_nm)
-        self._steer_cmd_rad = actuator.steer_rad
+        self._steering.command_rad = actuator.steer_rad
         self._last_command = actuator
 
     def advance(self) -> None:
         """Run the actuator models and exactly one MuJoCo step of ``physics_dt_s``."""
-        d, cfg, dt = self._data, self.config, self.physics_dt_s
-        ctrl = d.ctrl
+        d, dt = self._data, self.physics_dt_s
         qvel = self._qvel_view.tolist()
+        self._steering.step(d.ctrl)
+        self._drive_and_brake(d.ctrl, qvel)
+        self._resist(qvel)
+        self._prev_linvel = qvel[self._linvel_slice]
+        t_before = d.time
+        self._physics_step()
+        self._check(t_before + dt)
+        if self.traffic is not None:
+            self.traffic.place(d, d.time)
 
-        # Steering actuator: lag, then rate limit, then clip (bicycle-model angle).
-        limit = cfg.max_steer_rad
-        target = min(max(self._steer_cmd_rad, -limit), limit)
-        lagged = target + (self._steer_rad - target) * self._steer_decay
-        step = min(max(lagged - self._steer_rad, -self._steer_step_max), self._steer_step_max)
-        self._steer_rad += step
-        left, right = ackermann_angles(self._steer_rad, cfg.wheelbase_m, self._front_track_m)
-        (prev_left, prev_right), (prev_rate_left, prev_rate_right) = (
-            self._wheel_steer_rad,
-            self._wheel_steer_rate_radps,
-        )
-        rate_left, rate_right = (left - prev_left) / dt, (right - prev_right) / dt
-        kv_kp, i_kp = self._servo_kv_over_kp, self._servo_inertia_over_kp
-        ctrl[self._steer_act[0]] = (
-            left + kv_kp * rate_left + i_kp * (rate_left - prev_rate_left) / dt
-        )
-        ctrl[self._steer_act[1]] = (
-            right + kv_kp * rate_right + i_kp * (rate_right - prev_rate_right) / dt
-        )
-        self._wheel_steer_rad = (left, right)
-        self._wheel_steer_rate_radps = (rate_left, rate_right)
-
-        # Drive: torque and power limit, split equally over the driven wheels.
+    def _drive_and_brake(self, ctrl: np.ndarray, qvel: list[float]) -> None:
+        """Drive: torque and power limit, split equally over the driven wheels (an open
+        differential); brakes: smooth Coulomb friction, as an implicit damping coefficient
+        per wheel (module docstring)."""
+        cfg, dt = self.config, self.physics_dt_s
         drive = self._drive_cmd_nm
         if drive > 0.0:
             spin = sum(abs(qvel[dof]) for dof in self._driven_dof) / self._n_driven
@@ -360,31 +321,23 @@ class MujocoPlant:
         per_wheel = drive / self._n_driven
         for act in self._drive_act:
             ctrl[act] = per_wheel
-
-        # Brakes: smooth Coulomb friction, as an implicit damping coefficient per wheel.
         damping = self._dof_damping
         for dof, share in self._brake_share_by_dof:
             omega = qvel[dof]
             damping[dof] = brake * share / math.sqrt(omega * omega + BRAKE_SPIN_SCALE_RADPS**2)
 
-        # Drag and rolling resistance against the horizontal velocity of the chassis.
+    def _resist(self, qvel: list[float]) -> None:
+        """Drag and rolling resistance against the horizontal velocity of the chassis."""
         vx, vy, _ = qvel[self._linvel_slice]
         speed = math.hypot(vx, vy)
         force = self._chassis_force
         if speed > 1e-9:
-            scale = resistance_force_n(cfg, speed) / speed
+            scale = resistance_force_n(self.config, speed) / speed
             force[0] = -scale * vx
             force[1] = -scale * vy
         else:
             force[0] = 0.0
             force[1] = 0.0
-
-        self._prev_linvel = qvel[self._linvel_slice]
-        t_before = d.time
-        self._physics_step()
-        self._check(t_before + dt)
-        if self.traffic is not None:
-            self.traffic.place(d, d.time)
 
     def _physics_step(self) -> None:
         """One MuJoCo step; with Magic Formula tyres, their forces are applied mid-step.
@@ -419,7 +372,7 @@ class MujocoPlant:
         qvel = self._qvel_view.tolist()
         x, y, z = qpos[self._pos_slice]
         qw, qx, qy, qz = qpos[self._quat_slice]
-        roll, pitch, yaw = _euler_zyx(qw, qx, qy, qz)
+        roll, pitch, yaw = euler_zyx(qw, qx, qy, qz)
         # First two columns of the body-to-world rotation matrix: the vehicle x and y axes.
         xx, xy, xz = (
             1.0 - 2.0 * (qy * qy + qz * qz),
@@ -505,268 +458,3 @@ class MujocoPlant:
                 f"|qvel| = {float(np.linalg.norm(qvel)):.3g}; physics_dt_s = "
                 f"{self.physics_dt_s})"
             )
-
-
-class TyreForces(NamedTuple):
-    """One tyre at one step (wheel heading frame at the contact, ISO 8855 axes)."""
-
-    load_n: float
-    """Normal load used for the step: the contact's normal force of the step before [N]."""
-    forward_speed_mps: float
-    """Forward speed of the wheel centre, ``V_cx`` [m/s]."""
-    slip_velocity_x_mps: float
-    """Velocity of the wheel's material point at the contact, along the heading [m/s]."""
-    slip_velocity_y_mps: float
-    """The same, to the left of the heading [m/s]."""
-    force_x_n: float
-    """Longitudinal tyre force on the wheel [N]."""
-    force_y_n: float
-    """Lateral tyre force on the wheel [N]."""
-
-
-class _MagicFormulaTyres:
-    """The four Magic Formula tyres of a plant: contact geometry in, wheel forces out.
-
-    Per step, for each wheel with a ground contact: the heading frame at the contact
-    (x = spin axis x contact normal, normalised: the wheel's heading in the road plane; y =
-    normal x x), the velocity of the wheel's material point at the contact point and of the
-    wheel centre (from MuJoCo's ``cvel``: angular velocity and the linear velocity at the
-    chassis subtree's centre of mass), and the normal load (the contact's normal force of
-    the previous step) go into :func:`cosim.plant.tire_model.patch_step`; the resulting force acts
-    at the contact point: ``xfrc_applied`` of the wheel body holds the force and its moment
-    about the wheel's centre of mass (the wheel centre for the sedan).
-    """
-
-    def __init__(self, config: PlantConfig, model: mujoco.MjModel, physics_dt_s: float,
-                 one_call: bool = True) -> None:
-        body, geom = mujoco.mjtObj.mjOBJ_BODY, mujoco.mjtObj.mjOBJ_GEOM
-        self._dt_s = physics_dt_s
-        self._friction = config.tire_friction
-        front = dataclasses.replace(
-            config.tyre,
-            cornering_stiffness_max_prad=config.tyre.cornering_stiffness_max_prad
-            * config.front_cornering_stiffness_scale,
-        )
-        rear = dataclasses.replace(
-            config.tyre,
-            cornering_stiffness_max_prad=config.tyre.cornering_stiffness_max_prad
-            * config.rear_cornering_stiffness_scale,
-        )
-        self._params: tuple[TyreParams, ...] = tuple(
-            front if wheel in FRONT_WHEELS else rear for wheel in WHEEL_NAMES
-        )
-        self._wheel_body = tuple(
-            mujoco.mj_name2id(model, body, f"{wheel}_wheel") for wheel in WHEEL_NAMES
-        )
-        self._wheel_of_geom = {
-            mujoco.mj_name2id(model, geom, f"{wheel}_tyre"): index
-            for index, wheel in enumerate(WHEEL_NAMES)
-        }
-        if min(self._wheel_body) < 0 or min(self._wheel_of_geom) < 0:
-            raise ValueError("the sedan model lacks a <wheel>_wheel body or <wheel>_tyre geom")
-        chassis = mujoco.mj_name2id(model, body, "chassis")
-        self._root = int(model.body_rootid[chassis])
-        self._n_wheels = len(WHEEL_NAMES)
-        self._bodies = np.array(self._wheel_body)
-        self._contact_buffer = np.zeros(self._n_wheels * CONTACT_SIZE)
-        self._state_buffer = np.zeros(self._n_wheels * PATCH_STATE_SIZE)
-        self._wrench_buffer = np.zeros((self._n_wheels, 6))
-        self._forces_buffer = np.zeros((self._n_wheels, FORCE_FIELDS))
-        self._new_state_buffer = np.zeros(self._n_wheels * PATCH_STATE_SIZE)
-        self._compiled: tuple[ctypes.CDLL, ca.Function] | None = None
-        """The four tyres as one compiled C call (:mod:`cosim.plant.tyre_patches`); None:
-        the plain reference, :func:`cosim.plant.tire_model.patch_step` per wheel."""
-        if one_call:
-            function = tyre_patches_function(self._params, self._friction, physics_dt_s,
-                                             self._wheel_body, self._root, model.nbody)
-            library = compile_function(function)
-            if library is not None:
-                self._compiled = (library, function)
-        self._patches: CompiledFunction | None = None
-        self.reset((0.0,) * self._n_wheels)
-
-    def bind(self, d: mujoco.MjData) -> None:
-        """Point the compiled tyres at ``d``'s arrays (once per MjData: fixed memory)."""
-        if self._compiled is None:
-            return
-        library, function = self._compiled
-        self._patches = CompiledFunction(
-            library, function,
-            [d.cvel, d.xpos, d.xipos, d.xmat, d.subtree_com, self._contact_buffer,
-             self._state_buffer],
-            [self._wrench_buffer, self._forces_buffer, self._new_state_buffer])
-
-    def reset(self, loads_n: tuple[float, ...]) -> None:
-        """Undeflected tyres carrying ``loads_n``; no contact seen yet."""
-        self._loads_n = list(loads_n)
-        self._patch: list[PatchState] = [PATCH_AT_REST] * self._n_wheels
-        self._state_buffer[:] = 0.0
-        self._contact_efc: list[tuple[int, int]] = []
-        self._last: list[tuple[float, ...]] = [
-            (load, 0.0, 0.0, 0.0, 0.0, 0.0) for load in loads_n
-        ]
-        self._forces_buffer[:] = 0.0
-        self._forces_buffer[:, 0] = loads_n
-
-    def _contacts(self, d: mujoco.MjData) -> tuple[list[int], list[float]]:
-        """Each wheel's deepest ground contact (-1: none) and the sign that turns that
-        contact's normal into the tyre; remembers every tyre contact's constraint row."""
-        n_wheels = self._n_wheels
-        contact_of_wheel: list[int] = [-1] * n_wheels
-        normal_sign_of_wheel = [1.0] * n_wheels
-        depth_of_wheel = [math.inf] * n_wheels
-        contact_efc: list[tuple[int, int]] = []
-        ncon = d.ncon
-        if ncon:
-            contacts = d.contact
-            geoms = contacts.geom.tolist()
-            dist = contacts.dist.tolist()
-            efc_address = contacts.efc_address.tolist()
-            wheel_of_geom = self._wheel_of_geom
-            for i in range(ncon):
-                geom1, geom2 = geoms[i]
-                # The contact normal points from geom1 to geom2: up, into the tyre, when the
-                # tyre is geom2 (MuJoCo puts the plane first); flipped otherwise.
-                sign = 1.0
-                wheel = wheel_of_geom.get(geom2, -1)
-                if wheel < 0:
-                    sign = -1.0
-                    wheel = wheel_of_geom.get(geom1, -1)
-                    if wheel < 0:
-                        continue
-                if efc_address[i] >= 0:  # -1: inside the margin but not (yet) a constraint,
-                    contact_efc.append((wheel, efc_address[i]))  # so it carries no force
-                if dist[i] < depth_of_wheel[wheel]:
-                    depth_of_wheel[wheel] = dist[i]
-                    contact_of_wheel[wheel] = i
-                    normal_sign_of_wheel[wheel] = sign
-        self._contact_efc = contact_efc
-        return contact_of_wheel, normal_sign_of_wheel
-
-    def apply_forces(self, d: mujoco.MjData) -> None:
-        """Set each wheel's ``xfrc_applied`` from the state after ``mj_step1``."""
-        if self._patches is None:
-            self._apply_forces_reference(d)
-            return
-        contact_of_wheel, sign_of_wheel = self._contacts(d)
-        values: list[float] = []
-        if d.ncon:
-            positions = d.contact.pos.tolist()
-            frames = d.contact.frame.tolist()
-        for index, sign, load in zip(contact_of_wheel, sign_of_wheel, self._loads_n,
-                                     strict=True):
-            if index < 0:
-                values += (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, load)
-                continue
-            frame = frames[index]
-            values += (1.0, *positions[index], sign * frame[0], sign * frame[1],
-                       sign * frame[2], load)
-        self._contact_buffer[:] = values
-        self._patches()
-        d.xfrc_applied[self._bodies] = self._wrench_buffer
-        self._state_buffer[:] = self._new_state_buffer
-
-    def _apply_forces_reference(self, d: mujoco.MjData) -> None:
-        """:meth:`apply_forces` in plain Python, :func:`patch_step` per wheel."""
-        n_wheels = self._n_wheels
-        contact_of_wheel, normal_sign_of_wheel = self._contacts(d)
-        if d.ncon:
-            positions = d.contact.pos.tolist()
-            frames = d.contact.frame.tolist()
-        cvel = d.cvel.tolist()
-        xpos = d.xpos.tolist()
-        xipos = d.xipos.tolist()
-        xmat = d.xmat.tolist()
-        cx, cy, cz = d.subtree_com[self._root].tolist()
-        xfrc = d.xfrc_applied
-        loads = self._loads_n
-        patches = self._patch
-        last = self._last
-        friction, dt = self._friction, self._dt_s
-        for wheel in range(n_wheels):
-            body = self._wheel_body[wheel]
-            index = contact_of_wheel[wheel]
-            if index < 0:
-                patches[wheel] = PATCH_AT_REST
-                xfrc[body] = 0.0
-                last[wheel] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-                continue
-            px, py, pz = positions[index]
-            frame = frames[index]
-            sign = normal_sign_of_wheel[wheel]
-            nx, ny, nz = sign * frame[0], sign * frame[1], sign * frame[2]
-            rot = xmat[body]
-            ax, ay, az = rot[1], rot[4], rot[7]  # the wheel's spin axis (body y) in the world
-            # Heading in the road plane: spin axis x normal, normalised; lateral: normal x it.
-            fx, fy, fz = ay * nz - az * ny, az * nx - ax * nz, ax * ny - ay * nx
-            norm = math.sqrt(fx * fx + fy * fy + fz * fz)
-            fx, fy, fz = fx / norm, fy / norm, fz / norm
-            lx, ly, lz = ny * fz - nz * fy, nz * fx - nx * fz, nx * fy - ny * fx
-            wx, wy, wz, vx, vy, vz = cvel[body]
-            # Velocity of the wheel's material point at the contact and of the wheel centre:
-            # v + w x (p - c), with v the velocity at the subtree CoM c (MuJoCo's cvel).
-            rx, ry, rz = px - cx, py - cy, pz - cz
-            mx = vx + wy * rz - wz * ry
-            my = vy + wz * rx - wx * rz
-            mz = vz + wx * ry - wy * rx
-            ox, oy, oz = xpos[body]
-            rx, ry, rz = ox - cx, oy - cy, oz - cz
-            forward_speed = (
-                (vx + wy * rz - wz * ry) * fx
-                + (vy + wz * rx - wx * rz) * fy
-                + (vz + wx * ry - wy * rx) * fz
-            )
-            slip_x = mx * fx + my * fy + mz * fz
-            slip_y = mx * lx + my * ly + mz * lz
-            load = loads[wheel]
-            result = patch_step(
-                self._params[wheel], friction, load, forward_speed, slip_x, slip_y,
-                patches[wheel], dt,
-            )
-            patches[wheel] = result.state
-            force_x, force_y = result.force_x_n, result.force_y_n
-            gx = force_x * fx + force_y * lx
-            gy = force_x * fy + force_y * ly
-            gz = force_x * fz + force_y * lz
-            # Moment of the force at the contact about the wheel's centre of mass: (p - i) x F.
-            ix, iy, iz = xipos[body]
-            rx, ry, rz = px - ix, py - iy, pz - iz
-            xfrc[body] = (gx, gy, gz, ry * gz - rz * gy, rz * gx - rx * gz, rx * gy - ry * gx)
-            last[wheel] = (load, forward_speed, slip_x, slip_y, force_x, force_y)
-
-    def read_loads(self, d: mujoco.MjData) -> None:
-        """After ``mj_step2``: each tyre's normal load, the sum of its contacts' normal forces
-        (``condim`` 1: one constraint row per contact, the normal force)."""
-        loads = [0.0] * self._n_wheels
-        if self._contact_efc:
-            efc_force = d.efc_force
-            for wheel, address in self._contact_efc:
-                loads[wheel] += float(efc_force[address])
-        self._loads_n = loads
-
-    def forces(self) -> tuple[TyreForces, ...]:
-        if self._patches is not None:
-            return tuple(TyreForces(*values) for values in self._forces_buffer.tolist())
-        return tuple(TyreForces(*values) for values in self._last)
-
-
-def _euler_zyx(qw: float, qx: float, qy: float, qz: float) -> tuple[float, float, float]:
-    """Roll, pitch, yaw (intrinsic z-y'-x'', ISO 8855) of a unit quaternion w x y z."""
-    roll = math.atan2(2.0 * (qw * qx + qy * qz), 1.0 - 2.0 * (qx * qx + qy * qy))
-    sin_pitch = 2.0 * (qw * qy - qz * qx)
-    pitch = math.asin(min(max(sin_pitch, -1.0), 1.0))
-    yaw = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
-    return roll, pitch, yaw
-
-
-def _quat_zyx(yaw: float, pitch: float, roll: float) -> tuple[float, float, float, float]:
-    """Unit quaternion w x y z of yaw, then pitch, then roll (inverse of :func:`_euler_zyx`)."""
-    cy, sy = math.cos(0.5 * yaw), math.sin(0.5 * yaw)
-    cp, sp = math.cos(0.5 * pitch), math.sin(0.5 * pitch)
-    cr, sr = math.cos(0.5 * roll), math.sin(0.5 * roll)
-    return (
-        cr * cp * cy + sr * sp * sy,
-        sr * cp * cy - cr * sp * sy,
-        cr * sp * cy + sr * cp * sy,
-        cr * cp * sy - sr * sp * cy,
-    )

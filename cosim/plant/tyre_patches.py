@@ -3,7 +3,7 @@
 :func:`cosim.plant.tire_model.patch_step` is the plain reference of one tyre, called per
 wheel in Python. This module states the same step once more, symbolically (CasADi SX), for
 all four wheels together, with the contact geometry of
-:class:`cosim.plant.car._MagicFormulaTyres` (heading frame at the contact, slip velocity of
+:class:`cosim.plant.tyre_forces.MagicFormulaTyres` (heading frame at the contact, slip velocity of
 the wheel's material point, wheel-centre speed; the force's moment about the wheel's centre
 of mass), and builds one CasADi :class:`~casadi.Function` of it: a physics step then costs
 one call into CasADi's compiled virtual machine instead of some 400 Python float

@@ -69,6 +69,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cosim.core.exceptions import CosimError, GlBackendError, RenderError
+from cosim.core.rotations import quaternion_zyx
 from cosim.log import topics
 
 if TYPE_CHECKING:
@@ -507,7 +508,7 @@ class ChaseRenderer:
         pose = self._scene.truth.at(t_s)
         a = self._free_qpos
         data.qpos[a:a + 3] = (pose.x_m, pose.y_m, pose.z_m)
-        data.qpos[a + 3:a + 7] = orientation_quat(pose.yaw_rad, pose.pitch_rad, pose.roll_rad)
+        data.qpos[a + 3:a + 7] = quaternion_zyx(pose.yaw_rad, pose.pitch_rad, pose.roll_rad)
         left, right = ackermann_angles(pose.steer_rad, self._wheelbase_m, self._track_m)
         data.qpos[self._steer_qpos[0]] = left
         data.qpos[self._steer_qpos[1]] = right
@@ -553,17 +554,6 @@ class ChaseRenderer:
             geom.emission = 0.4
             geom.category = mujoco.mjtCatBit.mjCAT_DECOR
             scene.ngeom += 1
-
-
-def orientation_quat(yaw_rad: float, pitch_rad: float, roll_rad: float) -> np.ndarray:
-    """Unit quaternion (w, x, y, z) of yaw, then pitch, then roll about the turned axes
-    (intrinsic z-y'-x'', ISO 8855; the plant's ``_euler_zyx`` inverts it)."""
-    import mujoco
-
-    quat = np.empty(4)
-    # Lower case: axes that turn with the body (intrinsic); upper case would be extrinsic.
-    mujoco.mju_euler2Quat(quat, np.array([yaw_rad, pitch_rad, roll_rad]), "zyx")
-    return quat
 
 
 def _import_mujoco(gl: str) -> Any:
