@@ -203,7 +203,7 @@ def test_the_earlier_esc_tuning_fails_the_settling_judgement(tmp_path: Path) -> 
 
 
 def test_render_reads_the_traffic_tracks(cut_in_start: RunResult) -> None:
-    from cosim.plots.render import read_logged_scene
+    from cosim.plots.video_scene import read_logged_scene
 
     scene = read_logged_scene(cut_in_start.log_path)
     assert set(scene.traffic) == {"lead", "cut_in"}

@@ -16,7 +16,7 @@ import pytest
 
 from cosim.cli import main
 from cosim.core.exceptions import GlBackendError, RenderError
-from cosim.plots import render
+from cosim.plots import gl_backend, render, video_scene
 from cosim.plots.render import RenderOptions
 from cosim.simulation.runner import RunResult
 
@@ -25,7 +25,7 @@ WIDTH, HEIGHT = 480, 270
 
 def _osmesa_missing() -> str | None:
     try:
-        render.check_gl_backend("osmesa")
+        gl_backend.check_gl_backend("osmesa")
     except GlBackendError as error:
         return str(error)
     return None
@@ -52,22 +52,22 @@ def _read_video(path: Path) -> tuple[dict, np.ndarray]:
 
 def test_frame_times_cover_the_log_at_the_frame_rate() -> None:
     truth_t = np.arange(0.0, 2.0 + 1e-9, 0.01)  # 2 s at 100 Hz
-    times = render.frame_times(truth_t, fps=30.0)
+    times = video_scene.frame_times(truth_t, fps=30.0)
     assert len(times) == 61  # 0, 1/30, ..., 60/30 = 2.0
     assert times[0] == 0.0 and math.isclose(times[-1], 2.0)
-    window = render.frame_times(truth_t, fps=10.0, start_s=0.5, duration_s=1.0)
+    window = video_scene.frame_times(truth_t, fps=10.0, start_s=0.5, duration_s=1.0)
     assert np.allclose(window, 0.5 + np.arange(11) / 10.0)
-    assert len(render.frame_times(truth_t, fps=10.0, start_s=1.5, duration_s=5.0)) == 6
+    assert len(video_scene.frame_times(truth_t, fps=10.0, start_s=1.5, duration_s=5.0)) == 6
     with pytest.raises(RenderError, match="--start 3"):
-        render.frame_times(truth_t, fps=10.0, start_s=3.0)
+        video_scene.frame_times(truth_t, fps=10.0, start_s=3.0)
 
 
 def test_heading_lag_is_first_order() -> None:
     """A yaw step of 1 rad: after one time constant the camera has turned 1 - 1/e of it."""
-    tau = render.CHASE_HEADING_TIME_CONSTANT_S
+    tau = video_scene.CHASE_HEADING_TIME_CONSTANT_S
     t = np.arange(0.0, 5.0 * tau, 0.01)
     yaw = np.where(t > 0.0, 1.0, 0.0)
-    heading = render.smoothed_heading(t, yaw, tau)
+    heading = video_scene.smoothed_heading(t, yaw, tau)
     assert heading[0] == 0.0
     k = int(round(tau / 0.01))  # sample k has had k updates towards the new yaw
     assert math.isclose(heading[k], 1.0 - math.exp(-1.0), rel_tol=1e-9)
@@ -75,7 +75,7 @@ def test_heading_lag_is_first_order() -> None:
 
 def test_chase_camera_sits_behind_and_above_the_car() -> None:
     for heading in (0.0, 1.0, -2.5):
-        view = render.chase_camera(10.0, -4.0, heading)
+        view = video_scene.chase_camera(10.0, -4.0, heading)
         az, el = math.radians(view.azimuth_deg), math.radians(view.elevation_deg)
         forward = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az),
                             math.sin(el)])
@@ -87,7 +87,7 @@ def test_chase_camera_sits_behind_and_above_the_car() -> None:
 
 def test_path_segments_join_consecutive_points() -> None:
     points = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 0.0], [2.0, 3.0]])
-    centres, half_lengths, headings = render.path_segments(points)
+    centres, half_lengths, headings = video_scene.path_segments(points)
     assert np.allclose(centres, [[1.0, 0.0], [2.0, 1.5]])  # the repeated point is dropped
     assert np.allclose(half_lengths, [1.0, 1.5])
     assert np.allclose(headings, [0.0, math.pi / 2])
@@ -95,21 +95,21 @@ def test_path_segments_join_consecutive_points() -> None:
 
 def test_missing_back_end_names_the_package_to_install() -> None:
     with pytest.raises(GlBackendError, match=r"apt-get install libosmesa6"):
-        render.check_gl_backend("osmesa", find_library=lambda name: None)
+        gl_backend.check_gl_backend("osmesa", find_library=lambda name: None)
     with pytest.raises(GlBackendError, match=r"apt-get install libegl1"):
-        render.check_gl_backend("egl", find_library=lambda name: None)
+        gl_backend.check_gl_backend("egl", find_library=lambda name: None)
     with pytest.raises(GlBackendError, match=r"needs a display.*--gl osmesa"):
-        render.check_gl_backend("glfw", environ={})
-    render.check_gl_backend("glfw", environ={"DISPLAY": ":0"})
+        gl_backend.check_gl_backend("glfw", environ={})
+    gl_backend.check_gl_backend("glfw", environ={"DISPLAY": ":0"})
 
 
 def test_back_end_choice_and_child_environment() -> None:
-    assert render.default_gl({}) == "osmesa"
-    assert render.default_gl({"MUJOCO_GL": "disable"}) == "osmesa"
-    assert render.default_gl({"MUJOCO_GL": "EGL"}) == "egl"
-    env = render.gl_environment("osmesa", {"MUJOCO_GL": "disable", "PYOPENGL_PLATFORM": "egl"})
+    assert gl_backend.default_gl({}) == "osmesa"
+    assert gl_backend.default_gl({"MUJOCO_GL": "disable"}) == "osmesa"
+    assert gl_backend.default_gl({"MUJOCO_GL": "EGL"}) == "egl"
+    env = gl_backend.gl_environment("osmesa", {"MUJOCO_GL": "disable", "PYOPENGL_PLATFORM": "egl"})
     assert env["MUJOCO_GL"] == "osmesa" and env["PYOPENGL_PLATFORM"] == "osmesa"
-    assert "PYOPENGL_PLATFORM" not in render.gl_environment("glfw", {"PYOPENGL_PLATFORM": "x"})
+    assert "PYOPENGL_PLATFORM" not in gl_backend.gl_environment("glfw", {"PYOPENGL_PLATFORM": "x"})
 
 
 @pytest.mark.parametrize(("options", "message"), [
@@ -129,14 +129,14 @@ def test_scene_comes_from_the_log(short_run: RunResult, monkeypatch: pytest.Monk
                                   ) -> None:
     import mujoco
 
-    scene = render.read_logged_scene(short_run.log_path)
+    scene = video_scene.read_logged_scene(short_run.log_path)
     assert scene.model_source == "attachment sedan.xml"
     assert len(scene.truth.t_s) == 201 and math.isclose(scene.truth.duration_s, 2.0)
     assert scene.truth.at(1.0).x_m > 10.0  # 15 m/s for a second
     assert scene.path_xy_m is not None and scene.path_xy_m.shape[1] == 2
     # A log without the attachment: the model is rebuilt from the logged config.
     monkeypatch.setattr("cosim.log.reader.read_attachment", lambda path, name: None)
-    rebuilt = render.read_logged_scene(short_run.log_path)
+    rebuilt = video_scene.read_logged_scene(short_run.log_path)
     assert rebuilt.model_source == "rebuilt from the config"
     assert rebuilt.mjcf_xml == scene.mjcf_xml
     mujoco.MjModel.from_xml_string(rebuilt.mjcf_xml, rebuilt.assets)
