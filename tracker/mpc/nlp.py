@@ -1,0 +1,172 @@
+"""An NLP built once and solved every control step: where the plan sits in its variables,
+its bounds, and the solver's verdict.
+
+:class:`Nlp` wraps a CasADi ``nlpsol`` (IPOPT, fatrop) or :class:`RealTimeIteration` (one
+Gauss-Newton SQP step per control step, each a structured QP; Diehl, Bock, Schloeder,
+Findeisen, Nagy, Allgoewer, "Real-time optimization and nonlinear model predictive control
+of processes governed by differential-algebraic equations", J. Process Control 12(4),
+2002) behind one :meth:`Nlp.solve`; :class:`StagedProblem` is the NLP posed stage by stage
+before a solver is chosen (:mod:`tracker.mpc.nmpc_problem`).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Solution:
+    """What one solve produced (before the tracker checks it is finite)."""
+
+    w: np.ndarray
+    cost: float
+    status: str
+    iterations: int
+    success: bool
+    solve_time_s: float
+
+
+QP_FEASIBILITY_TOL = 1e-3
+"""Largest violation of a bound or a linearised constraint a real-time iteration's step
+may leave (in the variables' and constraints' own units)."""
+
+
+def step_feasible(w: np.ndarray, g_linear: np.ndarray, nlp: Nlp) -> bool:
+    """Whether a QP's result honours the bounds and the linearised constraints: qrqp has
+    reported success on an infeasible QP (with the friction ellipse's Hessian, an initial
+    steering rate beyond its bound)."""
+    tol = QP_FEASIBILITY_TOL
+    return bool(np.all(w >= nlp.lbx - tol) and np.all(w <= nlp.ubx + tol)
+                and np.all(g_linear >= nlp.lbg - tol) and np.all(g_linear <= nlp.ubg + tol))
+
+
+@dataclass(frozen=True)
+class RealTimeIteration:
+    """Gauss-Newton SQP steps on the stage-wise NLP, each one structured QP (Diehl's
+    real-time iteration), built once.
+
+    ``qp_data(w, p) -> (H, grad f, g, J_g)``: the Gauss-Newton Hessian ``2 J_r' J_r`` of
+    the cost's residuals, the cost gradient, the constraints and their Jacobian at the
+    iterate ``w``; ``qp`` solves for the step ``dw``:
+    ``min 1/2 dw' H dw + grad f' dw`` s.t. ``lbx <= w + dw <= ubx`` and
+    ``lbg <= g + J_g dw <= ubg``; ``cost(w, p)`` is the NLP's cost at the result.
+
+    CasADi's ``sqpmethod`` (``max_iter = 1``) does the same, but in CasADi 3.8 it carries
+    on silently when a QP fails (``Maximum_Iterations_Exceeded`` either way) unless the QP
+    raises, which dumps the whole QP to stdout; here every QP's status is checked.
+    """
+
+    qp_data: ca.Function
+    qp: ca.Function
+    cost: ca.Function
+    iterations: int
+
+    def solve(self, w: np.ndarray, params: np.ndarray, nlp: Nlp) -> Solution:
+        """``iterations`` full steps from ``w`` within ``nlp``'s bounds; the first QP that
+        fails ends it unsuccessfully (hpipm's status: 1 iteration limit, 2 step too small,
+        3 NaN, 4 inconsistent equalities; qrqp and osqp report words)."""
+        start = time.perf_counter()
+        for iteration in range(1, self.iterations + 1):
+            hessian, gradient, g, jacobian = self.qp_data(w, params)
+            g = np.asarray(g, dtype=float).ravel()
+            step = self.qp(h=hessian, g=gradient, a=jacobian, lbx=nlp.lbx - w,
+                           ubx=nlp.ubx - w, lba=nlp.lbg - g, uba=nlp.ubg - g)
+            stats = self.qp.stats()
+            dw = np.asarray(step["x"], dtype=float).ravel()
+            status = None
+            if not stats.get("success", False):
+                status = f"QP_Failed ({stats.get('return_status', 'unknown')})"
+            elif not step_feasible(w + dw, g + np.asarray(ca.mtimes(jacobian, dw)).ravel(),
+                                    nlp):
+                status = "QP_Failed (step violates the bounds)"
+            if status is not None:
+                return Solution(w, math.nan, status, iteration, False,
+                                 time.perf_counter() - start)
+            w = w + dw
+        cost = float(self.cost(w, params))
+        return Solution(w, cost, "RTI_Completed", self.iterations, True,
+                         time.perf_counter() - start)
+
+
+@dataclass(frozen=True)
+class Nlp:
+    """One solver's NLP, built once: the solver, where the plan sits in its flat vector of
+    variables ``w``, and the bounds (the parameters vary, nothing else does)."""
+
+    solver_name: str
+    """``tracker.solver``."""
+    solver: ca.Function | RealTimeIteration
+    """A CasADi ``nlpsol`` (ipopt, fatrop), or the real-time iteration (sqp-rti)."""
+    state_index: np.ndarray
+    """``(N+1, n_x)`` integers: ``w[state_index[k, i]]`` is state ``i`` at node ``k``."""
+    input_index: np.ndarray
+    """``(N, n_u)`` integers: ``w[input_index[k, j]]`` is input ``j`` of stage ``k``."""
+    carried_index: np.ndarray
+    """``(N+1, n_u)`` integers: the input applied before node ``k``, which the stage-wise
+    NLPs carry as a state (row 0: the previously applied command); ``(0, n_u)`` when the
+    NLP has none."""
+    lbx: np.ndarray
+    ubx: np.ndarray
+    lbg: np.ndarray
+    ubg: np.ndarray
+
+    def pack(self, states: np.ndarray, inputs: np.ndarray,
+             input_prev: np.ndarray) -> np.ndarray:
+        """The flat vector of variables holding a trajectory (e.g. a warm start)."""
+        w = np.empty(self.lbx.size)
+        w[self.state_index] = states
+        w[self.input_index] = inputs
+        if self.carried_index.size:
+            w[self.carried_index] = np.vstack((input_prev, inputs))
+        return w
+
+    def solve(self, w0: np.ndarray, params: np.ndarray) -> Solution:
+        """Solve from the guess ``w0``; CasADi errors raise ``RuntimeError``.
+
+        Success is each solver's own verdict: IPOPT's and fatrop's ``success`` (converged
+        to ``tracker.tolerance``), the real-time iteration's every QP solved. The status
+        is IPOPT's ``return_status``; fatrop's is an integer flag, reported as
+        ``Solve_Succeeded`` (0) or ``fatrop_flag_<n>`` (1 both at the iteration limit and
+        on an infeasible problem); the real-time iteration's ``RTI_Completed`` or
+        ``QP_Failed (<the QP solver's status>)``.
+        """
+        if isinstance(self.solver, RealTimeIteration):
+            return self.solver.solve(w0, params, self)
+        start = time.perf_counter()
+        solution = self.solver(
+            x0=w0, p=params, lbx=self.lbx, ubx=self.ubx, lbg=self.lbg, ubg=self.ubg
+        )
+        solve_time_s = time.perf_counter() - start
+        stats = self.solver.stats()
+        success = bool(stats.get("success", False))
+        status = str(stats.get("return_status", "unknown"))
+        if self.solver_name == "fatrop":
+            status = "Solve_Succeeded" if success else f"fatrop_flag_{status}"
+        return Solution(np.asarray(solution["x"], dtype=float).ravel(),
+                         float(solution["f"]), status, int(stats.get("iter_count", 0)),
+                         success, solve_time_s)
+
+
+@dataclass(frozen=True)
+class StagedProblem:
+    """The NLP posed stage by stage
+    (:meth:`tracker.mpc.nmpc_problem.NmpcProblem.staged_problem`), before a solver."""
+
+    nlp: Mapping[str, ca.SX]
+    """CasADi's NLP: variables ``x``, parameters ``p``, cost ``f``, constraints ``g``."""
+    residuals: ca.SX
+    """``r`` with ``f = |r|^2``: the weighted errors, for a Gauss-Newton Hessian."""
+    structure: Mapping[str, object]
+    """The stages' sizes as fatrop and hpipm take them: ``N``, ``nx``, ``nu``, ``ng``."""
+    layout: Mapping[str, np.ndarray]
+    """The :class:`Nlp` fields other than the solver: indices and bounds."""
+
+    def with_solver(self, solver_name: str,
+                    solver: ca.Function | RealTimeIteration) -> Nlp:
+        return Nlp(solver_name, solver, **self.layout)

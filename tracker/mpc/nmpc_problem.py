@@ -1,0 +1,461 @@
+"""The NMPC's optimisation problem, posed once for a model and a configuration, and the
+solver each ``tracker.solver`` puts on it.
+
+The tracking cost and constraints are those of :mod:`tracker.mpc.nmpc` (module docstring):
+``min sum_k c_k(x_k, u_k)`` by multiple shooting, ``x_{k+1} = F(x_k, u_k)``, ``x_0`` the
+predicted estimate, the steering rate bounded against the previous input. Everything that
+changes from step to step is a parameter (:attr:`NmpcProblem.params`): a step only sets
+parameters and solves.
+
+Solvers (``tracker.solver``; built once in the constructor, a step only sets parameters
+and solves; the solver's own verdict decides success, see :meth:`tracker.mpc.nlp.Nlp.solve`):
+
+- ``ipopt``: interior point with a general sparse factorisation, on the
+  variables in blocks ``[x_0 .. x_N, u_0 .. u_{N-1}]``; the steering-rate constraint
+  couples neighbouring inputs.
+- ``fatrop`` (default): an interior point method for optimal control, one Riccati recursion over
+  the stages per iteration. It needs the NLP stage by stage: ``[z_0, u_0, z_1, ..,
+  z_N]`` with ``z_k = [x_k, u_{k-1}]``, the previous input carried as a state so the
+  rate bound and the rate costs stay within a stage, the constraints ordered stage by
+  stage (:meth:`NmpcProblem.staged_problem`). Same optimum as IPOPT (first commands within
+  1e-7), same iteration count; each iteration is cheaper.
+- ``sqp-rti``: a real-time iteration (Diehl): ``rti_iterations`` (1) Gauss-Newton SQP
+  steps per control step on the staged NLP, warm-started from the shifted plan, each one
+  QP (``rti_qp_solver``: hpipm, a stage-wise Riccati interior point, by default). Not
+  converged within a step (one step from a cold guess is 6e-4 off the optimum's first
+  command) but converged along the run, since the warm start carries the iterate on.
+  CasADi's ``sqpmethod`` with ``max_iter = 1`` would do the same, but it ignores a
+  failed QP (:class:`~tracker.mpc.nlp.RealTimeIteration`), so the iteration is written out here.
+
+With ``tracker.compiled`` (fatrop only) the NLP's functions are C instead of CasADi's
+virtual machine: :meth:`NmpcProblem.staged_problem` in MX maps one stage function over the
+horizon, so the generated code holds each derivative once (0.8 MB of C, 13 s with
+``gcc -O1`` on a loaded machine, against 4 MB and 88 s for the inlined SX NLP); the
+library is cached per machine, keyed by the code (model, belief, weights, horizon).
+The same NLP and iterates (plans equal to 1e-9, ``tests/tracker/mpc/test_nmpc_solvers.py``);
+the solve of the lane change about 2-3x faster (``bench/where_time_goes.py``).
+
+Measured with ``bench/solve_time.py`` (MuJoCo sedan, EKF, lane change; p50 and p99 of
+the per-step solve time, median over seeds 0/1/2; max CTE for seeds 0/1/2; 2 cores
+shared with other jobs under load, so every time is inflated, IPOPT's by about 1.5-2x
+against a quiet moment, and p99 mostly shows the scheduler, not the solver):
+
+===================  ===============  ============  =========================  ========
+tracker              solver           p50/p99 [ms]  max CTE, seeds 0/1/2 [m]   failures
+===================  ===============  ============  =========================  ========
+kinematic, N = 20    ipopt            3.50 / 11.2   0.7914 / 0.7499 / 0.7369   0
+kinematic, N = 20    fatrop           0.90 / 5.7    0.7914 / 0.7499 / 0.7369   0
+kinematic, N = 20    sqp-rti, hpipm   0.59 / 4.9    0.7914 / 0.7499 / 0.7369   0
+kinematic, N = 20    sqp-rti, qrqp    0.97 / 6.7    0.7914 / 0.7499 / 0.7369   0
+kinematic, N = 20    sqp-rti, osqp    0.76 / 1.4    0.7914 / 0.7499 / 0.7369   0
+kinematic, N = 25    ipopt            3.30 / 13.2   0.7972 / 0.7542 / 0.7366   0
+kinematic, N = 25    fatrop           1.10 / 6.2    0.7972 / 0.7542 / 0.7366   0
+kinematic, N = 25    sqp-rti, hpipm   0.65 / 5.1    0.7972 / 0.7543 / 0.7366   0
+dynamic, N = 25      ipopt            10.5 / 24.3   0.0575 / 0.0462 / 0.0469   0
+dynamic, N = 25      fatrop           3.12 / 12.1   0.0575 / 0.0462 / 0.0469   0
+dynamic, N = 25      sqp-rti, hpipm   0.92 / 5.5    0.0575 / 0.0462 / 0.0469   0
+dynamic, N = 25      sqp-rti, qrqp    2.48 / 10.8   0.0575 / 0.0462 / 0.0469   0
+dynamic, N = 25      sqp-rti, osqp    8.22 / 21.9   0.0575 / 0.0462 / 0.0469   0
+===================  ===============  ============  =========================  ========
+
+In a quieter moment: kinematic N = 20 p50 2.4-2.5 ms with IPOPT, 0.82-1.1 ms with
+fatrop, 0.49-0.52 ms (p99 0.82 ms) with the RTI; dynamic 5.2 ms with IPOPT, 0.68-0.78
+ms with the RTI. Harder cases (dynamic-nmpc, seed 0, max CTE ipopt / fatrop / RTI):
+Falcone's unstretched path at 1.11 g 0.6734 / 0.6734 / 0.6704 m (the soft slip limits
+active), a 2000 kg car on friction 0.7 0.1584 m for all three, 100 ms actuator delay
+0.0735 m for all three; no failures. ``fatrop`` is the default: it gives IPOPT's
+optimum (the NLP the testbed was tuned against) 2-3 times faster; IPOPT stays
+selectable as the reference. The RTI's plans are one Gauss-Newton step, not an
+optimum (status ``RTI_Completed``), so it is not the default although it is as
+accurate on every case above and 6-10 times faster.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from types import MappingProxyType
+
+import casadi as ca
+import numpy as np
+
+from cosim.core.compiled_function import compiled_library
+from cosim.core.exceptions import ConfigError
+from tracker.config import TrackerConfig
+from tracker.mpc.fallback import INPUT, INPUT_NAMES
+from tracker.mpc.nlp import Nlp, RealTimeIteration, StagedProblem
+from tracker.mpc.nmpc_model import NmpcModel
+from tracker.mpc.vector_layout import VectorLayout
+
+_REFERENCE_BLOCKS: tuple[str, ...] = (
+    "ref_x_m", "ref_y_m", "ref_yaw_rad", "ref_speed_mps", "ref_steer_rad")
+"""The parameters of one reference point, in the order a stage takes them."""
+
+
+def _weighted_squares(terms: list[tuple[float, ca.SX]]) -> ca.SX:
+    """``w_0 e_0^2 + w_1 e_1^2 + ...`` for ``(w, e)`` pairs, summed left to right."""
+    total = None
+    for weight, error in terms:
+        term = weight * error**2
+        total = term if total is None else total + term
+    return total
+
+
+class NmpcProblem:
+    """The NLP of an NMPC on ``model`` with ``config``'s horizon, cost, bounds and solver.
+
+    :attr:`params` lays out the parameters a step sets (initial state, previous input,
+    reference points); :meth:`build` makes the :class:`~tracker.mpc.nlp.Nlp` of
+    ``config.solver``.
+    """
+
+    def __init__(self, config: TrackerConfig, model: NmpcModel) -> None:
+        self.config = config
+        self.model = model
+        self._state = MappingProxyType({name: i for i, name in enumerate(model.state_names)})
+        self._n_x = len(model.state_names)
+        n = config.horizon
+        self._n = n
+        self.params = VectorLayout(
+            (
+                ("state0", self._n_x),
+                ("input_prev", len(INPUT_NAMES)),
+                ("ref_x_m", n),
+                ("ref_y_m", n),
+                ("ref_yaw_rad", n),
+                ("ref_speed_mps", n),
+                ("ref_steer_rad", n),
+            )
+        )
+
+    def build(self) -> Nlp:
+        """The NLP with the solver ``tracker.solver`` (IPOPT, fatrop or the real-time
+        iteration), built once."""
+        builders = {
+            "ipopt": self.build_ipopt,
+            "fatrop": self.build_fatrop,
+            "sqp-rti": self.build_sqp_rti,
+        }
+        if self.config.solver not in builders:
+            raise ConfigError(f"tracker.solver = {self.config.solver!r}: expected one of "
+                              f"{', '.join(repr(name) for name in builders)}")
+        return builders[self.config.solver]()
+
+    def stage_terms(
+        self, u: ca.SX, previous: ca.SX, x: ca.SX, par: Mapping[str, ca.SX], k: int,
+        x_start: ca.SX,
+    ) -> tuple[list[tuple[float, ca.SX]], list[tuple[float, ca.SX]],
+               list[tuple[float, ca.SX]]]:
+        """The tracking cost of stage ``k``, as ``(weight per second, error)`` pairs.
+
+        Returns the input terms (``u`` = u_k against ``previous`` = u_{k-1}), the tracking
+        terms (``x`` = node k + 1 against reference point k) and the soft limits' excess
+        vectors: the model's limits at node k + 1 (weight ``weights.limit_excess``) and its
+        stage limits at ``x_start`` = node k with u_k (``weights.tyre_excess``); empty for
+        a model without limits. Every solver's cost is ``dt * sum weight * error^2`` over
+        them (``|excess|^2`` for a vector); the Gauss-Newton Hessian of the real-time
+        iteration uses the errors.
+        """
+        w = self.config.weights
+        dt = self.config.dt_s
+        index = self._state
+        accel_rate = (u[INPUT["accel_mps2"]] - previous[INPUT["accel_mps2"]]) / dt
+        steer_rate_radps = (u[INPUT["steer_rad"]] - previous[INPUT["steer_rad"]]) / dt
+        input_terms = [
+            (w.accel, u[INPUT["accel_mps2"]]),
+            (w.steer, u[INPUT["steer_rad"]] - par["ref_steer_rad"][k]),
+            (w.accel_rate, accel_rate),
+            (w.steer_rate, steer_rate_radps),
+        ]
+        ref_yaw = par["ref_yaw_rad"][k]
+        dx = x[index["x_m"]] - par["ref_x_m"][k]
+        dy = x[index["y_m"]] - par["ref_y_m"][k]
+        cte = -ca.sin(ref_yaw) * dx + ca.cos(ref_yaw) * dy
+        heading_error = x[index["yaw_rad"]] - ref_yaw
+        speed_error = x[index["vx_mps"]] - par["ref_speed_mps"][k]
+        tracking_terms = [(w.cte, cte), (w.heading, heading_error), (w.speed, speed_error)]
+        excess = []
+        if self.model.limits is not None:
+            h = self.model.limits(x)
+            excess.append((w.limit_excess,
+                           ca.fmax(ca.fabs(h) - ca.DM(list(self.model.limit_bounds)), 0.0)))
+        if self.model.stage_limits is not None:
+            g = self.model.stage_limits(x_start, u)
+            excess.append((w.tyre_excess,
+                           ca.fmax(ca.fabs(g) - ca.DM(list(self.model.stage_limit_bounds)),
+                                   0.0)))
+        return input_terms, tracking_terms, excess
+
+    def input_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds of one stage's inputs (steering, acceleration)."""
+        cfg = self.config
+        low = np.empty(len(INPUT_NAMES))
+        high = np.empty(len(INPUT_NAMES))
+        low[INPUT["accel_mps2"]] = cfg.accel_min_mps2
+        high[INPUT["accel_mps2"]] = cfg.accel_max_mps2
+        low[INPUT["steer_rad"]] = -cfg.max_steer_rad
+        high[INPUT["steer_rad"]] = cfg.max_steer_rad
+        return low, high
+
+    def variable_bounds(self, size: int, input_index: np.ndarray
+                         ) -> tuple[np.ndarray, np.ndarray]:
+        """Box bounds on the inputs; every other variable is free."""
+        low_input, high_input = self.input_bounds()
+        lbx, ubx = np.full(size, -np.inf), np.full(size, np.inf)
+        lbx[input_index] = low_input
+        ubx[input_index] = high_input
+        return lbx, ubx
+
+    def build_ipopt(self) -> Nlp:
+        """The multiple-shooting NLP for IPOPT (the tracking cost and the model).
+
+        Variables ``[x_0 .. x_N, u_0 .. u_{N-1}]``; constraints: the initial state, the
+        dynamics, the steering rate against the previous input (``input_prev`` for u_0).
+        """
+        cfg = self.config
+        n, dt = self._n, cfg.dt_s
+        n_u = len(INPUT_NAMES)
+        states = ca.SX.sym("states", self._n_x, n + 1)
+        inputs = ca.SX.sym("inputs", n_u, n)
+        p = ca.SX.sym("p", self.params.size)
+        par = self.params.split(p)
+
+        cost = 0
+        dynamics = []
+        steer_rate = []
+        previous = par["input_prev"]
+        for k in range(n):
+            u = inputs[:, k]
+            dynamics.append(states[:, k + 1] - self.model.step(states[:, k], u))
+            steer_rate.append(u[INPUT["steer_rad"]] - previous[INPUT["steer_rad"]])
+            input_terms, tracking_terms, excess = self.stage_terms(
+                u, previous, states[:, k + 1], par, k, states[:, k])
+            cost += dt * _weighted_squares(input_terms)
+            # Tracking terms at node k + 1 against reference point k (nodes 1..N).
+            cost += dt * _weighted_squares(tracking_terms)
+            for weight, vector in excess:
+                cost += dt * weight * ca.sumsqr(vector)
+            previous = u
+
+        constraints = VectorLayout(
+            (
+                ("initial_state", self._n_x),
+                ("dynamics", self._n_x * n),
+                ("steer_rate", n),
+            )
+        )
+        constraint_blocks = {
+            "initial_state": states[:, 0] - par["state0"],
+            "dynamics": ca.vertcat(*dynamics),
+            "steer_rate": ca.vertcat(*steer_rate),
+        }
+        g = ca.vertcat(*(constraint_blocks[name] for name in constraints.slices))
+        variables = ca.vertcat(ca.vec(states), ca.vec(inputs))
+        options = {
+            "print_time": False,
+            "error_on_fail": False,
+            "ipopt.print_level": 0,
+            "ipopt.sb": "yes",
+            "ipopt.max_iter": cfg.max_iterations,
+            "ipopt.tol": cfg.tolerance,
+        }
+        solver = ca.nlpsol(
+            self.model.name.replace("-", "_"), "ipopt",
+            {"x": variables, "p": p, "f": cost, "g": g}, options,
+        )
+        n_states = self._n_x * (n + 1)
+        state_index = np.arange(n_states).reshape(n + 1, self._n_x)
+        input_index = n_states + np.arange(n_u * n).reshape(n, n_u)
+        lbx, ubx = self.variable_bounds(variables.size1(), input_index)
+
+        rate_step = cfg.max_steer_rate_radps * dt
+        sizes = {name: s.stop - s.start for name, s in constraints.slices.items()}
+        low = {
+            "initial_state": np.zeros(sizes["initial_state"]),
+            "dynamics": np.zeros(sizes["dynamics"]),
+            "steer_rate": np.full(sizes["steer_rate"], -rate_step),
+        }
+        high = dict(low, steer_rate=np.full(sizes["steer_rate"], rate_step))
+        return Nlp(cfg.solver, solver, state_index, input_index,
+                    np.empty((0, n_u), dtype=int), lbx, ubx,
+                    constraints.pack(low), constraints.pack(high))
+
+    def stage_function(self) -> ca.Function:
+        """Stage ``k`` of the stage-wise NLP, the same function for every ``k``.
+
+        ``(z_k, u_k, z_{k+1}, r_k) -> (cost, dynamics, steering rate, residuals)`` with
+        ``z_k = [x_k, c_k]`` (:meth:`staged_problem`), ``r_k`` reference point ``k``
+        (:data:`_REFERENCE_BLOCKS`), the stage's cost (:meth:`stage_terms`), the
+        dynamics residual ``z_{k+1} - [F(x_k, u_k), u_k]``, the steering-rate row
+        ``delta_k - c_k[delta]`` and the cost's weighted residuals (the real-time
+        iteration's Gauss-Newton Hessian).
+        """
+        cfg = self.config
+        dt, n_x, n_u = cfg.dt_s, self._n_x, len(INPUT_NAMES)
+        z = ca.SX.sym("z", n_x + n_u)
+        u = ca.SX.sym("u", n_u)
+        z_next = ca.SX.sym("z_next", n_x + n_u)
+        ref = ca.SX.sym("ref", len(_REFERENCE_BLOCKS))
+        point = {name: ref[i:i + 1] for i, name in enumerate(_REFERENCE_BLOCKS)}
+        input_terms, tracking_terms, excess = self.stage_terms(
+            u, z[n_x:], z_next[:n_x], point, 0, z[:n_x])
+        cost = dt * _weighted_squares(input_terms) + dt * _weighted_squares(tracking_terms)
+        residuals = [math.sqrt(dt * weight) * error
+                     for weight, error in input_terms + tracking_terms]
+        for weight, vector in excess:
+            cost += dt * weight * ca.sumsqr(vector)
+            residuals.append(math.sqrt(dt * weight) * vector)
+        dynamics = z_next - ca.vertcat(self.model.step(z[:n_x], u), u)
+        steer_rate = u[INPUT["steer_rad"]] - z[n_x + INPUT["steer_rad"]]
+        return ca.Function("stage", [z, u, z_next, ref],
+                           [cost, dynamics, steer_rate, ca.vertcat(*residuals)])
+
+    def staged_problem(self, symbol: type = ca.SX) -> StagedProblem:
+        """The same NLP posed stage by stage, for the structure-exploiting solvers.
+
+        Stage ``k`` holds ``z_k = [x_k, c_k]`` and ``u_k`` (``z_N`` alone), where
+        ``c_k = u_{k-1}`` carries the previous input as a state (``c_0 = input_prev``), so
+        the steering-rate bound ``|delta_k - c_k[delta]| <= rate dt`` and the rate costs
+        involve one stage only. Variables ``[z_0, u_0, z_1, u_1, .., z_N]``; constraint
+        rows, stage by stage, the dynamics ``z_{k+1} - [F(x_k, u_k), u_k]`` (the identity
+        on ``z_{k+1}`` fatrop and hpipm look for), then the stage's own constraints: the
+        initial state ``z_0 = [state0, input_prev]`` (stage 0), the steering rate.
+
+        The cost is the same sum of stage terms as IPOPT's (:meth:`stage_terms`), so
+        the optimum is the same; only the variables' order and two extra states per stage
+        differ, which :class:`Nlp` hides from the rest of the tracker. Every stage is
+        :meth:`stage_function` mapped over the horizon: with ``symbol = ca.SX`` the
+        expressions are inlined (CasADi's virtual machine evaluates them fastest); with
+        ``ca.MX`` they stay calls of one function, whose derivatives CasADi then
+        generates once, not once per stage (C code a tenth the size, for compiling).
+        """
+        cfg = self.config
+        n, dt, n_x = self._n, cfg.dt_s, self._n_x
+        n_u = len(INPUT_NAMES)
+        n_z = n_x + n_u
+        stage_size = n_z + n_u
+        p = symbol.sym("p", self.params.size)
+        par = self.params.split(p)
+        x = symbol.sym("w", stage_size * n + n_z)
+        stages = ca.reshape(x[:stage_size * n], stage_size, n)
+        z = ca.horzcat(stages[:n_z, :], x[stage_size * n:])
+        references = ca.horzcat(*(par[name] for name in _REFERENCE_BLOCKS)).T
+        costs, dynamics, steer_rates, residuals = self.stage_function().map(n)(
+            z[:, :n], stages[n_z:, :], z[:, 1:], references)
+        rate_step = cfg.max_steer_rate_radps * dt
+
+        rows, lbg, ubg = [], [], []
+        for k in range(n):
+            stage_rows = [(dynamics[:, k], 0.0, 0.0)]
+            if k == 0:
+                stage_rows.append(
+                    (z[:, 0] - ca.vertcat(par["state0"], par["input_prev"]), 0.0, 0.0))
+            stage_rows.append((steer_rates[k], -rate_step, rate_step))
+            for row, low, high in stage_rows:
+                rows.append(row)
+                lbg.append(np.full(row.size1(), low))
+                ubg.append(np.full(row.size1(), high))
+        nlp = {"x": x, "p": p, "f": ca.sum2(costs), "g": ca.vertcat(*rows)}
+
+        starts = stage_size * np.arange(n + 1)
+        state_index = starts[:, None] + np.arange(n_x)
+        carried_index = starts[:, None] + np.arange(n_x, n_z)
+        input_index = starts[:-1, None] + np.arange(n_z, stage_size)
+        lbx, ubx = self.variable_bounds(x.size1(), input_index)
+        structure = MappingProxyType({
+            "N": n,
+            "nx": [n_z] * (n + 1),
+            "nu": [n_u] * n + [0],
+            "ng": [n_z + 1] + [1] * (n - 1) + [0],
+        })
+        layout = MappingProxyType({
+            "state_index": state_index, "input_index": input_index,
+            "carried_index": carried_index, "lbx": lbx, "ubx": ubx,
+            "lbg": np.concatenate(lbg), "ubg": np.concatenate(ubg),
+        })
+        return StagedProblem(MappingProxyType(nlp), ca.vec(residuals), structure, layout)
+
+    def build_fatrop(self) -> Nlp:
+        """The stage-wise NLP (:meth:`staged_problem`) for fatrop, a structure-exploiting
+        interior-point method: the same optimum as IPOPT, each iteration a Riccati
+        recursion over the stages instead of a general sparse factorisation.
+
+        With ``tracker.compiled`` the NLP's functions (cost, constraints, their
+        derivatives, the Lagrangian's Hessian) are generated as C from the mapped stage
+        function, compiled once per machine (:func:`cosim.core.compiled_function.compiled_library`,
+        ``-O1``: as fast as ``-O2`` here, half the compile time) and loaded by fatrop in
+        place of CasADi's virtual machine; the same NLP, so the same iterates.
+        """
+        cfg = self.config
+        # The warm start (the previous plan shifted) is near the optimum, so the barrier
+        # starts small: mu_init = 1e-3 instead of fatrop's 0.1 takes 3 iterations instead
+        # of 5 (median, lane change) to the same optimum. Its warm_start_init_point (the
+        # multipliers too) failed a solve on the bench.
+        options = {
+            "print_time": False,
+            "error_on_fail": False,
+            "structure_detection": "manual",
+            "fatrop": {"print_level": 0, "max_iter": cfg.max_iterations,
+                       "tol": cfg.tolerance, "mu_init": 1e-3},
+        }
+        name = self.model.name.replace("-", "_")
+        if cfg.compiled:
+            problem = self.staged_problem(ca.MX)
+            options.update(problem.structure)
+            oracle = ca.nlpsol(name, "fatrop", dict(problem.nlp), options)
+            # The NLP itself ("nlp": x, p -> f, g) and what the solver derived from it.
+            functions = [oracle.oracle(), *map(oracle.get_function, oracle.get_function())]
+            library = compiled_library(f"nmpc_{name}", functions, ("-O1",))
+            if library is not None:
+                solver = ca.nlpsol(name, "fatrop", str(library), options)
+                return problem.with_solver(cfg.solver, solver)
+        problem = self.staged_problem()
+        options.update(problem.structure)
+        solver = ca.nlpsol(name, "fatrop", dict(problem.nlp), options)
+        return problem.with_solver(cfg.solver, solver)
+
+    def build_sqp_rti(self) -> Nlp:
+        """The stage-wise NLP (:meth:`staged_problem`) for a real-time iteration.
+
+        Exactly ``rti_iterations`` full Gauss-Newton SQP steps (no line search) from the
+        warm start, the previous plan shifted (:class:`RealTimeIteration`). Each step
+        solves one QP with the model linearised along the current iterate and the
+        Hessian ``2 J_r' J_r`` of the cost's residuals: positive semi-definite, block
+        diagonal by stage, no multipliers needed. One step does not converge the NLP;
+        the iterate converges over successive control steps instead, as the warm start
+        carries it forward.
+        """
+        cfg = self.config
+        problem = self.staged_problem()
+        w, p, cost, g = (problem.nlp[key] for key in ("x", "p", "f", "g"))
+        residual_jacobian = ca.jacobian(problem.residuals, w)
+        hessian = 2.0 * ca.mtimes(residual_jacobian.T, residual_jacobian)
+        constraint_jacobian = ca.jacobian(g, w)
+        qp_data = ca.Function(
+            "rti_qp_data", [w, p],
+            [hessian, ca.gradient(cost, w), g, constraint_jacobian],
+        )
+        # hpipm: CasADi gives every variable a box, an infinite bound becoming 1e8, and
+        # then the relative stopping tests of hpipm's modes speed/balance never pass (50
+        # iterations); speed_abs stops on the absolute complementarity and matches qrqp's
+        # step to 6e-9 in 5-8 iterations. osqp's default tolerance (1e-3) left 1.2 cm of
+        # steady error on the dynamic bench; 1e-6 leaves none.
+        options: dict[str, object] = {"error_on_fail": False}
+        if cfg.rti_qp_solver == "hpipm":
+            options.update(problem.structure)
+            options["hpipm"] = {"mode": "speed_abs", "iter_max": 50}
+        elif cfg.rti_qp_solver == "qrqp":
+            options.update(print_iter=False, print_header=False, print_info=False)
+        elif cfg.rti_qp_solver == "osqp":
+            options["osqp"] = {"verbose": False, "eps_abs": 1e-6, "eps_rel": 1e-6,
+                               "max_iter": 10000}
+        else:
+            raise ConfigError(f"tracker.rti_qp_solver = {cfg.rti_qp_solver!r}: expected "
+                              "one of 'hpipm', 'qrqp', 'osqp'")
+        qp = ca.conic(
+            "rti_qp", cfg.rti_qp_solver,
+            {"h": hessian.sparsity(), "a": constraint_jacobian.sparsity()}, options,
+        )
+        rti = RealTimeIteration(qp_data, qp, ca.Function("rti_cost", [w, p], [cost]),
+                                 cfg.rti_iterations)
+        return problem.with_solver(cfg.solver, rti)
