@@ -186,38 +186,9 @@ def fit_cornering_stiffness(
     params = ca.vertcat(*(known[name] for name in PARAM_NAMES))
     fitted = ca.vertcat(*(theta[name] for name in FITTED_NAMES))
 
-    residuals = []
-    for turn in turns:
-        amplitude = abs(turn.steer_rad)
-        if amplitude < 1e-6:
-            raise IdentificationError("fit_cornering_stiffness: a steady turn has no steering")
-        yaw_rate = steady_yaw_rate_gain(turn.vx_mps, params) * turn.steer_rad  # (S2)
-        vy = steady_lateral_velocity(turn.vx_mps, yaw_rate, params)  # (S3)
-        residuals.append((yaw_rate - turn.yaw_rate_radps) * wheelbase / turn.vx_mps / amplitude)
-        residuals.append((vy - turn.vy_mps) / turn.vx_mps / amplitude)
-
-    predictions = []
-    for response in responses:
-        n = response.samples - 1
-        amplitude = float(np.max(np.abs(response.steer_rad)))
-        if amplitude < 1e-6:
-            raise IdentificationError("fit_cornering_stiffness: a transient has no steering")
-        substeps = max(1, math.ceil(response.dt_s / MAX_INTEGRATION_STEP_S - 1e-9))
-        step = lateral_discrete_function(response.dt_s, substeps).mapaccum("trajectory", n)
-        steer_mid = 0.5 * (response.steer_rad[:-1] + response.steer_rad[1:])
-        vx_mid = 0.5 * (response.vx_mps[:-1] + response.vx_mps[1:])
-        start = np.zeros(2)
-        start[LATERAL_STATE["vy_mps"]] = response.vy_mps[0]
-        start[LATERAL_STATE["yaw_rate_radps"]] = response.yaw_rate_radps[0]
-        trajectory = step(start, steer_mid[None, :], vx_mid[None, :], ca.repmat(params, 1, n))
-        vy_model = trajectory[LATERAL_STATE["vy_mps"], :].T
-        yaw_rate_model = trajectory[LATERAL_STATE["yaw_rate_radps"], :].T
-        vy_error = vy_model - response.vy_mps[1:]
-        yaw_rate_error = yaw_rate_model - response.yaw_rate_radps[1:]
-        weight = 1.0 / (amplitude * math.sqrt(n))
-        residuals.append(yaw_rate_error * wheelbase / vx_mid * weight)
-        residuals.append(vy_error / vx_mid * weight)
-        predictions.append((yaw_rate_error, vy_error))
+    residuals = _steady_residuals(turns, params, wheelbase)
+    transient, predictions = _transient_residuals(responses, params, wheelbase)
+    residuals += transient
 
     residual = ca.vertcat(*residuals)
     residual_function = ca.Function("residual", [fitted], [residual])
@@ -260,6 +231,51 @@ def fit_cornering_stiffness(
         transient_samples=int(yaw_rate_errors.size),
         solver_status=str(result.message),
     )
+
+
+def _steady_residuals(turns: Sequence[SteadyTurn], params: ca.SX,
+                      wheelbase: float) -> list[ca.SX]:
+    """Two residuals per steady turn, (S2) and (S3) against the measured yaw rate and
+    lateral velocity, as steering-angle equivalents over the run's amplitude."""
+    residuals = []
+    for turn in turns:
+        amplitude = abs(turn.steer_rad)
+        if amplitude < 1e-6:
+            raise IdentificationError("fit_cornering_stiffness: a steady turn has no steering")
+        yaw_rate = steady_yaw_rate_gain(turn.vx_mps, params) * turn.steer_rad  # (S2)
+        vy = steady_lateral_velocity(turn.vx_mps, yaw_rate, params)  # (S3)
+        residuals.append((yaw_rate - turn.yaw_rate_radps) * wheelbase / turn.vx_mps / amplitude)
+        residuals.append((vy - turn.vy_mps) / turn.vx_mps / amplitude)
+    return residuals
+
+
+def _transient_residuals(responses: Sequence[LateralResponse], params: ca.SX, wheelbase: float
+                         ) -> tuple[list[ca.SX], list[tuple[ca.SX, ca.SX]]]:
+    """Each transient simulated through the lateral model from its first sample: its
+    weighted yaw-rate and lateral-velocity residuals, and the raw errors of each."""
+    residuals, predictions = [], []
+    for response in responses:
+        n = response.samples - 1
+        amplitude = float(np.max(np.abs(response.steer_rad)))
+        if amplitude < 1e-6:
+            raise IdentificationError("fit_cornering_stiffness: a transient has no steering")
+        substeps = max(1, math.ceil(response.dt_s / MAX_INTEGRATION_STEP_S - 1e-9))
+        step = lateral_discrete_function(response.dt_s, substeps).mapaccum("trajectory", n)
+        steer_mid = 0.5 * (response.steer_rad[:-1] + response.steer_rad[1:])
+        vx_mid = 0.5 * (response.vx_mps[:-1] + response.vx_mps[1:])
+        start = np.zeros(2)
+        start[LATERAL_STATE["vy_mps"]] = response.vy_mps[0]
+        start[LATERAL_STATE["yaw_rate_radps"]] = response.yaw_rate_radps[0]
+        trajectory = step(start, steer_mid[None, :], vx_mid[None, :], ca.repmat(params, 1, n))
+        vy_model = trajectory[LATERAL_STATE["vy_mps"], :].T
+        yaw_rate_model = trajectory[LATERAL_STATE["yaw_rate_radps"], :].T
+        vy_error = vy_model - response.vy_mps[1:]
+        yaw_rate_error = yaw_rate_model - response.yaw_rate_radps[1:]
+        weight = 1.0 / (amplitude * math.sqrt(n))
+        residuals.append(yaw_rate_error * wheelbase / vx_mid * weight)
+        residuals.append(vy_error / vx_mid * weight)
+        predictions.append((yaw_rate_error, vy_error))
+    return residuals, predictions
 
 
 # ------------------------------------------------------------------ actuator lags

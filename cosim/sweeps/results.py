@@ -280,7 +280,6 @@ def _groups(flat: Sequence[dict[str, Any]], spec: SweepSpec, index: int
 def summary_markdown(spec: SweepSpec, flat: Sequence[dict[str, Any]], n_runs: int,
                      plots: Sequence[Path], wall_time_s: float | None) -> str:
     """The Markdown summary of a sweep (``summary.md``)."""
-    metric, unit = spec.metric, unit_of(spec.metric)
     passed = sum(r["pass"] for r in flat)
     errors = sum(bool(r["error"]) for r in flat)
     lines = [f"# Sweep {spec.name}", ""]
@@ -325,6 +324,20 @@ def summary_markdown(spec: SweepSpec, flat: Sequence[dict[str, Any]], n_runs: in
                   + ", ".join(f"{kind} {count}" for kind, count in outcomes.most_common())
                   + ".", ""]
 
+    lines += _worst_cases(spec, flat)
+    lines += _grid_section(spec, flat)
+    lines += _per_parameter(spec, flat)
+    if plots:
+        lines += ["## Plots", ""]
+        lines += [f"![{p.stem}]({p.name})" for p in plots]
+        lines.append("")
+    return "\n".join(lines)
+
+
+def _worst_cases(spec: SweepSpec, flat: Sequence[dict[str, Any]]) -> list[str]:
+    """The summary's table of the worst runs by the headline metric."""
+    metric, unit = spec.metric, unit_of(spec.metric)
+    lines: list[str] = []
     key = [(-as_number(r[metric]) if not math.isnan(as_number(r[metric])) else -math.inf)
            for r in flat]
     order = sorted(range(len(flat)), key=lambda i: (key[i], flat[i]["run_id"]))
@@ -337,6 +350,13 @@ def summary_markdown(spec: SweepSpec, flat: Sequence[dict[str, Any]], n_runs: in
           flat[i]["failed"] or flat[i]["error"]] for i in order[:WORST_CASES]])
     lines.append("")
 
+    return lines
+
+
+def _grid_section(spec: SweepSpec, flat: Sequence[dict[str, Any]]) -> list[str]:
+    """The summary's worst value per point of a two-parameter grid (none otherwise)."""
+    metric = spec.metric
+    lines: list[str] = []
     cells = grid_cells(spec, flat)
     if cells is not None:
         lines += [f"## Worst `{metric}` per grid point (over the seeds)", "",
@@ -352,6 +372,13 @@ def summary_markdown(spec: SweepSpec, flat: Sequence[dict[str, Any]], n_runs: in
                 for i in range(len(cells.x.values))]])
         lines += [*_table(header, body), ""]
 
+    return lines
+
+
+def _per_parameter(spec: SweepSpec, flat: Sequence[dict[str, Any]]) -> list[str]:
+    """The summary's pass count, mean and worst value per value of each parameter."""
+    metric, unit = spec.metric, unit_of(spec.metric)
+    lines: list[str] = []
     if spec.parameters:
         lines += ["## Per parameter value", "",
                   f"Over every run with that value (all seeds, all other parameters); "
@@ -372,8 +399,4 @@ def summary_markdown(spec: SweepSpec, flat: Sequence[dict[str, Any]], n_runs: in
             lines += _table([axis_label(parameter.path), "runs", "pass",
                              f"mean {metric} (finished runs)", f"worst {metric}"], rows)
             lines.append("")
-    if plots:
-        lines += ["## Plots", ""]
-        lines += [f"![{p.stem}]({p.name})" for p in plots]
-        lines.append("")
-    return "\n".join(lines)
+    return lines

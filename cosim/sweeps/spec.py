@@ -45,6 +45,7 @@ import difflib
 import hashlib
 import json
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -384,6 +385,31 @@ class _SpecReader:
                                           else float(bound)))
         return tuple(criteria)
 
+    def sampling(self, data: dict[str, Any]) -> tuple[str, dict[Any, Any], int, int]:
+        """``(mode, ranges, random_n, random_seed)``: ``grid`` with its lists, ``random``
+        with its ranges, sample count and seed, or ``seeds`` alone."""
+        grid, random = data.get("grid"), data.get("random")
+        if grid is not None and random is not None:
+            raise self.error("expected either grid: or random:, not both")
+        if grid is not None:
+            ranges = self.mapping(data, "grid")
+            if not ranges:
+                raise self.error("grid: empty: expected at least one dotted path with a list "
+                                 "of values")
+            return "grid", ranges, 0, 0
+        if random is None:
+            return "seeds", {}, 0, 0
+        ranges = dict(self.mapping(data, "random"))
+        random_n, random_seed = ranges.pop("n", None), ranges.pop("seed", 0)
+        if isinstance(random_n, bool) or not isinstance(random_n, int) or random_n < 1:
+            raise self.error(f"random: n: {shown(random_n)}: expected a number of samples >= 1")
+        if isinstance(random_seed, bool) or not isinstance(random_seed, int) or random_seed < 0:
+            raise self.error(f"random: seed: {shown(random_seed)}: expected an integer >= 0")
+        if not ranges:
+            raise self.error("random: expected at least one dotted path -> [low, high] "
+                             "besides n and seed")
+        return "random", ranges, random_n, random_seed
+
     def metric(self, value: Any, criteria: tuple[PassCriterion, ...]) -> str:
         if value is None:
             numeric = [c.metric for c in criteria if not isinstance(c.bound, bool)]
@@ -427,69 +453,13 @@ def load_spec(path: str | Path) -> SweepSpec:
     if is_plugin_name(base.tracker.name):  # a plug-in's own settings, defaults filled in
         leaves.update(_leaves({"tracker": {"params": resolved_params(base.tracker)}}))
 
-    grid, random = data.get("grid"), data.get("random")
-    if grid is not None and random is not None:
-        raise reader.error("expected either grid: or random:, not both")
-    if grid is not None:
-        mode, ranges = "grid", reader.mapping(data, "grid")
-        if not ranges:
-            raise reader.error("grid: empty: expected at least one dotted path with a list "
-                               "of values")
-        random_n, random_seed = 0, 0
-    elif random is not None:
-        mode, ranges = "random", dict(reader.mapping(data, "random"))
-        random_n, random_seed = ranges.pop("n", None), ranges.pop("seed", 0)
-        if isinstance(random_n, bool) or not isinstance(random_n, int) or random_n < 1:
-            raise reader.error(f"random: n: {shown(random_n)}: expected a number of samples >= 1")
-        if isinstance(random_seed, bool) or not isinstance(random_seed, int) or random_seed < 0:
-            raise reader.error(f"random: seed: {shown(random_seed)}: expected an integer >= 0")
-        if not ranges:
-            raise reader.error("random: expected at least one dotted path -> [low, high] "
-                               "besides n and seed")
-    else:
-        mode, ranges, random_n, random_seed = "seeds", {}, 0, 0
+    mode, ranges, random_n, random_seed = reader.sampling(data)
 
     fixed_keys = {k for k, _ in fixed} | {
         key for key, given in (("tracker.name", tracker), ("estimator.name", estimator),
                                ("sim.duration_s", duration_s)) if given is not None}
-    parameters = []
-    for key, value in ranges.items():
-        where = f"{mode}: {shown(key)}"
-        if not isinstance(key, str) or key not in leaves:
-            close = difflib.get_close_matches(str(key), list(leaves), n=1)
-            hint = f"; did you mean {close[0]}?" if close else ""
-            raise reader.error(f"{where}: unknown dotted path: expected a config key such as "
-                               f"plant.mass_kg{hint}")
-        if key in fixed_keys:
-            raise reader.error(f"{where}: also fixed (set:, tracker:, estimator: or "
-                               "duration_s:): expected each key either fixed or varied")
-        counterpart = _counterpart(key)
-        counterpart_value = leaves.get(counterpart) if counterpart else None
-        if counterpart not in leaves:
-            counterpart = None
-        common = {"path": key, "nominal": leaves[key], "counterpart": counterpart,
-                  "counterpart_value": counterpart_value}
-        if mode == "grid":
-            if not isinstance(value, list) or not value:
-                raise reader.error(f"{where}: {shown(value)}: expected a non-empty list of values")
-            for item in value:
-                if not isinstance(item, (int, float, str, bool)):
-                    raise reader.error(f"{where}: {shown(item)}: expected a number, string or "
-                                       "boolean")
-                config(((key, item),), f"{where} value {shown(item)}")
-            if len(set(value)) != len(value):
-                raise reader.error(f"{where}: {value}: expected each value once")
-            parameters.append(Parameter(values=tuple(value), **common))
-        else:
-            if not (isinstance(value, list) and len(value) == 2
-                    and all(_is_number(v) for v in value)):
-                raise reader.error(f"{where}: {shown(value)}: expected [low, high] (two numbers)")
-            low, high = float(value[0]), float(value[1])
-            if low > high:
-                raise reader.error(f"{where}: [{value[0]}, {value[1]}]: expected low <= high")
-            for end in (low, high):
-                config(((key, end),), f"{where} value {end:g}")
-            parameters.append(Parameter(low=low, high=high, **common))
+    parameters = [_parameter(reader, mode, key, value, leaves, fixed_keys, config)
+                  for key, value in ranges.items()]
 
     return SweepSpec(
         name=reader.optional_str(data, "name") or Path(path).stem,
@@ -500,6 +470,47 @@ def load_spec(path: str | Path) -> SweepSpec:
         ray_address=ray_address, scenario_text=scenario_text,
         tracker_name=base.tracker.name, estimator_name=base.estimator.name,
     )
+
+
+def _parameter(reader: _SpecReader, mode: str, key: Any, value: Any, leaves: dict[str, Any],
+               fixed_keys: set[str], config: Callable[..., Any]) -> Parameter:
+    """One varied key of ``grid:`` or ``random:`` with its values checked by the config's
+    own validation (``config((key, value), where)`` raises naming the value)."""
+    where = f"{mode}: {shown(key)}"
+    if not isinstance(key, str) or key not in leaves:
+        close = difflib.get_close_matches(str(key), list(leaves), n=1)
+        hint = f"; did you mean {close[0]}?" if close else ""
+        raise reader.error(f"{where}: unknown dotted path: expected a config key such as "
+                           f"plant.mass_kg{hint}")
+    if key in fixed_keys:
+        raise reader.error(f"{where}: also fixed (set:, tracker:, estimator: or "
+                           "duration_s:): expected each key either fixed or varied")
+    counterpart = _counterpart(key)
+    counterpart_value = leaves.get(counterpart) if counterpart else None
+    if counterpart not in leaves:
+        counterpart = None
+    common = {"path": key, "nominal": leaves[key], "counterpart": counterpart,
+              "counterpart_value": counterpart_value}
+    if mode == "grid":
+        if not isinstance(value, list) or not value:
+            raise reader.error(f"{where}: {shown(value)}: expected a non-empty list of values")
+        for item in value:
+            if not isinstance(item, (int, float, str, bool)):
+                raise reader.error(f"{where}: {shown(item)}: expected a number, string or "
+                                   "boolean")
+            config(((key, item),), f"{where} value {shown(item)}")
+        if len(set(value)) != len(value):
+            raise reader.error(f"{where}: {value}: expected each value once")
+        return Parameter(values=tuple(value), **common)
+    if not (isinstance(value, list) and len(value) == 2
+            and all(_is_number(v) for v in value)):
+        raise reader.error(f"{where}: {shown(value)}: expected [low, high] (two numbers)")
+    low, high = float(value[0]), float(value[1])
+    if low > high:
+        raise reader.error(f"{where}: [{value[0]}, {value[1]}]: expected low <= high")
+    for end in (low, high):
+        config(((key, end),), f"{where} value {end:g}")
+    return Parameter(low=low, high=high, **common)
 
 
 def _counterpart(key: str) -> str | None:

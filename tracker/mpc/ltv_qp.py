@@ -246,6 +246,27 @@ class _Stack:
         return ca.vertcat(*self._parts)
 
 
+@dataclass(frozen=True)
+class _Stages:
+    """The QP's symbols and expressions, stage by stage, before they are stacked."""
+
+    p: ca.SX
+    """The parameters (:attr:`LtvQp._params`)."""
+    z: list[ca.SX]
+    """``z~_k = [x~_k, u~_{k-1}]`` per node (node 0 known; condensed: predicted)."""
+    u: list[ca.SX]
+    """The input deviations per stage."""
+    slack: list[ca.SX]
+    """The soft limits' slacks per node (node 0's unused)."""
+    gaps: list[ca.SX]
+    """(L1) and (L4) as equality rows (multiple shooting only)."""
+    rates: list[ca.SX]
+    """The steering-rate rows."""
+    limits: list[ca.SX]
+    """``H_k x~_k`` of (L5) per node (node 0 empty)."""
+    cost: ca.SX
+
+
 def _solver_options(plugin: str, config: TrackerConfig) -> dict[str, Any]:
     """Each back-end's options: quiet, no exception on failure, ``qp_tolerance`` and
     ``qp_max_iterations`` in its own terms.
@@ -337,6 +358,23 @@ class LtvQp:
     # ------------------------------------------------------------------ construction
 
     def _build(self) -> None:
+        """The QP of every step, built once with the step's numbers as parameters."""
+        stages = self._stages()
+        x, g, stage_nu, stage_ng = self._stack(stages)
+        cfg, n, n_x, n_u = self.config, self._n, self._n_x, self._n_u
+        options = _solver_options(self.plugin, cfg)
+        if self.plugin == "hpipm":
+            options |= {"N": n, "nx": [0] + [n_x + n_u] * n, "nu": stage_nu, "ng": stage_ng}
+        p, cost = stages.p, stages.cost
+        self._solver = ca.qpsol("ltv_mpc_qp", self.plugin, {"x": x, "p": p, "f": cost, "g": g},
+                                options)
+        self._cost = ca.Function("ltv_mpc_cost", [x, p], [cost])
+        self._deviations = ca.Function("ltv_mpc_deviations", [x, p],
+                                       [ca.horzcat(*stages.z[1:])[:n_x, :].T])
+
+    def _stages(self) -> _Stages:
+        """Each stage's deviation variables, (L1) and (L4), the steering rate, the cost at
+        absolute values and the soft limits (L5), stage by stage."""
         cfg = self.config
         w = cfg.weights
         n, n_x, n_u, n_h, dt = self._n, self._n_x, self._n_u, self._lin.n_limits, cfg.dt_s
@@ -398,10 +436,15 @@ class LtvQp:
             node = predicted if last else z[k + 1]
             limits.append(ca.mtimes(h_jacobian, node[:n_x]))
             cost += dt * w.limit_excess * ca.sumsqr(slack[k + 1])
+        return _Stages(p, z, u, slack, gaps, rates, limits, cost)
 
-        # Stack stage by stage (HPIPM's order: stage k's state, its inputs, then the gap to
-        # stage k + 1 and stage k's own constraints; node N's limit and slack belong to
-        # stage N - 1), or inputs then slacks if condensed.
+    def _stack(self, stages: _Stages) -> tuple[ca.SX, ca.SX, list[int], list[int]]:
+        """Variables and constraints stacked stage by stage (HPIPM's order: stage k's state,
+        its inputs, then the gap to stage k + 1 and stage k's own constraints; node N's
+        limit and slack belong to stage N - 1), or inputs then slacks if condensed; with
+        each stage's number of inputs and constraints. Remembers where each block went."""
+        n, n_u, n_h = self._n, self._n_u, self._lin.n_limits
+        z, u, slack = stages.z, stages.u, stages.slack
         variables, constraints = _Stack(), _Stack()
         stage_nu, stage_ng = [0] * (n + 1), [0] * (n + 1)
         for k in range(n):
@@ -415,11 +458,11 @@ class LtvQp:
                 for node in limited_nodes:
                     variables.add("slack", slack[node])
                     stage_nu[k] += n_h
-                constraints.add("gap", gaps[k])
-            constraints.add("rate", rates[k])
+                constraints.add("gap", stages.gaps[k])
+            constraints.add("rate", stages.rates[k])
             stage_ng[k] += 1
             for node in limited_nodes:
-                constraints.add("limit", limits[node] + slack[node])
+                constraints.add("limit", stages.limits[node] + slack[node])
                 stage_ng[k] += n_h
         if not self.condensed:
             variables.add("states", z[n])
@@ -433,15 +476,7 @@ class LtvQp:
         self._rate_index = constraints.rows("rate").ravel()
         self._limit_index = constraints.rows("limit")
         self._n_variables, self._n_constraints = x.size1(), g.size1()
-
-        options = _solver_options(self.plugin, cfg)
-        if self.plugin == "hpipm":
-            options |= {"N": n, "nx": [0] + [n_x + n_u] * n, "nu": stage_nu, "ng": stage_ng}
-        self._solver = ca.qpsol("ltv_mpc_qp", self.plugin, {"x": x, "p": p, "f": cost, "g": g},
-                                options)
-        self._cost = ca.Function("ltv_mpc_cost", [x, p], [cost])
-        self._deviations = ca.Function("ltv_mpc_deviations", [x, p],
-                                       [ca.horzcat(*z[1:])[:n_x, :].T])
+        return x, g, stage_nu, stage_ng
 
     # ------------------------------------------------------------------ solve
 
