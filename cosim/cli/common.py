@@ -31,6 +31,15 @@ class Parser(argparse.ArgumentParser):
         self.exit(EXIT_USAGE, f"{self.prog}: error: {message}\n")
 
 
+def refuse_live(args: argparse.Namespace, command: str) -> None:
+    """``--live`` streams a single run: refused for a command that makes many."""
+    if args.live:
+        from cosim.core.exceptions import CosimError
+
+        raise CosimError(f"cosim {command} --live: only a single run streams; expected "
+                         "`cosim run SCENARIO --live` for the case you want to watch")
+
+
 def format_value(value: Any) -> str:
     """A metric's value for a table: 4 significant digits, ``n/a`` for NaN and None."""
     if isinstance(value, bool) or value is None:

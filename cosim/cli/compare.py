@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from cosim.cli.common import EXIT_INTERRUPT, Handler
+from cosim.cli.common import EXIT_INTERRUPT, Handler, refuse_live
 from cosim.core.exceptions import CosimError
 
 
@@ -28,6 +28,7 @@ def add_parsers(commands: Any) -> dict[str, Handler]:
                          help="override every scenario's sim.duration_s")
     compare.add_argument("--json", action="store_true",
                          help="print every run as {scenario, tracker, seed, metrics}")
+    compare.add_argument("--live", action="store_true", help=argparse.SUPPRESS)
     compare.add_argument("--out", metavar="DIR",
                          help="write league.md, league.csv, league.png, rows.json "
                          "(default logs/compare-<time>)")
@@ -37,6 +38,7 @@ def add_parsers(commands: Any) -> dict[str, Handler]:
 
 
 def command(args: argparse.Namespace) -> int:
+    refuse_live(args, "compare")
     from cosim.sweeps import compare
     from cosim.sweeps.driver import sigterm_as_interrupt
     from tracker.config import is_plugin_name

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import datetime
 import json
 import math
@@ -49,6 +50,16 @@ def add_parsers(commands: Any) -> dict[str, Handler]:
                      dest="fail_if", help="exit 3 when this holds for the run's metrics "
                      "(<, <=, >, >=, ==, !=; repeatable), e.g. 'cte_max_m>0.3'")
     run.add_argument("--json", action="store_true", help="print the metrics as JSON")
+    run.add_argument("--live", action="store_true",
+                     help="stream the run to Foxglove while it happens (a WebSocket server)")
+    run.add_argument("--port", type=int, metavar="N",
+                     help="with --live: the port to serve on (8765; 0: any free port)")
+    run.add_argument("--host", metavar="ADDRESS",
+                     help="with --live: the address to listen on (127.0.0.1: this machine "
+                          "only; 0.0.0.0 serves every network the machine is on)")
+    run.add_argument("--pace", type=float, metavar="RATE",
+                     help="with --live: hold the run at RATE times real time (1: real time; "
+                          "0 or none: as fast as it goes)")
     run.add_argument("--video", metavar="FILE.mp4",
                      help="also render the run to this video (see `cosim render`)")
     return {"run": command}
@@ -61,6 +72,7 @@ def command(args: argparse.Namespace) -> int:
     from cosim.simulation.scenario_config import load_config
 
     conditions = parse_conditions(args.fail_if)
+    live = _live_options(args)
     if args.video is not None:
         from cosim.plots.render import check_video_path
 
@@ -71,14 +83,24 @@ def command(args: argparse.Namespace) -> int:
                          args.duration, args.tracker, args.estimator)
     out = _out_path(args, config.name)
     check_output_path(out, "--out", args.force, (args.config, args.scenario, args.video))
-    if sys.stderr.isatty():
-        from rich.progress import Progress
+    with contextlib.ExitStack() as stack:
+        mirror = None
+        if live is not None:
+            from cosim.log.live import LiveStream
 
-        with Progress(transient=True) as bar:
-            task = bar.add_task(f"{config.name}", total=1.0)
-            result = run(config, out, lambda done: bar.update(task, completed=done))
-    else:
-        result = run(config, out)
+            mirror = stack.enter_context(LiveStream(live))
+            paced = f"paced at {live.pace:g}x real time" if live.pace else "not paced"
+            print(f"cosim: live at {mirror.url} ({paced}); in Foxglove: Open connection > "
+                  "Foxglove WebSocket", file=sys.stderr, flush=True)
+        if sys.stderr.isatty():
+            from rich.progress import Progress
+
+            with Progress(transient=True) as bar:
+                task = bar.add_task(f"{config.name}", total=1.0)
+                result = run(config, out, lambda done: bar.update(task, completed=done),
+                             mirror=mirror)
+        else:
+            result = run(config, out, mirror=mirror)
     shown = shown_metrics(result.metrics, config.tracker.name == "open-loop")
     if args.json:
         print(json.dumps({"log": str(result.log_path), "metrics": json_ready(result.metrics)}))
@@ -95,6 +117,23 @@ def command(args: argparse.Namespace) -> int:
         print(describe(render_for_cli(result.log_path, args.video, RenderOptions())),
               file=sys.stderr if args.json else sys.stdout)
     return _exit_code(result, conditions)
+
+
+def _live_options(args: argparse.Namespace) -> Any:
+    """``--live`` and its settings as :class:`cosim.log.live.LiveOptions`, or None; a live
+    setting without ``--live`` is refused (it would be ignored)."""
+    given = [f"--{name} {value}" for name, value in
+             (("port", args.port), ("host", args.host), ("pace", args.pace)) if value is not None]
+    if not args.live:
+        if given:
+            raise CosimError(f"{given[0]}: only meaningful with --live; expected --live too "
+                             "(or drop it)")
+        return None
+    from cosim.log.live import DEFAULT_PORT, LiveOptions
+
+    return LiveOptions(host=args.host if args.host is not None else "127.0.0.1",
+                       port=args.port if args.port is not None else DEFAULT_PORT,
+                       pace=args.pace if args.pace is not None else 0.0)
 
 
 def _out_path(args: argparse.Namespace, scenario: str) -> Path:

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from cosim.cli.common import EXIT_INTERRUPT, EXIT_IO, Handler
+from cosim.cli.common import EXIT_INTERRUPT, EXIT_IO, Handler, refuse_live
 from cosim.core.exceptions import CosimError
 
 
@@ -19,6 +19,7 @@ def add_parsers(commands: Any) -> dict[str, Handler]:
                        help="parallel runs (default: the number of cores)")
     sweep.add_argument("--backend", choices=("process", "ray"), default="process",
                        help="process pool on this machine (default) or Ray")
+    sweep.add_argument("--live", action="store_true", help=argparse.SUPPRESS)
     sweep.add_argument("--out", metavar="DIR",
                        help="output directory (default logs/sweep-<spec>-<time>)")
     sweep.add_argument("--keep-logs", action="store_true",
@@ -31,6 +32,7 @@ def add_parsers(commands: Any) -> dict[str, Handler]:
 
 
 def command(args: argparse.Namespace) -> int:
+    refuse_live(args, "sweep")
     from cosim.sweeps.driver import check_sweep_dir, default_out_dir, run_sweep
     from cosim.sweeps.execute import WorkerCrashError
 
