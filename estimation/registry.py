@@ -4,33 +4,29 @@ A name that is not built in is an estimator from outside cosim: an import path
 ``my_pkg.my_module:MyFilter`` or an entry point of the group ``cosim.estimators``
 (:mod:`cosim.core.plugins`). Its class is built as the built-in ones are,
 ``cls(config, initial, belief, t0_s=..., rng=...)`` (its own settings in
-``config.params``; ``rng`` draws its initial estimate), and must
-have ``predict(t_s)``, ``estimate() -> Estimate`` and ``update(measurement)`` returning an
-:class:`estimation.update_result.UpdateResult`, plus the class attributes
-``required_sensors`` and ``supported_sensors``. It may also have
-``update_many(measurements) -> list[UpdateResult]`` for measurements of one instant (the
-built-in filters fuse them in one update); without it the runner calls ``update`` for each.
+``config.params``; ``rng`` draws its initial estimate), and must implement
+:class:`estimation.protocol.Estimator`; the optional capabilities are the small protocols
+beside it (:class:`~estimation.protocol.JointUpdater`,
+:class:`~estimation.protocol.CountsUpdates`).
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any, TypeAlias
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cosim.core.exceptions import ConfigError, PluginError
 from cosim.core.initial_state import InitialState
-from cosim.core.plugins import load_object
+from cosim.core.plugins import load_object, missing_members
 from cosim.core.vehicle_params import VehicleParams
 from estimation.config import ESTIMATOR_NAMES, PLUGIN_GROUP, EstimatorConfig, is_plugin_name
 from estimation.ekf import Ekf
+from estimation.protocol import Estimator
 from estimation.truth import TruthEstimator
 
 if TYPE_CHECKING:  # imported when first used: filterpy imports scipy.stats (0.3 s)
     from estimation.ukf import Ukf
-
-    Estimator: TypeAlias = Ekf | Ukf | TruthEstimator
-    """What :func:`make_estimator` returns (plug-ins follow the same protocol)."""
 
 __all__ = [
     "ESTIMATOR_NAMES",
@@ -39,10 +35,6 @@ __all__ = [
     "required_sensors",
     "supported_sensors",
 ]
-
-
-ESTIMATOR_METHODS = ("predict", "estimate", "update")
-"""What the runner calls on an estimator."""
 
 
 def estimator_class(name: str) -> type[Ekf] | type[Ukf] | type[TruthEstimator]:
@@ -90,9 +82,9 @@ def _plugin_class(name: str) -> Any:
     if not isinstance(cls, type):
         raise PluginError(f"estimator.name = {name!r}: is a {type(cls).__name__}: expected "
                           "an estimator class")
-    missing = [m for m in ESTIMATOR_METHODS if not callable(getattr(cls, m, None))]
+    missing = missing_members(cls, Estimator)
     missing += [a for a in ("required_sensors", "supported_sensors")
-                if not isinstance(getattr(cls, a, None), tuple)]
+                if a not in missing and not isinstance(getattr(cls, a), tuple)]
     if missing:
         raise PluginError(f"estimator.name = {name!r}: class {cls.__name__} lacks "
                           f"{', '.join(missing)}: expected predict(t_s), estimate(), "

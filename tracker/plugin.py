@@ -32,7 +32,7 @@ from cosim.core.plugins import load_object
 from cosim.core.records import Command, Estimate, Plan
 from tracker.config import PLUGIN_GROUP, TrackerConfig
 from tracker.paths.reference_path import ReferencePath
-from tracker.protocol import Tracker
+from tracker.protocol import Resettable, Tracker
 
 GROUP = PLUGIN_GROUP
 """Entry-point group of tracker plug-ins."""
@@ -95,9 +95,8 @@ class GuardedTracker:
         self._budget_s = budget_s
 
     def reset(self) -> None:
-        reset = getattr(self._tracker, "reset", None)
-        if callable(reset):
-            reset()
+        if isinstance(self._tracker, Resettable):
+            self._tracker.reset()
 
     def step(self, t_s: float, estimate: Estimate,
              reference: ReferencePath) -> tuple[Command, Plan]:

@@ -1,7 +1,8 @@
 """Trackers by name: ``tracker.name`` in a scenario picks the constructor.
 
-A tracker is anything with ``step(t_s, estimate, reference) -> (Command, Plan)`` and
-``reset()`` (the :class:`cosim.core.protocols.Tracker` protocol). A name that is not built in is a
+A tracker implements :class:`tracker.protocol.Tracker` (``step(t_s, estimate, reference)
+-> (Command, Plan)``), and :class:`tracker.protocol.Resettable` when it has memory to
+forget. A name that is not built in is a
 tracker from outside cosim (an import path or an installed plug-in: :mod:`tracker.plugin`).
 """
 

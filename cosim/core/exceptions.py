@@ -23,10 +23,6 @@ class PhysicsDivergenceError(CosimError):
     """The MuJoCo simulation produced non-finite values or MuJoCo warnings."""
 
 
-class SolverError(CosimError):
-    """A tracker's optimiser failed and no fallback was possible."""
-
-
 class LogReadError(CosimError):
     """An MCAP file cannot be read or lacks what cosim wrote into it."""
 

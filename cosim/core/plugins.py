@@ -33,6 +33,15 @@ def is_import_path(name: str) -> bool:
     return bool(IMPORT_PATH.match(name))
 
 
+def missing_members(obj: object, protocol: type) -> list[str]:
+    """The members of ``protocol`` (its methods, then its annotated attributes) that
+    ``obj`` lacks: what a plug-in class must add to implement it."""
+    members = [*(name for name, value in vars(protocol).items()
+                 if callable(value) and not name.startswith("_")),
+               *vars(protocol).get("__annotations__", {})]
+    return [name for name in members if not hasattr(obj, name)]
+
+
 def entry_point_names(group: str) -> dict[str, str]:
     """Installed entry points of ``group``: name -> ``module:attribute`` (sorted by name)."""
     found = {ep.name: ep.value for ep in importlib.metadata.entry_points(group=group)}

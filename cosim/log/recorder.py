@@ -79,6 +79,28 @@ class MessageMirror(Protocol):
         """A message: its topic, log time and JSON bytes (as in the file)."""
 
 
+class Recorder(Protocol):
+    """What the run writes its log through (:class:`McapRecorder`; the Gymnasium
+    environment's episodes without a log pass one that keeps nothing)."""
+
+    def register(self, topic: str, schema: Mapping[str, Any] | None = None) -> None:
+        """Declare a topic (by default with the schema :mod:`cosim.log.topics` gives it)."""
+
+    def write(self, topic: str, t_s: float, message: dict[str, Any]) -> None:
+        """One message at simulated time ``t_s``."""
+
+    def write_finite(self, topic: str, t_s: float, message: dict[str, Any]) -> None:
+        """:meth:`write`, for messages that may carry NaN or infinity (written as null)."""
+
+    def add_metadata(self, name: str, values: dict[str, str]) -> None: ...
+
+    def add_attachment(self, name: str, media_type: str, data: bytes,
+                       t_s: float = 0.0) -> None: ...
+
+    def publish(self) -> None:
+        """The run starts for real: the log takes its final name."""
+
+
 CHUNK_SIZE_BYTES = 1024 * 1024
 """Uncompressed bytes per MCAP chunk: about a second of the default lane change."""
 

@@ -12,19 +12,14 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Union
 
 import numpy as np
 
 from cosim.core import sensor_names
 from cosim.core.config_fields import section, setting
 from cosim.core.records import WHEEL_NAMES, Measurement, VehicleState
+from cosim.sensing.protocol import Sensor
 from cosim.sensing.range_sensor import RadarConfig
-
-Sensor = Union["GnssSensor", "GnssVelocitySensor", "HeadingSensor", "ImuSensor", "WheelSpeedSensor",
-               "SteeringAngleSensor",
-               "TruthSensor"]
-
 
 SENSOR_SUITES = ("rtk", "gnss", "ideal")
 

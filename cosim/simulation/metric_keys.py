@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from types import MappingProxyType
 
 from cosim.core.sensor_names import FUSED_SENSORS
-from cosim.simulation.outcome import SEVERITY
+from cosim.simulation.outcome import OUTCOMES, SEVERITY
 from tracker.acc.law import GAIN_NAMES
 
 EVERY_RUN = "every run"
@@ -202,9 +202,8 @@ RUN = (
               _METRICS),
     MetricKey("faults_injected", "count", "sensor outputs the scenario's `faults:` changed",
               "", _RUNNER),
-    MetricKey("outcome", "text", "how the run ended: `ok`, the most severe event "
-              "(`rolled_over`, `spun`, `collision`, `off_road`, `end_of_path`) or the abort "
-              "(`diverged`, `interrupted`, `error`)", "ok", _RUNNER),
+    MetricKey("outcome", "text", "how the run ended: `ok`, the most severe event or the "
+              "abort, one of " + ", ".join(f"`{kind}`" for kind in OUTCOMES), "ok", _RUNNER),
     MetricKey("events", "count", "outcome events on `/events`", "0", _RUNNER),
     MetricKey("<kind>_t_s", "s", "simulated time of the first event of that kind", "",
               _RUNNER, scope=WHEN_IT_HAPPENS),

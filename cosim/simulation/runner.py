@@ -40,11 +40,13 @@ from cosim.core.exceptions import PhysicsDivergenceError, TrackerFault
 from cosim.core.records import Command, Estimate, Measurement, Plan, VehicleState
 from cosim.core.sensor_names import GNSS, RADAR, TRUTH
 from cosim.log import foxglove, topics
-from cosim.log.recorder import McapRecorder, MessageMirror
+from cosim.log.recorder import McapRecorder, MessageMirror, Recorder
 from cosim.plant import disturbances
 from cosim.plant.car import MujocoPlant
 from cosim.plant.low_level import AccelToTorque
+from cosim.plant.protocol import Plant
 from cosim.sensing.faults import FaultInjector
+from cosim.sensing.protocol import Sensor
 from cosim.sensing.sensors import TruthSensor, make_sensors
 from cosim.simulation.course import Course, build_course
 from cosim.simulation.course_metrics import CourseMonitor
@@ -52,9 +54,9 @@ from cosim.simulation.metrics import MetricsAccumulator
 from cosim.simulation.outcome import OutcomeMonitor
 from cosim.simulation.scenario_config import ScenarioConfig, steps_per_period
 from cosim.simulation.traffic_loop import CollisionError, TrafficLoop, build_traffic
+from estimation.protocol import CountsUpdates, Estimator, JointUpdater
 from estimation.registry import make_estimator
 from estimation.update_result import UpdateResult
-from tracker.paths.reference_path import ReferencePath
 from tracker.protocol import Tracker
 from tracker.registry import make_tracker
 
@@ -89,11 +91,6 @@ def component_rng(seed: int, component: str) -> np.random.Generator:
     component's random stream unchanged.
     """
     return np.random.default_rng([seed, zlib.crc32(component.encode())])
-
-
-def build_reference(config: ScenarioConfig) -> ReferencePath:
-    """The reference path the scenario names (:func:`build_course` for its cones and bounds)."""
-    return scenario_course(config).reference
 
 
 def scenario_course(config: ScenarioConfig) -> Course:
@@ -154,7 +151,7 @@ _EVERY_RUN_TOPICS = (
 """Channels every run registers before its first step (in this order)."""
 
 
-def _register_topics(recorder: McapRecorder, sensor_names: list[str],
+def _register_topics(recorder: Recorder, sensor_names: list[str],
                      disturbed: bool) -> None:
     for topic in _EVERY_RUN_TOPICS:
         recorder.register(topic)
@@ -195,7 +192,7 @@ class _Clock:
 class _Run:
     """The components of one run and the phases of one physics step."""
 
-    def __init__(self, config: ScenarioConfig, recorder: McapRecorder,
+    def __init__(self, config: ScenarioConfig, recorder: Recorder,
                  tracker: Tracker | None = None) -> None:
         self.config = config
         self.clock = _Clock.from_config(config)
@@ -204,20 +201,22 @@ class _Run:
         self.reference = self.course.reference
         self.course_monitor = CourseMonitor(self.course, config.plant)
         traffic = build_traffic(config)
-        self.plant = MujocoPlant(config.plant, self.clock.dt_s, config.initial, traffic=traffic)
-        self.estimator = make_estimator(
+        self.plant: Plant = MujocoPlant(config.plant, self.clock.dt_s, config.initial,
+                                        traffic=traffic)
+        self.estimator: Estimator = make_estimator(
             config.estimator, config.initial, config.tracker.model,
             rng=component_rng(config.seed, "estimator.initial"))
-        self.tracker = tracker if tracker is not None else \
+        self.tracker: Tracker = tracker if tracker is not None else \
             make_tracker(config.tracker, config.maneuver)
         """The run's tracker; the Gymnasium environment passes one that replays its actions."""
-        self.fuse: Callable[[list[Measurement]], list[UpdateResult]] = getattr(
-            self.estimator, "update_many", None) or self._fuse_one_by_one
+        self.fuse: Callable[[list[Measurement]], list[UpdateResult]] = (
+            self.estimator.update_many if isinstance(self.estimator, JointUpdater)
+            else self._fuse_one_by_one)
         """Fuses the measurements of one instant: together where the estimator can
-        (:meth:`estimation.fusion.KalmanFusion.update_many`), else one by one."""
+        (:class:`estimation.protocol.JointUpdater`), else one by one."""
         self.low_level = AccelToTorque(config.tracker.model)
-        self.sensors = make_sensors(config.sensors)
-        if TRUTH in getattr(self.estimator, "required_sensors", ()):
+        self.sensors: list[Sensor] = make_sensors(config.sensors)
+        if TRUTH in self.estimator.required_sensors:
             period_s = min(config.sim.log_period_s, config.sim.control_period_s)
             self.sensors.append(TruthSensor(period_s))
         self.sensor_steps = [
@@ -490,11 +489,12 @@ def run(
     return RunResult(Path(out_path), metrics, completed, abort_reason)
 
 
-def _finish(recorder: McapRecorder, state: _Run, wall_start: float, completed: bool,
+def _finish(recorder: Recorder, state: _Run, wall_start: float, completed: bool,
             abort_reason: str, abort: str) -> dict[str, float | int | bool | str]:
     metrics = state.metrics
-    counts = getattr(state.estimator, "counts", None)
-    metrics.estimator_counts = counts() if counts is not None else {}
+    estimator = state.estimator
+    metrics.estimator_counts = estimator.counts() if isinstance(estimator, CountsUpdates) \
+        else {}
     values: dict[str, float | int | bool | str] = dict(
         metrics.result(time.perf_counter() - wall_start, completed))
     values.update(state.course_monitor.result())

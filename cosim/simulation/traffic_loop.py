@@ -53,13 +53,14 @@ from cosim.core.records import VehicleState
 from cosim.core.sensor_names import RADAR
 from cosim.core.traffic_records import CarPose
 from cosim.log import foxglove, topics
-from cosim.log.recorder import McapRecorder
+from cosim.log.recorder import Recorder
 from cosim.plant.car import MujocoPlant
 from cosim.plant.traffic import Traffic, traffic_cars
 from cosim.sensing.range_sensor import RangeSensor
 from cosim.simulation.running_stats import RunningStats
 from cosim.simulation.scenario_config import ScenarioConfig, steps_per_period
 from tracker.acc.law import GAIN_NAMES, AccTracker
+from tracker.protocol import RangeObserver
 
 SET_SPEED_TOLERANCE_MPS = 0.5
 """The set speed counts as reached within this [m/s]."""
@@ -128,13 +129,13 @@ class TrafficLoop:
     """The run's traffic phases (module docstring)."""
 
     def __init__(self, config: ScenarioConfig, plant: MujocoPlant, traffic: Traffic,
-                 recorder: McapRecorder, tracker: object, rng: np.random.Generator) -> None:
+                 recorder: Recorder, tracker: object, rng: np.random.Generator) -> None:
         self.config = config
         self.plant = plant
         self.traffic = traffic
         self.recorder = recorder
         self.acc = tracker if isinstance(tracker, AccTracker) else None
-        self.deliver = getattr(tracker, "observe_range", None)
+        self.deliver = tracker.observe_range if isinstance(tracker, RangeObserver) else None
         radar = config.sensors.radar
         self.radar = RangeSensor(radar, traffic.ego_front_m) if radar.enabled else None
         self.radar_steps = steps_per_period(radar.period_s, config.sim.physics_dt_s,

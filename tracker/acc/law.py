@@ -43,12 +43,10 @@ from cosim.core.traffic_records import RangeReading
 from tracker.acc.config import AccConfig, EscGainConfig
 from tracker.acc.esc import EscAdaptation, EscChannel, EscFilters, ExtremumSeeker, warn_breaches
 from tracker.paths.reference_path import ReferencePath
-from tracker.protocol import Tracker
+from tracker.protocol import Resettable, Tracker
 
 GAIN_NAMES = ("k_v", "k_x", "k_vrel")
 """The tuned gains, in the ESC's parameter order."""
-
-MODES = ("speed", "gap")
 
 
 @dataclass(frozen=True)
@@ -133,9 +131,8 @@ class AccTracker:
         self.reset()
 
     def reset(self) -> None:
-        reset = getattr(self.lateral, "reset", None)
-        if reset is not None:
-            reset()
+        if isinstance(self.lateral, Resettable):
+            self.lateral.reset()
         if self.seeker is not None:
             self.seeker.reset()
         self._reading: RangeReading | None = None

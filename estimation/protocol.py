@@ -1,0 +1,59 @@
+"""The interface every state estimator implements, and its optional capabilities.
+
+The runner builds an estimator as ``cls(config, initial, belief, t0_s=..., rng=...)``
+(:func:`estimation.registry.make_estimator`; ``rng`` draws its initial estimate, never the
+truth) and then calls only what :class:`Estimator` declares; a capability beyond it is a
+small protocol of its own that the runner tests with ``isinstance``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Protocol, runtime_checkable
+
+from cosim.core.records import Estimate, Measurement
+from estimation.update_result import UpdateResult
+
+
+@runtime_checkable
+class Estimator(Protocol):
+    """A state estimator fed asynchronously by the sensors.
+
+    ``required_sensors`` are the sensors it cannot work without (the run must provide
+    them; the ``truth`` estimator asks for the ``truth`` sensor, which the runner then
+    adds); ``supported_sensors`` the ones it fuses (a measurement of any other is ignored,
+    ``reason == "ignored"``, not rejected). Both are class attributes, so the registry
+    reads them before building one.
+    """
+
+    required_sensors: tuple[str, ...]
+    supported_sensors: tuple[str, ...]
+
+    def predict(self, t_s: float) -> None:
+        """Propagate the belief to time ``t_s`` (no-op if already there)."""
+
+    def update(self, measurement: Measurement) -> UpdateResult:
+        """Fuse one measurement (predicting to its time first); a refused one says why in
+        :attr:`UpdateResult.reason`, it never raises."""
+
+    def estimate(self) -> Estimate:
+        """The current mean and covariance, by state name."""
+
+
+@runtime_checkable
+class JointUpdater(Protocol):
+    """An estimator that fuses the measurements of one instant in one update (the built-in
+    filters); without it the runner calls :meth:`Estimator.update` for each."""
+
+    def update_many(self, measurements: Sequence[Measurement]) -> list[UpdateResult]:
+        """One result per measurement, in order."""
+
+
+@runtime_checkable
+class CountsUpdates(Protocol):
+    """An estimator that counts, per sensor, what it did with its measurements: the run's
+    ``rejected_*``, ``channels_gated`` and ``estimator_surprises`` metrics."""
+
+    def counts(self) -> dict[str, dict[str, int]]:
+        """Per sensor, counter name to count (``rejected_gate``, ``channels_gated``,
+        ``surprises`` ...)."""
