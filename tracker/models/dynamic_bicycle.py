@@ -57,6 +57,7 @@ import casadi as ca
 import numpy as np
 
 from cosim.core.exceptions import ConfigError
+from cosim.core.vehicle_equations import axle_slip_angles, rk4_step
 from cosim.core.vehicle_params import VehicleParams
 
 GRAVITY_MPS2 = 9.81
@@ -224,9 +225,7 @@ def slip_angles(lateral_state: Symbolic, steer_rad: Symbolic, vx_mps: Symbolic,
     l_f, l_r = _param(params, "cog_front_m"), _param(params, "cog_rear_m")
     if min_slip_speed_mps > 0.0:
         vx_mps = ca.fmax(vx_mps, min_slip_speed_mps)
-    alpha_f = steer_rad - (vy + l_f * r) / vx_mps
-    alpha_r = -(vy - l_r * r) / vx_mps
-    return alpha_f, alpha_r
+    return axle_slip_angles(vy, r, steer_rad, vx_mps, l_f, l_r)
 
 
 def lateral_dynamics(lateral_state: Symbolic, steer_rad: Symbolic, vx_mps: Symbolic,
@@ -268,14 +267,6 @@ def continuous_dynamics(state: Symbolic, inputs: Symbolic, params: Symbolic,
     return ca.vertcat(*(derivative[name] for name in STATE_NAMES))
 
 
-def _rk4(f, state: Symbolic, h: Symbolic | float) -> Symbolic:
-    k1 = f(state)
-    k2 = f(state + 0.5 * h * k1)
-    k3 = f(state + 0.5 * h * k2)
-    k4 = f(state + h * k3)
-    return state + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
-
-
 def _check_step(dt_s: float, substeps: int) -> None:
     if not (math.isfinite(dt_s) and dt_s > 0.0):
         raise ConfigError(f"dt_s = {dt_s!r}: expected a positive step")
@@ -309,7 +300,7 @@ def lateral_discrete_function(dt_s: float, substeps: int = 1) -> ca.Function:
     h = dt_s / substeps
     next_state = state
     for _ in range(substeps):
-        next_state = _rk4(lambda s: lateral_dynamics(s, steer, vx, params), next_state, h)
+        next_state = rk4_step(lambda s: lateral_dynamics(s, steer, vx, params), next_state, h)
     return ca.Function(
         "dynamic_bicycle_lateral_rk4",
         [state, steer, vx, params],
@@ -343,7 +334,7 @@ def discrete_function(dt_s: float, substeps: int = 1) -> ca.Function:
     h = dt_s / substeps
     next_state = state
     for _ in range(substeps):
-        next_state = _rk4(lambda s: continuous_dynamics(s, inputs, params), next_state, h)
+        next_state = rk4_step(lambda s: continuous_dynamics(s, inputs, params), next_state, h)
     return ca.Function(
         "dynamic_bicycle_rk4",
         [state, inputs, params],

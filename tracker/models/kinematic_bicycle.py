@@ -44,6 +44,7 @@ from types import MappingProxyType
 
 import casadi as ca
 
+from cosim.core import vehicle_equations
 from cosim.core.exceptions import ConfigError
 from cosim.core.vehicle_params import VehicleParams
 
@@ -115,11 +116,7 @@ def rk4_step(
     def f(x: Symbolic) -> Symbolic:
         return continuous_dynamics(x, inputs, params, understeer)
 
-    k1 = f(state)
-    k2 = f(state + 0.5 * dt_s * k1)
-    k3 = f(state + 0.5 * dt_s * k2)
-    k4 = f(state + dt_s * k3)
-    return state + dt_s / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+    return vehicle_equations.rk4_step(f, state, dt_s)
 
 
 def continuous_function(params: VehicleParams, understeer: bool = False) -> ca.Function:

@@ -73,6 +73,7 @@ import casadi as ca
 import numpy as np
 
 from cosim.core.exceptions import ConfigError
+from cosim.core.vehicle_equations import rk4_step
 from cosim.core.vehicle_params import VehicleParams
 from tracker.models import dynamic_bicycle as bicycle
 
@@ -218,10 +219,6 @@ def discrete_function(params: PathErrorParams, dt_s: float,
 
     x = state
     for _ in range(substeps):
-        k1 = f(x)
-        k2 = f(x + 0.5 * h * k1)
-        k3 = f(x + 0.5 * h * k2)
-        k4 = f(x + h * k3)
-        x = x + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+        x = rk4_step(f, x, h)
     return ca.Function("path_error_bicycle_rk4", [state, inputs, speed, yaw_rate_ref], [x],
                        _ARGUMENT_NAMES, ["next_state"])

@@ -59,6 +59,7 @@ import casadi as ca
 import numpy as np
 
 from cosim.core.exceptions import ConfigError
+from cosim.core.vehicle_equations import rk4_step_in_time
 from cosim.core.vehicle_params import VehicleParams
 from tracker.models import dynamic_bicycle as bicycle
 
@@ -193,12 +194,7 @@ def _advance(state: Symbolic, inputs: Symbolic, duration_s: Symbolic | float, su
 
     vehicle = _vehicle_part(state)
     for i in range(substeps):
-        t = i * h
-        k1 = f(vehicle, t)
-        k2 = f(vehicle + 0.5 * h * k1, t + 0.5 * h)
-        k3 = f(vehicle + 0.5 * h * k2, t + 0.5 * h)
-        k4 = f(vehicle + h * k3, t + h)
-        vehicle = vehicle + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+        vehicle = rk4_step_in_time(f, vehicle, i * h, h)
     angle = road_wheel_angle(angle0, command, duration_s, tau)
     return ca.vertcat(vehicle, angle)
 

@@ -50,10 +50,11 @@ At every control step
    and linearly with ``weight_slack``. The QP is one ``ca.qpsol`` built in the
    constructor with every step-dependent number (starting state, previous input, ``v0``,
    the desired yaw rates, ``v_D``) as a parameter: a step only evaluates it.
-4. **Failures** (:mod:`tracker.mpc.fallback`): a failed QP, an exception or a non-finite
-   result never raises: the last good plan is replayed, shifted by the elapsed time
-   (status ``fallback (...)``), then after ``tracker.fallback_time_s`` a safe stop
-   (``safe_stop (...)``); ``success=False, fallback=True``.
+4. **Failures** (:mod:`tracker.mpc.base`, the skeleton every MPC shares): a failed QP, a
+   numerical error or a non-finite result never raises: the last good plan is replayed,
+   shifted by the elapsed time (status ``fallback (...)``), then after
+   ``tracker.fallback_time_s`` a safe stop (``safe_stop (...)``); ``success=False,
+   fallback=True``.
 
 The plan's states are the path-model states at nodes ``0..Np`` (node 0 is the predicted
 starting point, at ``t_s`` plus the latency), its inputs the commands of the ``Np``
@@ -139,13 +140,13 @@ import casadi as ca
 import numpy as np
 
 from cosim.core.exceptions import ConfigError
-from cosim.core.records import Command, Estimate, Plan
+from cosim.core.records import Estimate
 from tracker.config import TrackerConfig
 from tracker.models import path_error_bicycle as path_model
 from tracker.models import steered_dynamic_bicycle as steered
-from tracker.mpc.delay_line import IssuedInputs
+from tracker.mpc.base import MpcTracker, Solved, Start, Trajectory
 from tracker.mpc.dynamic_mpc_config import DynamicMpcConfig
-from tracker.mpc.fallback import INPUT, INPUT_NAMES, FailureClock, safe_stop_inputs, shifted_inputs
+from tracker.mpc.fallback import INPUT, INPUT_NAMES
 from tracker.mpc.vector_layout import VectorLayout
 from tracker.paths.reference_path import Projection, ReferencePath, wrap_angle
 
@@ -205,26 +206,12 @@ PLAN_WORLD_NAMES: tuple[str, ...] = ("x_m", "y_m")
 
 
 @dataclass(frozen=True)
-class StartingPoint:
-    """Where the optimisation starts: the estimate predicted over its age and the latency."""
+class StartingPoint(Start):
+    """Where the optimisation starts: the estimate predicted over its age and the latency,
+    at ``t_s``, as a path-model state (:data:`tracker.models.path_error_bicycle.STATE_NAMES`)."""
 
-    t_s: float
-    """Time the state is predicted to [s]."""
-    state: np.ndarray
-    """Path-model state (:data:`tracker.models.path_error_bicycle.STATE_NAMES`)."""
-    s_m: float
+    s_m: float = math.nan
     """Arc length of the predicted position's projection onto the path [m]."""
-
-
-@dataclass(frozen=True)
-class _Trajectory:
-    """States (Np + 1 rows) and inputs (Np rows) of a plan made at ``t_s``, its node 0 at
-    ``start_t_s``."""
-
-    t_s: float
-    start_t_s: float
-    states: np.ndarray
-    inputs: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -241,7 +228,7 @@ class _Qp:
     ubg: np.ndarray
 
 
-class DynamicMpc:
+class DynamicMpc(MpcTracker):
     """Delta-u linear MPC on the path-error dynamic bicycle with a CasADi QP.
 
     Args:
@@ -250,13 +237,12 @@ class DynamicMpc:
         yaw inertia, CoG position, axle cornering stiffnesses, steering time constant).
     """
 
+    state_names: tuple[str, ...] = path_model.STATE_NAMES
+
     def __init__(self, config: TrackerConfig) -> None:
         if config.name != TRACKER_NAME:
             raise ConfigError(f"name = {config.name!r}: DynamicMpc expects {TRACKER_NAME!r}")
-        self.config = config
         self.settings: DynamicMpcConfig = config.dynamic_mpc
-        self.state_names: tuple[str, ...] = path_model.STATE_NAMES
-        self.input_names: tuple[str, ...] = INPUT_NAMES
         self._n_p = self.settings.prediction_horizon
         self._n_c = self.settings.control_horizon
         self._ts = self.settings.sample_time_s
@@ -265,19 +251,17 @@ class DynamicMpc:
         self._steered = steered.SteeredBicycleParams.from_vehicle(config.model)
         self._step_model = path_model.discrete_function(self._params, self._ts)
         self._predict_world = steered.predict_function(self._steered)
-        self._input_low = np.empty(len(INPUT_NAMES))
-        self._input_high = np.empty(len(INPUT_NAMES))
+        low, high = np.empty(len(INPUT_NAMES)), np.empty(len(INPUT_NAMES))
         max_steer = min(config.max_steer_rad, self.settings.max_steer_rad)
-        self._input_low[INPUT["accel_mps2"]] = config.accel_min_mps2
-        self._input_high[INPUT["accel_mps2"]] = config.accel_max_mps2
-        self._input_low[INPUT["steer_rad"]] = -max_steer
-        self._input_high[INPUT["steer_rad"]] = max_steer
+        low[INPUT["accel_mps2"]] = config.accel_min_mps2
+        high[INPUT["accel_mps2"]] = config.accel_max_mps2
+        low[INPUT["steer_rad"]] = -max_steer
+        high[INPUT["steer_rad"]] = max_steer
+        self._input_low, self._input_high = low, high
+        self.config = config
         self._qp = self._build_qp()
-        self._issued = IssuedInputs(
-            config.latency_s if config.latency_compensation else 0.0,
-            np.zeros(len(INPUT_NAMES)),
-        )
-        self._clock = FailureClock(config.fallback_time_s)
+        super().__init__(config, self._ts, self._n_p, low, high, path_model.STATE["vx_mps"],
+                         config.latency_s if config.latency_compensation else 0.0)
         self.reset()
 
     # ------------------------------------------------------------------ construction
@@ -365,36 +349,23 @@ class DynamicMpc:
 
     # ------------------------------------------------------------------ public API
 
-    def reset(self, previous_command: Command | None = None) -> None:
-        """Forget every previous step.
+    def _accept_previous(self, previous: np.ndarray) -> np.ndarray:
+        """Clipped into the bounds: the first increment is taken against it."""
+        return np.clip(previous, self._input_low, self._input_high)
 
-        ``previous_command`` is the actuation already applied to the car (default: zero
-        acceleration and steering, clipped into the bounds); the first increment is taken
-        against it, and the actuators start at rest at it.
-        """
-        previous = np.zeros(len(INPUT_NAMES))
-        if previous_command is not None:
-            previous[INPUT["accel_mps2"]] = previous_command.accel_mps2
-            previous[INPUT["steer_rad"]] = previous_command.steer_rad
-        self._previous_input = np.clip(previous, self._input_low, self._input_high)
-        self._previous_t_s: float | None = None
-        self._issued.reset(self._previous_input)
-        self._clock.reset()
+    def _forget(self) -> None:
         self._actuator: ActuatorBelief | None = None
-        self._last_good: _Trajectory | None = None
-        self._reference: ReferencePath | None = None
-        """The path of the last step: the plan's world positions are laid along it."""
-        self._last_speed_mps = math.nan
+        self._yaw_rate_ref: np.ndarray | None = None
+        """The desired yaw rates of the step's stages (for a fallback's rollout)."""
 
-    def step(
-        self, t_s: float, estimate: Estimate, reference: ReferencePath
-    ) -> tuple[Command, Plan]:
-        """One control step: the command to apply at ``t_s`` and the plan behind it."""
-        start = self._starting_point(t_s, estimate, reference)
-        self._reference = reference
-        if not np.all(np.isfinite(start.state)):
-            return self._fallback(t_s, start, None, "non_finite_estimate", 0, 0.0)
-        yaw_rate_ref = self._yaw_rate_reference(reference, start)
+    def _start(self, t_s: float, estimate: Estimate, reference: ReferencePath) -> Start:
+        self._yaw_rate_ref = None
+        return self._starting_point(t_s, estimate, reference)
+
+    def _solve(self, t_s: float, start: StartingPoint,  # type: ignore[override]
+               reference: ReferencePath) -> Solved:
+        """The condensed QP from the starting point (its own :meth:`_start`)."""
+        yaw_rate_ref = self._yaw_rate_ref = self._yaw_rate_reference(reference, start)
         params = self._qp.params.pack({
             "state0": start.state,
             "input_prev": self._previous_input,
@@ -404,27 +375,15 @@ class DynamicMpc:
         })
         lbx, ubx = self._variable_bounds(t_s)
         began = time.perf_counter()
-        try:
-            solution = self._qp.solver(x0=np.zeros(self._qp.variables.size), p=params,
-                                       lbx=lbx, ubx=ubx, lbg=self._qp.lbg, ubg=self._qp.ubg)
-            solve_time_s = time.perf_counter() - began
-            stats = self._qp.solver.stats()
-            z = np.asarray(solution["x"], dtype=float).ravel()
-            cost = float(solution["f"])
-        except RuntimeError as error:  # a CasADi evaluation error: a failed solve
-            solve_time_s = time.perf_counter() - began
-            return self._fallback(t_s, start, yaw_rate_ref, f"error: {error}", 0,
-                                  solve_time_s)
+        solution = self._qp.solver(x0=np.zeros(self._qp.variables.size), p=params,
+                                   lbx=lbx, ubx=ubx, lbg=self._qp.lbg, ubg=self._qp.ubg)
+        solve_time_s = time.perf_counter() - began
+        stats = self._qp.solver.stats()
+        z = np.asarray(solution["x"], dtype=float).ravel()
         status, iterations = self._status(stats)
-        if not (stats.get("success", False) and np.all(np.isfinite(z)) and math.isfinite(cost)):
-            return self._fallback(t_s, start, yaw_rate_ref, status, iterations, solve_time_s)
         states, inputs = (np.asarray(m, dtype=float) for m in self._qp.trajectory(z, params))
-        trajectory = _Trajectory(t_s, start.t_s, states, self._clip(inputs))
-        self._last_good = trajectory
-        self._clock.reset()
-        plan = self._plan(trajectory, cost, solve_time_s, iterations, status, True, False,
-                          start.s_m)
-        return self._commit(trajectory), plan
+        return Solved(states, inputs, float(solution["f"]), status, iterations,
+                      bool(stats.get("success", False)), solve_time_s)
 
     # ------------------------------------------------------------------ starting point
 
@@ -450,7 +409,8 @@ class DynamicMpc:
 
     def _starting_point(self, t_s: float, estimate: Estimate,
                         reference: ReferencePath) -> StartingPoint:
-        """The estimate predicted to ``t_s`` plus the latency, in path coordinates."""
+        """The estimate predicted to ``t_s`` plus the latency, in path coordinates (the
+        latency prediction in the world frame, then the projection onto the path)."""
         missing = [name for name in ESTIMATED_STATE_NAMES if name not in estimate]
         if missing:
             raise ConfigError(f"tracker {TRACKER_NAME}: the estimate has no "
@@ -482,7 +442,6 @@ class DynamicMpc:
             values["e1_m"] = projection.lateral_error_m
             values["e2_rad"] = float(wrap_angle(state[world_index["yaw_rad"]]
                                                 - projection.path_yaw_rad))
-            self._last_speed_mps = float(values["vx_mps"])
         else:
             values["e1_m"] = values["e2_rad"] = math.nan
         path_state = np.array([values[name] for name in path_model.STATE_NAMES], dtype=float)
@@ -528,12 +487,6 @@ class DynamicMpc:
         key = backend.iterations_key
         return str(status), int(stats.get(key, 0)) if key is not None else 0
 
-    def _first_period_s(self, t_s: float) -> float:
-        """Time since the last command; on the first step ``min(tracker.dt_s, Ts)``."""
-        if self._previous_t_s is None:
-            return min(self.config.dt_s, self._ts)
-        return max(t_s - self._previous_t_s, 0.0)
-
     def _variable_bounds(self, t_s: float) -> tuple[np.ndarray, np.ndarray]:
         """Steering increments within the rate bound over the time each spans;
         acceleration increments free; slacks non-negative."""
@@ -547,15 +500,12 @@ class DynamicMpc:
         high = {"increments": high_increments.ravel(), "slacks": np.full(n_slacks, np.inf)}
         return self._qp.variables.pack(low), self._qp.variables.pack(high)
 
-    def _clip(self, inputs: np.ndarray) -> np.ndarray:
-        """The QP may end a hair outside a bound; the command never does."""
-        return np.clip(inputs, self._input_low, self._input_high)
-
-    def _rollout(self, start: StartingPoint, yaw_rate_ref: np.ndarray | None,
-                 inputs: np.ndarray) -> np.ndarray:
-        """The path model driven by ``inputs`` from the starting point (NaN if unknown)."""
+    def _rollout(self, start: Start, inputs: np.ndarray) -> np.ndarray:
+        """The path model driven by ``inputs`` from the starting point (NaN without this
+        step's desired yaw rates)."""
         states = np.full((self._n_p + 1, len(path_model.STATE_NAMES)), np.nan)
-        if yaw_rate_ref is None or not np.all(np.isfinite(start.state)):
+        yaw_rate_ref = self._yaw_rate_ref
+        if yaw_rate_ref is None:
             return states
         speed = start.state[path_model.STATE["vx_mps"]]
         states[0] = start.state
@@ -564,75 +514,25 @@ class DynamicMpc:
                                        dtype=float).ravel()
         return states
 
-    def _commit(self, trajectory: _Trajectory) -> Command:
-        """Issue the trajectory's first input."""
-        first = trajectory.inputs[0].copy()
-        self._previous_input = first
-        self._previous_t_s = trajectory.t_s
-        self._issued.record(trajectory.t_s, first)
-        return Command(t_s=trajectory.t_s, accel_mps2=float(first[INPUT["accel_mps2"]]),
-                       steer_rad=float(first[INPUT["steer_rad"]]))
+    def _plan_states(self, trajectory: Trajectory,
+                     start: Start) -> tuple[tuple[str, ...], np.ndarray]:
+        """The path-model states plus the world positions they stand for
+        (:meth:`_world_positions`), so that views can draw the plan like any other."""
+        s0_m = start.s_m if isinstance(start, StartingPoint) else math.nan
+        return ((*self.state_names, *PLAN_WORLD_NAMES),
+                np.column_stack((trajectory.states, self._world_positions(trajectory, s0_m))))
 
-    def _fallback(self, t_s: float, start: StartingPoint, yaw_rate_ref: np.ndarray | None,
-                  status: str, iterations: int, solve_time_s: float) -> tuple[Command, Plan]:
-        """Replay the last good plan shifted; after ``fallback_time_s``, a safe stop."""
-        if self._clock.fail(t_s):
-            inputs = safe_stop_inputs(
-                self._n_p, self._ts, self._first_period_s(t_s),
-                float(self._previous_input[INPUT["steer_rad"]]), self._safe_stop_speed_mps(),
-                self.config.max_steer_rate_radps, self.config.safe_stop_accel_mps2)
-            status = f"safe_stop ({status})"
-        elif self._last_good is not None:
-            inputs = shifted_inputs(self._last_good.inputs, self._last_good.t_s, t_s, self._ts)
-            status = f"fallback ({status})"
-        else:
-            inputs = np.tile(self._previous_input, (self._n_p, 1))
-            status = f"fallback ({status})"
-        inputs = self._clip(inputs)
-        trajectory = _Trajectory(t_s, start.t_s, self._rollout(start, yaw_rate_ref, inputs),
-                                 inputs)
-        plan = self._plan(trajectory, math.nan, solve_time_s, iterations, status, False, True,
-                          start.s_m)
-        return self._commit(trajectory), plan
-
-    def _world_positions(self, trajectory: _Trajectory, s0_m: float) -> np.ndarray:
+    def _world_positions(self, trajectory: Trajectory, s0_m: float) -> np.ndarray:
         """``[x_m, y_m]`` of every node: the path point at the arc length the node is
         expected to reach (``s0`` plus the trapezoid of ``vx Ts``, the small-angle (P5)-(P6)
         reading of ``s'``), moved by ``e1`` along the path's left normal. NaN without a path
         or a starting arc length."""
         states = trajectory.states
-        if self._reference is None or not math.isfinite(s0_m):
+        if self._path is None or not math.isfinite(s0_m):
             return np.full((states.shape[0], len(PLAN_WORLD_NAMES)), np.nan)
         speed = np.maximum(states[:, path_model.STATE["vx_mps"]], 0.0)
         s = s0_m + np.concatenate(([0.0], np.cumsum(0.5 * (speed[:-1] + speed[1:]) * self._ts)))
-        path = self._reference.sample(s)
+        path = self._path.sample(s)
         e1 = states[:, path_model.STATE["e1_m"]]
         return np.column_stack((path["x_m"] - e1 * np.sin(path["yaw_rad"]),
                                 path["y_m"] + e1 * np.cos(path["yaw_rad"])))
-
-    def _safe_stop_speed_mps(self) -> float:
-        """The speed a safe stop brakes from: the last finite starting speed, else (never
-        known) the fastest the tracker plans for, so that it brakes over the whole horizon."""
-        if math.isfinite(self._last_speed_mps):
-            return self._last_speed_mps
-        return self.settings.max_speed_mps
-
-    def _plan(self, trajectory: _Trajectory, cost: float, solve_time_s: float,
-              iterations: int, status: str, success: bool, fallback: bool,
-              s0_m: float) -> Plan:
-        """The plan: the path-model states plus the world positions they stand for
-        (:meth:`_world_positions`), so that views can draw it like any other plan."""
-        return Plan(
-            t_s=trajectory.t_s,
-            dt_s=self._ts,
-            state_names=(*self.state_names, *PLAN_WORLD_NAMES),
-            states=np.column_stack((trajectory.states, self._world_positions(trajectory, s0_m))),
-            input_names=self.input_names,
-            inputs=trajectory.inputs.copy(),
-            cost=cost,
-            solve_time_s=solve_time_s,
-            iterations=iterations,
-            status=status,
-            success=success,
-            fallback=fallback,
-        )

@@ -50,11 +50,11 @@ Per step:
    command, which removes the back-end's round-off); the solution is the next warm
    start.
 
-Failures (:mod:`tracker.mpc.fallback`): a non-finite initial state, a back-end failure, an
-exception anywhere in steps 2-5 or a non-finite solution never raise: the last good plan
-is replayed, shifted (``fallback (...)``), and once failures have lasted longer than
-``fallback_time_s`` a safe stop is commanded (``safe_stop (...)``); ``success=False``,
-``fallback=True``. A success ends either.
+Failures (:mod:`tracker.mpc.base`, the skeleton every MPC shares): a non-finite initial
+state, a back-end failure, a numerical error anywhere in steps 1-5 or a non-finite
+solution never raise: the last good plan is replayed, shifted (``fallback (...)``), and
+once failures have lasted longer than ``fallback_time_s`` a safe stop is commanded
+(``safe_stop (...)``); ``success=False``, ``fallback=True``. A success ends either.
 
 The plan's ``solve_time_s`` is the QP back-end's call alone (what the runner's
 ``solve_ms`` reports); the linearisation and the rest of the step are in
@@ -91,39 +91,21 @@ second core after each call and compete with the solver. The median is unaffecte
 
 from __future__ import annotations
 
-import math
 import time
-from dataclasses import dataclass
 from types import MappingProxyType
 
 import numpy as np
 
 from cosim.core.exceptions import ConfigError
-from cosim.core.records import Command, Estimate, Plan
 from tracker.config import TrackerConfig
 from tracker.models import dynamic_bicycle as bicycle
-from tracker.models.steered_dynamic_bicycle import (
-    STATE,
-    STATE_NAMES,
-    VEHICLE_STATE_NAMES,
-    SteeredBicycleParams,
-    discrete_function,
-    linear_range_slip_rad,
-    predict_function,
-    slip_angle_function,
-)
-from tracker.mpc.delay_line import IssuedInputs
-from tracker.mpc.fallback import (
-    INPUT,
-    INPUT_NAMES,
-    FailureClock,
-    first_command,
-    safe_stop_inputs,
-    shifted_inputs,
-    shifted_states,
-)
+from tracker.models import steered_dynamic_bicycle as steered
+from tracker.models.steered_dynamic_bicycle import STATE, STATE_NAMES
+from tracker.mpc.base import Solved, Start, Trajectory
+from tracker.mpc.fallback import INPUT, INPUT_NAMES
 from tracker.mpc.horizon_reference import horizon_reference
-from tracker.mpc.ltv_qp import REFERENCE_NAMES, Linearisation, LtvQp, QpProblem, QpResult
+from tracker.mpc.ltv_qp import REFERENCE_NAMES, Linearisation, LtvQp, QpProblem
+from tracker.mpc.starting_state import EstimatedStartMpc
 from tracker.paths.reference_path import ReferencePath
 
 TRACKER_NAME = "ltv-mpc"
@@ -133,28 +115,7 @@ INTERNAL_STATE_REST_INPUTS = MappingProxyType({"road_wheel_angle_rad": "steer_ra
 """The model's states no estimator reports, and the input each one rests at."""
 
 
-@dataclass(frozen=True)
-class StepTiming:
-    """Wall times of the last :meth:`LtvMpc.step` [s]."""
-
-    linearise_s: float
-    """Evaluating (L2), (L3) and (L5) of :mod:`tracker.mpc.ltv_qp` along the horizon."""
-    solve_s: float
-    """The QP back-end's call (the plan's ``solve_time_s``)."""
-    step_s: float
-    """The whole step, from the estimate to the command."""
-
-
-@dataclass(frozen=True)
-class _Trajectory:
-    """States (N+1 rows) and inputs (N rows) over the horizon starting at ``t_s``."""
-
-    t_s: float
-    states: np.ndarray
-    inputs: np.ndarray
-
-
-class LtvMpc:
+class LtvMpc(EstimatedStartMpc):
     """LTV-MPC path tracker: the steered dynamic bicycle linearised, one QP per step.
 
     Args:
@@ -165,152 +126,57 @@ class LtvMpc:
     The estimate must hold ``x_m, y_m, yaw_rad, vx_mps, vy_mps, yaw_rate_radps``. The
     plan's states are :data:`tracker.models.steered_dynamic_bicycle.STATE_NAMES` as the LTV
     model predicts them; node 0 is the initial state (the car at ``t_s + latency``); the
-    plan's and the command's ``t_s`` are the time of the step.
+    plan's and the command's ``t_s`` are the time of the step. :attr:`timing` splits the
+    step's wall time into the linearisation (``setup_s``), the QP and the rest.
     """
+
+    state_names: tuple[str, ...] = STATE_NAMES
 
     def __init__(self, config: TrackerConfig) -> None:
         if config.name != TRACKER_NAME:
             raise ConfigError(f"name = {config.name!r}: LtvMpc expects {TRACKER_NAME!r}")
-        self.config = config
-        self.state_names: tuple[str, ...] = STATE_NAMES
-        self.input_names: tuple[str, ...] = INPUT_NAMES
-        params = SteeredBicycleParams.from_vehicle(config.model)
+        params = steered.SteeredBicycleParams.from_vehicle(config.model)
         self._bicycle = params.bicycle
-        self._n = config.horizon
-        self._n_x = len(STATE_NAMES)
-        self._step_function = discrete_function(params, config.dt_s)
-        self._predict_function = predict_function(params)
-        self._rollout_function = self._step_function.mapaccum(self._n)
+        self._step_function = steered.discrete_function(params, config.dt_s)
+        self._rollout_function = self._step_function.mapaccum(config.horizon)
         slip_limits = config.ltv_mpc.slip_limits
         self._linearisation = Linearisation(
-            self._step_function, self._n, slip_angle_function(params) if slip_limits else None)
+            self._step_function, config.horizon,
+            steered.slip_angle_function(params) if slip_limits else None)
         self._qp = LtvQp(config, STATE_NAMES, self._linearisation,
-                         linear_range_slip_rad(params, config.model.tire_friction)
+                         steered.linear_range_slip_rad(params, config.model.tire_friction)
                          if slip_limits else ())
-        self._latency_s = config.latency_s if config.latency_compensation else 0.0
-        self._issued = IssuedInputs(self._latency_s, np.zeros(len(INPUT_NAMES)))
-        self._clock = FailureClock(config.fallback_time_s)
-        self.timing = StepTiming(math.nan, math.nan, math.nan)
+        latency_s = config.latency_s if config.latency_compensation else 0.0
+        super().__init__(config, config.dt_s, config.horizon, self._qp.input_low,
+                         self._qp.input_high, STATE["vx_mps"], latency_s)
+        self._init_start(f"tracker {TRACKER_NAME}", STATE_NAMES, steered.VEHICLE_STATE_NAMES,
+                         INTERNAL_STATE_REST_INPUTS, steered.predict_function(params))
         self.reset()
 
-    # ------------------------------------------------------------------ public API
+    # ------------------------------------------------------------------ the step
 
-    def reset(self, previous_command: Command | None = None) -> None:
-        """Forget every previous solution and issued command.
+    def _solve(self, t_s: float, start: Start, reference: ReferencePath) -> Solved:
+        state0 = start.state
+        warm = self._warm_start(t_s, state0, self._step_function, STATE["yaw_rad"])
+        ref = self._reference(reference, state0, warm.states, t_s)
+        bar = (warm if self.config.ltv_mpc.linearize_about == "previous-plan"
+               else self._reference_trajectory(t_s, state0, warm, ref))
+        lin_start = time.perf_counter()
+        linearisation = self._linearisation(bar.states, bar.inputs)
+        linearise_s = time.perf_counter() - lin_start
+        result = self._qp.solve(QpProblem(
+            state_bar=bar.states, input_bar=bar.inputs, linearisation=linearisation,
+            state0=state0, input_prev=self._previous_input,
+            reference={name: ref[name] for name in REFERENCE_NAMES},
+        ))
+        return Solved(result.states, result.inputs, result.cost, result.status,
+                      result.iterations, result.success, result.solve_time_s,
+                      setup_s=linearise_s)
 
-        ``previous_command`` is the actuation already applied to the car (default: zero
-        acceleration and steering); the first step warm-starts from it held over the
-        horizon, takes its first input rate against it and starts the road-wheel angle at
-        rest at it.
-        """
-        previous = np.zeros(len(INPUT_NAMES))
-        if previous_command is not None:
-            previous[INPUT["accel_mps2"]] = previous_command.accel_mps2
-            previous[INPUT["steer_rad"]] = previous_command.steer_rad
-        self._previous_input = previous
-        self._previous_t_s: float | None = None
-        self._issued.reset(previous)
-        self._clock.reset()
-        self._warm: _Trajectory | None = None
-        self._last_good: _Trajectory | None = None
-        self._last_state: tuple[float, np.ndarray] | None = None
-
-    def step(
-        self, t_s: float, estimate: Estimate, reference: ReferencePath
-    ) -> tuple[Command, Plan]:
-        """One control step: the command to apply at ``t_s`` and the plan behind it."""
-        start = time.perf_counter()
-        state0 = self._initial_state(t_s, estimate)
-        if not np.all(np.isfinite(state0)):
-            return self._fallback(t_s, state0, "non_finite_estimate", 0, 0.0, start)
-        linearise_s = 0.0
-        try:
-            warm = self._warm_start(t_s, state0)
-            ref = self._reference(reference, state0, warm.states, t_s)
-            bar = (warm if self.config.ltv_mpc.linearize_about == "previous-plan"
-                   else self._reference_trajectory(t_s, state0, warm, ref))
-            lin_start = time.perf_counter()
-            linearisation = self._linearisation(bar.states, bar.inputs)
-            linearise_s = time.perf_counter() - lin_start
-            result = self._qp.solve(QpProblem(
-                state_bar=bar.states, input_bar=bar.inputs, linearisation=linearisation,
-                state0=state0, input_prev=self._previous_input,
-                reference={name: ref[name] for name in REFERENCE_NAMES},
-            ))
-        except Exception as error:  # a step never raises for a failed solve (module doc)
-            return self._fallback(t_s, state0, f"error: {type(error).__name__}: {error}", 0,
-                                  0.0, start, linearise_s)
-        if not (result.success and np.all(np.isfinite(result.states))
-                and np.all(np.isfinite(result.inputs))):
-            return self._fallback(t_s, state0, result.status, result.iterations,
-                                  result.solve_time_s, start, linearise_s)
-
-        trajectory = _Trajectory(t_s, result.states, self._clip_inputs(result.inputs))
-        self._last_good = trajectory
-        self._clock.reset()
-        plan = self._plan(trajectory, result, True, False, result.status)
-        command = self._commit(trajectory)
-        self.timing = StepTiming(linearise_s, result.solve_time_s, time.perf_counter() - start)
-        return command, plan
-
-    # ------------------------------------------------------------------ initial state
-
-    def _predict(self, state: np.ndarray, start_s: float, end_s: float) -> np.ndarray:
-        """``state`` at ``start_s`` moved to ``end_s`` through the inputs the car applies
-        (the delay line), one held input per piece."""
-        for duration_s, inputs in self._issued.segments(start_s, end_s):
-            state = np.asarray(self._predict_function(state, inputs, duration_s),
-                               dtype=float).ravel()
-        return state
-
-    def _internal_states(self, t_s: float) -> dict[str, float]:
-        """The internal states at ``t_s``: last step's propagated through the applied
-        commands (exact for the actuator they drive), else at rest at the applied input."""
-        applied = self._issued.applied_at(t_s)
-        rest = {name: float(applied[INPUT[input_name]])
-                for name, input_name in INTERNAL_STATE_REST_INPUTS.items()}
-        if self._last_state is None:
-            return rest
-        last_t_s, last_state = self._last_state
-        state = self._predict(np.where(np.isfinite(last_state), last_state, 0.0),
-                              last_t_s, t_s)
-        values = {name: float(state[STATE[name]]) for name in rest}
-        return values if all(math.isfinite(v) for v in values.values()) else rest
-
-    def _initial_state(self, t_s: float, estimate: Estimate) -> np.ndarray:
-        """The estimate's states and the internal ones at ``estimate.t_s``, predicted to
-        ``t_s`` plus the latency."""
-        missing = [name for name in VEHICLE_STATE_NAMES if name not in estimate]
-        if missing:
-            raise ConfigError(f"tracker {TRACKER_NAME}: the estimate has no "
-                              f"{', '.join(missing)}: expected an estimator that reports them")
-        state = np.full(self._n_x, np.nan)
-        for name in VEHICLE_STATE_NAMES:
-            state[STATE[name]] = estimate[name]
-        for name, value in self._internal_states(estimate.t_s).items():
-            state[STATE[name]] = value
-        self._last_state = (estimate.t_s, state.copy())
-        self._issued.forget_before(estimate.t_s)
-        if np.all(np.isfinite(state)):
-            state = self._predict(state, estimate.t_s, max(t_s, estimate.t_s) + self._latency_s)
-        return state
-
-    # ------------------------------------------------------------------ trajectories
-
-    def _rollout(self, state0: np.ndarray, inputs: np.ndarray) -> np.ndarray:
+    def _rollout(self, start: Start, inputs: np.ndarray) -> np.ndarray:
         """``state0`` and the model's states under ``inputs`` (N rows): N+1 rows."""
-        states = np.asarray(self._rollout_function(state0, inputs.T), dtype=float).T
-        return np.vstack((state0, states))
-
-    def _warm_start(self, t_s: float, state0: np.ndarray) -> _Trajectory:
-        """Previous solution shifted by the elapsed time, else the last input held."""
-        if self._warm is None:
-            inputs = np.tile(self._previous_input, (self._n, 1))
-            return _Trajectory(t_s, self._rollout(state0, inputs), inputs)
-        warm, dt_s = self._warm, self.config.dt_s
-        states = shifted_states(warm.states, warm.inputs, warm.t_s, t_s, dt_s,
-                                self._step_function, state0, STATE["yaw_rad"])
-        return _Trajectory(t_s, states, shifted_inputs(warm.inputs, warm.t_s, t_s, dt_s))
+        states = np.asarray(self._rollout_function(start.state, inputs.T), dtype=float).T
+        return np.vstack((start.state, states))
 
     def _reference(self, reference: ReferencePath, state0: np.ndarray,
                    warm_states: np.ndarray, t_s: float) -> dict[str, np.ndarray]:
@@ -328,8 +194,8 @@ class LtvMpc:
             "curvature_1pm": points.curvature_1pm,
         }
 
-    def _reference_trajectory(self, t_s: float, state0: np.ndarray, warm: _Trajectory,
-                              ref: dict[str, np.ndarray]) -> _Trajectory:
+    def _reference_trajectory(self, t_s: float, state0: np.ndarray, warm: Trajectory,
+                              ref: dict[str, np.ndarray]) -> Trajectory:
         """The reference trajectory ``(X_r, U_r)``: the reference points in the steady turn of
         the path's curvature at the warm start's speeds (module docstring, item 4)."""
         b = self._bicycle
@@ -337,7 +203,7 @@ class LtvMpc:
         curvature = ref["curvature_1pm"]
         yaw_rate = speed * curvature
         steer = curvature * (b.wheelbase_m + b.understeer_gradient_radpmps2 * speed**2)  # (S2)
-        states = np.empty((self._n + 1, self._n_x))
+        states = np.empty((self._n + 1, len(STATE_NAMES)))
         states[0] = state0
         nodes = {
             "x_m": ref["ref_x_m"], "y_m": ref["ref_y_m"], "yaw_rad": ref["ref_yaw_rad"],
@@ -354,11 +220,11 @@ class LtvMpc:
         inputs[:, INPUT["accel_mps2"]] = np.clip(
             np.diff(warm.states[:, STATE["vx_mps"]]) / self.config.dt_s,
             self.config.accel_min_mps2, self.config.accel_max_mps2)
-        return _Trajectory(t_s, states, inputs)
+        return Trajectory(t_s, t_s, states, inputs)
 
     # ------------------------------------------------------------------ outputs
 
-    def _clip_inputs(self, inputs: np.ndarray) -> np.ndarray:
+    def _clip_solution(self, inputs: np.ndarray) -> np.ndarray:
         """The QP's inputs exactly within the bounds and the steering-rate limit (the
         back-ends meet them only to their tolerance)."""
         clipped = np.clip(inputs, self._qp.input_low, self._qp.input_high)
@@ -371,76 +237,3 @@ class LtvMpc:
             clipped[k, steer] = min(max(clipped[k, steer], low), high)
             previous = clipped[k, steer]
         return clipped
-
-    def _commit(self, trajectory: _Trajectory) -> Command:
-        """Apply the trajectory's first input: record it and keep the rest as warm start."""
-        first = trajectory.inputs[0]
-        self._previous_input = first.copy()
-        self._previous_t_s = trajectory.t_s
-        self._issued.record(trajectory.t_s, first)
-        self._warm = trajectory
-        return first_command(trajectory.t_s, trajectory.inputs)
-
-    def _fallback(self, t_s: float, state0: np.ndarray, status: str, iterations: int,
-                  solve_time_s: float, start: float, linearise_s: float = 0.0,
-                  ) -> tuple[Command, Plan]:
-        """Replay the last good plan shifted; after ``fallback_time_s``, a safe stop."""
-        cfg = self.config
-        if self._clock.fail(t_s):
-            first_period_s = cfg.dt_s if self._previous_t_s is None else t_s - self._previous_t_s
-            inputs = safe_stop_inputs(
-                self._n, cfg.dt_s, first_period_s,
-                steer_rad=float(self._previous_input[INPUT["steer_rad"]]),
-                speed_mps=self._believed_speed(t_s, state0),
-                max_steer_rate_radps=cfg.max_steer_rate_radps,
-                accel_mps2=cfg.safe_stop_accel_mps2,
-            )
-            status = f"safe_stop ({status})"
-        elif self._last_good is not None:
-            inputs = shifted_inputs(self._last_good.inputs, self._last_good.t_s, t_s, cfg.dt_s)
-            status = f"fallback ({status})"
-        else:
-            inputs = np.tile(self._previous_input, (self._n, 1))
-            status = f"fallback ({status})"
-        inputs = np.clip(inputs, self._qp.input_low, self._qp.input_high)
-        if np.all(np.isfinite(state0)):
-            states = self._rollout(state0, inputs)
-        else:
-            states = np.full((self._n + 1, self._n_x), np.nan)
-        trajectory = _Trajectory(t_s, states, inputs)
-        report = QpResult(states, inputs, math.nan, solve_time_s, iterations, status, False)
-        plan = self._plan(trajectory, report, False, True, status)
-        command = self._commit(trajectory)
-        if not np.all(np.isfinite(states)):
-            self._warm = None  # never warm-start from a non-finite guess
-        self.timing = StepTiming(linearise_s, solve_time_s, time.perf_counter() - start)
-        return command, plan
-
-    def _believed_speed(self, t_s: float, state0: np.ndarray) -> float:
-        """The speed a safe stop brakes from: the initial state's; without one (a
-        non-finite estimate), the last good plan's at ``t_s`` (held past its end); with
-        neither, 0 (the car is believed at rest)."""
-        speed = float(state0[STATE["vx_mps"]])
-        if math.isfinite(speed) or self._last_good is None:
-            return speed if math.isfinite(speed) else 0.0
-        plan = self._last_good
-        node = min(max(0, int(round((t_s - plan.t_s) / self.config.dt_s))), self._n)
-        speed = float(plan.states[node, STATE["vx_mps"]])
-        return speed if math.isfinite(speed) else 0.0
-
-    def _plan(self, trajectory: _Trajectory, result: QpResult, success: bool, fallback: bool,
-              status: str) -> Plan:
-        return Plan(
-            t_s=trajectory.t_s,
-            dt_s=self.config.dt_s,
-            state_names=self.state_names,
-            states=trajectory.states.copy(),
-            input_names=self.input_names,
-            inputs=trajectory.inputs.copy(),
-            cost=result.cost if success else math.nan,
-            solve_time_s=result.solve_time_s,
-            iterations=result.iterations,
-            status=status,
-            success=success,
-            fallback=fallback,
-        )

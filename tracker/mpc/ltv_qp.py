@@ -82,6 +82,7 @@ from cosim.core.exceptions import ConfigError
 from tracker.config import TrackerConfig
 from tracker.mpc.fallback import INPUT, INPUT_NAMES
 from tracker.mpc.ltv_mpc_config import QP_SOLVERS
+from tracker.mpc.tracking_cost import input_terms, tracking_terms, weighted_squares
 from tracker.mpc.vector_layout import VectorLayout
 
 TRACKING_STATE_NAMES: tuple[str, ...] = ("x_m", "y_m", "yaw_rad", "vx_mps")
@@ -379,7 +380,7 @@ class LtvQp:
         w = cfg.weights
         n, n_x, n_u, n_h, dt = self._n, self._n_x, self._n_u, self._lin.n_limits, cfg.dt_s
         index = self._state
-        steer, accel = INPUT["steer_rad"], INPUT["accel_mps2"]
+        steer = INPUT["steer_rad"]
         p = ca.SX.sym("p", self._params.size)
         par = {name: p[s] for name, s in self._params.slices.items()}
         a_nnz, b_nnz = self._lin.a_sparsity.nnz(), self._lin.b_sparsity.nnz()
@@ -410,21 +411,13 @@ class LtvQp:
             previous_bar = par["input_prev"] if k == 0 else input_bar[:, k - 1]
             u_abs = input_bar[:, k] + u[k]
             u_prev_abs = previous_bar + u_prev_dev
-            accel_rate = (u_abs[accel] - u_prev_abs[accel]) / dt
-            steer_rate = (u_abs[steer] - u_prev_abs[steer]) / dt
-            cost += dt * (w.accel * u_abs[accel] ** 2 + w.steer * u_abs[steer] ** 2
-                          + w.accel_rate * accel_rate**2 + w.steer_rate * steer_rate**2)
+            cost += dt * weighted_squares(input_terms(u_abs, u_prev_abs, dt, w))
 
             # Tracking at node k + 1 against reference point k (nodes 1..N).
             x_abs = state_bar[:, k + 1] + z[k + 1][:n_x]
-            ref_yaw = par["ref_yaw_rad"][k]
-            dx = x_abs[index["x_m"]] - par["ref_x_m"][k]
-            dy = x_abs[index["y_m"]] - par["ref_y_m"][k]
-            cte = -ca.sin(ref_yaw) * dx + ca.cos(ref_yaw) * dy
-            heading_error = x_abs[index["yaw_rad"]] - ref_yaw
-            speed_error = x_abs[index["vx_mps"]] - par["ref_speed_mps"][k]
-            cost += dt * (w.cte * cte**2 + w.heading * heading_error**2
-                          + w.speed * speed_error**2)
+            cost += dt * weighted_squares(tracking_terms(
+                x_abs, index, par["ref_x_m"][k], par["ref_y_m"][k], par["ref_yaw_rad"][k],
+                par["ref_speed_mps"][k], w))
 
             # Soft limits at node k + 1, (L5): |h + H x~| <= h_max + s, s >= 0.
             h_jacobian = ca.SX(self._lin.limit_sparsity,

@@ -85,20 +85,12 @@ from tracker.config import TrackerConfig
 from tracker.mpc.fallback import INPUT, INPUT_NAMES
 from tracker.mpc.nlp import Nlp, RealTimeIteration, StagedProblem
 from tracker.mpc.nmpc_model import NmpcModel
+from tracker.mpc.tracking_cost import input_terms, tracking_terms, weighted_squares
 from tracker.mpc.vector_layout import VectorLayout
 
 _REFERENCE_BLOCKS: tuple[str, ...] = (
     "ref_x_m", "ref_y_m", "ref_yaw_rad", "ref_speed_mps", "ref_steer_rad")
 """The parameters of one reference point, in the order a stage takes them."""
-
-
-def _weighted_squares(terms: list[tuple[float, ca.SX]]) -> ca.SX:
-    """``w_0 e_0^2 + w_1 e_1^2 + ...`` for ``(w, e)`` pairs, summed left to right."""
-    total = None
-    for weight, error in terms:
-        term = weight * error**2
-        total = term if total is None else total + term
-    return total
 
 
 class NmpcProblem:
@@ -157,23 +149,9 @@ class NmpcProblem:
         iteration uses the errors.
         """
         w = self.config.weights
-        dt = self.config.dt_s
-        index = self._state
-        accel_rate = (u[INPUT["accel_mps2"]] - previous[INPUT["accel_mps2"]]) / dt
-        steer_rate_radps = (u[INPUT["steer_rad"]] - previous[INPUT["steer_rad"]]) / dt
-        input_terms = [
-            (w.accel, u[INPUT["accel_mps2"]]),
-            (w.steer, u[INPUT["steer_rad"]] - par["ref_steer_rad"][k]),
-            (w.accel_rate, accel_rate),
-            (w.steer_rate, steer_rate_radps),
-        ]
-        ref_yaw = par["ref_yaw_rad"][k]
-        dx = x[index["x_m"]] - par["ref_x_m"][k]
-        dy = x[index["y_m"]] - par["ref_y_m"][k]
-        cte = -ca.sin(ref_yaw) * dx + ca.cos(ref_yaw) * dy
-        heading_error = x[index["yaw_rad"]] - ref_yaw
-        speed_error = x[index["vx_mps"]] - par["ref_speed_mps"][k]
-        tracking_terms = [(w.cte, cte), (w.heading, heading_error), (w.speed, speed_error)]
+        inputs = input_terms(u, previous, self.config.dt_s, w, par["ref_steer_rad"][k])
+        tracking = tracking_terms(x, self._state, par["ref_x_m"][k], par["ref_y_m"][k],
+                                  par["ref_yaw_rad"][k], par["ref_speed_mps"][k], w)
         excess = []
         if self.model.limits is not None:
             h = self.model.limits(x)
@@ -184,7 +162,7 @@ class NmpcProblem:
             excess.append((w.tyre_excess,
                            ca.fmax(ca.fabs(g) - ca.DM(list(self.model.stage_limit_bounds)),
                                    0.0)))
-        return input_terms, tracking_terms, excess
+        return inputs, tracking, excess
 
     def input_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Bounds of one stage's inputs (steering, acceleration)."""
@@ -230,9 +208,9 @@ class NmpcProblem:
             steer_rate.append(u[INPUT["steer_rad"]] - previous[INPUT["steer_rad"]])
             input_terms, tracking_terms, excess = self.stage_terms(
                 u, previous, states[:, k + 1], par, k, states[:, k])
-            cost += dt * _weighted_squares(input_terms)
+            cost += dt * weighted_squares(input_terms)
             # Tracking terms at node k + 1 against reference point k (nodes 1..N).
-            cost += dt * _weighted_squares(tracking_terms)
+            cost += dt * weighted_squares(tracking_terms)
             for weight, vector in excess:
                 cost += dt * weight * ca.sumsqr(vector)
             previous = u
@@ -299,7 +277,7 @@ class NmpcProblem:
         point = {name: ref[i:i + 1] for i, name in enumerate(_REFERENCE_BLOCKS)}
         input_terms, tracking_terms, excess = self.stage_terms(
             u, z[n_x:], z_next[:n_x], point, 0, z[:n_x])
-        cost = dt * _weighted_squares(input_terms) + dt * _weighted_squares(tracking_terms)
+        cost = dt * weighted_squares(input_terms) + dt * weighted_squares(tracking_terms)
         residuals = [math.sqrt(dt * weight) * error
                      for weight, error in input_terms + tracking_terms]
         for weight, vector in excess:
