@@ -35,11 +35,11 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=20000)
     parser.add_argument("--repeats", type=int, default=5)
     args = parser.parse_args()
-    tire_models = ["default"]
-    if any(f.name == "tire_model" for f in dataclasses.fields(PlantConfig)):
-        tire_models = ["pacejka", "contact"]
-    for tire_model in tire_models:
-        config = PlantConfig() if tire_model == "default" else PlantConfig(tire_model=tire_model)
+    tyre_models = ["default"]
+    if any(f.name == "tyre_model" for f in dataclasses.fields(PlantConfig)):
+        tyre_models = ["pacejka", "contact"]
+    for tyre_model in tyre_models:
+        config = PlantConfig() if tyre_model == "default" else PlantConfig(tyre_model=tyre_model)
         rows: dict[str, list[float]] = {"mj_step": [], "advance": [], "advance+state": []}
         for _ in range(args.repeats):
             plant = MujocoPlant(config, 0.002, InitialState(speed_mps=20.0))
@@ -58,7 +58,7 @@ def main() -> None:
             plant.apply(ActuatorCommand(0.0, 300.0, 0.0, 0.02))
             rows["advance+state"].append(_rate(advance_and_state, args.steps))
         floor = statistics.median(rows["mj_step"])
-        print(f"tire_model={tire_model}: median of {args.repeats} x {args.steps} steps")
+        print(f"tyre_model={tyre_model}: median of {args.repeats} x {args.steps} steps")
         for name, rates in rows.items():
             median = statistics.median(rates)
             print(f"  {name:<14} {median:10.0f} steps/s  {1e6 / median:7.1f} us/step  "

@@ -66,7 +66,7 @@ error in lateral acceleration is 0.13 m/s^2 RMS, with them 0.05 m/s^2.
 
 ``C_f``, ``C_r`` are the axle cornering stiffnesses of the *belief* (``VehicleParams``). The
 ``saturating`` tyre law (D3'), the default, is (D3) with a smooth limit at the friction force
-``mu F_z`` of the static axle load (``mu``: the belief's ``tire_friction``); it has the same
+``mu F_z`` of the static axle load (``mu``: the belief's ``tyre_friction``); it has the same
 cornering stiffness and differs from (D3) only where the tyres saturate: on the Pacejka
 sedan in a 0.8 g lane change the linear law's lateral acceleration is off by 1.7 m/s^2 RMS
 where ``|a_y| > 4 m/s^2``, (D3') by 0.24 m/s^2.
@@ -362,7 +362,7 @@ class BicycleParams:
             cornering_stiffness_rear_npr=float(getattr(
                 belief, "cornering_stiffness_rear_npr", DEFAULT_CORNERING_STIFFNESS_REAR_NPR
             )),
-            tyre_friction=belief.tire_friction,
+            tyre_friction=belief.tyre_friction,
             tyre_model=tyre_model,
             roll=RollParams() if roll is None else roll,
         )

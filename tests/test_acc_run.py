@@ -190,7 +190,7 @@ def test_the_earlier_esc_tuning_fails_the_settling_judgement(tmp_path: Path) -> 
     """The same judgement on the tuning it replaced, over 120 s (half the scenario's former
     240 s; its gains drift by about 60 % there, against a 2 % tolerance): the start-up check
     names the rule it breaks, and the gains are still moving at the end."""
-    from tracker.acc.esc import EscTuningWarning
+    from tracker.cruise.esc import EscTuningWarning
 
     with pytest.warns(EscTuningWarning, match="rule 'perturbation slower than the plant': "
                                               "k_x omega = 0.13 rad/s"):

@@ -42,7 +42,7 @@ def test_the_docs_example_runs_as_written(tmp_path: Path) -> None:
     assert log.is_file()
     assert "refused: tracker.horizon = 1" in done.stdout
     rows = (tmp_path / "logs" / "friction-sweep" / "results.jsonl").read_text().splitlines()
-    frictions = sorted(json.loads(row)["params"]["plant.tire_friction"] for row in rows)
+    frictions = sorted(json.loads(row)["params"]["plant.tyre_friction"] for row in rows)
     assert frictions == [0.7, 1.0]
     # What the example printed is what the log holds.
     assert main(["inspect", str(log), "--json"]) == 0

@@ -68,7 +68,7 @@ def files(tmp_path: Path) -> Files:
         "spec-dup.yaml": "scenario: lane-change\nseeds: 1\nseeds: 2\n",
         "spec-huge.yaml": "scenario: lane-change\nseeds: 10\ngrid:\n"
                           f"  plant.mass_kg: {list(range(1000, 2000, 10))}\n"
-                          f"  plant.tire_friction: {[0.5 + i / 100 for i in range(50)]}\n",
+                          f"  plant.tyre_friction: {[0.5 + i / 100 for i in range(50)]}\n",
         "spec-latin1-scenario.yaml": "scenario: latin1.yaml\nseeds: 1\n",
         "spec-good.yaml": "scenario: lane-change\nseeds: 1\nduration_s: 0.1\n",
         "notes.txt": "not an MCAP file, just text\n",

@@ -55,7 +55,7 @@ def test_the_mpc_as_policy_matches_cosim_run(tmp_path: Path) -> None:
     config = cosim.load_config("lane-change", seed=seed)
     reference_run = cosim.run(config, out=tmp_path / "run.mcap")
     env = CosimEnv("lane-change")
-    mpc = make_tracker(config.tracker, config.maneuver)
+    mpc = make_tracker(config.tracker, config.manoeuvre)
     env.reset(seed=seed)
     done, info = False, {}
     while not done:

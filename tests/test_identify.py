@@ -341,7 +341,7 @@ def test_identify_json_prints_the_documented_keys(tmp_path: Path) -> None:
     ("args", "fragment"),
     [
         (("identify", "--set", "plant.tyre_grip=0.5"), "unknown key 'plant.tyre_grip'"),
-        (("identify", "--set", "plant.tire_friction=-1"), "plant.tire_friction = -1"),
+        (("identify", "--set", "plant.tyre_friction=-1"), "plant.tyre_friction = -1"),
         (("identify", "--set", "nonsense"), "expected key.path=value"),
         (("identify", "--config", "missing.yaml"), "'missing.yaml': cannot read"),
     ],

@@ -16,8 +16,8 @@ SAFE = re.compile(r"[A-Za-z0-9.+-]*")
 def test_the_tag_names_what_was_overridden() -> None:
     assert override_tag() == ""
     assert override_tag(["plant.mass_kg=2000"]) == "mass2000"
-    assert override_tag(["plant.tire_friction=0.3"], tracker="ltv-mpc", seed=3) == (
-        "ltv-mpc-tire-friction0.3-seed3")
+    assert override_tag(["plant.tyre_friction=0.3"], tracker="ltv-mpc", seed=3) == (
+        "ltv-mpc-tyre-friction0.3-seed3")
     assert override_tag(["tracker.name=dynamic-mpc"]) == "dynamic-mpc"
     assert default_log_name("lane-change", "mass2000", "20261201-170301") == (
         "lane-change-mass2000-20261201-170301.mcap")

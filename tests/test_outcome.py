@@ -64,7 +64,7 @@ def _events(log: Path) -> list[dict]:
 def test_a_spin_on_ice_exits_3_with_its_event(tmp_path: Path) -> None:
     out = tmp_path / "ice.mcap"
     result = subprocess.run([COSIM, "run", "lane-change", "--duration", "6", "--set",
-                             "plant.tire_friction=0.3", "--out", str(out)],
+                             "plant.tyre_friction=0.3", "--out", str(out)],
                             capture_output=True, text=True, timeout=900, check=False)
     assert result.returncode == EXIT_BAD_OUTCOME, result.stderr
     assert "outcome spun" in result.stderr and "Traceback" not in result.stderr
@@ -80,7 +80,7 @@ def test_a_high_car_in_a_sharp_step_steer_rolls_over(tmp_path: Path,
                                                      ) -> None:
     out = tmp_path / "roll.mcap"
     code = main(["run", "step-steer", "--duration", "3", "--set", "plant.cog_height_m=1.6",
-                 "--set", "maneuver.steer_rad=0.25", "--set", "plant.tire_friction=1.5",
+                 "--set", "manoeuvre.steer_rad=0.25", "--set", "plant.tyre_friction=1.5",
                  "--out", str(out)])
     captured = capsys.readouterr()
     assert code == EXIT_BAD_OUTCOME

@@ -101,7 +101,7 @@ def test_a_spin_is_plotted_as_a_spin(tmp_path: Path) -> None:
     covers the whole CTE (not a band of centimetres), on both sides."""
     from cosim.plots.top_view import DEVIATION_TITLE, top_view
 
-    config = load_config("lane-change", overrides=["plant.tire_friction=0.3"], duration_s=10.0)
+    config = load_config("lane-change", overrides=["plant.tyre_friction=0.3"], duration_s=10.0)
     result = run(config, tmp_path / "spin.mcap")
     data = load_run(result.log_path)
     assert data.tracking is not None

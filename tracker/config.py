@@ -20,7 +20,7 @@ off). Each weight multiplies the square of an SI quantity per second of horizon,
 Default tuning, shared by both NMPCs and made for the default tracker ``dynamic-nmpc``
 (measured on the MuJoCo sedan with Pacejka tyres and the EKF in the loop, stretched double
 lane change at 20 m/s from 15 m/s, about 0.5 g; max CTE for seeds 0/1/2, ``plant.mass_kg=
-2000``, ``plant.tire_friction=0.7``; details in :mod:`tracker.mpc.dynamic_nmpc`):
+2000``, ``plant.tyre_friction=0.7``; details in :mod:`tracker.mpc.dynamic_nmpc`):
 
 * ``steer_rate = 3`` against ``cte = 10``. The dynamic model carries the yaw and sideslip
   dynamics and the steering actuator, so the loop can be much faster than the kinematic
@@ -77,8 +77,8 @@ from cosim.core.config_fields import mapping, section, setting
 from cosim.core.exceptions import ConfigError
 from cosim.core.plugins import entry_point_names, is_import_path
 from cosim.core.vehicle_params import MAX_STEER_BOUND_RAD, VehicleParams
-from tracker.acc.config import AccConfig
 from tracker.baselines.config import BaselineConfig
+from tracker.cruise.config import AccConfig
 from tracker.mpc.dynamic_mpc_config import DynamicMpcConfig
 from tracker.mpc.grip_config import GripConfig
 from tracker.mpc.horizon_reference import REFERENCE_KINDS
@@ -89,6 +89,19 @@ TRACKER_CHOICES: tuple[str, ...] = (
     "pid", "stanley", "pure-pursuit", "lqr",
 )
 """Values ``tracker.name`` accepts; :data:`tracker.registry.TRACKER_NAMES` maps each one."""
+
+
+STEER_BOUND_RAD = math.pi / 8.0
+"""The steering bound of every tracker unless ``tracker.max_steer_rad`` says otherwise."""
+
+REFERENCE_DESIGN_STEER_BOUND_RAD = math.radians(15.0)
+"""``dynamic-mpc``'s default steering bound, its reference design's (Wang 2009; module
+docstring of :mod:`tracker.mpc.dynamic_mpc`)."""
+
+
+def default_steer_bound_rad(name: str) -> float:
+    """The steering bound of the tracker ``name`` when ``tracker.max_steer_rad`` is unset."""
+    return REFERENCE_DESIGN_STEER_BOUND_RAD if name == "dynamic-mpc" else STEER_BOUND_RAD
 
 
 PLUGIN_GROUP = "cosim.trackers"
@@ -154,9 +167,11 @@ class TrackerConfig:
     horizon: int = setting(25, low=2, high=200, doc="number of stages N")
     dt_s: float = setting(0.05, low=0.005, high=1.0, doc="length of one stage [s]")
     weights: TrackerWeights = section(TrackerWeights)
-    max_steer_rad: float = setting(
-        math.pi / 8.0, low=0.01, high=MAX_STEER_BOUND_RAD,
-        doc="steering bound, |delta|; at most model.max_steer_rad",
+    max_steer_rad: float | None = setting(
+        None, low=0.01, high=MAX_STEER_BOUND_RAD,
+        doc="the steering bound |delta| the tracker commands within, at most "
+        "model.max_steer_rad; unset: pi/8 (22.5 deg), 15 deg for dynamic-mpc (its reference "
+        "design) [rad]",
     )
     max_steer_rate_radps: float = setting(
         0.8, low=0.01, high=100.0, doc="steering rate bound, |d delta / dt|"
@@ -240,10 +255,12 @@ class TrackerConfig:
     baseline: BaselineConfig = section(BaselineConfig)
     grip: GripConfig = section(GripConfig)
     acc: AccConfig = section(AccConfig)
-    """Adaptive cruise control (:mod:`tracker.acc.law`): when enabled it sets the acceleration
+    """Adaptive cruise control (:mod:`tracker.cruise.law`): when enabled it sets the acceleration
     from the range sensor and this tracker only steers."""
 
     def __post_init__(self) -> None:
+        if self.max_steer_rad is None:  # the tracker's own default (one key, one concept)
+            object.__setattr__(self, "max_steer_rad", default_steer_bound_rad(self.name))
         if self.name not in TRACKER_CHOICES and not is_plugin_name(self.name):
             raise ConfigError(
                 f"name = {self.name!r}: expected one of {', '.join(TRACKER_CHOICES)}, an "

@@ -1,7 +1,7 @@
 """The ``open-loop`` tracker: a steering profile in time and a proportional speed hold.
 
 It ignores the reference path: it exists to drive the plant through the open-loop handling
-manoeuvres of :mod:`tracker.maneuver` (and so through the same runner, sensors, estimator
+manoeuvres of :mod:`tracker.manoeuvre` (and so through the same runner, sensors, estimator
 and log as any closed-loop run).
 """
 
@@ -13,7 +13,7 @@ import numpy as np
 
 from cosim.core.records import Command, Estimate, Plan
 from tracker.config import TrackerConfig
-from tracker.maneuver import ManeuverConfig
+from tracker.manoeuvre import ManoeuvreConfig
 from tracker.paths.reference_path import ReferencePath
 
 STATE_NAMES = ("vx_mps",)
@@ -21,11 +21,11 @@ INPUT_NAMES = ("accel_mps2", "steer_rad")
 
 
 class OpenLoopTracker:
-    """Steer ``maneuver.steer_at(t)``; accelerate ``k (v_set - v_est)`` within the bounds."""
+    """Steer ``manoeuvre.steer_at(t)``; accelerate ``k (v_set - v_est)`` within the bounds."""
 
-    def __init__(self, config: TrackerConfig, maneuver: ManeuverConfig) -> None:
+    def __init__(self, config: TrackerConfig, manoeuvre: ManoeuvreConfig) -> None:
         self._config = config
-        self._maneuver = maneuver
+        self._manoeuvre = manoeuvre
 
     def reset(self) -> None:
         """Stateless: nothing to reset."""
@@ -34,11 +34,11 @@ class OpenLoopTracker:
              reference: ReferencePath) -> tuple[Command, Plan]:
         del reference  # open loop: the path is not followed
         start = time.perf_counter()
-        maneuver, config = self._maneuver, self._config
-        speed_error_mps = maneuver.speed_mps - estimate["vx_mps"]
-        accel = float(np.clip(maneuver.speed_gain_1ps * speed_error_mps,
+        manoeuvre, config = self._manoeuvre, self._config
+        speed_error_mps = manoeuvre.speed_mps - estimate["vx_mps"]
+        accel = float(np.clip(manoeuvre.speed_gain_1ps * speed_error_mps,
                               config.accel_min_mps2, config.accel_max_mps2))
-        steer = float(np.clip(maneuver.steer_at(t_s), -config.max_steer_rad,
+        steer = float(np.clip(manoeuvre.steer_at(t_s), -config.max_steer_rad,
                               config.max_steer_rad))
         command = Command(t_s, accel, steer)
         plan = Plan(

@@ -12,13 +12,13 @@ from collections.abc import Callable
 from types import MappingProxyType
 
 from cosim.core.exceptions import ConfigError
-from tracker.acc.law import AccTracker
 from tracker.baselines.lqr import make_lqr
 from tracker.baselines.pid import make_pid
 from tracker.baselines.pure_pursuit import make_pure_pursuit
 from tracker.baselines.stanley import make_stanley
 from tracker.config import TrackerConfig, is_plugin_name
-from tracker.maneuver import ManeuverConfig
+from tracker.cruise.law import AccTracker
+from tracker.manoeuvre import ManoeuvreConfig
 from tracker.mpc.dynamic_mpc import DynamicMpc
 from tracker.mpc.dynamic_nmpc import DynamicNmpc
 from tracker.mpc.kinematic_nmpc import KinematicNmpc
@@ -28,18 +28,18 @@ from tracker.plugin import make_plugin_tracker
 from tracker.protocol import Tracker
 
 _CONSTRUCTORS: MappingProxyType[
-    str, Callable[[TrackerConfig, ManeuverConfig], Tracker]
+    str, Callable[[TrackerConfig, ManoeuvreConfig], Tracker]
 ] = MappingProxyType(
     {
-        "kinematic-nmpc": lambda config, maneuver: KinematicNmpc(config),
-        "dynamic-nmpc": lambda config, maneuver: DynamicNmpc(config),
-        "dynamic-mpc": lambda config, maneuver: DynamicMpc(config),
-        "ltv-mpc": lambda config, maneuver: LtvMpc(config),
+        "kinematic-nmpc": lambda config, manoeuvre: KinematicNmpc(config),
+        "dynamic-nmpc": lambda config, manoeuvre: DynamicNmpc(config),
+        "dynamic-mpc": lambda config, manoeuvre: DynamicMpc(config),
+        "ltv-mpc": lambda config, manoeuvre: LtvMpc(config),
         "open-loop": OpenLoopTracker,
-        "pid": lambda config, maneuver: make_pid(config),
-        "stanley": lambda config, maneuver: make_stanley(config),
-        "pure-pursuit": lambda config, maneuver: make_pure_pursuit(config),
-        "lqr": lambda config, maneuver: make_lqr(config),
+        "pid": lambda config, manoeuvre: make_pid(config),
+        "stanley": lambda config, manoeuvre: make_stanley(config),
+        "pure-pursuit": lambda config, manoeuvre: make_pure_pursuit(config),
+        "lqr": lambda config, manoeuvre: make_lqr(config),
     }
 )
 
@@ -47,18 +47,18 @@ TRACKER_NAMES: tuple[str, ...] = tuple(_CONSTRUCTORS)
 """Every tracker name :func:`make_tracker` knows (the choices of ``tracker.name``)."""
 
 
-def make_tracker(config: TrackerConfig, maneuver: ManeuverConfig | None = None) -> Tracker:
-    """Build the tracker ``config.name``; ``maneuver`` drives the ``open-loop`` tracker.
+def make_tracker(config: TrackerConfig, manoeuvre: ManoeuvreConfig | None = None) -> Tracker:
+    """Build the tracker ``config.name``; ``manoeuvre`` drives the ``open-loop`` tracker.
 
-    With ``tracker.acc.enabled`` it steers and the ACC (:class:`tracker.acc.law.AccTracker`,
+    With ``tracker.acc.enabled`` it steers and the ACC (:class:`tracker.cruise.law.AccTracker`,
     updated every ``tracker.dt_s``) sets the acceleration."""
-    tracker = _make_path_tracker(config, maneuver)
+    tracker = _make_path_tracker(config, manoeuvre)
     if config.acc.enabled:
         return AccTracker(tracker, config.acc, config.dt_s)
     return tracker
 
 
-def _make_path_tracker(config: TrackerConfig, maneuver: ManeuverConfig | None) -> Tracker:
+def _make_path_tracker(config: TrackerConfig, manoeuvre: ManoeuvreConfig | None) -> Tracker:
     constructor = _CONSTRUCTORS.get(config.name)
     if constructor is None and is_plugin_name(config.name):
         return make_plugin_tracker(config)
@@ -66,4 +66,4 @@ def _make_path_tracker(config: TrackerConfig, maneuver: ManeuverConfig | None) -
         raise ConfigError(
             f"tracker.name = {config.name!r}: expected one of {', '.join(TRACKER_NAMES)}"
         )
-    return constructor(config, maneuver if maneuver is not None else ManeuverConfig())
+    return constructor(config, manoeuvre if manoeuvre is not None else ManoeuvreConfig())

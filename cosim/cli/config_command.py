@@ -56,6 +56,8 @@ def resolved_yaml(config: Any) -> str:
 
 
 def _format_default(value: Any) -> str:
+    if value is None:
+        return "unset"
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, str):
@@ -67,9 +69,11 @@ def keys_table(prefix: str = "") -> list[tuple[str, str, str, str, str]]:
     """``(key, unit, default, accepted values, doc)`` rows of every key starting with
     ``prefix``; an unknown prefix is a :class:`ConfigError` naming the sections."""
     from cosim.core.config_fields import key_infos
+    from cosim.core.key_aliases import canonical_key
     from cosim.simulation.scenario_config import ScenarioConfig
 
     infos = key_infos(ScenarioConfig)
+    prefix = canonical_key(prefix, "config keys") if prefix else prefix
     rows = [(i.key, i.unit, _format_default(i.default), i.expected, i.doc)
             for i in infos if i.key.startswith(prefix)]
     if not rows:

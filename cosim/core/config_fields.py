@@ -12,6 +12,7 @@ import copy
 import dataclasses
 import datetime
 import math
+import types
 import typing
 from typing import Any, TypeVar
 
@@ -61,8 +62,22 @@ def _expected(meta: dict[str, Any], kind: str) -> str:
     return kind
 
 
+def _optional(hint: Any) -> tuple[Any, bool]:
+    """``(T, True)`` for a field typed ``T | None`` (unset: its owner chooses), else
+    ``(hint, False)``."""
+    if typing.get_origin(hint) in (typing.Union, types.UnionType):
+        args = [a for a in typing.get_args(hint) if a is not type(None)]
+        if len(args) == 1 and len(typing.get_args(hint)) == 2:
+            return args[0], True
+    return hint, False
+
+
 def _convert(value: Any, hint: Any, meta: dict[str, Any], key: str) -> Any:
-    """Convert one leaf value to the field's type and check its range."""
+    """Convert one leaf value to the field's type and check its range (``None`` for a
+    ``T | None`` field leaves it unset)."""
+    hint, optional = _optional(hint)
+    if optional and value is None:
+        return None
     original = value
     if hint is bool:
         if not isinstance(value, bool):
@@ -253,9 +268,11 @@ def key_infos(cls: type, prefix: str = "") -> list[KeyInfo]:
             rows.append(KeyInfo(f"{key}.*", "mapping", "-", {}, "keys of its owner's schema",
                                 str(f.metadata.get("doc") or "")))
             continue
+        hint, optional = _optional(hint)
         kind = {bool: "true/false", int: "an integer", float: "a number", str: "a string"}[hint]
         meta = dict(f.metadata)
         doc = str(meta.get("doc") or "")
+        expected = _expected(meta, kind) + (" or null (unset)" if optional else "")
         rows.append(KeyInfo(key, hint.__name__, unit_of(f.name, doc), f.default,
-                            _expected(meta, kind), doc))
+                            expected, doc))
     return rows

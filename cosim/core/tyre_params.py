@@ -1,6 +1,6 @@
 """The tyre's parameters: a record of the plant's configuration (``plant.tyre``).
 
-The force code that uses them is :mod:`cosim.plant.tire_model`; the record lives here, below
+The force code that uses them is :mod:`cosim.plant.tyre_model`; the record lives here, below
 the plant, because :class:`cosim.core.vehicle_params.PlantConfig` embeds it and the controllers
 read ``vehicle_params`` without importing the plant.
 """
@@ -47,15 +47,15 @@ class TyreParams:
         1.0,
         low=0.1,
         high=3.0,
-        doc="lambda_mux: the longitudinal peak friction over plant.tire_friction, mu_x = "
-        "lambda_mux tire_friction (Pacejka 2012, 4.E13); 1: isotropic",
+        doc="lambda_mux: the longitudinal peak friction over plant.tyre_friction, mu_x = "
+        "lambda_mux tyre_friction (Pacejka 2012, 4.E13); 1: isotropic",
     )
     lateral_friction_scale: float = setting(
         1.0,
         low=0.1,
         high=3.0,
-        doc="lambda_muy: the lateral peak friction over plant.tire_friction, mu_y = "
-        "lambda_muy tire_friction (4.E23); 1: isotropic",
+        doc="lambda_muy: the lateral peak friction over plant.tyre_friction, mu_y = "
+        "lambda_muy tyre_friction (4.E23); 1: isotropic",
     )
     # Lateral, pure slip.
     lateral_shape: float = setting(1.193, low=1.01, high=1.99, doc="C_y = p_Cy1")

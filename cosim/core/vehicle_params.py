@@ -63,7 +63,7 @@ class VehicleParams:
     wheel_radius_m: float = setting(0.31, low=0.1, high=1.0, doc="rolling radius")
     wheel_mass_kg: float = setting(20.0, low=1.0, high=200.0, doc="each wheel, part of mass_kg")
     wheel_inertia_kgm2: float = setting(1.0, low=0.05, high=20.0, doc="each wheel about its axle")
-    tire_friction: float = setting(
+    tyre_friction: float = setting(
         1.0, low=0.05, high=2.0,
         doc="tyre-road peak friction coefficient, both directions; the plant's Magic Formula "
         "tyres scale it per direction by plant.tyre.longitudinal_friction_scale and "
@@ -147,10 +147,10 @@ class PlantConfig(VehicleParams):
     """The simulated car: its true parameters and how it is simulated."""
 
     actuator_delay_s: float = setting(0.0, low=0.0, high=2.0, doc="command transport delay")
-    tire_model: str = setting(
+    tyre_model: str = setting(
         "pacejka",
         choices=("pacejka", "contact"),
-        doc="pacejka: Magic Formula tyres (cosim.plant.tire_model) on frictionless wheel contacts; "
+        doc="pacejka: Magic Formula tyres (cosim.plant.tyre_model) on frictionless wheel contacts; "
         "contact: MuJoCo's contact friction as the tyres (no cornering stiffness)",
     )
     tyre: TyreParams = section(TyreParams)

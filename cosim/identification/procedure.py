@@ -115,7 +115,7 @@ def identify(plant: PlantConfig, belief: VehicleParams, physics_dt_s: float,
     wheelbase = fit_wheelbase(circles, plant.cog_rear_m / plant.wheelbase_m)
 
     accel_target = GRAVITY_MPS2 * min(settings.lateral_accel_g,
-                                      settings.linear_friction_share * plant.tire_friction)
+                                      settings.linear_friction_share * plant.tyre_friction)
     turns: list[SteadyTurn] = []
     steps = []
     gradients: list[float] = []
@@ -142,7 +142,7 @@ def identify(plant: PlantConfig, belief: VehicleParams, physics_dt_s: float,
          for step in settings.steering_steps_rad],
         fit_rate_limit=True,
     )
-    accel_limit = settings.longitudinal_friction_share * plant.tire_friction * GRAVITY_MPS2
+    accel_limit = settings.longitudinal_friction_share * plant.tyre_friction * GRAVITY_MPS2
     demands = tuple(math.copysign(min(abs(a), accel_limit), a)
                     for a in settings.accel_steps_mps2)
     longitudinal = fit_first_order_lag(

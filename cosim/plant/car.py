@@ -22,20 +22,20 @@ runs the actuator models in plain Python and then exactly one MuJoCo step:
 - aerodynamic drag ``1/2 rho C_d A v^2`` and rolling resistance ``C_rr m g`` (faded in by
   ``tanh(v / 0.1 m/s)``) act on the chassis against its horizontal velocity
   (``xfrc_applied``);
-- tyres, by ``PlantConfig.tire_model``:
+- tyres, by ``PlantConfig.tyre_model``:
 
   - ``pacejka`` (default): the wheel-ground contacts are frictionless (``condim`` 1) and
     carry only the normal force; MuJoCo does the multibody dynamics, suspension, normal
     loads and collisions. The step is split (``mj_step1``, tyre forces, ``mj_step2``,
     exactly ``mj_step`` for the implicitfast integrator): from each wheel's contact
     point, its slip velocity in the wheel's heading frame and the contact's normal force
-    of the previous step, :func:`cosim.plant.tire_model.patch_step` (Magic Formula with a
+    of the previous step, :func:`cosim.plant.tyre_model.patch_step` (Magic Formula with a
     relaxing contact patch) gives the longitudinal and lateral tyre force, applied to
     the wheel body at the contact point (``xfrc_applied``: the force and its moment
-    about the wheel centre; :mod:`cosim.plant.tyre_forces`). ``tire_friction`` is the
+    about the wheel centre; :mod:`cosim.plant.tyre_forces`). ``tyre_friction`` is the
     tyres' peak friction;
   - ``contact``: MuJoCo's contact friction is the tyre (``condim`` 3, elliptic cone,
-    friction ``tire_friction``): nearly rigid until it slides, so the car steers
+    friction ``tyre_friction``): nearly rigid until it slides, so the car steers
     kinematically (no cornering stiffness); kept for comparison.
 
 With ``traffic`` (:class:`cosim.plant.traffic.Traffic`), the traffic cars' mocap bodies are set
@@ -111,7 +111,7 @@ class MujocoPlant:
         self._configure_actuators()
         self._tyres: MagicFormulaTyres | None = (
             MagicFormulaTyres(config, self._model, self.physics_dt_s, one_call_tyres)
-            if config.tire_model == "pacejka"
+            if config.tyre_model == "pacejka"
             else None
         )
         if self._tyres is not None:
@@ -431,7 +431,7 @@ class MujocoPlant:
 
     def tyre_forces(self) -> tuple[TyreForces, ...] | None:
         """Each tyre's load, slip and forces of the last step, ``WHEEL_NAMES`` order;
-        ``None`` with ``tire_model = contact`` (MuJoCo's contacts are the tyres)."""
+        ``None`` with ``tyre_model = contact`` (MuJoCo's contacts are the tyres)."""
         return None if self._tyres is None else self._tyres.forces()
 
     @property

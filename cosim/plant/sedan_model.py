@@ -92,18 +92,18 @@ def driven_wheels(drive: str) -> tuple[str, ...]:
     raise ConfigError(f"drive = {drive!r}: expected one of 'rwd', 'fwd', 'awd'")
 
 
-def tyre_contact_dimension(tire_model: str) -> int:
-    """``condim`` of the tyre-ground contacts for ``PlantConfig.tire_model``.
+def tyre_contact_dimension(tyre_model: str) -> int:
+    """``condim`` of the tyre-ground contacts for ``PlantConfig.tyre_model``.
 
     ``pacejka``: 1, the contacts carry only the normal force (frictionless) and
-    :mod:`cosim.plant.tire_model` supplies the tyre forces; ``contact``: 3, MuJoCo's friction
+    :mod:`cosim.plant.tyre_model` supplies the tyre forces; ``contact``: 3, MuJoCo's friction
     (elliptic cone) is the tyre.
     """
-    if tire_model == "pacejka":
+    if tyre_model == "pacejka":
         return 1
-    if tire_model == "contact":
+    if tyre_model == "contact":
         return 3
-    raise ConfigError(f"tire_model = {tire_model!r}: expected one of 'pacejka', 'contact'")
+    raise ConfigError(f"tyre_model = {tyre_model!r}: expected one of 'pacejka', 'contact'")
 
 
 def ackermann_angles(steer_rad: float, wheelbase_m: float, track_m: float) -> tuple[float, float]:
@@ -323,8 +323,8 @@ def build_sedan(config: PlantConfig, physics_dt_s: float,
         suspension.damping = layout.damping_nspm[index]
         tyre = root.find("geom", f"{wheel}_tyre")
         tyre.size = [layout.wheel_radius_m]
-        tyre.friction = [config.tire_friction, *tyre.friction[1:]]
-        tyre.condim = tyre_contact_dimension(config.tire_model)
+        tyre.friction = [config.tyre_friction, *tyre.friction[1:]]
+        tyre.condim = tyre_contact_dimension(config.tyre_model)
         rim = root.find("geom", f"{wheel}_rim")
         rim.size = [layout.wheel_radius_m, 0.5 * TYRE_WIDTH_M]
         if wheel in FRONT_WHEELS:

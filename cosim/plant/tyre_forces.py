@@ -1,10 +1,10 @@
 """The four Magic Formula tyres of the plant: contact geometry in, wheel forces out.
 
-With ``plant.tire_model: pacejka`` the wheel-ground contacts carry only the normal force;
+With ``plant.tyre_model: pacejka`` the wheel-ground contacts carry only the normal force;
 between ``mj_step1`` and ``mj_step2`` (:meth:`cosim.plant.car.MujocoPlant.advance`) each
 wheel's tyre force comes from its contact point, its slip velocity in the wheel's heading
 frame and the contact's normal force of the step before, through
-:func:`cosim.plant.tire_model.patch_step` (Magic Formula with a relaxing contact patch), or
+:func:`cosim.plant.tyre_model.patch_step` (Magic Formula with a relaxing contact patch), or
 the four at once through the compiled :mod:`cosim.plant.tyre_patches`.
 """
 
@@ -24,7 +24,7 @@ from cosim.core.records import WHEEL_NAMES
 from cosim.core.tyre_params import TyreParams
 from cosim.core.vehicle_params import PlantConfig
 from cosim.plant.sedan_model import FRONT_WHEELS
-from cosim.plant.tire_model import PATCH_AT_REST, PatchState, patch_step
+from cosim.plant.tyre_model import PATCH_AT_REST, PatchState, patch_step
 from cosim.plant.tyre_patches import (
     CONTACT_SIZE,
     FORCE_FIELDS,
@@ -58,7 +58,7 @@ class MagicFormulaTyres:
     normal x x), the velocity of the wheel's material point at the contact point and of the
     wheel centre (from MuJoCo's ``cvel``: angular velocity and the linear velocity at the
     chassis subtree's centre of mass), and the normal load (the contact's normal force of
-    the previous step) go into :func:`cosim.plant.tire_model.patch_step`; the resulting force acts
+    the previous step) go into :func:`cosim.plant.tyre_model.patch_step`; the resulting force acts
     at the contact point: ``xfrc_applied`` of the wheel body holds the force and its moment
     about the wheel's centre of mass (the wheel centre for the sedan).
     """
@@ -67,7 +67,7 @@ class MagicFormulaTyres:
                  one_call: bool = True) -> None:
         body, geom = mujoco.mjtObj.mjOBJ_BODY, mujoco.mjtObj.mjOBJ_GEOM
         self._dt_s = physics_dt_s
-        self._friction = config.tire_friction
+        self._friction = config.tyre_friction
         front = dataclasses.replace(
             config.tyre,
             cornering_stiffness_max_prad=config.tyre.cornering_stiffness_max_prad
@@ -101,7 +101,7 @@ class MagicFormulaTyres:
         self._new_state_buffer = np.zeros(self._n_wheels * PATCH_STATE_SIZE)
         self._compiled: tuple[ctypes.CDLL, ca.Function] | None = None
         """The four tyres as one compiled C call (:mod:`cosim.plant.tyre_patches`); None:
-        the plain reference, :func:`cosim.plant.tire_model.patch_step` per wheel."""
+        the plain reference, :func:`cosim.plant.tyre_model.patch_step` per wheel."""
         if one_call:
             function = tyre_patches_function(self._params, self._friction, physics_dt_s,
                                              self._wheel_body, self._root, model.nbody)

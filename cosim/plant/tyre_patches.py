@@ -1,6 +1,6 @@
 """The four tyres of a physics step in one call: contact geometry in, wheel wrenches out.
 
-:func:`cosim.plant.tire_model.patch_step` is the plain reference of one tyre, called per
+:func:`cosim.plant.tyre_model.patch_step` is the plain reference of one tyre, called per
 wheel in Python. This module states the same step once more, symbolically (CasADi SX), for
 all four wheels together, with the contact geometry of
 :class:`cosim.plant.tyre_forces.MagicFormulaTyres` (heading frame at the contact, slip velocity of
@@ -12,7 +12,7 @@ the plain reference wheel by wheel.
 
 The branches of the reference become ``if_else`` (both sides are evaluated; divisions in
 the side not taken are guarded so they stay finite). Every equation is the reference's:
-see :mod:`cosim.plant.tire_model` for the Magic Formula (Pacejka, *Tyre and Vehicle
+see :mod:`cosim.plant.tyre_model` for the Magic Formula (Pacejka, *Tyre and Vehicle
 Dynamics*, 3rd ed., 2012, §4.3.2) and the relaxing contact patch (Pacejka 2012, ch. 7;
 Rill, *Road Vehicle Dynamics*, CRC 2011, ch. 3).
 
@@ -30,7 +30,7 @@ from collections.abc import Sequence
 import casadi as ca
 
 from cosim.core.tyre_params import TyreParams
-from cosim.plant.tire_model import (
+from cosim.plant.tyre_model import (
     MIN_LOAD_N,
     MIN_PEAK_FRICTION_FACTOR,
     SLIP_EPSILON,
@@ -88,7 +88,7 @@ def _secant(slip: ca.SX, weight: ca.SX, stiffness: ca.SX, shape: float, curvatur
 def patch_step_sx(params: TyreParams, friction: float, load: ca.SX, forward_speed: ca.SX,
                   slip_x: ca.SX, slip_y: ca.SX, state: Sequence[ca.SX],
                   dt_s: float) -> tuple[ca.SX, ca.SX, list[ca.SX]]:
-    """:func:`cosim.plant.tire_model.patch_step`, symbolically: ``(F_x, F_y, new state)``."""
+    """:func:`cosim.plant.tyre_model.patch_step`, symbolically: ``(F_x, F_y, new state)``."""
     p = params
     loaded = load >= MIN_LOAD_N
     safe_load = ca.if_else(loaded, load, p.nominal_load_n)

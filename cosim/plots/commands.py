@@ -3,8 +3,9 @@
 The commands are those applied to the plant (``/control/command``, after the actuator delay
 line), drawn as the zero-order hold they are; the plant's response (the true road-wheel
 angle and the CoG's longitudinal acceleration) is drawn thin beside them. Limits are the
-tracker's, from the run's config (dynamic-mpc: the tighter of ``tracker.max_steer_rad`` and
-``tracker.dynamic_mpc.max_steer_rad``). A limit far outside the signal's range is not drawn
+tracker's, from the run's config (``tracker.max_steer_rad``; a log written before that was
+one key holds dynamic-mpc's own bound too, and the tighter counts). A limit far outside the
+signal's range is not drawn
 (it would flatten the signal) but stated in the panel with the share of it the run used.
 """
 

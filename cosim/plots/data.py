@@ -22,6 +22,7 @@ from cosim.core.exceptions import CosimError, LogReadError
 from cosim.log import topics
 from cosim.log.reader import iter_topics, read_summary
 from cosim.simulation.metrics import NEES_STATES
+from tracker.config import default_steer_bound_rad
 from tracker.paths.reference_path import ReferencePath, wrap_angle
 
 TOPICS = {topics.VEHICLE_TRUTH, topics.VEHICLE_ESTIMATE, topics.CONTROL_COMMAND,
@@ -404,6 +405,12 @@ def load_estimation(path: Path | str) -> EstimationErrors | None:
                        _estimate(messages[topics.VEHICLE_ESTIMATE]))
 
 
+def _default_bound(run: RunLog) -> bool:
+    """Whether the run's tracker kept its own default steering bound."""
+    tracker = run.config.get("tracker", {})
+    return tracker.get("max_steer_rad") == default_steer_bound_rad(str(tracker.get("name")))
+
+
 def distinct_labels(runs: list[RunLog]) -> list[RunLog]:
     """The runs with labels that tell them apart: by what differs in their logged
     configurations (``plant.mass_kg=1575`` against ``plant.mass_kg=2000``), else by file
@@ -412,9 +419,11 @@ def distinct_labels(runs: list[RunLog]) -> list[RunLog]:
 
     if len(runs) < 2:
         return runs
-    # The scenario and the tracker are in every label already.
+    # The scenario and the tracker are in every label already, and so is what follows from
+    # the tracker: its default steering bound.
     differing = [key for key in config_differences([run.config for run in runs])
-                 if key not in ("name", "tracker.name")]
+                 if key not in ("name", "tracker.name")
+                 and not (key == "tracker.max_steer_rad" and all(map(_default_bound, runs)))]
     if differing:
         shown, more = differing[:MAX_LABEL_DIFFERENCES], len(differing) - MAX_LABEL_DIFFERENCES
         labelled = []

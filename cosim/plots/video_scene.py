@@ -139,10 +139,12 @@ def read_logged_scene(log_path: Path | str) -> LoggedScene:
         raise RenderError(f"{str(log_path)!r}: neither the attachment sedan.xml nor a run "
                           "config to rebuild the model from")
     from cosim.core.config_fields import from_dict
+    from cosim.core.key_aliases import rename_old_keys
     from cosim.core.vehicle_params import PlantConfig
     from cosim.plant.sedan_model import sedan_xml_and_assets
 
-    plant = from_dict(PlantConfig, config["plant"], "plant")
+    logged = rename_old_keys({"plant": config["plant"]}, warn=False)  # an older log's keys
+    plant = from_dict(PlantConfig, logged["plant"], "plant")
     xml, assets = sedan_xml_and_assets(plant, float(config["sim"]["physics_dt_s"]))
     return LoggedScene(xml, assets, "rebuilt from the config", truth, path_xy)
 

@@ -26,7 +26,7 @@ from types import MappingProxyType
 
 from cosim.core.sensor_names import FUSED_SENSORS
 from cosim.simulation.outcome import OUTCOMES, SEVERITY
-from tracker.acc.law import GAIN_NAMES
+from tracker.cruise.law import GAIN_NAMES
 
 EVERY_RUN = "every run"
 OPEN_LOOP = "open-loop manoeuvres (`steady-circle`, `step-steer`, `ramp-steer`)"
@@ -112,7 +112,7 @@ class MetricKey:
 _METRICS = "cosim.simulation.metrics"
 _RUNNER = "cosim.simulation.runner"
 _COURSE = "cosim.simulation.course_metrics"
-_MANOEUVRE = "cosim.simulation.maneuver_metrics"
+_MANOEUVRE = "cosim.simulation.manoeuvre_metrics"
 _TRAFFIC = "cosim.simulation.traffic_loop"
 
 TRACKING = (
@@ -223,7 +223,7 @@ COURSE = (
 
 MANOEUVRE = (
     MetricKey("steady_speed_mps", "m/s", "mean true speed over the final "
-              "`maneuver.steady_window_s`", "", _MANOEUVRE, scope=OPEN_LOOP),
+              "`manoeuvre.steady_window_s`", "", _MANOEUVRE, scope=OPEN_LOOP),
     MetricKey("steady_steer_rad", "rad", "mean true road-wheel angle over that window", "",
               _MANOEUVRE, scope=OPEN_LOOP),
     MetricKey("steady_yaw_rate_radps", "rad/s", "mean true yaw rate over that window", "",

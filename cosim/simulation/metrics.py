@@ -29,11 +29,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cosim.core.records import Command, Estimate, Plan, VehicleState
-from cosim.simulation.maneuver_metrics import maneuver_metrics
+from cosim.simulation.manoeuvre_metrics import manoeuvre_metrics
 from cosim.simulation.metric_keys import METRIC_KEYS, WALL_CLOCK_KEYS
 from cosim.simulation.running_stats import RunningStats, Samples
 from estimation.update_result import UpdateResult
-from tracker.maneuver import ManeuverConfig
+from tracker.manoeuvre import ManoeuvreConfig
 from tracker.paths.reference_path import ReferencePath, wrap_angle
 
 NEES_STATES = ("x_m", "y_m", "yaw_rad", "vx_mps")
@@ -81,7 +81,7 @@ class MetricsAccumulator:
     solve times and an open-loop manoeuvre's signals); :meth:`result` computes them."""
 
     reference: ReferencePath
-    maneuver: ManeuverConfig | None = None
+    manoeuvre: ManoeuvreConfig | None = None
     """Set for open-loop runs: adds the manoeuvre's steady-state (and step) metrics."""
     t_s: Samples = field(default_factory=Samples)
     true_steer_rad: Samples = field(default_factory=Samples)
@@ -133,7 +133,7 @@ class MetricsAccumulator:
         self.speed_err_mps.add(truth.speed_mps - ref_speed)
         self._add_comfort(truth)
         self.last_t_s = truth.t_s
-        if self.maneuver is not None:
+        if self.manoeuvre is not None:
             self.t_s.add(truth.t_s)
             self.true_steer_rad.add(truth.steer_rad)
             self.yaw_rate_radps.add(truth.yaw_rate_radps)
@@ -212,11 +212,11 @@ class MetricsAccumulator:
 
         sim_duration_s = self.last_t_s
         extra: dict[str, float] = {}
-        if self.maneuver is not None:
-            extra = maneuver_metrics(
+        if self.manoeuvre is not None:
+            extra = manoeuvre_metrics(
                 self.t_s.as_array(), self.true_steer_rad.as_array(),
                 self.yaw_rate_radps.as_array(), self.ay_mps2.as_array(),
-                self.speed_mps.as_array(), self.maneuver)
+                self.speed_mps.as_array(), self.manoeuvre)
         return {
             **self._tracking(),
             "accel_max_mps2": self.accel_mps2.maximum,

@@ -207,7 +207,7 @@ class _Run:
             config.estimator, config.initial, config.tracker.model,
             rng=component_rng(config.seed, "estimator.initial"))
         self.tracker: Tracker = tracker if tracker is not None else \
-            make_tracker(config.tracker, config.maneuver)
+            make_tracker(config.tracker, config.manoeuvre)
         """The run's tracker; the Gymnasium environment passes one that replays its actions."""
         self.fuse: Callable[[list[Measurement]], list[UpdateResult]] = (
             self.estimator.update_many if isinstance(self.estimator, JointUpdater)
@@ -229,7 +229,7 @@ class _Run:
                        for s in self.sensors}
         open_loop = config.tracker.name == "open-loop"
         self.metrics = MetricsAccumulator(self.reference,
-                                          config.maneuver if open_loop else None)
+                                          config.manoeuvre if open_loop else None)
         self.monitor = OutcomeMonitor(
             config.outcome, None if self.reference.closed else self.reference.length_m,
             tracks_path=not open_loop)

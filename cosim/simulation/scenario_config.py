@@ -22,6 +22,7 @@ import yaml
 from cosim.core.config_fields import from_dict, items, mapping, section, set_dotted, setting
 from cosim.core.exceptions import ConfigError, RateError
 from cosim.core.initial_state import InitialState
+from cosim.core.key_aliases import canonical_key, rename_old_keys
 from cosim.core.vehicle_params import PlantConfig
 from cosim.core.yaml_io import loads as yaml_loads
 from cosim.core.yaml_io import read_yaml_file, shown
@@ -36,7 +37,7 @@ from estimation.config import ESTIMATOR_NAMES, EstimatorConfig
 from estimation.noise_config import suite_noise_preset
 from estimation.registry import estimator_class, required_sensors
 from tracker.config import TrackerConfig, is_plugin_name
-from tracker.maneuver import ManeuverConfig
+from tracker.manoeuvre import ManoeuvreConfig
 from tracker.plugin import check_plugin
 
 DEFAULT_EPOCH = "2026-01-01T00:00:00Z"
@@ -101,7 +102,7 @@ class ScenarioConfig:
     disturbances: tuple[DisturbanceConfig, ...] = items(DisturbanceConfig)
     estimator: EstimatorConfig = section(EstimatorConfig)
     tracker: TrackerConfig = section(TrackerConfig)
-    maneuver: ManeuverConfig = section(ManeuverConfig)
+    manoeuvre: ManoeuvreConfig = section(ManoeuvreConfig)
     geo: GeoOrigin = section(GeoOrigin)
     outcome: OutcomeConfig = section(OutcomeConfig)
     traffic: dict[str, Any] = mapping(
@@ -180,9 +181,10 @@ def load_config(
     estimator: str | None = None,
 ) -> ScenarioConfig:
     """Resolve a scenario name or path plus overrides into a validated configuration."""
-    data = _scenario_data(scenario)
+    data = rename_old_keys(_scenario_data(scenario), f"scenario {scenario}")
     if config_file is not None:
-        data = _merge(data, _read_yaml(Path(config_file), "--config"))
+        data = _merge(data, rename_old_keys(_read_yaml(Path(config_file), "--config"),
+                                            "--config"))
     if seed is not None:
         data["seed"] = seed
     if duration_s is not None:
@@ -193,7 +195,8 @@ def load_config(
         set_dotted(data, "estimator.name", estimator)
     for text in overrides:
         key, value = parse_override(text)
-        set_dotted(data, key, value)
+        set_dotted(data, canonical_key(key, "--set"), value)
+    rename_old_keys(data, "--set")  # an old key inside a mapping given as a --set value
     sensors = data.get("sensors")
     if isinstance(sensors, dict) and isinstance(sensors.get("suite"), str):
         # The suite presets figures; what the user set explicitly wins.

@@ -59,7 +59,7 @@ from cosim.plant.traffic import Traffic, traffic_cars
 from cosim.sensing.range_sensor import RangeSensor
 from cosim.simulation.running_stats import RunningStats
 from cosim.simulation.scenario_config import ScenarioConfig, steps_per_period
-from tracker.acc.law import GAIN_NAMES, AccTracker
+from tracker.cruise.law import GAIN_NAMES, AccTracker
 from tracker.protocol import RangeObserver
 
 SET_SPEED_TOLERANCE_MPS = 0.5

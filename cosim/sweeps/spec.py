@@ -12,7 +12,7 @@ A spec is a YAML mapping::
       sensors.suite: rtk
     grid:                            # full factorial, dotted path -> list of values
       plant.mass_kg: [1100, 1575, 2050]
-      plant.tire_friction: [0.6, 0.8, 1.0]
+      plant.tyre_friction: [0.6, 0.8, 1.0]
     # or, instead of grid:
     # random: {n: 20, seed: 7, plant.mass_kg: [1100, 2050]}   # uniform in [low, high]
     pass:                            # optional; upper bounds, or true/false for booleans
@@ -53,6 +53,7 @@ from typing import Any
 import yaml
 
 from cosim.core.exceptions import ConfigError
+from cosim.core.key_aliases import canonical_key
 from cosim.core.yaml_io import read_yaml_file, shown
 from cosim.simulation.metric_keys import METRIC_KEYS, metric_key
 from tracker.config import is_plugin_name
@@ -435,7 +436,9 @@ def load_spec(path: str | Path) -> SweepSpec:
     estimator = reader.optional_str(data, "estimator")
     duration_s = reader.duration(data.get("duration_s"))
     seeds = reader.seeds(data.get("seeds"))
-    fixed = tuple(reader.mapping(data, "set").items())
+    where = f"sweep spec {str(path)!r}"
+    fixed = tuple((canonical_key(k, where) if isinstance(k, str) else k, v)
+                  for k, v in reader.mapping(data, "set").items())
     criteria = reader.criteria(data)
     metric = reader.metric(data.get("metric"), criteria)
     ray_address = reader.optional_str(data, "ray_address")
@@ -454,6 +457,7 @@ def load_spec(path: str | Path) -> SweepSpec:
         leaves.update(_leaves({"tracker": {"params": resolved_params(base.tracker)}}))
 
     mode, ranges, random_n, random_seed = reader.sampling(data)
+    ranges = {canonical_key(k, where) if isinstance(k, str) else k: v for k, v in ranges.items()}
 
     fixed_keys = {k for k, _ in fixed} | {
         key for key, given in (("tracker.name", tracker), ("estimator.name", estimator),

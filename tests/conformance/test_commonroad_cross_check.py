@@ -6,7 +6,7 @@ Symposium 2017; the models' documentation "CommonRoad: Vehicle Models", 2020).
 The plant is configured from CommonRoad's parameter set 2 (a BMW 320i) where a key maps:
 mass, yaw inertia, CoG position and height (``h_cg``, the whole car's), the front and rear
 track, wheel radius and spin inertia, the road-wheel angle limit (1.066 rad) and rate, the
-lateral friction ``p_dy1`` as ``tire_friction`` and the longitudinal one ``p_dx1`` as its
+lateral friction ``p_dy1`` as ``tyre_friction`` and the longitudinal one ``p_dx1`` as its
 scale ``lambda_mux = p_dx1 / p_dy1``. CommonRoad's models have no aerodynamic drag and no
 rolling resistance, so the plant has none either (``drag_area_m2 = rolling_resistance = 0``).
 The single-track model gives each axle the cornering stiffness ``C_S mu F_z`` with ``C_S mu
@@ -125,7 +125,7 @@ def bmw_plant() -> PlantConfig:
         cog_height_m=BMW.h_cg, track_front_m=BMW.T_f, track_rear_m=BMW.T_r,
         wheel_radius_m=BMW.R_w, wheel_inertia_kgm2=BMW.I_y_w,
         max_steer_rad=BMW.steering.max, max_steer_rate_radps=BMW.steering.v_max,
-        tire_friction=BMW.tire.p_dy1, tyre=tyre, drag_area_m2=0.0, rolling_resistance=0.0,
+        tyre_friction=BMW.tire.p_dy1, tyre=tyre, drag_area_m2=0.0, rolling_resistance=0.0,
         front_cornering_stiffness_scale=1.0, rear_cornering_stiffness_scale=rear_scale)
 
 

@@ -89,7 +89,7 @@ def test_understeer_gradient_is_that_of_a_sedan_at_every_speed(
 
 def test_contact_tyres_are_neutral_for_comparison() -> None:
     # MuJoCo's contact friction has no cornering stiffness: the car steers kinematically.
-    gains = steady_gains(PlantConfig(tire_model="contact"))
+    gains = steady_gains(PlantConfig(tyre_model="contact"))
     assert all(abs(understeer_gradient_degpg(v, g)) < 0.3 for v, g in gains.items())
 
 
@@ -106,7 +106,7 @@ def test_lateral_acceleration_saturates_near_mu_g(friction: float,
     # until the tyres saturate, and the car departs (the rear-driven car, its rear tyres
     # also driving against the cornering drag, spins) before the ramp ends at 0.3 rad. The
     # highest a_y reached is within 15 % of mu g.
-    config = PlantConfig(tire_friction=friction)
+    config = PlantConfig(tyre_friction=friction)
 
     def sideslip_rad(state: VehicleState) -> float:
         return math.atan2(state.vy_mps, max(state.vx_mps, 0.1))

@@ -25,16 +25,16 @@ from tests.conformance.driving import (
 
 pytestmark = pytest.mark.conformance
 
-TIRE_MODELS = ("pacejka", "contact")
+TYRE_MODELS = ("pacejka", "contact")
 CIRCLE_SPEED_MPS = 5.0
 SETTLE_S = 4.0
 """Time to reach the steady circle (steering lag, speed loop) before measuring [s]."""
 
 
-@pytest.mark.parametrize("tire_model", TIRE_MODELS)
+@pytest.mark.parametrize("tyre_model", TYRE_MODELS)
 @pytest.mark.parametrize("steer_rad", [0.05, 0.1, 0.2])
-def test_low_speed_circle_is_the_ackermann_circle(tire_model: str, steer_rad: float) -> None:
-    config = PlantConfig(tire_model=tire_model)
+def test_low_speed_circle_is_the_ackermann_circle(tyre_model: str, steer_rad: float) -> None:
+    config = PlantConfig(tyre_model=tyre_model)
     states = drive(
         plant_at(CIRCLE_SPEED_MPS, config),
         SETTLE_S + 4.0,
@@ -47,10 +47,10 @@ def test_low_speed_circle_is_the_ackermann_circle(tire_model: str, steer_rad: fl
     assert states[-1].speed_mps == pytest.approx(CIRCLE_SPEED_MPS, abs=0.05)
 
 
-@pytest.fixture(scope="module", params=TIRE_MODELS)
+@pytest.fixture(scope="module", params=TYRE_MODELS)
 def straight_run(request: pytest.FixtureRequest) -> list:
     """10 s at 20 m/s, steering straight, speed held."""
-    config = PlantConfig(tire_model=request.param)
+    config = PlantConfig(tyre_model=request.param)
     return drive(plant_at(20.0, config), 10.0, speed_loop(config, 20.0, lambda _t: 0.0))
 
 
@@ -62,10 +62,10 @@ def test_straight_line_at_20_mps_does_not_drift(straight_run: list) -> None:
     assert max(abs(s.vy_mps) for s in straight_run) < 0.01
 
 
-@pytest.mark.parametrize("tire_model", TIRE_MODELS)
-def test_car_at_rest_stays_put(tire_model: str) -> None:
+@pytest.mark.parametrize("tyre_model", TYRE_MODELS)
+def test_car_at_rest_stays_put(tyre_model: str) -> None:
     # 10 s standing, no command: it neither creeps (< 1 cm) nor chatters.
-    plant = plant_at(0.0, PlantConfig(tire_model=tire_model))
+    plant = plant_at(0.0, PlantConfig(tyre_model=tyre_model))
     start = plant.state()
     states = drive(plant, 10.0)
     assert max(math.hypot(s.x_m - start.x_m, s.y_m - start.y_m) for s in states) < 0.01

@@ -21,7 +21,7 @@ from tests.conformance.driving import constant_accel, drive, plant_at
 
 pytestmark = pytest.mark.conformance
 
-TIRE_MODELS = ("pacejka", "contact")
+TYRE_MODELS = ("pacejka", "contact")
 WINDOW_S = (1.0, 3.0)
 """Acceleration measured as the speed change over this window, after the transient."""
 
@@ -33,19 +33,19 @@ def achieved_accel_mps2(config: PlantConfig, belief: VehicleParams, demand_mps2:
     return (end.vx_mps - start.vx_mps) / (end.t_s - start.t_s)
 
 
-@pytest.mark.parametrize("tire_model", TIRE_MODELS)
+@pytest.mark.parametrize("tyre_model", TYRE_MODELS)
 @pytest.mark.parametrize("demand_mps2", [2.0, -4.0])
-def test_nominal_belief_achieves_the_demand(tire_model: str, demand_mps2: float) -> None:
-    config = PlantConfig(tire_model=tire_model)
+def test_nominal_belief_achieves_the_demand(tyre_model: str, demand_mps2: float) -> None:
+    config = PlantConfig(tyre_model=tyre_model)
     achieved = achieved_accel_mps2(config, config, demand_mps2)
     assert achieved == pytest.approx(demand_mps2, rel=0.10)
 
 
-@pytest.mark.parametrize("tire_model", TIRE_MODELS)
+@pytest.mark.parametrize("tyre_model", TYRE_MODELS)
 @pytest.mark.parametrize(("demand_mps2", "expected_mps2"), [(2.0, 1.587), (-4.0, -3.244)])
 def test_belief_20_percent_light_falls_short_by_the_mass_ratio(
-        tire_model: str, demand_mps2: float, expected_mps2: float) -> None:
-    config = PlantConfig(tire_model=tire_model)
+        tyre_model: str, demand_mps2: float, expected_mps2: float) -> None:
+    config = PlantConfig(tyre_model=tyre_model)
     light = VehicleParams(mass_kg=0.8 * config.mass_kg)
     achieved = achieved_accel_mps2(config, light, demand_mps2)
     assert achieved == pytest.approx(expected_mps2, rel=0.05)

@@ -20,7 +20,7 @@ from tests.conformance.driving import DT_S, drive, plant_at, speed_loop
 
 pytestmark = pytest.mark.conformance
 
-TIRE_MODELS = ("pacejka", "contact")
+TYRE_MODELS = ("pacejka", "contact")
 
 NAMED_OBJECTS = (
     (mujoco.mjtObj.mjOBJ_BODY, "nbody"),
@@ -42,21 +42,21 @@ def slalom(config: PlantConfig) -> list[VehicleState]:
                  speed_loop(config, 15.0, lambda t: 0.1 * math.sin(2.0 * math.pi * t)))
 
 
-@pytest.mark.parametrize("tire_model", TIRE_MODELS)
-def test_two_plants_with_one_config_are_bit_identical(tire_model: str) -> None:
-    config = PlantConfig(tire_model=tire_model)
+@pytest.mark.parametrize("tyre_model", TYRE_MODELS)
+def test_two_plants_with_one_config_are_bit_identical(tyre_model: str) -> None:
+    config = PlantConfig(tyre_model=tyre_model)
     first, second = slalom(config), slalom(config)
     assert first == second
     assert first[-1].t_s == pytest.approx(3.0)
     assert abs(first[-1].y_m) > 0.1  # it did slalom
 
 
-@pytest.mark.parametrize("tire_model", TIRE_MODELS)
+@pytest.mark.parametrize("tyre_model", TYRE_MODELS)
 @pytest.mark.parametrize("with_traffic", [False, True])
-def test_every_element_is_named(tire_model: str, with_traffic: bool) -> None:
+def test_every_element_is_named(tyre_model: str, with_traffic: bool) -> None:
     traffic = Traffic((("lead", TrafficCarConfig()),), InitialState()) if with_traffic \
         else None
-    plant = MujocoPlant(PlantConfig(tire_model=tire_model), DT_S, InitialState(),
+    plant = MujocoPlant(PlantConfig(tyre_model=tyre_model), DT_S, InitialState(),
                         traffic=traffic)
     model = plant.model
     for kind, size_field in NAMED_OBJECTS:

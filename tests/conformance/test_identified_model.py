@@ -46,6 +46,6 @@ def test_steady_yaw_rate_gain_matches_the_identified_bicycle(identified: Identif
 
 def test_default_sedan_understeers_by_half_to_four_deg_per_g(
         identified: IdentifiedModel) -> None:
-    # The default tyres are the Magic Formula ones (plant.tire_model = pacejka); MuJoCo's
-    # contact tyres (plant.tire_model = contact) are nearly neutral, about 0.03 deg/g.
+    # The default tyres are the Magic Formula ones (plant.tyre_model = pacejka); MuJoCo's
+    # contact tyres (plant.tyre_model = contact) are nearly neutral, about 0.03 deg/g.
     assert 0.5 <= identified.understeer_gradient_degpg <= 4.0

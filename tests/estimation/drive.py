@@ -150,7 +150,7 @@ def simulate_truth(
     c_r = getattr(belief, "cornering_stiffness_rear_npr", DEFAULT_CORNERING_STIFFNESS_REAR_NPR)
     load_f = m * GRAVITY_MPS2 * l_r / (l_f + l_r)
     load_r = m * GRAVITY_MPS2 * l_f / (l_f + l_r)
-    mu = belief.tire_friction
+    mu = belief.tyre_friction
     omega = 2.0 * math.pi * ROLL_FREQUENCY_HZ
     arm_m = belief.cog_height_m if roll_gradient_radpmps2 > 0.0 else 0.0
 

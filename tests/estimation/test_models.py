@@ -124,7 +124,7 @@ def test_cornering_stiffness_comes_from_the_belief() -> None:
     bicycle = BicycleParams.from_vehicle(VehicleParams())
     assert bicycle.cornering_stiffness_front_npr == pytest.approx(72550.0)
     assert bicycle.cornering_stiffness_rear_npr == pytest.approx(79580.0)
-    assert bicycle.tyre_friction == VehicleParams().tire_friction
+    assert bicycle.tyre_friction == VehicleParams().tyre_friction
     with pytest.raises(ValueError, match="tyre_model"):
         BicycleParams.from_vehicle(VehicleParams(), "magic")
     with pytest.raises(ValueError, match="mass_kg"):
@@ -305,7 +305,7 @@ def test_saturating_tyres_limit_the_force_at_the_friction_circle() -> None:
     ay_linear = linear.evaluate(x)[0][2]
     ay = model.evaluate(x)[0][2]
     assert ay_linear == pytest.approx((72550.0 + 79580.0) * 0.3 / BELIEF.mass_kg)
-    assert 0.9 * 9.81 < ay < 9.81 * BELIEF.tire_friction
+    assert 0.9 * 9.81 < ay < 9.81 * BELIEF.tyre_friction
     # Small slips: the same force.
     x = _state(vx_mps=20.0, vy_mps=-0.05)
     assert model.evaluate(x)[0][2] == pytest.approx(linear.evaluate(x)[0][2], rel=1e-3)

@@ -71,7 +71,7 @@ def test_car_30_percent_lighter_than_believed(tmp_path: Path) -> None:
 
 
 def test_tyre_road_friction_0_7(tmp_path: Path) -> None:
-    """``plant.tire_friction=0.7`` (nominal 1.0, belief 1.0): max CTE <= 0.15 m.
+    """``plant.tyre_friction=0.7`` (nominal 1.0, belief 1.0): max CTE <= 0.15 m.
 
     Measured 0.095 / 0.075 / 0.062 m (0.8: 0.075 / 0.057 / 0.052 m). Bound 1.5 x 0.095 =
     0.14 -> 0.15 m. 0.7 is the lowest friction inside the envelope *while the belief says
@@ -79,7 +79,7 @@ def test_tyre_road_friction_0_7(tmp_path: Path) -> None:
     A tracker that knows the friction holds the lane change down to 0.5
     (:func:`test_friction_0_6_known_to_the_tracker`, :func:`test_friction_0_5_known_slows_down`).
     """
-    result = lane_change(tmp_path, "plant.tire_friction=0.7")
+    result = lane_change(tmp_path, "plant.tyre_friction=0.7")
     assert_tracks(result, cte_bound_m=0.15)
 
 
@@ -94,7 +94,7 @@ def test_friction_0_6_known_to_the_tracker(tmp_path: Path) -> None:
     (seeds 0-4), no fallback; the bound is the issue's requirement, 0.30 m (1.5 x 0.223 =
     0.33 would let more through).
     """
-    result = lane_change(tmp_path, "plant.tire_friction=0.6", "tracker.model.tire_friction=0.6")
+    result = lane_change(tmp_path, "plant.tyre_friction=0.6", "tracker.model.tyre_friction=0.6")
     assert_tracks(result, cte_bound_m=0.30)
     assert result.metrics["speed_reduced_steps"] == 0
 
@@ -109,7 +109,7 @@ def test_friction_0_5_known_slows_down(tmp_path: Path) -> None:
     (more than 10 % of the steps reduced would mean the cap is far too cautious:
     the bends take 3 s of the 15).
     """
-    result = lane_change(tmp_path, "plant.tire_friction=0.5", "tracker.model.tire_friction=0.5")
+    result = lane_change(tmp_path, "plant.tyre_friction=0.5", "tracker.model.tyre_friction=0.5")
     assert_tracks(result, cte_bound_m=0.50)
     steps = result.metrics["speed_reduced_steps"]
     assert 10 <= steps <= 100, steps
@@ -127,7 +127,7 @@ def test_light_car_on_a_wet_road_with_slip_control(tmp_path: Path) -> None:
     Bound 0.30 m, the mass-friction sweep's pass mark.
     """
     light = f"plant.mass_kg={NOMINAL_MASS_KG * 0.7}"
-    result = lane_change(tmp_path, light, "plant.tire_friction=0.7",
+    result = lane_change(tmp_path, light, "plant.tyre_friction=0.7",
                          "plant.slip_control.enabled=true")
     assert_tracks(result, cte_bound_m=0.30)
 
@@ -181,7 +181,7 @@ def test_friction_beyond_the_envelope_fails_visibly(tmp_path: Path, friction: fl
     rad (the car turned around). Thresholds are a tenth of the measured failure, far above
     any in-envelope run.
     """
-    result = lane_change(tmp_path, f"plant.tire_friction={friction}")
+    result = lane_change(tmp_path, f"plant.tyre_friction={friction}")
     assert result.completed and result.metrics["completed"] is True
     assert result.metrics["outcome"] == "spun", result.metrics["outcome"]  # it turned round
     assert result.metrics["cte_max_m"] > 1.0, result.metrics["cte_max_m"]

@@ -71,8 +71,8 @@ def nominal_model() -> mujoco.MjModel:
 
 
 @pytest.fixture(scope="module", params=["pacejka", "contact"])
-def model_per_tire_model(request: pytest.FixtureRequest) -> mujoco.MjModel:
-    return compile_model(PlantConfig(tire_model=request.param))
+def model_per_tyre_model(request: pytest.FixtureRequest) -> mujoco.MjModel:
+    return compile_model(PlantConfig(tyre_model=request.param))
 
 
 def test_models_dir_holds_the_sedan() -> None:
@@ -108,9 +108,9 @@ def test_dm_control_physics_from_a_variant() -> None:
     }
 
 
-def test_components_have_names(model_per_tire_model: mujoco.MjModel) -> None:
+def test_components_have_names(model_per_tyre_model: mujoco.MjModel) -> None:
     # After dm_control's suite_test.test_components_have_names; body 0 is MuJoCo's world.
-    assert_all_named(model_per_tire_model)
+    assert_all_named(model_per_tyre_model)
 
 
 def assert_all_named(model: mujoco.MjModel) -> None:
@@ -121,11 +121,11 @@ def assert_all_named(model: mujoco.MjModel) -> None:
             assert name, f"unnamed {kind.name} with id {index}"
 
 
-def test_tyre_contacts_per_tire_model() -> None:
+def test_tyre_contacts_per_tyre_model() -> None:
     # Magic Formula tyres: frictionless wheel contacts that carry only the normal force;
     # contact tyres: MuJoCo's friction with condim 3 and the configured mu.
-    for tire_model, condim in (("pacejka", 1), ("contact", 3)):
-        model = compile_model(PlantConfig(tire_model=tire_model, tire_friction=0.7))
+    for tyre_model, condim in (("pacejka", 1), ("contact", 3)):
+        model = compile_model(PlantConfig(tyre_model=tyre_model, tyre_friction=0.7))
         for wheel in ("front_left", "front_right", "rear_left", "rear_right"):
             tyre = model.geom(f"{wheel}_tyre")
             assert tyre.condim[0] == condim and tyre.priority[0] == 1
@@ -206,7 +206,7 @@ def test_mass_yaw_inertia_and_cog_match_the_config(config: PlantConfig) -> None:
 
 def test_config_values_reach_the_model() -> None:
     config = PlantConfig(
-        tire_friction=0.55,
+        tyre_friction=0.55,
         wheel_radius_m=0.33,
         wheel_mass_kg=25.0,
         wheel_inertia_kgm2=1.3,

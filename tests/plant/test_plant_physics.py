@@ -24,7 +24,7 @@ from cosim.plant.sedan_model import ackermann_angles
 DT_S = 0.002
 CONTROL_STEPS = 25  # 50 ms control period
 NOMINAL = PlantConfig()
-TIRE_MODELS = ("pacejka", "contact")
+TYRE_MODELS = ("pacejka", "contact")
 
 
 def plant_at(speed_mps: float, config: PlantConfig = NOMINAL, **initial: float) -> MujocoPlant:
@@ -112,22 +112,22 @@ def test_body_bounce_is_about_1_5_hz_and_well_damped() -> None:
     assert -heights[turns[1]] / heights[turns[0]] == pytest.approx(0.16, abs=0.05)
 
 
-@pytest.mark.parametrize("tire_model", TIRE_MODELS)
-def test_coasting_covers_40_m_minus_the_resistance_loss(tire_model: str) -> None:
+@pytest.mark.parametrize("tyre_model", TYRE_MODELS)
+def test_coasting_covers_40_m_minus_the_resistance_loss(tyre_model: str) -> None:
     # Drag 0.5 * 1.225 * 0.66 * 20^2 = 161.7 N, rolling 0.012 * 1575 * 9.81 = 185.4 N:
     # deceleration 347.1 N / 1616.6 kg = 0.215 m/s^2, so 2 s cover
     # 40 - 0.5 * 0.215 * 2^2 = 39.57 m and end at 20 - 0.43 = 19.57 m/s.
-    plant = plant_at(20.0, PlantConfig(tire_model=tire_model))
+    plant = plant_at(20.0, PlantConfig(tyre_model=tyre_model))
     end = run(plant, 2.0)[-1]
     assert end.x_m == pytest.approx(39.57, abs=0.05)
     assert end.vx_mps == pytest.approx(19.57, abs=0.02)
 
 
-@pytest.mark.parametrize("tire_model", TIRE_MODELS)
+@pytest.mark.parametrize("tyre_model", TYRE_MODELS)
 @pytest.mark.parametrize("drive", ["rwd", "fwd", "awd"])
-def test_straight_driving_stays_straight(drive: str, tire_model: str) -> None:
+def test_straight_driving_stays_straight(drive: str, tyre_model: str) -> None:
     # 5 s at 20 m/s with the speed held by drive torque: no crabbing, wheels roll freely.
-    plant = plant_at(20.0, PlantConfig(drive=drive, tire_model=tire_model))
+    plant = plant_at(20.0, PlantConfig(drive=drive, tyre_model=tyre_model))
     states = run(plant, 5.0, hold_accel(0.0))
     end = states[-1]
     assert end.x_m == pytest.approx(100.0, abs=0.5)
@@ -140,7 +140,7 @@ def test_straight_driving_stays_straight(drive: str, tire_model: str) -> None:
 def test_constant_small_steer_gives_the_kinematic_yaw_rate_on_contact_tyres() -> None:
     # MuJoCo's contact tyres hardly slip: at 10 m/s with delta = 0.04 rad the yaw rate is
     # the kinematic r = v delta / L = 10 * 0.04 / 2.8 = 0.143 rad/s.
-    plant = plant_at(10.0, PlantConfig(tire_model="contact"))
+    plant = plant_at(10.0, PlantConfig(tyre_model="contact"))
     end = run(plant, 3.0, hold_accel(0.0, steer_rad=0.04))[-1]
     kinematic = end.speed_mps * 0.04 / 2.8
     assert end.yaw_rate_radps == pytest.approx(kinematic, rel=0.10)
@@ -167,7 +167,7 @@ def test_constant_small_steer_understeers_on_magic_formula_tyres() -> None:
     assert sum(t.force_y_n for t in tyres) == pytest.approx(
         1575.0 * end.vx_mps * end.yaw_rate_radps, rel=0.03
     )
-    assert plant_at(10.0, PlantConfig(tire_model="contact")).tyre_forces() is None
+    assert plant_at(10.0, PlantConfig(tyre_model="contact")).tyre_forces() is None
 
 
 def test_tyre_kinematics_match_mujocos_object_velocity() -> None:
@@ -226,10 +226,10 @@ def test_braking_demand_of_3_mps2_removes_6_mps_in_2_s() -> None:
     assert end.ax_mps2 == pytest.approx(-3.0, rel=0.15)
 
 
-@pytest.mark.parametrize("tire_model", TIRE_MODELS)
-def test_braking_to_standstill_is_smooth_and_stays_still(tire_model: str) -> None:
+@pytest.mark.parametrize("tyre_model", TYRE_MODELS)
+def test_braking_to_standstill_is_smooth_and_stays_still(tyre_model: str) -> None:
     # From 5 m/s at -3 m/s^2 the car stops after about 5 / 3 = 1.7 s and 5^2 / 6 = 4.2 m.
-    plant = plant_at(5.0, PlantConfig(tire_model=tire_model))
+    plant = plant_at(5.0, PlantConfig(tyre_model=tyre_model))
     states = run(plant, 4.0, hold_accel(-3.0))
     stopped = [s for s in states if s.t_s > 2.5]
     assert states[-1].x_m == pytest.approx(4.2, abs=0.3)
@@ -246,15 +246,15 @@ def test_heavier_car_than_believed_accelerates_less() -> None:
 
 
 @pytest.mark.parametrize(
-    ("tire_model", "low_g", "high_g"),
+    ("tyre_model", "low_g", "high_g"),
     # Contact tyres: Coulomb friction, about mu g. Magic Formula tyres: the locked wheels
     # slide at the tail of the curve, 0.53 mu F_z at k = -1 for mu = 0.3 (0.63 at mu = 1,
-    # tests/plant/test_tire_model.py), so the car decelerates at 0.5-0.7 mu g.
+    # tests/plant/test_tyre_model.py), so the car decelerates at 0.5-0.7 mu g.
     [("contact", 0.8, 1.15), ("pacejka", 0.5, 0.7)],
 )
-def test_tyre_friction_limits_braking(tire_model: str, low_g: float, high_g: float) -> None:
+def test_tyre_friction_limits_braking(tyre_model: str, low_g: float, high_g: float) -> None:
     # Full brake torque on a mu = 0.3 road: the tyres' friction limits the deceleration.
-    plant = plant_at(20.0, PlantConfig(tire_friction=0.3, tire_model=tire_model))
+    plant = plant_at(20.0, PlantConfig(tyre_friction=0.3, tyre_model=tyre_model))
     states = run(plant, 1.0, lambda s: ActuatorCommand(s.t_s, 0.0, 8000.0, 0.0))
     decel = 20.0 - states[-1].vx_mps
     assert low_g * 0.3 * 9.81 < decel < high_g * 0.3 * 9.81 + 0.2
@@ -292,13 +292,13 @@ def test_steering_is_clipped_to_max_steer() -> None:
     assert end.steer_rad == pytest.approx(0.5 * (left + right), abs=0.01)
 
 
-@pytest.mark.parametrize("tire_model", TIRE_MODELS)
-def test_two_plants_from_one_config_are_bit_identical(tire_model: str) -> None:
+@pytest.mark.parametrize("tyre_model", TYRE_MODELS)
+def test_two_plants_from_one_config_are_bit_identical(tyre_model: str) -> None:
     def drive(plant: MujocoPlant) -> VehicleState:
         run(plant, 1000 * DT_S, hold_accel(1.0, steer_rad=0.05))
         return plant.state()
 
-    config = PlantConfig(tire_model=tire_model)
+    config = PlantConfig(tyre_model=tyre_model)
     first, second = drive(plant_at(12.0, config)), drive(plant_at(12.0, config))
     assert first == second
     assert first.t_s == pytest.approx(2.0)

@@ -71,7 +71,7 @@ def rear_slip_after_launch(slip_control: bool) -> tuple[float, float]:
     friction 0.5 (the rear axle can carry about 1900 N, 590 N m): over the whole second,
     and over its last half."""
     config = dataclasses.replace(
-        PlantConfig(), tire_friction=0.5,
+        PlantConfig(), tyre_friction=0.5,
         slip_control=dataclasses.replace(PARAMS, enabled=slip_control))
     plant = MujocoPlant(config, DT_S, InitialState(speed_mps=15.0))
     plant.apply(ActuatorCommand(t_s=0.0, drive_torque_nm=2500.0, brake_torque_nm=0.0,

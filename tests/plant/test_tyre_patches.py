@@ -1,5 +1,5 @@
 """The four tyres in one CasADi call (:mod:`cosim.plant.tyre_patches`) against the plain
-reference (:func:`cosim.plant.tire_model.patch_step` per wheel, in Python)."""
+reference (:func:`cosim.plant.tyre_model.patch_step` per wheel, in Python)."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ from cosim.core.records import ActuatorCommand
 from cosim.core.tyre_params import TyreParams
 from cosim.core.vehicle_params import PlantConfig
 from cosim.plant.car import MujocoPlant
-from cosim.plant.tire_model import MIN_LOAD_N, PatchState, patch_step
+from cosim.plant.tyre_model import MIN_LOAD_N, PatchState, patch_step
 from cosim.plant.tyre_patches import CONTACT_SIZE, tyre_patches_function
 
 DT_S = 0.002

@@ -29,7 +29,7 @@ seeds: 2
 set: {sensors.gnss.sigma_m: 0.05}
 grid:
   plant.mass_kg: [1100, 1575, 2050]
-  plant.tire_friction: [0.7, 1.0]
+  plant.tyre_friction: [0.7, 1.0]
 pass: {cte_max_m: 0.3, completed: true}
 """
 
@@ -40,9 +40,9 @@ def test_grid_is_full_factorial_point_major_seed_minor(tmp_path: Path) -> None:
     assert len(tasks) == 3 * 2 * 2
     assert [t.run_id for t in tasks] == list(range(12))
     assert [(t.point, t.seed) for t in tasks[:4]] == [(0, 0), (0, 1), (1, 0), (1, 1)]
-    assert tasks[2].params == (("plant.mass_kg", 1100), ("plant.tire_friction", 1.0))
+    assert tasks[2].params == (("plant.mass_kg", 1100), ("plant.tyre_friction", 1.0))
     assert tasks[2].overrides == ("sensors.gnss.sigma_m=0.05", "plant.mass_kg=1100",
-                                  "plant.tire_friction=1.0")
+                                  "plant.tyre_friction=1.0")
     mass = spec.parameters[0]
     assert (mass.nominal, mass.unit) == (1575.0, "kg")
     assert (mass.counterpart, mass.counterpart_value) == ("tracker.model.mass_kg", 1575.0)
@@ -82,7 +82,7 @@ def test_override_text_reads_back_exactly(value: object) -> None:
 
 def test_units_come_from_the_key_names() -> None:
     assert [unit_of(k) for k in ("plant.mass_kg", "plant.actuator_delay_s",
-                                  "sensors.gnss.sigma_m", "plant.tire_friction",
+                                  "sensors.gnss.sigma_m", "plant.tyre_friction",
                                   "tracker.model.cornering_stiffness_front_npr")] == \
         ["kg", "s", "m", "-", "N/rad"]
 
@@ -141,7 +141,7 @@ def fake_rows(spec_tasks: list) -> list[dict]:
     rows = []
     for task in spec_tasks:
         params = dict(task.params)
-        cte = 0.05 * params["plant.mass_kg"] / 1575 / params["plant.tire_friction"] ** 6
+        cte = 0.05 * params["plant.mass_kg"] / 1575 / params["plant.tyre_friction"] ** 6
         metrics = {"cte_max_m": cte, "completed": True, "nees_mean": math.nan}
         rows.append({"run_id": task.run_id, "point": task.point, "seed": task.seed,
                      "params": params, "metrics": metrics, "error": "", "log": "",
@@ -162,13 +162,13 @@ def test_tables_summary_and_plots_from_rows(tmp_path: Path) -> None:
     assert document["rows"][0]["error"].startswith("PhysicsDivergenceError")
     assert document["rows"][1]["nees_mean"] is None
     header = (directory.root / "results.csv").read_text().splitlines()[0].split(",")
-    assert header[:6] == ["run_id", "point", "seed", "plant.mass_kg", "plant.tire_friction",
+    assert header[:6] == ["run_id", "point", "seed", "plant.mass_kg", "plant.tyre_friction",
                           "pass"]
     heat = heat_map(spec, flat, directory.root / "heat.png")
     plots = metric_plots(spec, flat, directory.root)
     assert heat is not None and heat.stat().st_size > 10_000
     assert [p.name for p in plots] == ["cte_max_m-vs-plant.mass_kg.png",
-                                       "cte_max_m-vs-plant.tire_friction.png"]
+                                       "cte_max_m-vs-plant.tyre_friction.png"]
     summary = summary_markdown(spec, flat, 12, [heat, *plots], 1.0)
     assert "**7 of 12 runs pass (58.3 %)**" in summary
     assert "`tracker.model.mass_kg` = 1575 (held)" in summary

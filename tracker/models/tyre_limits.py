@@ -26,8 +26,8 @@ infeasible. The drive force is ``fmax(F_x, 0)``, whose square is continuously
 differentiable, so the penalty is too. Lateral load transfer is left out (it lowers an
 axle's grip through the tyres' load sensitivity); ``usage_max`` < 1 covers it.
 
-Measured (MuJoCo sedan, EKF, ``lane-change`` at 20 m/s, 0.5 g, ``plant.tire_friction`` =
-``tracker.model.tire_friction``; with speed planning, :mod:`tracker.mpc.grip_speed`):
+Measured (MuJoCo sedan, EKF, ``lane-change`` at 20 m/s, 0.5 g, ``plant.tyre_friction`` =
+``tracker.model.tyre_friction``; with speed planning, :mod:`tracker.mpc.grip_speed`):
 
 * friction 0.6: the car accelerates at about 2.2 m/s^2 (the rear axle's 0.85 mu F_z) and
   tracks: max CTE 0.209 / 0.131 / 0.165 / 0.223 / 0.149 m (seeds 0-4), no fallback, no

@@ -41,7 +41,7 @@ At every control step
        J = sum_{j=1..Np} ||Y_j - Y_ref||_Q^2 + sum_{i<Nc} ||Delta u_i||_R^2 + slack terms
 
    with ``Y = [vx, e1, e2]``, ``Y_ref = [v_D, 0, 0]``. Hard bounds: steering within
-   ``min(tracker.max_steer_rad, dynamic_mpc.max_steer_rad)`` (reference design: 15 deg),
+   ``tracker.max_steer_rad`` (by default 15 deg for this tracker: the reference design's),
    acceleration within ``[tracker.accel_min_mps2, tracker.accel_max_mps2]`` (reference design:
    +-3 m/s^2), steering increments within ``max_steer_rate_radps`` times the time they
    span (the time since the last command for the first). Soft limits (the reference design's hard
@@ -90,7 +90,7 @@ reference design's 88 mm):
   the ratio 0.04: 0.061 / 0.054 / 0.051 m (at 0.05, 10 / 300 / 1000 / 3000: 0.055 /
   0.053 / 0.056 / 0.069 m). ``weight_accel_increment``
   ramps the acceleration up over 0.15 s instead of stepping to 3 m/s^2: with 0.1 the
-  rear-driven sedan on ``plant.tire_friction=0.7`` spins its wheels at the step, keeps
+  rear-driven sedan on ``plant.tyre_friction=0.7`` spins its wheels at the step, keeps
   accelerating into the lane change and spins out (13-14 m); with 10 it tracks within
   0.048 m. The reference design reaches 18.3 m/s at 1.1 s, this 18.2 m/s.
 * **The reference design's heading reference** ``e2 = 0``. In a steady turn the heading differs from
@@ -120,11 +120,11 @@ Max heading error 0.030-0.032 rad (the reference design: < 3 deg = 0.052), max s
 0.066-0.070 rad. The reference design's belief (C_f 19000, C_r 33000 N/rad) expects 3.8 /
 2.4 times softer tyres than the sedan's (15 deg/g of understeer against 2.2) and a side
 slip of 4.6 deg at 0.5 g, beyond its own 3 deg heading limit. Other cases:
-``plant.mass_kg=2000`` 0.076 / 0.063 / 0.062 m (seeds 0-2), ``plant.tire_friction=0.7``
+``plant.mass_kg=2000`` 0.076 / 0.063 / 0.062 m (seeds 0-2), ``plant.tyre_friction=0.7``
 0.042 / 0.048 / 0.046 m; the model has no tyre limits (unlike ``dynamic-nmpc``'s soft
 slip-angle limits), yet Falcone's unstretched path
 (``lane-change-limit``, 1.11 g) ends at 0.44 / 0.48 m (seeds 0 / 1), held by the 15 deg
-steering bound and the heading limit; MuJoCo contact tyres (``plant.tire_model=contact``,
+steering bound and the heading limit; MuJoCo contact tyres (``plant.tyre_model=contact``,
 no cornering compliance at all) 0.54-0.67 m.
 """
 
@@ -252,7 +252,7 @@ class DynamicMpc(MpcTracker):
         self._step_model = path_model.discrete_function(self._params, self._ts)
         self._predict_world = steered.predict_function(self._steered)
         low, high = np.empty(len(INPUT_NAMES)), np.empty(len(INPUT_NAMES))
-        max_steer = min(config.max_steer_rad, self.settings.max_steer_rad)
+        max_steer = config.max_steer_rad
         low[INPUT["accel_mps2"]] = config.accel_min_mps2
         high[INPUT["accel_mps2"]] = config.accel_max_mps2
         low[INPUT["steer_rad"]] = -max_steer

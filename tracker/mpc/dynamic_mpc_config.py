@@ -77,13 +77,6 @@ class DynamicMpcConfig:
     max_heading_error_rad: float = setting(
         math.radians(3.0), low=0.001, high=math.pi, doc="soft limit |e2| (reference design: 3 deg)"
     )
-    max_steer_rad: float = setting(
-        math.radians(15.0),
-        low=0.01,
-        high=1.0,
-        doc="steering bound (reference design: 15 deg); the tracker uses the smaller of this and "
-        "tracker.max_steer_rad",
-    )
     min_speed_mps: float = setting(0.0, low=0.0, high=100.0, doc="soft lower speed limit")
     max_speed_mps: float = setting(30.0, low=0.1, high=100.0, doc="soft upper speed limit")
     qp_solver: str = setting("highs", choices=QP_SOLVERS, doc="CasADi QP back-end")

@@ -74,16 +74,16 @@ def dynamic_model(config: TrackerConfig) -> NmpcModel:
     internal (no estimator needs to report it): the tracker propagates it with the
     commands it applied, through the belief's actuator lag. Soft limits keep both axles'
     slip angles within the linear tyres' range at the belief's friction
-    (``model.tire_friction``) and, with ``grip.tyre_limits``, each axle's combined force
+    (``model.tyre_friction``) and, with ``grip.tyre_limits``, each axle's combined force
     within its friction ellipse (:mod:`tracker.models.tyre_limits`).
     """
     params = SteeredBicycleParams.from_vehicle(config.model)
     tyre_limits = {}
     grip = config.grip
-    if grip.tyre_limits and config.model.tire_friction < grip.tyre_limits_below_friction:
+    if grip.tyre_limits and config.model.tyre_friction < grip.tyre_limits_below_friction:
         tyre_limits = {
             "stage_limits": friction_usage_function(config.model, params,
-                                                    config.model.tire_friction),
+                                                    config.model.tyre_friction),
             "stage_limit_names": LIMIT_NAMES,
             "stage_limit_bounds": usage_bounds(config.grip.usage_max),
         }
@@ -100,7 +100,7 @@ def dynamic_model(config: TrackerConfig) -> NmpcModel:
         internal_rest_inputs={"road_wheel_angle_rad": "steer_rad"},
         limits=slip_angle_function(params),
         limit_names=("front_slip_rad", "rear_slip_rad"),
-        limit_bounds=linear_range_slip_rad(params, config.model.tire_friction),
+        limit_bounds=linear_range_slip_rad(params, config.model.tyre_friction),
         **tyre_limits,
     )
 

@@ -1,6 +1,6 @@
 """Settings of the NMPCs' friction awareness: the ``tracker.grip`` section.
 
-Two mechanisms, both read the belief's friction ``tracker.model.tire_friction``:
+Two mechanisms, both read the belief's friction ``tracker.model.tyre_friction``:
 
 * ``tyre_limits`` (``dynamic-nmpc``): a soft friction-ellipse constraint per axle in the
   NLP (:mod:`tracker.models.tyre_limits`): the combined longitudinal and lateral force the plan
@@ -40,7 +40,7 @@ class GripConfig:
         0.9,
         low=0.0,
         high=2.5,
-        doc="tyre_limits only when the believed friction (tracker.model.tire_friction) is "
+        doc="tyre_limits only when the believed friction (tracker.model.tyre_friction) is "
         "below this: on a dry road they do not bind on the lane change and cost about 15 % "
         "solve time; 2.5: at any friction [-]",
     )

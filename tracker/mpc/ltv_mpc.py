@@ -28,7 +28,7 @@ Per step:
    reference points at the arc lengths the warm start expects to cover,
    ``s_k = s_0 + sum_j (v_j + v_{j+1}) dt / 2``; the path yaw unwrapped along the horizon
    and shifted by whole turns to within pi of the car's yaw; the reference speed.
-4. **Linearisation trajectory** ``(xbar, ubar)``, ``tracker.ltv_mpc.linearize_about``:
+4. **Linearisation trajectory** ``(xbar, ubar)``, ``tracker.ltv_mpc.linearise_about``:
 
    * ``previous-plan`` (default): the warm start itself, the real-time-iteration scheme
      (one SQP iteration per step, the previous solution as the linearisation point). Its
@@ -144,7 +144,7 @@ class LtvMpc(EstimatedStartMpc):
             self._step_function, config.horizon,
             steered.slip_angle_function(params) if slip_limits else None)
         self._qp = LtvQp(config, STATE_NAMES, self._linearisation,
-                         steered.linear_range_slip_rad(params, config.model.tire_friction)
+                         steered.linear_range_slip_rad(params, config.model.tyre_friction)
                          if slip_limits else ())
         latency_s = config.latency_s if config.latency_compensation else 0.0
         super().__init__(config, config.dt_s, config.horizon, self._qp.input_low,
@@ -159,7 +159,7 @@ class LtvMpc(EstimatedStartMpc):
         state0 = start.state
         warm = self._warm_start(t_s, state0, self._step_function, STATE["yaw_rad"])
         ref = self._reference(reference, state0, warm.states, t_s)
-        bar = (warm if self.config.ltv_mpc.linearize_about == "previous-plan"
+        bar = (warm if self.config.ltv_mpc.linearise_about == "previous-plan"
                else self._reference_trajectory(t_s, state0, warm, ref))
         lin_start = time.perf_counter()
         linearisation = self._linearisation(bar.states, bar.inputs)

@@ -10,7 +10,7 @@ QPs of the bench in ``tests/tracker/mpc/test_ltv_mpc.py``; details in :mod:`trac
   twice per tracker; qrqp (condensed) 0.85 ms with a 4.8 ms tail; OSQP (condensed) 1.0 ms.
   On the sparse QP OSQP and qrqp take 1.7 ms, and OSQP fails often at tolerances below
   1e-6; on the condensed QP HPIPM cannot run (it solves stage-wise problems only).
-* ``linearize_about = previous-plan`` (real-time iteration): as good as the reference on
+* ``linearise_about = previous-plan`` (real-time iteration): as good as the reference on
   the lane change, better from a large heading error.
 * ``slip_limits = true``: as ``dynamic-nmpc``'s, they never bind at 0.5 g and keep the car
   from spinning on Falcone's unstretched path, for 0.13 ms more per solve.
@@ -53,7 +53,7 @@ class LtvMpcConfig:
         doc="sparse (multiple shooting; hpipm needs it), condensed (inputs only), or auto "
         "(sparse for hpipm, condensed for the others)",
     )
-    linearize_about: str = setting(
+    linearise_about: str = setting(
         "previous-plan",
         choices=LINEARISATION_POINTS,
         doc="trajectory the model is linearised about: the reference path in the steady "

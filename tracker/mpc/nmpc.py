@@ -166,7 +166,7 @@ class Nmpc(EstimatedStartMpc):
                 self._curvature = CurvatureTable(reference)  # once per path
             cap = capped_reference_speed(self._curvature, points.s_m, ref_speed,
                                          float(state0[index["vx_mps"]]),
-                                         cfg.model.tire_friction, cfg.grip)
+                                         cfg.model.tyre_friction, cfg.grip)
             ref_speed, speed_reduced = cap.speed_mps, cap.reduced
         return {
             "ref_x_m": points.x_m,

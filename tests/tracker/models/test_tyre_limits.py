@@ -102,7 +102,7 @@ def test_bad_inputs_are_refused() -> None:
 def test_tyre_limits_join_the_nlp_below_the_friction_threshold(friction: float,
                                                                 expected: bool) -> None:
     config = TrackerConfig(name="dynamic-nmpc",
-                           model=dataclasses.replace(VEHICLE, tire_friction=friction))
+                           model=dataclasses.replace(VEHICLE, tyre_friction=friction))
     model = dynamic_model(config)
     assert (model.stage_limits is not None) is expected
     if expected:
@@ -116,7 +116,7 @@ def planned_accel(tyre_limits: bool) -> float:
     with a 20 m/s reference, believing friction 0.6."""
     config = TrackerConfig(
         name="dynamic-nmpc",
-        model=dataclasses.replace(VEHICLE, tire_friction=MU),
+        model=dataclasses.replace(VEHICLE, tyre_friction=MU),
         grip=dataclasses.replace(TrackerConfig().grip, tyre_limits=tyre_limits),
     )
     tracker = DynamicNmpc(config)

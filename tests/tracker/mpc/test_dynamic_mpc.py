@@ -58,7 +58,8 @@ CAR = DynamicBicycleParams.from_vehicle(CONFIG.model, CONFIG.model.cornering_sti
 """The bench car is the belief: the controller's own model."""
 LANE_CHANGE = double_lane_change(20.0, 1.5)
 STRAIGHT = ReferencePath(np.linspace(0.0, 400.0, 401), np.zeros(401), 20.0)
-MAX_STEER_RAD = min(CONFIG.max_steer_rad, SETTINGS.max_steer_rad)
+MAX_STEER_RAD = CONFIG.max_steer_rad
+"""dynamic-mpc's default steering bound: the reference design's 15 deg."""
 
 
 def circle(radius_m: float, speed_mps: float) -> ReferencePath:

@@ -85,7 +85,7 @@ def test_lane_change_keeps_the_tyres_in_their_linear_range(
         lane_change: ClosedLoopResult) -> None:
     # At 0.5 g the soft slip limits never bind: every planned slip angle is inside them.
     slip = slip_angle_function(BELIEF)
-    bounds = np.array(linear_range_slip_rad(BELIEF, CONFIG.model.tire_friction))
+    bounds = np.array(linear_range_slip_rad(BELIEF, CONFIG.model.tyre_friction))
     for plan in lane_change.plans:
         for state in plan.states[1:]:
             assert np.all(np.abs(np.asarray(slip(state)).ravel()) < bounds)
@@ -149,7 +149,7 @@ def test_slip_limits_hold_on_the_limit_lane_change() -> None:
     config = dataclasses.replace(CONFIG, grip=GripConfig(tyre_limits=False,
                                                          speed_planning=False))
     slip = slip_angle_function(BELIEF)
-    bounds = np.array(linear_range_slip_rad(BELIEF, CONFIG.model.tire_friction))
+    bounds = np.array(linear_range_slip_rad(BELIEF, CONFIG.model.tyre_friction))
     result = run_closed_loop(DynamicNmpc(config), double_lane_change(20.0, 1.0),
                              Car(0.0, 0.0, 0.0, 15.0), 6.0, CAR)
     ratio = max(np.max(np.abs(np.asarray(slip(state)).ravel()) / bounds)
@@ -164,7 +164,7 @@ def test_friction_awareness_slows_down_for_the_limit_lane_change() -> None:
     # plans lower the speed (speed_reduced) and each axle's planned friction usage stays
     # (softly) within usage_max.
     config = dataclasses.replace(CONFIG, grip=GripConfig(tyre_limits_below_friction=2.5))
-    usage = friction_usage_function(CONFIG.model, BELIEF, CONFIG.model.tire_friction)
+    usage = friction_usage_function(CONFIG.model, BELIEF, CONFIG.model.tyre_friction)
     result = run_closed_loop(DynamicNmpc(config), double_lane_change(20.0, 1.0),
                              Car(0.0, 0.0, 0.0, 15.0), 6.0, CAR)
     worst = max(float(np.max(np.asarray(usage(state, inputs)).ravel()))

@@ -211,7 +211,7 @@ def test_linearising_about_the_reference_tracks_as_well() -> None:
     # The linearisation point of Lages and Alves 2006: the path in the steady turn of its curvature.
     # On the 0.5 g lane change it tracks exactly as well (0.045 m); with a 0.3 rad heading
     # error it is slightly worse (max CTE 2.63 m against 2.57 m; see tracker.ltv_mpc).
-    config = _config(linearize_about="reference")
+    config = _config(linearise_about="reference")
     result = run_closed_loop(LtvMpc(config), LANE_CHANGE, Car(0.0, 0.0, 0.0, 15.0), 15.0, CAR)
     assert np.max(np.abs(result.cte_m)) < 0.05
     assert np.max(np.abs(result.cte_m[-500:])) < 0.005
@@ -252,7 +252,7 @@ def test_slip_limits_hold_on_the_limit_lane_change() -> None:
     # the plans within 5 % of the tyres' linear range (12.5 % over it without them), as
     # dynamic-nmpc's exact ones do.
     slip = slip_angle_function(BELIEF)
-    bounds = np.array(linear_range_slip_rad(BELIEF, CONFIG.model.tire_friction))
+    bounds = np.array(linear_range_slip_rad(BELIEF, CONFIG.model.tyre_friction))
 
     def worst_ratio(config: TrackerConfig) -> float:
         result = run_closed_loop(LtvMpc(config), double_lane_change(20.0, 1.0),

@@ -8,21 +8,22 @@ The minimum safe gap is ``safe_standstill_gap_m + safe_time_gap_s v`` (2 m and 1
 the usual recommendation of two seconds); the metrics judge a run against it.
 
 The ESC defaults are slow because the loop they tune is (docs/acc.md has the measurements
-behind each choice). The gap-keeping loop has two modes (:func:`tracker.acc.law.loop_modes_radps`):
-a fast one, about ``K_vrel``, through which ``K_vrel`` acts, and a slow one, about ``K_x /
-K_vrel`` (0.077 rad/s at the ``acc`` scenario's initial gains), through which ``K_x`` acts;
-and the lead car's harmonic speed puts a strong component into the objective at twice its
-own frequency (0.63 rad/s for a 20 s period). So ``K_vrel`` is perturbed at 0.17 rad/s and
-``K_x`` at 0.035 rad/s, below the slow mode (perturbed at 0.13 rad/s, the objective's
-response to ``K_x`` lagged by more than 90 degrees and ESC raised ``K_x`` where the objective
-wanted it lower); ``K_v`` at 0.1 rad/s; the high-pass at 0.01 and the low-pass at
-0.015 rad/s, below every perturbation and spacing. The objective is normalised by its
-running mean (``normalise_by_mean``: a relative gradient whose minimiser is that of the mean
-objective) and the step decays as ``1 / (1 + tau / step_decay_s)`` (the stochastic
-approximation schedule: with a constant step the noisy gradient keeps the gains wandering
-by several per cent). Tuning runs only in a steady regime (``max_gap_error_m``,
-``max_speed_error_mps``). The rules are checked when the ACC starts (:mod:`tracker.acc.esc`),
-each gain's perturbation against the frequency of its own loop mode at the initial gains.
+behind each choice). The gap-keeping loop has two modes
+(:func:`tracker.cruise.law.loop_modes_radps`): a fast one, about ``K_vrel``, through which
+``K_vrel`` acts, and a slow one, about ``K_x / K_vrel`` (0.077 rad/s at the ``acc``
+scenario's initial gains), through which ``K_x`` acts; and the lead car's harmonic speed
+puts a strong component into the objective at twice its own frequency (0.63 rad/s for a 20 s
+period). So ``K_vrel`` is perturbed at 0.17 rad/s and ``K_x`` at 0.035 rad/s, below the slow
+mode (perturbed at 0.13 rad/s, the objective's response to ``K_x`` lagged by more than 90
+degrees and ESC raised ``K_x`` where the objective wanted it lower); ``K_v`` at 0.1 rad/s;
+the high-pass at 0.01 and the low-pass at 0.015 rad/s, below every perturbation and spacing.
+The objective is normalised by its running mean (``normalise_by_mean``: a relative gradient
+whose minimiser is that of the mean objective) and the step decays as ``1 / (1 + tau /
+step_decay_s)`` (the stochastic approximation schedule: with a constant step the noisy
+gradient keeps the gains wandering by several per cent). Tuning runs only in a steady regime
+(``max_gap_error_m``, ``max_speed_error_mps``). The rules are checked when the ACC starts
+(:mod:`tracker.cruise.esc`), each gain's perturbation against the frequency of its own loop
+mode at the initial gains.
 """
 
 from __future__ import annotations
@@ -72,7 +73,7 @@ EscKvrelConfig = _gain_config("k_vrel", high=3.0, amplitude=0.05, frequency_radp
 
 @dataclass(frozen=True)
 class EscConfig:
-    """Extremum seeking control tuning the ACC's gains online (:mod:`tracker.acc.esc`)."""
+    """Extremum seeking control tuning the ACC's gains online (:mod:`tracker.cruise.esc`)."""
 
     enabled: bool = setting(True, doc="false: the gains stay at their initial values")
     highpass_radps: float = setting(0.01, low=0.0, high=1e3, doc="high-pass cut-off omega_h")
@@ -121,7 +122,7 @@ class EscConfig:
 
 @dataclass(frozen=True)
 class AccConfig:
-    """Adaptive cruise control (:mod:`tracker.acc.law`): the longitudinal command from the range
+    """Adaptive cruise control (:mod:`tracker.cruise.law`): the longitudinal command from the range
     sensor; the steering stays the chosen tracker's (``tracker.name``)."""
 
     enabled: bool = setting(False, doc="the ACC sets the acceleration (needs traffic)")

@@ -23,7 +23,7 @@ controller knows (its readings, its estimate, its own commands):
 with ``e_x = d - d_des`` and ``e_v = v_rel`` (the target's speed minus the ego's) in gap
 mode, ``e_x = 0`` and ``e_v = v_set - v`` in speed mode: gap error, speed error and change
 of acceleration. The gains ``(K_v, K_x, K_vrel)`` are the ESC's parameters
-(:class:`tracker.acc.esc.ExtremumSeeker`, ``tracker.acc.esc``); only the active law's gains
+(:class:`tracker.cruise.esc.ExtremumSeeker`, ``tracker.acc.esc``); only the active law's gains
 are tuned (``K_v`` in speed mode, ``K_x`` and ``K_vrel`` in gap mode: the objective does
 not depend on the others then), and only in a steady regime (``esc.max_gap_error_m``,
 ``esc.max_speed_error_mps``): averaging, which ESC rests on (Krstic and Wang 2000), needs
@@ -40,8 +40,8 @@ from dataclasses import dataclass
 
 from cosim.core.records import Command, Estimate, Plan
 from cosim.core.traffic_records import RangeReading
-from tracker.acc.config import AccConfig, EscGainConfig
-from tracker.acc.esc import EscAdaptation, EscChannel, EscFilters, ExtremumSeeker, warn_breaches
+from tracker.cruise.config import AccConfig, EscGainConfig
+from tracker.cruise.esc import EscAdaptation, EscChannel, EscFilters, ExtremumSeeker, warn_breaches
 from tracker.paths.reference_path import ReferencePath
 from tracker.protocol import Resettable, Tracker
 

@@ -1,4 +1,4 @@
-"""Open-loop manoeuvres: the ``maneuver:`` section of a scenario.
+"""Open-loop manoeuvres: the ``manoeuvre:`` section of a scenario.
 
 The steering input is a function of time only (no path feedback); the speed is held by a
 proportional loop. These are the classic open-loop handling tests:
@@ -21,7 +21,7 @@ MANEUVER_KINDS = ("steady-circle", "step-steer", "ramp-steer")
 
 
 @dataclass(frozen=True)
-class ManeuverConfig:
+class ManoeuvreConfig:
     """Steering profile and speed hold of the ``open-loop`` tracker."""
 
     kind: str = setting("steady-circle", choices=MANEUVER_KINDS)

@@ -22,7 +22,7 @@ without camber need: no camber, turn slip, inflation pressure, horizontal or ver
 
   The cornering stiffness grows sub-linearly with load (the argument of the sine is held at
   pi/2 above ``F_z = p_Ky2 F_z0``, where the book's curve would turn down); the peak force is
-  ``mu lambda_mu (1 + p_D2 df_z) F_z``: one friction coefficient, ``PlantConfig.tire_friction``,
+  ``mu lambda_mu (1 + p_D2 df_z) F_z``: one friction coefficient, ``PlantConfig.tyre_friction``,
   scaled per direction by Pacejka's ``lambda_mux``, ``lambda_muy``
   (``tyre.longitudinal_friction_scale``, ``tyre.lateral_friction_scale``, 1 by default: the
   same peak in both directions), and one relative load slope,
@@ -143,7 +143,7 @@ MIN_PEAK_FRICTION_FACTOR = 0.1
 
 def peak_force_n(params: TyreParams, load_n: float, friction: float) -> float:
     """``mu (1 + p_D2 df_z) F_z`` (4.E13, 4.E23) with ``mu = friction`` [N]: the peak in a
-    direction whose friction (``tire_friction`` times that direction's scale) is given."""
+    direction whose friction (``tyre_friction`` times that direction's scale) is given."""
     dfz = (load_n - params.nominal_load_n) / params.nominal_load_n
     factor = max(1.0 + params.peak_friction_load_slope * dfz, MIN_PEAK_FRICTION_FACTOR)
     return friction * load_n * factor

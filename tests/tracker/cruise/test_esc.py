@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from cosim.core.exceptions import ConfigError
-from tracker.acc.esc import (
+from tracker.cruise.esc import (
     EscAdaptation,
     EscChannel,
     EscFilters,

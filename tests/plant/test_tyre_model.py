@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from cosim.core.tyre_params import TyreParams
-from cosim.plant.tire_model import (
+from cosim.plant.tyre_model import (
     PATCH_AT_REST,
     PatchState,
     combined_forces_n,
@@ -221,7 +221,7 @@ the scales lambda_mux, lambda_muy of friction 1."""
 
 @pytest.mark.parametrize("load_n", LOADS_N)
 def test_friction_scales_set_each_directions_peak_not_the_stiffness(load_n: float) -> None:
-    """``lambda_mux`` = 1.21, ``lambda_muy`` = 0.99 with ``tire_friction`` 0.8: the peaks are
+    """``lambda_mux`` = 1.21, ``lambda_muy`` = 0.99 with ``tyre_friction`` 0.8: the peaks are
     0.968 F_z ahead and 0.792 F_z sideways (Pacejka 2012, 4.E13, 4.E23); the slopes at zero
     slip (K = B C D) stay those of the tyre."""
     tyre = dataclasses.replace(TYRE, longitudinal_friction_scale=MU_X_SCALE,

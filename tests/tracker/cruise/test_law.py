@@ -11,9 +11,9 @@ import pytest
 from cosim.core.config_fields import from_dict
 from cosim.core.records import Command, Estimate, Plan
 from cosim.core.traffic_records import RangeReading
-from tracker.acc.config import AccConfig
-from tracker.acc.esc import EscTuningWarning
-from tracker.acc.law import AccTracker
+from tracker.cruise.config import AccConfig
+from tracker.cruise.esc import EscTuningWarning
+from tracker.cruise.law import AccTracker
 from tracker.paths.reference_path import ReferencePath
 
 PERIOD_S = 0.05
@@ -169,7 +169,7 @@ def test_an_initial_gain_outside_the_esc_bounds_is_refused() -> None:
 @pytest.mark.parametrize(("k_x", "k_vrel"), [(0.02, 0.3), (0.1, 0.6), (0.5, 0.2)])
 def test_the_loop_modes_are_the_design_models_poles(k_x: float, k_vrel: float) -> None:
     """Gap mode: the roots of s^2 + (K_vrel + h K_x) s + K_x; speed mode: K_v."""
-    from tracker.acc.law import loop_modes_radps
+    from tracker.cruise.law import loop_modes_radps
 
     k_v, slow, fast = loop_modes_radps(0.4, k_x, k_vrel, 1.8)
     poles = np.abs(np.roots([1.0, k_vrel + 1.8 * k_x, k_x]))
