@@ -30,6 +30,15 @@ KEY_ALIASES: Mapping[str, str] = MappingProxyType({
 """Old dotted key (or section) -> the key (or section) of today."""
 
 
+REMOVED_KEYS: Mapping[str, str] = MappingProxyType({
+    "lead_car": "the single lead car is gone; a traffic car does its job: write "
+                "traffic: {lead: {gap_m: G, lateral_offset_m: Y, speed_profile: piecewise, "
+                "speed_mps: V0, accel_profile: [{t_s: T, accel_mps2: A}]}} (docs/acc.md)",
+})
+"""Keys that no longer exist, each with what to write instead (refused, not moved: their
+meaning has no one-to-one successor)."""
+
+
 class DeprecatedKeyWarning(UserWarning):
     """A configuration key was given under an old name (:data:`KEY_ALIASES`)."""
 
@@ -68,7 +77,13 @@ def _section(data: dict[str, Any], path: list[str], create: bool) -> dict[str, A
 def rename_old_keys(data: dict[str, Any], where: str = "", warn: bool = True) -> dict[str, Any]:
     """Move every key of the nested mapping ``data`` given under an old name to its name of
     today, in place (and return ``data``); a key given under both names is a
-    :class:`ConfigError`. ``where`` names the source in the note (a file, ``--config``)."""
+    :class:`ConfigError`, and so is a removed key (:data:`REMOVED_KEYS`). ``where`` names
+    the source in the note (a file, ``--config``)."""
+    for removed, instead in REMOVED_KEYS.items():
+        *path, leaf = removed.split(".")
+        section = _section(data, path, create=False)
+        if section is not None and leaf in section:
+            raise ConfigError(f"{removed}{f' ({where})' if where else ''}: {instead}")
     for old, new in KEY_ALIASES.items():
         *old_path, old_leaf = old.split(".")
         source = _section(data, old_path, create=False)

@@ -127,3 +127,13 @@ def test_the_steering_bound_is_one_key_with_a_default_per_tracker() -> None:
         config = load_config("lane-change", tracker=name, overrides=["tracker.max_steer_rad=0.3"])
         assert config.tracker.max_steer_rad == 0.3
         assert dataclasses.replace(config.tracker).max_steer_rad == 0.3
+
+
+def test_the_lead_car_key_is_refused_saying_what_to_write(tmp_path: Path) -> None:
+    scenario = tmp_path / "lead.yaml"
+    scenario.write_text("name: old-acc\nlead_car: {gap_m: 40, initial_speed_mps: 20}\n")
+    with pytest.raises(ConfigError, match=r"^lead_car \(scenario .*\): the single lead car is "
+                       r"gone; a traffic car does its job: write traffic: \{lead: "):
+        load_config(str(scenario))
+    with pytest.raises(ConfigError, match="write traffic:"):
+        load_config("lane-change", overrides=["lead_car.gap_m=40"])
