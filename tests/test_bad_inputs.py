@@ -185,6 +185,24 @@ ROWS = [
         "0.2", "--out", f("wrong-return.mcap")],
         ("'tests.user_trackers:WrongReturn'", "step returned Command",
          "expected a tuple (Command, Plan)")),
+    Row("plug-in Command field a string", lambda f: [
+        "run", "lane-change", "--tracker", "tests.user_trackers:StringAccel", "--duration",
+        "0.1", "--out", f("string-accel.mcap")],
+        ("'tests.user_trackers:StringAccel'", "Command.accel_mps2 = 'fast' (str)",
+         "expected a finite number")),
+    Row("plug-in Command field an array", lambda f: [
+        "run", "lane-change", "--tracker", "tests.user_trackers:ArraySteer", "--duration",
+        "0.1", "--out", f("array-steer.mcap")],
+        ("Command.steer_rad = array([0.1, 0.2]) (ndarray)", "expected a finite number")),
+    Row("plug-in Plan of the wrong shape", lambda f: [
+        "run", "lane-change", "--tracker", "tests.user_trackers:BadPlanStates", "--duration",
+        "0.1", "--out", f("bad-plan.mcap")],
+        ("Plan.states = an array of shape (2, 3)", "expected shape (rows, 1)")),
+    Row("plug-in calls sys.exit", lambda f: [
+        "run", "lane-change", "--tracker", "tests.user_trackers:Exiting", "--duration",
+        "0.3", "--set", "tracker.params.fail_at_s=0.1", "--out", f("exiting.mcap")],
+        ("run aborted (error)", "'tests.user_trackers:Exiting' called sys.exit(0)",
+         "t = 0.100 s"), code=3),
     Row("plug-in params unknown key", lambda f: [
         "run", "lane-change", "--tracker", "tests.user_trackers:Straight",
         "--set", "tracker.params.gian=2"], ("tracker.params.gian", "expected one of")),

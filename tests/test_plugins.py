@@ -96,6 +96,8 @@ def test_the_plugin_runs_in_sweep_and_compare(installed: dict[str, str],
     ("Raising", ["fail_at_s=0.5"],
      "tracker 'tests.user_trackers:Raising' raised ZeroDivisionError at t = 0.500 s: "
      "the user's bug"),
+    ("Exiting", ["fail_at_s=0.5"],
+     "tracker 'tests.user_trackers:Exiting' called sys.exit(0) at t = 0.500 s"),
     ("NanSteer", ["fail_at_s=0.5"],
      "tracker 'tests.user_trackers:NanSteer' returned a non-finite command at t = 0.500 s"),
     ("Slow", ["fail_at_s=0.5", "sleep_s=0.2"],

@@ -456,7 +456,10 @@ def run(
     """Run one scenario to ``out_path``; ``progress`` is called with the fraction done.
 
     SIGINT and SIGTERM stop the run between two physics steps; the log is finished with
-    ``completed: false`` and the result says ``interrupted``.
+    ``completed: false`` and the result says ``interrupted``. A ``SystemExit`` (or another
+    ``BaseException`` but ``KeyboardInterrupt``) raised by code inside the loop, a user's
+    plug-in calling ``sys.exit``, ends the run the same way with outcome ``error`` and the
+    reason; an ordinary exception is raised on once the log is finished.
     """
     wall_start = time.perf_counter()
     completed, abort_reason, abort = False, "", ""
@@ -484,6 +487,9 @@ def run(
             _finish(recorder, state, wall_start, False,
                     f"{type(error).__name__}: {error}", "error")
             raise
+        except BaseException as error:  # noqa: BLE001 - SystemExit from a user's plug-in
+            abort_reason, abort = f"{type(error).__name__} raised during the run: " \
+                f"{error}", "error"
         if progress is not None:
             progress(1.0)
         metrics = _finish(recorder, state, wall_start, completed, abort_reason, abort)

@@ -4,7 +4,8 @@
 :func:`cosim.simulation.scenario_config.load_config` from the task's overrides and seed,
 calls :func:`cosim.simulation.runner.run` and returns the row as a plain dictionary (no numpy,
 no paths), so it crosses process and machine boundaries unchanged. It never raises for a failed
-run: an exception or a diverging plant becomes a row with ``error`` set, and the sweep goes on. Only
+run: an exception (``SystemExit`` from a user's plug-in included) or a diverging plant becomes
+a row with ``error`` set, and the sweep goes on. Only
 an interrupted run (SIGINT/SIGTERM inside the worker) is not a result: its row has
 ``interrupted: true`` and the driver drops it, so ``--resume`` runs it again.
 
@@ -104,7 +105,9 @@ def execute_task(task: RunTask) -> dict[str, Any]:
     except KeyboardInterrupt:
         row["interrupted"] = True
         row["error"] = "interrupted"
-    except Exception as error:  # a failed run is a row, never the end of the sweep
+    except BaseException as error:  # noqa: BLE001 - a failed run is a row, never the end
+        # of the sweep: SystemExit from a user's plug-in included (re-raised in the parent
+        # by the pool, it would end the sweep with no rows)
         message = " ".join(str(error).split())
         row["error"] = f"{type(error).__name__}: {message}"
     row["task_wall_s"] = time.perf_counter() - start

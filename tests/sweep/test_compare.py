@@ -105,3 +105,22 @@ def test_sigterm_stops_a_comparison_and_keeps_the_finished_runs(tmp_path: Path) 
     rows = [json.loads(line) for line in rows_file.read_text().splitlines()]
     assert 1 <= len(rows) < 4
     assert all(row["metrics"]["completed"] for row in rows)
+
+
+def test_a_plugin_that_exits_is_one_failed_row_not_the_end(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``sys.exit`` in a user's tracker: its run is a row with the reason, the others land,
+    the league is written (in-process: the pool's workers import ``tests``)."""
+    from cosim.cli import main
+
+    out = tmp_path / "league"
+    code = main(["compare", "--trackers", "pid,tests.user_trackers:ExitsAtOnce",
+                 "--scenarios", "lane-change", "--duration", "0.3", "--workers", "2",
+                 "--json", "--out", str(out)])
+    assert code == 0, capsys.readouterr().err
+    rows = {r["tracker"]: r for r in json.loads(capsys.readouterr().out)}
+    assert rows["pid"]["metrics"]["completed"] is True
+    exited = rows["tests.user_trackers:ExitsAtOnce"]
+    assert exited["metrics"]["completed"] is False
+    assert "called sys.exit(\"the user's script gave up\")" in exited["error"]
+    assert "tests.user_trackers:ExitsAtOnce" in (out / "league.md").read_text()
