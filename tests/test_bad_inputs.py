@@ -9,6 +9,7 @@ disk, signals) is in ``test_faults.py``.
 from __future__ import annotations
 
 import hashlib
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -51,6 +52,11 @@ def _write_empty_mcap(path: Path) -> None:
         writer.finish()
 
 
+def _loop(points: int = 40, radius_m: float = 50.0) -> list[tuple[float, float]]:
+    return [(radius_m * math.cos(2 * math.pi * i / points),
+             radius_m * math.sin(2 * math.pi * i / points)) for i in range(points)]
+
+
 @pytest.fixture()
 def files(tmp_path: Path) -> Files:
     root = tmp_path
@@ -72,6 +78,10 @@ def files(tmp_path: Path) -> Files:
         "spec-latin1-scenario.yaml": "scenario: latin1.yaml\nseeds: 1\n",
         "spec-good.yaml": "scenario: lane-change\nseeds: 1\nduration_s: 0.1\n",
         "notes.txt": "not an MCAP file, just text\n",
+        "one-point.csv": "x,y\n1,2\n",
+        "huge.csv": "x,y\n" + "".join(f"{1e12 * x},{1e12 * y}\n" for x, y in _loop()),
+        "open.csv": "x,y\n" + "".join(f"{x},0\n" for x in range(0, 100, 2))
+                    + "".join(f"{x},50\n" for x in range(100, 0, -2)),
     }
     for name, text in texts.items():
         if text is not None:
@@ -260,6 +270,22 @@ ROWS = [
         "run", "lane-change", "--duration", "0.1", "--config", f("bad-channel.yaml"),
         "--out", f("existing.mcap"), "--force"],
         ("channel = 'nope'", "expected one of")),
+    # circuit files (path.file)
+    Row("track file a device", lambda f: ["run", "track", "--set", "path.file=/dev/zero",
+                                          "--out", f("t.mcap")],
+        ("path.file '/dev/zero'", "not a regular file", "expected a CSV file")),
+    Row("track file of one point", lambda f: ["run", "track", "--set",
+                                              f"path.file={f('one-point.csv')}",
+                                              "--out", f("t.mcap")],
+        ("one-point.csv", "1 distinct point(s), expected at least 3")),
+    Row("track coordinates scaled by 1e12", lambda f: ["run", "track", "--set",
+                                                      f"path.file={f('huge.csv')}",
+                                                      "--out", f("t.mcap")],
+        ("huge.csv", "coordinate beyond 1e+07 m", "expected metres")),
+    Row("track file open but path.closed", lambda f: ["run", "track", "--set",
+                                                      f"path.file={f('open.csv')}",
+                                                      "--out", f("t.mcap")],
+        ("open.csv", "last point is 50.0 m from its first", "path.closed=false")),
     # cosim inspect and plot
     Row("inspect missing", lambda f: ["inspect", f("missing.mcap")],
         ("missing.mcap", "no such file")),
