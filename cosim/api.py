@@ -23,7 +23,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from cosim.core.exceptions import ConfigError
-from cosim.log.safe_file import check_output_path
+from cosim.log.output_claim import claim_output
 from cosim.simulation.runner import RunResult
 from cosim.simulation.runner import run as _run_loop
 from cosim.simulation.scenario_config import ScenarioConfig
@@ -70,7 +70,7 @@ def run(
 
     ``config`` is a :class:`ScenarioConfig` (from :func:`load_config`) or a scenario name or
     path, loaded with its defaults. ``out`` is refused, as ``--out`` is, when it is a folder
-    or already exists (unless ``force``). ``progress`` is called with the fraction done.
+    or already exists (unless ``force``), or while another run writes it. ``progress`` is called with the fraction done.
 
     A run that ends badly is a result, not an exception: ``result.completed`` is false when
     it aborted (``result.reason`` says why), and ``result.outcome`` names how it ended
@@ -82,9 +82,8 @@ def run(
     if not isinstance(config, ScenarioConfig):
         raise ConfigError(f"config = {type(config).__name__}: expected a ScenarioConfig "
                           "(cosim.load_config) or a scenario name")
-    path = Path(out)
-    check_output_path(path, "out", force)
-    return _run_loop(config, path, progress)
+    with claim_output(Path(out), "out", force) as path:
+        return _run_loop(config, path, progress)
 
 
 def sweep(

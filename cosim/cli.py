@@ -43,7 +43,7 @@ import math
 import os
 import sys
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
@@ -212,7 +212,6 @@ def _json_ready(values: dict[str, Any]) -> dict[str, Any]:
 
 
 def _command_run(args: argparse.Namespace) -> int:
-    from cosim.log.safe_file import check_output_path
     from cosim.simulation.fail_if import parse_conditions
     from cosim.simulation.runner import run
     from cosim.simulation.scenario_config import load_config
@@ -226,24 +225,16 @@ def _command_run(args: argparse.Namespace) -> int:
         raise CosimError(f"--duration {args.duration}: expected a number of seconds >= 0")
     config = load_config(args.scenario, args.config, args.overrides, args.seed,
                          args.duration, args.tracker, args.estimator)
-    if args.out is None:
-        from cosim.log.names import default_log_name, override_tag
+    with contextlib.ExitStack() as claims:
+        out = claims.enter_context(_claim_out(args, config.name))
+        if sys.stderr.isatty():
+            from rich.progress import Progress
 
-        stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
-        tag = override_tag(args.overrides, args.tracker, args.estimator, args.seed,
-                           args.duration, args.config)
-        out = Path("logs") / default_log_name(config.name, tag, stamp)
-    else:
-        out = Path(args.out)
-    check_output_path(out, "--out", args.force, (args.config, args.scenario, args.video))
-    if sys.stderr.isatty():
-        from rich.progress import Progress
-
-        with Progress(transient=True) as bar:
-            task = bar.add_task(f"{config.name}", total=1.0)
-            result = run(config, out, lambda done: bar.update(task, completed=done))
-    else:
-        result = run(config, out)
+            with Progress(transient=True) as bar:
+                task = bar.add_task(f"{config.name}", total=1.0)
+                result = run(config, out, lambda done: bar.update(task, completed=done))
+        else:
+            result = run(config, out)
     shown = _shown_metrics(result.metrics, config.tracker.name == "open-loop")
     if args.json:
         print(json.dumps({"log": str(result.log_path), "metrics": _json_ready(result.metrics)}))
@@ -277,6 +268,41 @@ def _command_run(args: argparse.Namespace) -> int:
               + (f" (and {len(held) - 1} more)" if len(held) > 1 else ""), file=sys.stderr)
         return EXIT_BAD_OUTCOME
     return 0
+
+
+@contextlib.contextmanager
+def _claim_out(args: argparse.Namespace, scenario: str) -> Iterator[Path]:
+    """The run's log name, held for this run (:func:`cosim.log.output_claim.claim_output`):
+    ``--out`` as given (refused when another run holds it), else the default name, with
+    ``-2``, ``-3`` ... when a run started in the same second holds that."""
+    from cosim.log.output_claim import OutputTakenError, claim_output
+
+    inputs = (args.config, args.scenario, args.video)
+    if args.out is not None:
+        with claim_output(Path(args.out), "--out", args.force, inputs) as out:
+            yield out
+        return
+    from cosim.log.names import default_log_name, override_tag
+
+    stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+    tag = override_tag(args.overrides, args.tracker, args.estimator, args.seed,
+                       args.duration, args.config)
+    default = Path("logs") / default_log_name(scenario, tag, stamp)
+    for attempt in range(1, 100):
+        name = default if attempt == 1 else \
+            default.with_name(f"{default.stem}-{attempt}{default.suffix}")
+        with contextlib.ExitStack() as stack:
+            try:
+                out = stack.enter_context(claim_output(name, "--out", False, inputs))
+            except OutputTakenError:
+                continue
+            except CosimError:
+                if name.exists():  # made by a run of the same second that has ended
+                    continue
+                raise
+            yield out
+            return
+    raise CosimError(f"--out: every name like {str(default)!r} is taken: expected --out")
 
 
 PATH_TRACKING_METRICS = ("cte_max_m", "cte_rms_m", "heading_err_max_rad",
