@@ -70,7 +70,8 @@ def run(
 
     ``config`` is a :class:`ScenarioConfig` (from :func:`load_config`) or a scenario name or
     path, loaded with its defaults. ``out`` is refused, as ``--out`` is, when it is a folder
-    or already exists (unless ``force``), or while another run writes it. ``progress`` is called with the fraction done.
+    or already exists (unless ``force``), or while another run writes it. ``progress`` is
+    called with the fraction done.
 
     A run that ends badly is a result, not an exception: ``result.completed`` is false when
     it aborted (``result.reason`` says why), and ``result.outcome`` names how it ended

@@ -207,8 +207,10 @@ def test_a_course_out_of_bounds_open_or_turning_back_is_refused(
 
 
 def test_an_open_path_is_accepted_when_said_open(tmp_path: Path) -> None:
-    rows = [(float(x), 0.0) for x in range(0, 60, 2)] + [(60.0 + x, float(x)) for x in range(2, 40, 2)]
-    track = load_track(_write(tmp_path, "x,y\n" + "".join(f"{x},{y}\n" for x, y in rows)), False)
+    rows = [(float(x), 0.0) for x in range(0, 60, 2)]
+    rows += [(60.0 + x, float(x)) for x in range(2, 40, 2)]
+    text = "x,y\n" + "".join(f"{x},{y}\n" for x, y in rows)
+    track = load_track(_write(tmp_path, text), False)
     assert len(track.x_m) == len(rows)
 
 
