@@ -109,6 +109,12 @@ def files(tmp_path: Path) -> Files:
 Args = Callable[[Files], list[str]]
 
 
+def _fail_if(condition: str) -> Args:
+    """A short run with one --fail-if condition (refused before the run when bad)."""
+    return lambda f: ["run", "lane-change", "--duration", "0.1", "--fail-if", condition,
+                      "--out", f("fail-if.mcap")]
+
+
 @dataclass(frozen=True)
 class Row:
     name: str
@@ -237,23 +243,17 @@ ROWS = [
         ("faults[0].kind = 'meltdown'", "expected one of")),
     Row("fail-if malformed", lambda f: ["run", "lane-change", "--fail-if", "cte_max_m~0.3"],
         ("--fail-if 'cte_max_m~0.3'", "expected METRIC OP VALUE")),
-    Row("fail-if number with a unit", lambda f: ["run", "lane-change", "--duration", "0.1", "--fail-if",
-                             "cte_max_m>0.3m", "--out", f("fail-if.mcap")],
+    Row("fail-if number with a unit", _fail_if("cte_max_m>0.3m"),
         ("'0.3m' is not a number", '(without a unit: 0.3)')),
-    Row("fail-if doubled operator", lambda f: ["run", "lane-change", "--duration", "0.1", "--fail-if",
-                             "cte_max_m>>0.3", "--out", f("fail-if.mcap")],
+    Row("fail-if doubled operator", _fail_if("cte_max_m>>0.3"),
         ("'>0.3' is not a number", 'expected cte_max_m > a finite number')),
-    Row("fail-if order on a word", lambda f: ["run", "lane-change", "--duration", "0.1", "--fail-if",
-                             "outcome<ok", "--out", f("fail-if.mcap")],
+    Row("fail-if order on a word", _fail_if("outcome<ok"),
         ('outcome is a word', 'expected == or !=')),
-    Row("fail-if flag not true or false", lambda f: ["run", "lane-change", "--duration", "0.1", "--fail-if",
-                             "completed==yes", "--out", f("fail-if.mcap")],
+    Row("fail-if flag not true or false", _fail_if("completed==yes"),
         ("'yes'", 'expected true or false for completed')),
-    Row("fail-if unknown metric", lambda f: ["run", "lane-change", "--duration", "0.1", "--fail-if",
-                             "cte_mx_m>0.3", "--out", f("fail-if.mcap")],
+    Row("fail-if unknown metric", _fail_if("cte_mx_m>0.3"),
         ("unknown metric 'cte_mx_m'", "did you mean 'cte_max_m'?")),
-    Row("fail-if unknown outcome", lambda f: ["run", "lane-change", "--duration", "0.1", "--fail-if",
-                             "outcome==spinned", "--out", f("fail-if.mcap")],
+    Row("fail-if unknown outcome", _fail_if("outcome==spinned"),
         ("'spinned' (did you mean 'spun'?)", 'expected one of ok,')),
     # cosim run: where the log goes
     Row("out exists", lambda f: ["run", "lane-change", "--out", f("existing.mcap")],
