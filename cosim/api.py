@@ -96,6 +96,7 @@ def sweep(
     keep_logs: bool = False,
     resume: bool = False,
     yes: bool = False,
+    force: bool = False,
 ) -> SweepOutcome:
     """Run the sweep spec ``spec`` (YAML, see :mod:`cosim.sweeps.spec`) into directory ``out``.
 
@@ -103,7 +104,8 @@ def sweep(
     ``summary.md`` and the plots land in ``out`` (their paths: ``outcome.files``);
     ``workers`` parallel runs (default: the usable cores), ``backend`` ``process`` or
     ``ray``, ``keep_logs`` keeps each run's MCAP under ``out/logs``, ``resume`` finishes
-    an interrupted sweep in ``out``, ``yes`` allows more than 10 000 runs. A bad spec raises
+    an interrupted sweep in ``out``, ``force`` starts afresh in an ``out`` that has files
+    (refused otherwise), ``yes`` allows more than 10 000 runs. A bad spec raises
     :class:`cosim.core.exceptions.CosimError` before any run; an interrupt re-raises
     ``KeyboardInterrupt`` with the finished rows kept.
 
@@ -119,5 +121,6 @@ def sweep(
     if workers is not None and workers < 1:
         raise ConfigError(f"workers = {workers}: expected at least 1")
     out_dir = Path(out)
-    check_sweep_dir(out_dir)
-    return run_sweep(spec_path, out_dir, workers, backend, keep_logs, resume, yes=yes)
+    check_sweep_dir(out_dir, force, resume)
+    return run_sweep(spec_path, out_dir, workers, backend, keep_logs, resume, yes=yes,
+                     force=force)

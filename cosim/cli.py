@@ -14,7 +14,9 @@ Start with `cosim run lane-change`, then `cosim plot` or `cosim inspect` on the 
     cosim estimators
     cosim identify [--config FILE.yaml] [--set key.path=value ...] [--json]
     cosim sweep SPEC.yaml [--workers N] [--backend process|ray] [--out DIR] [--keep-logs]
-                          [--resume] [--yes]
+                          [--resume] [--force] [--yes]
+    cosim compare [--trackers A,B] [--scenarios X,Y] [--seeds N] [--out DIR] [--force]
+                  [--resume] [--keep-logs] [--json]
     cosim render FILE.mcap [--out VIDEO.mp4] [--fps N] [--width W] [--height H]
                            [--start S] [--duration S] [--gl osmesa|egl|glfw]
     cosim config show SCENARIO [--config FILE.yaml] [--set key.path=value ...] [...]
@@ -137,6 +139,10 @@ def _build_parser() -> argparse.ArgumentParser:
                          "(default logs/compare-<time>)")
     compare.add_argument("--keep-logs", action="store_true",
                          help="keep every run's MCAP log in DIR/logs")
+    compare.add_argument("--force", action="store_true",
+                         help="write into a --out DIR that has files (refused otherwise)")
+    compare.add_argument("--resume", action="store_true",
+                         help="finish the interrupted comparison in --out DIR (same options)")
 
     identify = commands.add_parser(
         "identify", help="identify the plant's bicycle-model parameters and actuator lags")
@@ -159,6 +165,8 @@ def _build_parser() -> argparse.ArgumentParser:
                        help="keep every run's MCAP log under DIR/logs")
     sweep.add_argument("--resume", action="store_true",
                        help="finish the interrupted sweep in --out DIR (same spec)")
+    sweep.add_argument("--force", action="store_true",
+                       help="start the sweep afresh in a --out DIR that has files")
     sweep.add_argument("--yes", action="store_true",
                        help="run a sweep of more than 10 000 runs (refused otherwise)")
 
@@ -477,11 +485,11 @@ def _command_sweep(args: argparse.Namespace) -> int:
     if not Path(args.spec).is_file():
         raise CosimError(f"{args.spec!r}: no such file (expected a sweep spec YAML)")
     out = Path(args.out) if args.out is not None else default_out_dir(Path(args.spec))
-    check_sweep_dir(out)
+    check_sweep_dir(out, args.force, args.resume)
     resume_hint = f"resume with `cosim sweep {args.spec} --out {out} --resume`"
     try:
         outcome = run_sweep(args.spec, out, args.workers, args.backend, args.keep_logs,
-                            args.resume, yes=args.yes)
+                            args.resume, yes=args.yes, force=args.force)
     except WorkerCrashError as error:
         print(f"cosim: sweep aborted: {error}", file=sys.stderr)
         return EXIT_IO
@@ -523,14 +531,21 @@ def _command_compare(args: argparse.Namespace) -> int:
                                     "scenarios")
     if args.workers is not None and args.workers < 1:
         raise CosimError(f"--workers {args.workers}: expected at least 1")
+    if args.resume and args.out is None:
+        raise CosimError("--resume: expected --out DIR, the folder of the comparison to finish")
     out = Path(args.out) if args.out else Path("logs") / _time.strftime("compare-%Y%m%d-%H%M%S")
     try:
         with sigterm_as_interrupt():
             rows = compare.run_compare(scenarios, trackers, args.seeds, args.workers,
-                                       args.duration, out / "logs" if args.keep_logs else None,
-                                       out / "rows.jsonl")
-    except KeyboardInterrupt:  # Ctrl-C or SIGTERM: the finished runs are kept
-        print(f"cosim: compare interrupted; the finished runs are in {out / 'rows.jsonl'}",
+                                       args.duration, out, args.keep_logs, args.force,
+                                       args.resume)
+    except compare.CompareInterrupted as stop:  # Ctrl-C or SIGTERM: finished runs kept
+        league = ""
+        if stop.rows:
+            compare.write_outputs(stop.rows, out)
+            league = f"the league of the {len(stop.rows)} finished run(s) is in " \
+                f"{out / 'league.md'}; "
+        print(f"cosim: compare interrupted; {league}finish with --resume --out {out}",
               file=sys.stderr)
         return EXIT_INTERRUPT
     table = compare.write_outputs(rows, out)

@@ -100,9 +100,11 @@ def files(tmp_path: Path) -> Files:
     corrupt[40:200] = bytes(160)
     (root / "corrupt.mcap").write_bytes(bytes(corrupt))
     (root / "folder").mkdir()
+    (root / "full").mkdir()
+    (root / "full" / "results.csv").write_text("an earlier study's results\n")
     user = {name: root / name for name in (
         "good.yaml", "existing.mcap", "latin1.yaml", "binary.yaml", "a-file", "other.mcap",
-        "corrupt.mcap", "spec-good.yaml")}
+        "corrupt.mcap", "spec-good.yaml", "full/results.csv")}
     return Files(root, user)
 
 
@@ -319,6 +321,14 @@ ROWS = [
     Row("sweep out unmakeable", lambda f: ["sweep", f("spec-good.yaml"), "--out",
                                            f("a-file") + "/sweep"],
         ("a-file/sweep", "cannot make the directory", "expected a writable place")),
+    Row("sweep out not empty", lambda f: ["sweep", f("spec-good.yaml"), "--out", f("full")],
+        ("full", "not empty (results.csv)", "--force", "--resume")),
+    Row("compare out not empty", lambda f: ["compare", "--trackers", "pid", "--scenarios",
+                                            "circle", "--duration", "0.1", "--out", f("full")],
+        ("full", "not empty (results.csv)", "--force", "--resume")),
+    Row("compare resume without a comparison", lambda f: [
+        "compare", "--trackers", "pid", "--scenarios", "circle", "--out", f("folder"),
+        "--resume"], ("folder", "holds no comparison to finish")),
     Row("sweep resume without out", lambda f: ["sweep", f("spec-good.yaml"), "--resume"],
         ("--resume", "expected --out DIR")),
     Row("sweep zero workers", lambda f: ["sweep", f("spec-good.yaml"), "--workers", "0",

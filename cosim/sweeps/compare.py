@@ -23,8 +23,13 @@ rate penalty, follows. With ``tracker.weights.steer_rate=0.3`` ``dynamic-nmpc`` 
 0.053 m, with ``tracker.weights.cte=100`` 0.051 m, both ahead of the LQR.
 
 Outputs in ``--out DIR``: ``league.md`` and ``league.csv`` (the table), ``league.png``
-(``cte_rms_m`` per scenario and tracker, log scale), ``rows.json`` (every run's metrics) and
-``rows.jsonl`` (each run's row as it finished, kept if the comparison is interrupted).
+(``cte_rms_m`` per scenario and tracker, log scale), ``rows.json`` (every run's metrics),
+``rows.jsonl`` (each run's row as it finished, kept if the comparison is interrupted) and
+``compare.json`` (what was compared). A folder with files in it is refused unless
+``--force`` (start afresh) or ``--resume`` (finish the interrupted comparison it holds). An
+interrupt (Ctrl-C, or SIGTERM or SIGINT to the command alone) stops the running runs within
+a second (:meth:`cosim.sweeps.execute.ProcessBackend.run`) and writes the league of the
+finished ones.
 """
 
 from __future__ import annotations
@@ -235,14 +240,93 @@ def write_outputs(rows: Sequence[dict[str, Any]], out_dir: Path) -> list[LeagueR
     return table
 
 
+COMPARE_FILE = "compare.json"
+"""In ``--out DIR``: what was compared, so that ``--resume`` finishes the same comparison."""
+
+ROWS_FILE = "rows.jsonl"
+
+
+class CompareInterrupted(KeyboardInterrupt):
+    """A comparison stopped by Ctrl-C or SIGTERM; ``rows`` holds every finished run."""
+
+    def __init__(self, rows: list[dict[str, Any]]) -> None:
+        super().__init__()
+        self.rows = rows
+
+
+def non_empty_refusal(out_dir: Path, force: bool, resume: bool) -> None:
+    """Refuse an ``--out`` that is a file, or a folder with files in it unless ``force`` or
+    ``resume`` (the earlier results would be overwritten or mixed in)."""
+    if out_dir.exists() and not out_dir.is_dir():
+        raise ConfigError(f"--out {str(out_dir)!r}: is a file: expected a folder")
+    if force or resume or not out_dir.is_dir():
+        return
+    entries = sorted(p.name for p in out_dir.iterdir())
+    if entries:
+        shown = ", ".join(entries[:3]) + (" ..." if len(entries) > 3 else "")
+        raise ConfigError(f"--out {str(out_dir)!r}: not empty ({shown}): expected a new or "
+                          "empty folder (or --force to replace its results, --resume to "
+                          "finish the run that wrote them)")
+
+
+def _prepare(out_dir: Path, what: dict[str, Any], force: bool,
+             resume: bool) -> dict[int, dict[str, Any]]:
+    """Start ``out_dir`` for the comparison ``what``, or (``resume``) read its finished rows."""
+    non_empty_refusal(out_dir, force, resume)
+    stored = out_dir / COMPARE_FILE
+    if resume:
+        try:
+            earlier = json.loads(stored.read_text())
+        except (OSError, ValueError):
+            raise ConfigError(f"--resume: {str(out_dir)!r} holds no comparison to finish (no "
+                              f"readable {COMPARE_FILE}): expected the --out of an "
+                              "interrupted comparison") from None
+        if earlier != what:
+            raise ConfigError(f"--resume: {str(out_dir)!r} compared {shown_what(earlier)}: "
+                              f"expected the same scenarios, trackers, seeds and duration "
+                              f"(now {shown_what(what)})")
+        return _read_rows(out_dir / ROWS_FILE)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    (out_dir / ROWS_FILE).write_text("")
+    stored.write_text(json.dumps(what, indent=1) + "\n")
+    return {}
+
+
+def shown_what(what: Any) -> str:
+    """A comparison's description in a few words (for messages)."""
+    if not isinstance(what, dict):
+        return "something else"
+    return (f"{','.join(what.get('scenarios', []))} x {','.join(what.get('trackers', []))} "
+            f"x {what.get('seeds')} seed(s), duration {what.get('duration_s')}")
+
+
+def _read_rows(path: Path) -> dict[int, dict[str, Any]]:
+    rows: dict[int, dict[str, Any]] = {}
+    if not path.is_file():
+        return rows
+    for line in path.read_bytes().splitlines():
+        try:
+            row = json.loads(line.decode("utf-8"))
+        except ValueError:
+            continue  # a line cut short by a kill: that run goes again
+        if isinstance(row, dict) and isinstance(row.get("run_id"), int) \
+                and not row.get("interrupted"):
+            rows[row["run_id"]] = row
+    return rows
+
+
 def run_compare(scenarios: Sequence[str], trackers: Sequence[str], seeds: int,
-                workers: int | None, duration_s: float | None, log_dir: Path | None,
-                rows_path: Path | None = None) -> list[dict[str, Any]]:
+                workers: int | None, duration_s: float | None, out_dir: Path | None,
+                keep_logs: bool = False, force: bool = False,
+                resume: bool = False) -> list[dict[str, Any]]:
     """Run every combination on a process pool with a progress bar; the rows, by run id.
 
     Each scenario and its course are built once first, so a bad name, key or path file is
-    one error before any run. With ``rows_path`` each row is appended to it as one JSON line
-    as it lands (flushed), so an interrupt or a crash keeps the finished runs.
+    one error before any run. With ``out_dir`` (refused when it holds files, unless
+    ``force``, or ``resume`` to run only what an interrupted comparison there left) each row
+    is appended to ``out_dir/rows.jsonl`` as one JSON line as it lands (flushed), so an
+    interrupt or a crash keeps the finished runs. An interrupt raises
+    :class:`CompareInterrupted` with the rows finished so far.
     """
     from cosim.simulation.runner import scenario_course
     from cosim.simulation.scenario_config import load_config
@@ -253,18 +337,29 @@ def run_compare(scenarios: Sequence[str], trackers: Sequence[str], seeds: int,
         raise ConfigError(f"--seeds {seeds}: expected at least 1")
     for scenario in scenarios:
         scenario_course(load_config(scenario, duration_s=duration_s))
+    log_dir = out_dir / "logs" if out_dir is not None and keep_logs else None
     tasks = make_tasks(scenarios, trackers, seeds, duration_s, log_dir)
-    rows: list[dict[str, Any]] = []
-    if rows_path is not None:
-        rows_path.parent.mkdir(parents=True, exist_ok=True)
-        rows_path.write_text("")
-    with RunProgress(len(tasks), 0, "compare") as progress:
+    finished: dict[int, dict[str, Any]] = {}
+    rows_path = None
+    if out_dir is not None:
+        what = {"scenarios": list(scenarios), "trackers": list(trackers), "seeds": seeds,
+                "duration_s": duration_s}
+        finished = _prepare(out_dir, what, force, resume)
+        rows_path = out_dir / ROWS_FILE
+    rows = [row for row in finished.values() if row["run_id"] < len(tasks)]
+    missing = [task for task in tasks if task.run_id not in finished]
+    with RunProgress(len(tasks), len(rows), "compare") as progress:
         def land(row: dict[str, Any]) -> None:
+            if row.get("interrupted"):
+                return  # not a result: --resume runs it again
             rows.append(row)
             if rows_path is not None:
                 with rows_path.open("a") as handle:
                     handle.write(json.dumps(row) + "\n")
             progress.update(row, "error" if row["error"] else "ok")
 
-        ProcessBackend(workers or default_workers()).run(tasks, land)
+        try:
+            ProcessBackend(workers or default_workers()).run(missing, land)
+        except KeyboardInterrupt:
+            raise CompareInterrupted(sorted(rows, key=lambda r: r["run_id"])) from None
     return sorted(rows, key=lambda r: r["run_id"])

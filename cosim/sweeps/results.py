@@ -59,13 +59,18 @@ class SweepDir:
     def log_dir(self) -> Path:
         return self.root / "logs"
 
-    def prepare(self, spec: SweepSpec, spec_text: str, resume: bool, n_runs: int) -> None:
+    def prepare(self, spec: SweepSpec, spec_text: str, resume: bool, n_runs: int,
+                force: bool = False) -> None:
         """Start a new sweep here, or check that ``--resume`` continues the same spec.
 
-        A directory that already holds a sweep is never overwritten: without ``--resume``
-        it is refused, with ``--resume`` its spec hash must match this spec's.
+        A directory that already holds a sweep is not overwritten: without ``--resume``
+        it is refused (unless ``force``: its rows are dropped and the sweep starts afresh),
+        with ``--resume`` its spec hash must match this spec's.
         """
         digest = spec.digest()
+        if self.sweep_file.is_file() and force and not resume:
+            self.rows_file.unlink(missing_ok=True)
+            self.sweep_file.unlink()
         if self.sweep_file.is_file():
             if not resume:
                 raise CosimError(
