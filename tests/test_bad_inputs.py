@@ -257,6 +257,17 @@ ROWS = [
         ("unknown metric 'cte_mx_m'", "did you mean 'cte_max_m'?")),
     Row("fail-if unknown outcome", _fail_if("outcome==spinned"),
         ("'spinned' (did you mean 'spun'?)", 'expected one of ok,')),
+    # traffic against the ego and the ACC's sensor
+    Row("ACC with the radar off", lambda f: ["run", "acc-braking", "--set",
+                                             "sensors.radar.enabled=false", "--out", f("a.mcap")],
+        ("sensors.radar.enabled = false", "tracker.acc.enabled = true",
+         "expected sensors.radar.enabled=true")),
+    Row("traffic car inside the ego", lambda f: ["run", "acc", "--set", "traffic.lead.gap_m=0",
+                                                 "--out", f("a.mcap")],
+        ("traffic.lead: gap_m = 0", "starts inside the ego's body", "expected gap_m beyond")),
+    Row("traffic car null", lambda f: ["run", "acc", "--set", "traffic.lead=null",
+                                       "--out", f("a.mcap")],
+        ("traffic.lead = null", "expected a mapping of the car's settings")),
     # cosim run: where the log goes
     Row("out exists", lambda f: ["run", "lane-change", "--out", f("existing.mcap")],
         ("existing.mcap", "exists", "--force")),
