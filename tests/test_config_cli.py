@@ -8,6 +8,7 @@ import sys
 import typing
 from pathlib import Path
 
+import pytest
 import yaml
 
 from cosim.log.reader import read_summary
