@@ -78,3 +78,21 @@ def test_the_docs_random_policy_example_runs(tmp_path: Path) -> None:
     assert done.returncode == 0, done.stderr
     cte_max_m, outcome = done.stdout.split()
     assert float(cte_max_m) > 0.0 and outcome in ("ok", "off_road", "spun", "end_of_path")
+
+
+@pytest.mark.parametrize(("action", "fragment"), [
+    (np.zeros(3), "action of shape (3,): expected shape (2,)"),
+    (np.zeros((1, 2)), "action of shape (1, 2): expected shape (2,)"),
+    (np.array([np.nan, 0.0]), "action [nan, 0.0]: expected finite numbers"),
+    (np.array([0.0, np.inf]), "action [0.0, inf]: expected finite numbers"),
+    ("left", "action 'left': expected 2 numbers"),
+])
+def test_a_malformed_action_is_named_not_clipped_or_blamed_on_the_brake(
+        action: object, fragment: str) -> None:
+    env = CosimEnv(overrides=("sim.duration_s=1",))
+    env.reset(seed=0)
+    with pytest.raises(ValueError) as error:
+        env.step(action)  # type: ignore[arg-type]
+    assert fragment in str(error.value)
+    env.step(np.array([2.0, -3.0], dtype=np.float32))  # out of the box: clipped, as before
+    env.close()

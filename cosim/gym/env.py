@@ -13,7 +13,8 @@ left of it, ``heading_error_rad``); the reference speed there; the path's curvat
 
 Action (``float32`` Box ``[-1, 1]^2``): ``[steer, accel]`` normalised, ``steer_rad = a0
 tracker.max_steer_rad`` and ``accel_mps2`` affine from ``[-1, 1]`` onto
-``[tracker.accel_min_mps2, tracker.accel_max_mps2]``.
+``[tracker.accel_min_mps2, tracker.accel_max_mps2]``; values outside are clipped, an action
+of another shape or with NaN is a ``ValueError`` (:meth:`CosimEnv.command_of`).
 
 Reward per step: ``-(cte_m^2 + heading_err_rad^2 + 0.1 (v - v_ref)^2 + 0.1 steer_rate^2)``
 with the simulator's true tracking errors (the reward is the experimenter's, not the
@@ -113,8 +114,23 @@ class CosimEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         return self._state.reference
 
     def command_of(self, action: np.ndarray) -> Command:
-        """The command an action stands for (clipped to the action space)."""
-        a = np.clip(np.asarray(action, dtype=float), -1.0, 1.0)
+        """The command an action stands for (clipped to the action space).
+
+        An action of another shape, or with a NaN or infinite entry, is a ``ValueError``
+        naming it: clipping would hide an agent's bug (NaN passes through ``clip`` and came
+        out as a NaN brake torque deep in the plant)."""
+        try:
+            a = np.asarray(action, dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(f"action {action!r}: expected 2 numbers [steer, accel] in "
+                             "[-1, 1]") from None
+        if a.shape != self.action_space.shape:
+            raise ValueError(f"action of shape {a.shape}: expected shape "
+                             f"{self.action_space.shape}, [steer, accel] in [-1, 1]")
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"action {a.tolist()}: expected finite numbers [steer, accel] "
+                             "in [-1, 1] (the agent produced NaN or infinity)")
+        a = np.clip(a, -1.0, 1.0)
         return Command(0.0, self._accel_mid + self._accel_half * float(a[1]),
                        self._steer_max_rad * float(a[0]))
 
