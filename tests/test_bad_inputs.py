@@ -45,6 +45,20 @@ def _write_other_tool_mcap(path: Path) -> None:
         writer.finish()
 
 
+def _write_foreign_truth_mcap(path: Path) -> None:
+    """Another tool's log on cosim's truth topic, without a position (nulls)."""
+    with path.open("wb") as stream:
+        writer = Writer(stream)
+        writer.start(profile="", library="some-other-tool 1.0")
+        schema = writer.register_schema(name="truth", encoding="jsonschema", data=b"{}")
+        channel = writer.register_channel(topic="/vehicle/truth", message_encoding="json",
+                                          schema_id=schema)
+        for i in range(5):
+            writer.add_message(channel_id=channel, log_time=i * 10**7, publish_time=i * 10**7,
+                               data=b'{"t_s": %.2f, "x_m": null, "y_m": null}' % (i / 100))
+        writer.finish()
+
+
 def _write_empty_mcap(path: Path) -> None:
     with path.open("wb") as stream:
         writer = Writer(stream)
@@ -94,6 +108,7 @@ def files(tmp_path: Path) -> Files:
     (root / "a-file").write_text("a file where a directory is expected\n")
     _write_other_tool_mcap(root / "other.mcap")
     _write_empty_mcap(root / "empty.mcap")
+    _write_foreign_truth_mcap(root / "foreign-truth.mcap")
     good = (root / "good.mcap")
     good.write_bytes((root / "other.mcap").read_bytes())
     corrupt = bytearray((root / "other.mcap").read_bytes())
@@ -321,6 +336,9 @@ ROWS = [
         ("empty.mcap", "nothing to plot")),
     Row("plot other tool's", lambda f: ["plot", f("other.mcap"), "--out", f("plots")],
         ("other.mcap", "nothing to plot")),
+    Row("plot other tool's truth without positions", lambda f: [
+        "plot", f("foreign-truth.mcap"), "--out", f("plots")],
+        ("foreign-truth.mcap", "no /vehicle/truth message with a finite", "nothing to plot")),
     Row("plot corrupted", lambda f: ["plot", f("corrupt.mcap"), "--out", f("plots")],
         ("corrupt.mcap",)),
     # cosim sweep

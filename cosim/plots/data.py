@@ -322,6 +322,9 @@ def load_run(path: Path | str) -> RunLog:
     if not messages["/vehicle/truth"]:
         raise LogReadError(f"{str(path)!r}: no /vehicle/truth messages (nothing to plot)")
     truth = _truth(messages["/vehicle/truth"])
+    if not np.any(np.isfinite(truth.t_s) & np.isfinite(truth.x_m) & np.isfinite(truth.y_m)):
+        raise LogReadError(f"{str(path)!r}: no /vehicle/truth message with a finite t_s, x_m "
+                           "and y_m (nothing to plot): expected a log that cosim wrote")
     estimate = _estimate(messages["/vehicle/estimate"])
     reference = _reference(messages["/reference/path"])
     config = summary.config
