@@ -43,6 +43,7 @@ from pathlib import Path
 from typing import Any
 
 from cosim.core.exceptions import ConfigError
+from cosim.sweeps.results import read_row_log, refuse_non_empty
 from cosim.sweeps.spec import RunTask
 
 DEFAULT_TRACKERS: tuple[str, ...] = (
@@ -259,14 +260,8 @@ def non_empty_refusal(out_dir: Path, force: bool, resume: bool) -> None:
     ``resume`` (the earlier results would be overwritten or mixed in)."""
     if out_dir.exists() and not out_dir.is_dir():
         raise ConfigError(f"--out {str(out_dir)!r}: is a file: expected a folder")
-    if force or resume or not out_dir.is_dir():
-        return
-    entries = sorted(p.name for p in out_dir.iterdir())
-    if entries:
-        shown = ", ".join(entries[:3]) + (" ..." if len(entries) > 3 else "")
-        raise ConfigError(f"--out {str(out_dir)!r}: not empty ({shown}): expected a new or "
-                          "empty folder (or --force to replace its results, --resume to "
-                          "finish the run that wrote them)")
+    if not (force or resume):
+        refuse_non_empty(out_dir, "replace its results", "finish the run that wrote them")
 
 
 def _prepare(out_dir: Path, what: dict[str, Any], force: bool,
@@ -285,7 +280,7 @@ def _prepare(out_dir: Path, what: dict[str, Any], force: bool,
             raise ConfigError(f"--resume: {str(out_dir)!r} compared {shown_what(earlier)}: "
                               f"expected the same scenarios, trackers, seeds and duration "
                               f"(now {shown_what(what)})")
-        return _read_rows(out_dir / ROWS_FILE)
+        return read_row_log(out_dir / ROWS_FILE)
     out_dir.mkdir(parents=True, exist_ok=True)
     (out_dir / ROWS_FILE).write_text("")
     stored.write_text(json.dumps(what, indent=1) + "\n")
@@ -298,21 +293,6 @@ def shown_what(what: Any) -> str:
         return "something else"
     return (f"{','.join(what.get('scenarios', []))} x {','.join(what.get('trackers', []))} "
             f"x {what.get('seeds')} seed(s), duration {what.get('duration_s')}")
-
-
-def _read_rows(path: Path) -> dict[int, dict[str, Any]]:
-    rows: dict[int, dict[str, Any]] = {}
-    if not path.is_file():
-        return rows
-    for line in path.read_bytes().splitlines():
-        try:
-            row = json.loads(line.decode("utf-8"))
-        except ValueError:
-            continue  # a line cut short by a kill: that run goes again
-        if isinstance(row, dict) and isinstance(row.get("run_id"), int) \
-                and not row.get("interrupted"):
-            rows[row["run_id"]] = row
-    return rows
 
 
 def run_compare(scenarios: Sequence[str], trackers: Sequence[str], seeds: int,

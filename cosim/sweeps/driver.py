@@ -34,6 +34,7 @@ from cosim.sweeps.results import (
     SweepDir,
     append_row,
     failures,
+    refuse_non_empty,
     summary_markdown,
     write_tables,
 )
@@ -147,13 +148,8 @@ def check_sweep_dir(out: Path, force: bool = False, resume: bool = False) -> Non
     anything: a refused spec leaves no directory behind)."""
     if out.exists() and not out.is_dir():
         raise CosimError(f"--out {str(out)!r}: is a file: expected a directory for the sweep")
-    if out.is_dir() and not (force or resume):
-        entries = sorted(p.name for p in out.iterdir())
-        if entries:
-            names = ", ".join(entries[:3]) + (" ..." if len(entries) > 3 else "")
-            raise CosimError(f"--out {str(out)!r}: not empty ({names}): expected a new or "
-                             "empty folder (or --force to start the sweep afresh there, "
-                             "--resume to finish the sweep it holds)")
+    if not (force or resume):
+        refuse_non_empty(out, "start the sweep afresh there", "finish the sweep it holds")
     existing = next(p for p in (out, *out.parents) if p.exists() or p == Path(p.anchor))
     if not existing.is_dir():
         raise CosimError(f"--out {str(out)!r}: cannot make the directory ({str(existing)!r} "
