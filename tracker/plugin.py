@@ -110,10 +110,12 @@ class GuardedTracker:
         except KeyboardInterrupt:
             raise
         except BaseException as error:  # noqa: BLE001 - user code: SystemExit included
-            what = f"called sys.exit({error.code!r})" if isinstance(error, SystemExit) \
-                else f"raised {type(error).__name__}"
-            raise TrackerFault(f"tracker {self.name!r} {what} at t = {t_s:.3f} s"
-                               + (f": {error}" if str(error) else "")) from error
+            if isinstance(error, SystemExit):  # its text is only the exit code again
+                what, detail = f"called sys.exit({error.code!r})", ""
+            else:
+                what, detail = f"raised {type(error).__name__}", f": {error}" if str(error) else ""
+            raise TrackerFault(f"tracker {self.name!r} {what} at t = {t_s:.3f} s{detail}") \
+                from error
         elapsed_s = time.perf_counter() - start_s
         command, plan = check_step_result(self.name, t_s, result)
         if elapsed_s > self._budget_s:
