@@ -241,10 +241,11 @@ def _command_run(args: argparse.Namespace) -> int:
                          args.duration, args.tracker, args.estimator)
     if args.out is None:
         from cosim.log.names import default_log_name, override_tag
+        from cosim.simulation.changes import file_changes
 
         stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
-        tag = override_tag(args.overrides, args.tracker, args.estimator, args.seed,
-                           args.duration, args.config)
+        tag = override_tag([*file_changes(args.scenario, args.config), *args.overrides],
+                           args.tracker, args.estimator, args.seed, args.duration, args.config)
         out = Path("logs") / default_log_name(config.name, tag, stamp)
     else:
         out = Path(args.out)
@@ -342,6 +343,7 @@ def _shown_metrics(metrics: dict[str, Any], open_loop: bool) -> dict[str, Any]:
 def _command_inspect(args: argparse.Namespace) -> int:
     from cosim.log.export import csv_command, log_warnings
     from cosim.log.reader import iter_messages, read_summary
+    from cosim.simulation.changes import base_scenario, changes_text, config_changes
 
     path = Path(args.file)
     if not path.is_file():
@@ -374,6 +376,7 @@ def _command_inspect(args: argparse.Namespace) -> int:
         "attachments": summary.attachments,
         "versions": summary.versions,
         "config": summary.config,
+        "changes": config_changes(summary.config) if summary.config else [],
         "metrics": summary.metrics or {},
         "warnings": log_warnings(summary),
     }
@@ -393,6 +396,8 @@ def _command_inspect(args: argparse.Namespace) -> int:
         print(f"scenario {config.get('name')}  seed {config.get('seed')}  tracker "
               f"{config.get('tracker', {}).get('name')}  estimator "
               f"{config.get('estimator', {}).get('name')}")
+        print(f"changed from {base_scenario(config)}: "
+              f"{changes_text(document['changes'], at_most=12)}")
     if summary.versions:
         print("versions " + "  ".join(f"{k} {v}" for k, v in summary.versions.items()))
     for warning in document["warnings"]:
