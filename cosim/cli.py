@@ -283,15 +283,17 @@ def _command_run(args: argparse.Namespace) -> int:
 
         print(describe(render_for_cli(result.log_path, args.video, RenderOptions())),
               file=sys.stderr if args.json else sys.stdout)
-    if not result.completed:
-        print(f"cosim: run aborted ({result.metrics.get('outcome')}): {result.abort_reason}; "
-              f"log: {result.log_path}", file=sys.stderr)
-        return EXIT_BAD_OUTCOME
-    if result.metrics.get("outcome", "ok") != "ok":
-        when = result.metrics.get(f"{result.metrics['outcome']}_t_s")
-        at = f" at t = {when:.2f} s" if isinstance(when, float) else ""
-        print(f"cosim: run ended badly: outcome {result.metrics['outcome']}{at} "
+    outcome = str(result.metrics.get("outcome", "ok"))
+    when = result.metrics.get(f"{outcome}_t_s")
+    if isinstance(when, float):  # an event: it is on /events
+        stopped = "" if result.completed else \
+            "; the run stopped there (--set outcome.keep_going=true runs on)"
+        print(f"cosim: run ended badly: outcome {outcome} at t = {when:.2f} s{stopped} "
               f"(see /events in {result.log_path})", file=sys.stderr)
+        return EXIT_BAD_OUTCOME
+    if not result.completed:
+        print(f"cosim: run aborted ({outcome}): {result.abort_reason}; "
+              f"log: {result.log_path}", file=sys.stderr)
         return EXIT_BAD_OUTCOME
     held = [c for c in conditions if c.holds(result.metrics)]
     if held:
