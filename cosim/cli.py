@@ -573,22 +573,13 @@ def _command_compare(args: argparse.Namespace) -> int:
 
 
 def _print_league(table: list[Any]) -> None:
-    from rich.console import Console
-    from rich.table import Table
+    """The league, in the terminal's width (unlimited when piped: every number whole)."""
+    import shutil
 
-    from cosim.sweeps.compare import LEAGUE_METRICS, by_scenario
+    from cosim.sweeps.compare import league_text
 
-    console = Console()
-    for scenario, rows in by_scenario(table).items():
-        view = Table(title=scenario)
-        view.add_column("tracker")
-        for _, title, _ in LEAGUE_METRICS:
-            view.add_column(title, justify="right")
-        view.add_column("failures", justify="right")
-        for r in rows:
-            view.add_row(r.tracker, *[("-" if r.values[k] is None else f"{r.values[k]:.4g}")
-                                      for k, _, _ in LEAGUE_METRICS], str(r.failures))
-        console.print(view)
+    width = shutil.get_terminal_size().columns if sys.stdout.isatty() else None
+    print(league_text(table, width))
 
 
 def _command_render(args: argparse.Namespace) -> int:

@@ -158,6 +158,52 @@ def by_scenario(table: Sequence[LeagueRow]) -> dict[str, list[LeagueRow]]:
             for scenario, rows in groups.items()}
 
 
+def _cell(row: LeagueRow, key: str) -> str:
+    value = row.values[key]
+    return "-" if value is None else f"{value:.4g}"
+
+
+def _aligned(header: list[str], body: list[list[str]]) -> list[str]:
+    """Columns padded to their widest cell: the first left-aligned, the rest right."""
+    widths = [max(len(r[i]) for r in [header, *body]) for i in range(len(header))]
+
+    def line(cells: list[str]) -> str:
+        return "  ".join(c.ljust(w) if i == 0 else c.rjust(w)
+                         for i, (c, w) in enumerate(zip(cells, widths, strict=True))).rstrip()
+
+    return [line(header), *(line(r) for r in body)]
+
+
+def league_text(table: Sequence[LeagueRow], width: int | None = None) -> str:
+    """The league as plain text that fits ``width`` columns (None: no limit, as when
+    piped): a row per tracker when that fits, else a row per metric with the trackers as
+    columns, else a block per tracker. Every number is shown whole, never cut."""
+    sections = []
+    for scenario, rows in by_scenario(table).items():
+        keys = [key for key, _, _ in LEAGUE_METRICS]
+        titles = [title for _, title, _ in LEAGUE_METRICS]
+        wide = _aligned(["tracker", *titles, "failures"],
+                        [[r.tracker, *(_cell(r, k) for k in keys), str(r.failures)]
+                         for r in rows])
+        tall = _aligned(["metric", *(r.tracker for r in rows)],
+                        [[title, *(_cell(r, key) for r in rows)]
+                         for key, title in zip(keys, titles, strict=True)]
+                        + [["failures", *(str(r.failures) for r in rows)]])
+        if width is None or max(map(len, wide)) <= width:
+            lines = wide
+        elif max(map(len, tall)) <= width:
+            lines = tall
+        else:
+            lines = []
+            for r in rows:
+                lines += [r.tracker] + [f"  {line}" for line in _aligned(
+                    ["metric", "value"], [[t, _cell(r, k)] for k, t in zip(keys, titles,
+                                                                          strict=True)]
+                    + [["failures", str(r.failures)]])[1:]]
+        sections.append("\n".join([scenario, *lines]))
+    return "\n\n".join(sections)
+
+
 def markdown(table: Sequence[LeagueRow]) -> str:
     """The league table as Markdown, one section per scenario, best RMS CTE first."""
     lines = []

@@ -105,3 +105,21 @@ def test_sigterm_stops_a_comparison_and_keeps_the_finished_runs(tmp_path: Path) 
     rows = [json.loads(line) for line in rows_file.read_text().splitlines()]
     assert 1 <= len(rows) < 4
     assert all(row["metrics"]["completed"] for row in rows)
+
+
+def test_the_league_text_fits_any_width_and_cuts_no_number() -> None:
+    from cosim.sweeps.compare import LEAGUE_METRICS, LeagueRow, league_text
+
+    values = {key: 1.23456789e-3 * (i + 1) for i, (key, _, _) in enumerate(LEAGUE_METRICS)}
+    rows = [LeagueRow("lane-change", name, 1, dict(values), 0, ())
+            for name in ("dynamic-nmpc", "pure-pursuit", "lqr", "pid")]
+    shown = [f"{v:.4g}" for v in values.values()]
+    for width in (None, 200, 90, 40):
+        text = league_text(rows, width)
+        lines = text.splitlines()
+        if width is not None:
+            assert max(map(len, lines)) <= width, (width, text)
+        assert "…" not in text
+        for number in shown:  # every figure whole, for every tracker
+            assert text.count(number) == len(rows), (width, number)
+    assert len(league_text(rows, None).splitlines()) == 1 + 1 + len(rows)  # a row a tracker
