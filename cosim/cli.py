@@ -119,8 +119,8 @@ def _build_parser() -> argparse.ArgumentParser:
                          help="write each topic (or only --topic) as DIR/<topic>.csv")
 
     plot = commands.add_parser("plot", help="PNG figures of a log (or two logs overlaid)")
-    plot.add_argument("file", metavar="FILE.mcap")
-    plot.add_argument("file2", metavar="FILE2.mcap", nargs="?", help="a second log to overlay")
+    plot.add_argument("files", metavar="FILE.mcap", nargs="+",
+                      help="a log, or several (up to 6) to overlay")
     plot.add_argument("--out", metavar="DIR",
                       help="output directory (default <log>-plots beside the log)")
 
@@ -414,7 +414,7 @@ def _command_inspect(args: argparse.Namespace) -> int:
 def _command_plot(args: argparse.Namespace) -> int:
     from cosim.plots import plot_command
 
-    return plot_command(args.file, args.file2, args.out)
+    return plot_command(args.files, args.out)
 
 
 def _command_scenarios(args: argparse.Namespace) -> int:
