@@ -121,8 +121,8 @@ def _build_parser() -> argparse.ArgumentParser:
                          help="write each topic (or only --topic) as DIR/<topic>.csv")
 
     plot = commands.add_parser("plot", help="PNG figures of a log (or two logs overlaid)")
-    plot.add_argument("file", metavar="FILE.mcap")
-    plot.add_argument("file2", metavar="FILE2.mcap", nargs="?", help="a second log to overlay")
+    plot.add_argument("files", metavar="FILE.mcap", nargs="+",
+                      help="a log, or several (up to 6) to overlay")
     plot.add_argument("--out", metavar="DIR",
                       help="output directory (default <log>-plots beside the log)")
 
@@ -280,15 +280,17 @@ def _command_run(args: argparse.Namespace) -> int:
 
         print(describe(render_for_cli(result.log_path, args.video, RenderOptions())),
               file=sys.stderr if args.json else sys.stdout)
-    if not result.completed:
-        print(f"cosim: run aborted ({result.metrics.get('outcome')}): {result.abort_reason}; "
-              f"log: {result.log_path}", file=sys.stderr)
-        return EXIT_BAD_OUTCOME
-    if result.metrics.get("outcome", "ok") != "ok":
-        when = result.metrics.get(f"{result.metrics['outcome']}_t_s")
-        at = f" at t = {when:.2f} s" if isinstance(when, float) else ""
-        print(f"cosim: run ended badly: outcome {result.metrics['outcome']}{at} "
+    outcome = str(result.metrics.get("outcome", "ok"))
+    when = result.metrics.get(f"{outcome}_t_s")
+    if isinstance(when, float):  # an event: it is on /events
+        stopped = "" if result.completed else \
+            "; the run stopped there (--set outcome.keep_going=true runs on)"
+        print(f"cosim: run ended badly: outcome {outcome} at t = {when:.2f} s{stopped} "
               f"(see /events in {result.log_path})", file=sys.stderr)
+        return EXIT_BAD_OUTCOME
+    if not result.completed:
+        print(f"cosim: run aborted ({outcome}): {result.abort_reason}; "
+              f"log: {result.log_path}", file=sys.stderr)
         return EXIT_BAD_OUTCOME
     held = [c for c in conditions if c.holds(result.metrics)]
     if held:
@@ -313,10 +315,11 @@ def _claim_out(args: argparse.Namespace, scenario: str) -> Iterator[Path]:
             yield out
         return
     from cosim.log.names import default_log_name, override_tag
+    from cosim.simulation.changes import file_changes
 
     stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
-    tag = override_tag(args.overrides, args.tracker, args.estimator, args.seed,
-                       args.duration, args.config)
+    tag = override_tag([*file_changes(args.scenario, args.config), *args.overrides],
+                       args.tracker, args.estimator, args.seed, args.duration, args.config)
     default = Path("logs") / default_log_name(scenario, tag, stamp)
     for attempt in range(1, 100):
         name = default if attempt == 1 else \
@@ -375,6 +378,7 @@ def _shown_metrics(metrics: dict[str, Any], open_loop: bool) -> dict[str, Any]:
 def _command_inspect(args: argparse.Namespace) -> int:
     from cosim.log.export import csv_command, log_warnings
     from cosim.log.reader import iter_messages, read_summary
+    from cosim.simulation.changes import base_scenario, changes_text, config_changes
 
     path = Path(args.file)
     if not path.is_file():
@@ -407,6 +411,7 @@ def _command_inspect(args: argparse.Namespace) -> int:
         "attachments": summary.attachments,
         "versions": summary.versions,
         "config": summary.config,
+        "changes": config_changes(summary.config) if summary.config else [],
         "metrics": summary.metrics or {},
         "warnings": log_warnings(summary),
     }
@@ -426,6 +431,8 @@ def _command_inspect(args: argparse.Namespace) -> int:
         print(f"scenario {config.get('name')}  seed {config.get('seed')}  tracker "
               f"{config.get('tracker', {}).get('name')}  estimator "
               f"{config.get('estimator', {}).get('name')}")
+        print(f"changed from {base_scenario(config)}: "
+              f"{changes_text(document['changes'], at_most=12)}")
     if summary.versions:
         print("versions " + "  ".join(f"{k} {v}" for k, v in summary.versions.items()))
     for warning in document["warnings"]:
@@ -440,7 +447,7 @@ def _command_inspect(args: argparse.Namespace) -> int:
 def _command_plot(args: argparse.Namespace) -> int:
     from cosim.plots import plot_command
 
-    return plot_command(args.file, args.file2, args.out)
+    return plot_command(args.files, args.out)
 
 
 def _command_scenarios(args: argparse.Namespace) -> int:
@@ -606,22 +613,13 @@ def _command_compare(args: argparse.Namespace) -> int:
 
 
 def _print_league(table: list[Any]) -> None:
-    from rich.console import Console
-    from rich.table import Table
+    """The league, in the terminal's width (unlimited when piped: every number whole)."""
+    import shutil
 
-    from cosim.sweeps.compare import LEAGUE_METRICS, by_scenario
+    from cosim.sweeps.compare import league_text
 
-    console = Console()
-    for scenario, rows in by_scenario(table).items():
-        view = Table(title=scenario)
-        view.add_column("tracker")
-        for _, title, _ in LEAGUE_METRICS:
-            view.add_column(title, justify="right")
-        view.add_column("failures", justify="right")
-        for r in rows:
-            view.add_row(r.tracker, *[("-" if r.values[k] is None else f"{r.values[k]:.4g}")
-                                      for k, _, _ in LEAGUE_METRICS], str(r.failures))
-        console.print(view)
+    width = shutil.get_terminal_size().columns if sys.stdout.isatty() else None
+    print(league_text(table, width))
 
 
 def _command_render(args: argparse.Namespace) -> int:

@@ -49,7 +49,7 @@ from cosim.sensing.sensors import TruthSensor, make_sensors
 from cosim.simulation.course import Course, build_course
 from cosim.simulation.course_metrics import CourseMonitor
 from cosim.simulation.metrics import MetricsAccumulator
-from cosim.simulation.outcome import OutcomeMonitor
+from cosim.simulation.outcome import TERMINAL, Event, OutcomeMonitor
 from cosim.simulation.scenario_config import ScenarioConfig, steps_per_period
 from cosim.simulation.traffic_loop import CollisionError, TrafficLoop, build_traffic
 from estimation.registry import make_estimator
@@ -248,6 +248,9 @@ class _Run:
         """Sim time of the next ``/metrics/live`` message."""
         self.events_registered = False
         """``/events`` is registered with the first event."""
+        self.stopped_by: Event | None = None
+        """The terminal event the run stops at (:data:`cosim.simulation.outcome.TERMINAL`),
+        once it has happened."""
         self.traffic = None if traffic is None else \
             TrafficLoop(config, self.plant, traffic, recorder, self.tracker,
                         component_rng(config.seed, "sensors.radar"))
@@ -321,6 +324,9 @@ class _Run:
                 self.recorder.register("/events", mcap_schemas.EVENT)
                 self.events_registered = True
             self.recorder.write_finite("/events", t_s, event.to_message())
+            if event.kind in TERMINAL and not self.config.outcome.keep_going \
+                    and self.stopped_by is None:
+                self.stopped_by = event
         self.course_monitor.add_truth(self.truth, metrics.cte_m.last, metrics.last_path_s_m)
         self.recorder.write_finite("/control/errors", t_s, {
             "t_s": t_s, "cte_m": metrics.cte_m.last,
@@ -419,10 +425,13 @@ class _Run:
                 "yaw_rate_change_radps": change.delta_radps})
 
     def observe(self, k: int) -> bool:
-        """Phases 1-2 of step ``k`` (log, sense); False at the end of the run."""
+        """Phases 1-2 of step ``k`` (log, sense); False at the end of the run (its last
+        step, or a terminal event: :attr:`stopped_by`)."""
         t_s = k * self.clock.dt_s
         if k % self.clock.log_steps == 0:
             self.log(k, t_s)
+            if self.stopped_by is not None:
+                return False
         self.sense(k, t_s)
         return k < self.clock.n_steps
 
@@ -475,7 +484,11 @@ def run(
         try:
             with _stop_on_signals() as stop:
                 state.loop(stop, progress)
-            completed = True
+            completed = state.stopped_by is None
+            if state.stopped_by is not None:
+                event = state.stopped_by
+                abort_reason = (f"stopped at {event.kind} (t = {event.t_s:.2f} s; "
+                                "outcome.keep_going: true runs on)")
         except PhysicsDivergenceError as error:
             abort_reason, abort = str(error), "diverged"
         except TrackerFault as error:  # a plug-in tracker failed: a result, not a crash

@@ -23,7 +23,7 @@ rate penalty, follows. With ``tracker.weights.steer_rate=0.3`` ``dynamic-nmpc`` 
 0.053 m, with ``tracker.weights.cte=100`` 0.051 m, both ahead of the LQR.
 
 Outputs in ``--out DIR``: ``league.md`` and ``league.csv`` (the table), ``league.png``
-(``cte_rms_m`` per scenario and tracker, log scale), ``rows.json`` (every run's metrics),
+(``cte_rms_m`` per scenario and tracker), ``rows.json`` (every run's metrics),
 ``rows.jsonl`` (each run's row as it finished, kept if the comparison is interrupted) and
 ``compare.json`` (what was compared). A folder with files in it is refused unless
 ``--force`` (start afresh) or ``--resume`` (finish the interrupted comparison it holds). An
@@ -164,6 +164,47 @@ def by_scenario(table: Sequence[LeagueRow]) -> dict[str, list[LeagueRow]]:
             for scenario, rows in groups.items()}
 
 
+def _aligned(header: list[str], body: list[list[str]]) -> list[str]:
+    """Columns padded to their widest cell: the first left-aligned, the rest right."""
+    widths = [max(len(r[i]) for r in [header, *body]) for i in range(len(header))]
+
+    def line(cells: list[str]) -> str:
+        return "  ".join(c.ljust(w) if i == 0 else c.rjust(w)
+                         for i, (c, w) in enumerate(zip(cells, widths, strict=True))).rstrip()
+
+    return [line(header), *(line(r) for r in body)]
+
+
+def league_text(table: Sequence[LeagueRow], width: int | None = None) -> str:
+    """The league as plain text that fits ``width`` columns (None: no limit, as when
+    piped): a row per tracker when that fits, else a row per metric with the trackers as
+    columns, else a block per tracker. Every number is shown whole, never cut."""
+    sections = []
+    for scenario, rows in by_scenario(table).items():
+        keys = [key for key, _, _ in LEAGUE_METRICS]
+        titles = [title for _, title, _ in LEAGUE_METRICS]
+        wide = _aligned(["tracker", *titles, "failures"],
+                        [[r.tracker, *(_cell(r.values[k]) for k in keys), str(r.failures)]
+                         for r in rows])
+        tall = _aligned(["metric", *(r.tracker for r in rows)],
+                        [[title, *(_cell(r.values[key]) for r in rows)]
+                         for key, title in zip(keys, titles, strict=True)]
+                        + [["failures", *(str(r.failures) for r in rows)]])
+        if width is None or max(map(len, wide)) <= width:
+            lines = wide
+        elif max(map(len, tall)) <= width:
+            lines = tall
+        else:
+            lines = []
+            for r in rows:
+                lines += [r.tracker] + [f"  {line}" for line in _aligned(
+                    ["metric", "value"], [[t, _cell(r.values[k])] for k, t in zip(keys, titles,
+                                                                          strict=True)]
+                    + [["failures", str(r.failures)]])[1:]]
+        sections.append("\n".join([scenario, *lines]))
+    return "\n\n".join(sections)
+
+
 def markdown(table: Sequence[LeagueRow]) -> str:
     """The league table as Markdown, one section per scenario, best RMS CTE first."""
     lines = []
@@ -190,31 +231,42 @@ def write_csv(table: Sequence[LeagueRow], path: Path) -> None:
 
 
 def write_chart(table: Sequence[LeagueRow], path: Path) -> None:
-    """Grouped bars of RMS CTE: one group per scenario, one bar per tracker (log scale)."""
-    import numpy as np
+    """RMS CTE of every tracker, one panel per scenario: horizontal bars on a linear axis
+    from zero (so lengths compare), best first, each labelled with its value; hatched bars
+    are the classic baselines. Scenarios differ by orders of magnitude, so each panel has
+    its own scale."""
+    import math
+
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    scenarios = list(dict.fromkeys(r.scenario for r in table))
-    trackers = list(dict.fromkeys(r.tracker for r in table))
-    figure = Figure(figsize=(max(6.0, 1.4 * len(scenarios) + 2.0), 4.5))
+    groups = by_scenario(table)
+    columns = 1 if len(groups) <= 3 else 2
+    panel_rows = math.ceil(len(groups) / columns)
+    trackers = max((len(rows) for rows in groups.values()), default=1)
+    figure = Figure(figsize=(6.5 * columns, 0.9 + panel_rows * (0.9 + 0.32 * trackers)),
+                    layout="constrained")
     FigureCanvasAgg(figure)
-    ax = figure.add_subplot()
-    width = 0.8 / max(1, len(trackers))
-    lookup = {(r.scenario, r.tracker): r.values["cte_rms_m"] for r in table}
-    for k, tracker in enumerate(trackers):
-        heights = [lookup.get((s, tracker)) or np.nan for s in scenarios]
-        hatch = "" if tracker in MPC_TRACKERS else "//"
-        ax.bar(np.arange(len(scenarios)) + (k - (len(trackers) - 1) / 2) * width, heights,
-               width, label=tracker, hatch=hatch)
-    ax.set_xticks(np.arange(len(scenarios)), [Path(s).stem for s in scenarios],
-                  rotation=20, ha="right")
-    ax.set_yscale("log")
-    ax.set_ylabel("RMS cross-track error [m]")
-    ax.set_title("cosim compare: RMS CTE per scenario (hatched: classic baselines)")
-    ax.grid(True, axis="y", which="both", alpha=0.3)
-    ax.legend(fontsize="small", ncol=2)
-    figure.tight_layout()
+    axes = figure.subplots(panel_rows, columns, squeeze=False).ravel()
+    for ax, (scenario, rows) in zip(axes, groups.items(), strict=False):
+        shown = [r for r in rows if r.values["cte_rms_m"] is not None][::-1]  # best on top
+        values = [float(r.values["cte_rms_m"] or 0.0) for r in shown]
+        bars = ax.barh([r.tracker for r in shown], values,
+                       color=["C0" if r.tracker in MPC_TRACKERS else "C1" for r in shown],
+                       hatch=["" if r.tracker in MPC_TRACKERS else "//" for r in shown])
+        ax.bar_label(bars, labels=[f"{v:.3g}" for v in values], padding=3, fontsize=8)
+        ax.set_xlim(0.0, 1.18 * max(values, default=1.0) or 1.0)
+        ax.set_title(Path(scenario).stem, fontsize=10)
+        ax.set_xlabel("RMS cross-track error [m]", fontsize=9)
+        ax.grid(True, axis="x", alpha=0.3)
+        missing = [r.tracker for r in rows if r.values["cte_rms_m"] is None]
+        if missing:
+            ax.text(0.99, 0.02, "no value: " + ", ".join(missing), transform=ax.transAxes,
+                    ha="right", va="bottom", fontsize=7)
+    for ax in axes[len(groups):]:
+        ax.set_visible(False)
+    figure.suptitle("cosim compare: RMS cross-track error\n(hatched: classic baselines; "
+                    "best on top)", fontsize=11)
     figure.savefig(path, dpi=110)
 
 

@@ -153,3 +153,21 @@ def test_a_plugin_that_exits_is_one_failed_row_not_the_end(
     assert exited["metrics"]["completed"] is False
     assert "called sys.exit(\"the user's script gave up\")" in exited["error"]
     assert "tests.user_trackers:ExitsAtOnce" in (out / "league.md").read_text()
+
+
+def test_the_league_text_fits_any_width_and_cuts_no_number() -> None:
+    from cosim.sweeps.compare import LEAGUE_METRICS, LeagueRow, league_text
+
+    values = {key: 1.23456789e-3 * (i + 1) for i, (key, _, _) in enumerate(LEAGUE_METRICS)}
+    rows = [LeagueRow("lane-change", name, 1, dict(values), 0, ())
+            for name in ("dynamic-nmpc", "pure-pursuit", "lqr", "pid")]
+    shown = [f"{v:.4g}" for v in values.values()]
+    for width in (None, 200, 90, 40):
+        text = league_text(rows, width)
+        lines = text.splitlines()
+        if width is not None:
+            assert max(map(len, lines)) <= width, (width, text)
+        assert "…" not in text
+        for number in shown:  # every figure whole, for every tracker
+            assert text.count(number) == len(rows), (width, number)
+    assert len(league_text(rows, None).splitlines()) == 1 + 1 + len(rows)  # a row a tracker
