@@ -533,14 +533,15 @@ def _command_compare(args: argparse.Namespace) -> int:
     from cosim.sweeps import compare
     from cosim.sweeps.driver import sigterm_as_interrupt
     from tracker.config import is_plugin_name
+    from tracker.fmu.config import is_fmu_name
     from tracker.registry import TRACKER_NAMES
 
     closed_loop = [name for name in TRACKER_NAMES if name != "open-loop"]
     trackers = compare.parse_names(args.trackers, compare.DEFAULT_TRACKERS, None, "trackers")
     for name in trackers:  # built-in closed-loop trackers, or trackers from outside cosim
-        if name not in closed_loop and not is_plugin_name(name):
+        if name not in closed_loop and not is_plugin_name(name) and not is_fmu_name(name):
             raise CosimError(f"--trackers: {name!r} is not one of {', '.join(closed_loop)}, "
-                             "an installed plug-in or module:Class")
+                             "an installed plug-in, module:Class or fmu:PATH.fmu")
     scenarios = compare.parse_names(args.scenarios, compare.DEFAULT_SCENARIOS, None,
                                     "scenarios")
     if args.workers is not None and args.workers < 1:

@@ -39,6 +39,8 @@ from typing import Any
 
 from cosim.core.exceptions import ConfigError
 from cosim.sweeps.spec import RunTask
+from tracker.config import is_plugin_name
+from tracker.fmu.config import is_fmu_name
 
 DEFAULT_TRACKERS: tuple[str, ...] = (
     "dynamic-nmpc", "kinematic-nmpc", "ltv-mpc", "dynamic-mpc",
@@ -240,9 +242,10 @@ def run_compare(scenarios: Sequence[str], trackers: Sequence[str], seeds: int,
                 rows_path: Path | None = None) -> list[dict[str, Any]]:
     """Run every combination on a process pool with a progress bar; the rows, by run id.
 
-    Each scenario and its course are built once first, so a bad name, key or path file is
-    one error before any run. With ``rows_path`` each row is appended to it as one JSON line
-    as it lands (flushed), so an interrupt or a crash keeps the finished runs.
+    Each scenario and its course are built once first, and each scenario's config with each
+    plug-in or FMU tracker, so a bad name, key, path file or FMU is one error before any run.
+    With ``rows_path`` each row is appended to it as one JSON line as it lands (flushed), so
+    an interrupt or a crash keeps the finished runs.
     """
     from cosim.simulation.runner import scenario_course
     from cosim.simulation.scenario_config import load_config
@@ -253,6 +256,9 @@ def run_compare(scenarios: Sequence[str], trackers: Sequence[str], seeds: int,
         raise ConfigError(f"--seeds {seeds}: expected at least 1")
     for scenario in scenarios:
         scenario_course(load_config(scenario, duration_s=duration_s))
+        for tracker in trackers:  # a bad plug-in or FMU: one error before any run
+            if is_plugin_name(tracker) or is_fmu_name(tracker):
+                load_config(scenario, duration_s=duration_s, tracker=tracker)
     tasks = make_tasks(scenarios, trackers, seeds, duration_s, log_dir)
     rows: list[dict[str, Any]] = []
     if rows_path is not None:
