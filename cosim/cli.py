@@ -79,8 +79,8 @@ def _build_parser() -> argparse.ArgumentParser:
     run.add_argument("--config", metavar="FILE.yaml", help="YAML merged over the scenario")
     run.add_argument("--tracker", metavar="NAME",
                      help="path tracker: dynamic-nmpc (default), kinematic-nmpc, ltv-mpc, "
-                     "dynamic-mpc, open-loop ... (`cosim trackers`), an installed plug-in or "
-                     "my_pkg.my_module:MyTracker")
+                     "dynamic-mpc, open-loop ... (`cosim trackers`), an installed plug-in, "
+                     "my_pkg.my_module:MyTracker or a co-simulation FMU, fmu:PATH.fmu")
     run.add_argument("--estimator", metavar="NAME",
                      help="state estimator: ekf (default), ukf, truth (debugging)")
     run.add_argument("--seed", type=int, metavar="N", help="seed of every noise source")
