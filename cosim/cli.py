@@ -15,6 +15,7 @@ Start with `cosim run lane-change`, then `cosim plot` or `cosim inspect` on the 
     cosim identify [--config FILE.yaml] [--set key.path=value ...] [--json]
     cosim sweep SPEC.yaml [--workers N] [--backend process|ray] [--out DIR] [--keep-logs]
                           [--resume] [--yes]
+    cosim export --ros2 LOG.mcap [--out BAG.mcap] [--force]
     cosim render FILE.mcap [--out VIDEO.mp4] [--fps N] [--width W] [--height H]
                            [--start S] [--duration S] [--gl osmesa|egl|glfw]
     cosim config show SCENARIO [--config FILE.yaml] [--set key.path=value ...] [...]
@@ -123,6 +124,16 @@ def _build_parser() -> argparse.ArgumentParser:
     plot.add_argument("file2", metavar="FILE2.mcap", nargs="?", help="a second log to overlay")
     plot.add_argument("--out", metavar="DIR",
                       help="output directory (default <log>-plots beside the log)")
+
+    export = commands.add_parser(
+        "export", help="a log in another format: --ros2, an MCAP of ROS 2 messages")
+    export.add_argument("--ros2", metavar="LOG.mcap", required=True,
+                        help="the run log to export as standard ROS 2 messages (nav_msgs, "
+                        "sensor_msgs, tf2_msgs, ackermann_msgs; CDR) for ros2 bag play")
+    export.add_argument("--out", metavar="BAG.mcap",
+                        help="the MCAP to write (default <log>-ros2.mcap beside the log)")
+    export.add_argument("--force", action="store_true",
+                        help="replace --out if it exists (refused otherwise)")
 
     commands.add_parser("scenarios", help="list the built-in scenarios")
     commands.add_parser("trackers", help="list the trackers: built in and installed plug-ins")
@@ -585,6 +596,24 @@ def _print_league(table: list[Any]) -> None:
         console.print(view)
 
 
+def _command_export(args: argparse.Namespace) -> int:
+    from cosim.log.ros2 import require_rosbags
+
+    require_rosbags()
+    from cosim.log.ros2.bag import export_ros2
+
+    result = export_ros2(args.ros2, args.out, args.force)
+    if result.truncated:
+        print(f"cosim: warning: {args.ros2!r} was cut off: exported up to its last complete "
+              "record", file=sys.stderr)
+    print(f"{sum(result.message_counts.values())} ROS 2 messages -> {result.path}")
+    for topic, count in result.message_counts.items():
+        print(f"  {topic:<20} {count}")
+    print(f"replay: ros2 bag play -s mcap {result.path} --clock  (nodes with "
+          "use_sim_time:=true; the stamps are simulated time from sim.epoch)")
+    return 0
+
+
 def _command_render(args: argparse.Namespace) -> int:
     from cosim.plots.render import RenderOptions, describe, render_for_cli
 
@@ -611,6 +640,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 "scenarios": _command_scenarios, "identify": _command_identify,
                 "sweep": _command_sweep, "render": _command_render,
                 "config": _command_config, "compare": _command_compare,
+                "export": _command_export,
                 "trackers": _command_trackers, "estimators": _command_estimators}
     try:
         with warnings.catch_warnings():
