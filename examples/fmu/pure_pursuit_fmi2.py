@@ -4,7 +4,7 @@
 (examples/fmu/build.py does it). The law is in :mod:`pure_pursuit_law`.
 """
 
-from pure_pursuit_law import PREVIEW_POINTS, steer_rad
+from pure_pursuit_law import PREVIEW_POINTS, outputs
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
 
 INPUTS = ("speed_mps", "ref_speed_mps")
@@ -41,9 +41,5 @@ class PurePursuitFmi2(Fmi2Slave):
         self.register_variable(Real("accel_mps2", causality=Fmi2Causality.output))
 
     def do_step(self, current_time, step_size):
-        self.steer_rad = steer_rad(self.xs, self.ys, self.speed_mps, self.wheelbase_m,
-                                   self.cog_rear_m, self.understeer_radpmps2,
-                                   self.lookahead_time_s, self.lookahead_min_m,
-                                   self.lookahead_max_m)
-        self.accel_mps2 = self.speed_gain_1ps * (self.ref_speed_mps - self.speed_mps)
+        self.steer_rad, self.accel_mps2 = outputs(self)
         return True

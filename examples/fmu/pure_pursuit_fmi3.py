@@ -5,7 +5,7 @@
 (FMI 3 needs each one defined in ``UnitDefinitions``, with its SI base units).
 """
 
-from pure_pursuit_law import PREVIEW_POINTS, steer_rad
+from pure_pursuit_law import PREVIEW_POINTS, outputs
 from pythonfmu3 import Float64, Fmi3Causality, Fmi3Slave, Fmi3Variability
 from pythonfmu3.unit import Unit
 
@@ -55,9 +55,5 @@ class PurePursuitFmi3(Fmi3Slave):
                                        unit="m/s2"))
 
     def do_step(self, current_time, step_size):
-        self.steer_rad = steer_rad(self.xs, self.ys, self.speed_mps, self.wheelbase_m,
-                                   self.cog_rear_m, self.understeer_radpmps2,
-                                   self.lookahead_time_s, self.lookahead_min_m,
-                                   self.lookahead_max_m)
-        self.accel_mps2 = self.speed_gain_1ps * (self.ref_speed_mps - self.speed_mps)
+        self.steer_rad, self.accel_mps2 = outputs(self)
         return True

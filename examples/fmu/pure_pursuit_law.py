@@ -16,6 +16,7 @@ interpolated along the preview polyline. Speed: a proportional loop,
 from __future__ import annotations
 
 import math
+from typing import Any
 
 PREVIEW_POINTS = 25
 """How many preview points the FMUs declare (2 m apart by default: 50 m ahead)."""
@@ -48,3 +49,13 @@ def steer_rad(xs: list[float], ys: list[float], speed_mps: float, wheelbase_m: f
         return 0.0
     kappa = 2.0 * y / chord_sq
     return math.atan(wheelbase_m * kappa) + understeer_radpmps2 * speed_mps**2 * kappa
+
+
+def outputs(model: Any) -> tuple[float, float]:
+    """``(steer_rad, accel_mps2)`` of an FMU class holding the inputs and parameters as
+    attributes (``xs``, ``ys`` the preview points; the FMI 2 and FMI 3 classes share it)."""
+    m = model
+    steer = steer_rad(m.xs, m.ys, m.speed_mps, m.wheelbase_m, m.cog_rear_m,
+                      m.understeer_radpmps2, m.lookahead_time_s, m.lookahead_min_m,
+                      m.lookahead_max_m)
+    return steer, m.speed_gain_1ps * (m.ref_speed_mps - m.speed_mps)

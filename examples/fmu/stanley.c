@@ -84,6 +84,16 @@ static Model *new_model(void) {
     return m;
 }
 
+/* Back to the start values at t = 0 (fmi2Reset, fmi3Reset). */
+static Status reset_model(Model *m) {
+    Model *fresh = new_model();
+    if (fresh == NULL) return STATUS_ERROR;
+    memcpy(m->values, fresh->values, sizeof m->values);
+    m->time_s = 0.0;
+    free(fresh);
+    return STATUS_OK;
+}
+
 static Status get_values(Model *m, const ValueReference vr[], size_t n, double out[]) {
     for (size_t i = 0; i < n; i++) {
         if (vr[i] == VR_TIME) { out[i] = m->time_s; continue; }
@@ -162,14 +172,7 @@ fmi2Status fmi2EnterInitializationMode(fmi2Component c) { (void)c; return fmi2OK
 fmi2Status fmi2ExitInitializationMode(fmi2Component c) { (void)c; return fmi2OK; }
 fmi2Status fmi2Terminate(fmi2Component c) { (void)c; return fmi2OK; }
 
-fmi2Status fmi2Reset(fmi2Component c) {
-    Model *m = c, *fresh = new_model();
-    if (fresh == NULL) return fmi2Error;
-    memcpy(m->values, fresh->values, sizeof m->values);
-    m->time_s = 0.0;
-    free(fresh);
-    return fmi2OK;
-}
+fmi2Status fmi2Reset(fmi2Component c) { return reset_model(c); }
 
 fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                        fmi2Real value[]) {
@@ -229,14 +232,7 @@ fmi3Status fmi3ExitInitializationMode(fmi3Instance instance) { (void)instance; r
 fmi3Status fmi3EnterStepMode(fmi3Instance instance) { (void)instance; return fmi3OK; }
 fmi3Status fmi3Terminate(fmi3Instance instance) { (void)instance; return fmi3OK; }
 
-fmi3Status fmi3Reset(fmi3Instance instance) {
-    Model *m = instance, *fresh = new_model();
-    if (fresh == NULL) return fmi3Error;
-    memcpy(m->values, fresh->values, sizeof m->values);
-    m->time_s = 0.0;
-    free(fresh);
-    return fmi3OK;
-}
+fmi3Status fmi3Reset(fmi3Instance instance) { return reset_model(instance); }
 
 fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                           size_t nValueReferences, fmi3Float64 values[], size_t nValues) {
