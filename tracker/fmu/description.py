@@ -158,13 +158,14 @@ class _Check:
 
     def __init__(self, name: str) -> None:
         self.name = name
-        self.path = Path(fmu_path(name))
+        self.given = fmu_path(name)
+        self.path = Path(self.given).expanduser()
 
     def error(self, what: str) -> PluginError:
         return PluginError(f"tracker.name = {self.name!r}: {what}")
 
     def model_description(self) -> ModelDescription:
-        if not str(self.path):
+        if not self.given.strip():
             raise self.error("no path: expected fmu:PATH.fmu")
         if not self.path.is_file():
             what = "a folder" if self.path.is_dir() else "no such file"

@@ -76,7 +76,7 @@ BAD_DESCRIPTIONS: dict[str, tuple[int, Edit, str]] = {
 }
 
 
-def refusal(fmu: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+def refusal(fmu: Path | str, tmp_path: Path, capsys: pytest.CaptureFixture[str],
             *extra: str) -> str:
     """Run ``fmu`` through the CLI; assert exit 2, one line, no log; return the line."""
     out = tmp_path / "run.mcap"
@@ -106,9 +106,12 @@ def test_not_a_zip(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert fake.read_text() == "a text file, not an FMU\n"
 
 
-def test_missing_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_missing_file_folder_or_path(tmp_path: Path,
+                                     capsys: pytest.CaptureFixture[str]) -> None:
     assert "no such file: expected a co-simulation FMU" in refusal(
         tmp_path / "nowhere.fmu", tmp_path, capsys)
+    assert "a folder: expected a co-simulation FMU" in refusal(tmp_path, tmp_path, capsys)
+    assert "'fmu:': no path: expected fmu:PATH.fmu" in refusal("", tmp_path, capsys)
 
 
 def test_no_binary_for_this_platform(c_fmus: dict[int, Path], tmp_path: Path,
