@@ -145,3 +145,12 @@ def test_the_documented_table_is_the_registry() -> None:
     table = markdown_table()
     assert table in DOCS.read_text()
     assert all(f"`{s.name}`" in table for s in (*INPUTS, *OUTPUTS))
+
+
+def test_the_documented_state_inputs_are_the_filters_states() -> None:
+    from estimation.models import STATE_NAMES
+
+    listed = DOCS.read_text().split("default filter (`ekf`, and `ukf`) are\n`", 1)[1]
+    listed = listed.split("`.", 1)[0]
+    assert [n.strip() for n in listed.replace("\n", " ").split(",")] == \
+        [f"est_{name}" for name in STATE_NAMES]
