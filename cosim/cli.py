@@ -17,6 +17,7 @@ Start with `cosim run lane-change`, then `cosim plot` or `cosim inspect` on the 
                           [--resume] [--force] [--yes]
     cosim compare [--trackers A,B] [--scenarios X,Y] [--seeds N] [--out DIR] [--force]
                   [--resume] [--keep-logs] [--json]
+    cosim export --ros2 LOG.mcap [--out BAG.mcap] [--force]
     cosim render FILE.mcap [--out VIDEO.mp4] [--fps N] [--width W] [--height H]
                            [--start S] [--duration S] [--gl osmesa|egl|glfw]
     cosim config show SCENARIO [--config FILE.yaml] [--set key.path=value ...] [...]
@@ -81,8 +82,8 @@ def _build_parser() -> argparse.ArgumentParser:
     run.add_argument("--config", metavar="FILE.yaml", help="YAML merged over the scenario")
     run.add_argument("--tracker", metavar="NAME",
                      help="path tracker: dynamic-nmpc (default), kinematic-nmpc, ltv-mpc, "
-                     "dynamic-mpc, open-loop ... (`cosim trackers`), an installed plug-in or "
-                     "my_pkg.my_module:MyTracker")
+                     "dynamic-mpc, open-loop ... (`cosim trackers`), an installed plug-in, "
+                     "my_pkg.my_module:MyTracker or a co-simulation FMU, fmu:PATH.fmu")
     run.add_argument("--estimator", metavar="NAME",
                      help="state estimator: ekf (default), ukf, truth (debugging)")
     run.add_argument("--seed", type=int, metavar="N", help="seed of every noise source")
@@ -125,6 +126,16 @@ def _build_parser() -> argparse.ArgumentParser:
                       help="a log, or several (up to 6) to overlay")
     plot.add_argument("--out", metavar="DIR",
                       help="output directory (default <log>-plots beside the log)")
+
+    export = commands.add_parser(
+        "export", help="a log in another format: --ros2, an MCAP of ROS 2 messages")
+    export.add_argument("--ros2", metavar="LOG.mcap", required=True,
+                        help="the run log to export as standard ROS 2 messages (nav_msgs, "
+                        "sensor_msgs, tf2_msgs, ackermann_msgs; CDR) for ros2 bag play")
+    export.add_argument("--out", metavar="BAG.mcap",
+                        help="the MCAP to write (default <log>-ros2.mcap beside the log)")
+    export.add_argument("--force", action="store_true",
+                        help="replace --out if it exists (refused otherwise)")
 
     commands.add_parser("scenarios", help="list the built-in scenarios")
     commands.add_parser("trackers", help="list the trackers: built in and installed plug-ins")
@@ -573,14 +584,15 @@ def _command_compare(args: argparse.Namespace) -> int:
     from cosim.sweeps import compare
     from cosim.sweeps.driver import sigterm_as_interrupt
     from tracker.config import is_plugin_name
+    from tracker.fmu.config import is_fmu_name
     from tracker.registry import TRACKER_NAMES
 
     closed_loop = [name for name in TRACKER_NAMES if name != "open-loop"]
     trackers = compare.parse_names(args.trackers, compare.DEFAULT_TRACKERS, None, "trackers")
     for name in trackers:  # built-in closed-loop trackers, or trackers from outside cosim
-        if name not in closed_loop and not is_plugin_name(name):
+        if name not in closed_loop and not is_plugin_name(name) and not is_fmu_name(name):
             raise CosimError(f"--trackers: {name!r} is not one of {', '.join(closed_loop)}, "
-                             "an installed plug-in or module:Class")
+                             "an installed plug-in, module:Class or fmu:PATH.fmu")
     scenarios = compare.parse_names(args.scenarios, compare.DEFAULT_SCENARIOS, None,
                                     "scenarios")
     if args.workers is not None and args.workers < 1:
@@ -622,6 +634,24 @@ def _print_league(table: list[Any]) -> None:
     print(league_text(table, width))
 
 
+def _command_export(args: argparse.Namespace) -> int:
+    from cosim.log.ros2 import require_rosbags
+
+    require_rosbags()
+    from cosim.log.ros2.bag import export_ros2
+
+    result = export_ros2(args.ros2, args.out, args.force)
+    if result.truncated:
+        print(f"cosim: warning: {args.ros2!r} was cut off: exported up to its last complete "
+              "record", file=sys.stderr)
+    print(f"{sum(result.message_counts.values())} ROS 2 messages -> {result.path}")
+    for topic, count in result.message_counts.items():
+        print(f"  {topic:<20} {count}")
+    print(f"replay: ros2 bag play -s mcap {result.path} --clock  (nodes with "
+          "use_sim_time:=true; the stamps are simulated time from sim.epoch)")
+    return 0
+
+
 def _command_render(args: argparse.Namespace) -> int:
     from cosim.plots.render import RenderOptions, describe, render_for_cli
 
@@ -648,6 +678,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 "scenarios": _command_scenarios, "identify": _command_identify,
                 "sweep": _command_sweep, "render": _command_render,
                 "config": _command_config, "compare": _command_compare,
+                "export": _command_export,
                 "trackers": _command_trackers, "estimators": _command_estimators}
     try:
         with warnings.catch_warnings():

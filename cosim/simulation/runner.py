@@ -55,7 +55,7 @@ from cosim.simulation.traffic_loop import CollisionError, TrafficLoop, build_tra
 from estimation.registry import make_estimator
 from estimation.update_result import UpdateResult
 from tracker.paths.reference_path import ReferencePath
-from tracker.protocol import Tracker
+from tracker.protocol import Closable, Tracker
 from tracker.registry import make_tracker
 
 
@@ -212,7 +212,7 @@ class _Run:
             config.estimator, config.initial, config.tracker.model,
             rng=component_rng(config.seed, "estimator.initial"))
         self.tracker = tracker if tracker is not None else \
-            make_tracker(config.tracker, config.maneuver)
+            make_tracker(config.tracker, config.maneuver, config.sim.control_period_s)
         """The run's tracker; the Gymnasium environment passes one that replays its actions."""
         self.fuse: Callable[[list[Measurement]], list[UpdateResult]] = getattr(
             self.estimator, "update_many", None) or self._fuse_one_by_one
@@ -477,8 +477,11 @@ def run(
     # One BLAS thread: the matrices here are small, and an idle BLAS thread spinning on
     # the other core made MPC solve times jitter (ltv-mpc p99 5 ms against 1 ms).
     with threadpool_limits(limits=1, user_api="blas"), McapRecorder(
-            out_path, epoch_ns=config.sim.epoch_ns, mirror=mirror) as recorder:
+            out_path, epoch_ns=config.sim.epoch_ns, mirror=mirror) as recorder, \
+            contextlib.ExitStack() as release:
         state = _Run(config, recorder)
+        if isinstance(state.tracker, Closable):  # released however the run ends
+            release.callback(state.tracker.close)
         state.write_header()
         recorder.publish()  # the run starts for real: the log takes its final name
         try:

@@ -13,6 +13,7 @@ import dataclasses
 import datetime
 import importlib.resources
 import math
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -36,6 +37,8 @@ from estimation.config import ESTIMATOR_NAMES, EstimatorConfig
 from estimation.noise_config import suite_noise_preset
 from estimation.registry import estimator_class, required_sensors
 from tracker.config import TrackerConfig, is_plugin_name
+from tracker.fmu import check_fmu
+from tracker.fmu.config import is_fmu_name
 from tracker.maneuver import ManeuverConfig
 from tracker.plugin import check_plugin
 
@@ -205,9 +208,15 @@ def load_config(
     check_required_sensors(config)
     check_faults(config)
     check_traffic(config)  # a bad car, or one the ego or its ACC cannot meet: here
-    # A bad plug-in is refused here, before any run starts.
+    # A bad plug-in or FMU is refused here, before any run starts.
     if is_plugin_name(config.tracker.name):
         check_plugin(config.tracker)
+    if is_fmu_name(config.tracker.name):
+        check_fmu(config.tracker, config.sim.control_period_s,
+                  getattr(estimator_class(config.estimator.name), "state_names", None))
+    elif config.tracker.fmu.parameters:
+        warnings.warn(f"tracker.fmu.parameters is set but tracker.name = "
+                      f"{config.tracker.name!r} is no FMU: ignored", stacklevel=2)
     if config.estimator.name not in ESTIMATOR_NAMES:
         estimator_class(config.estimator.name)
     return config

@@ -45,6 +45,8 @@ from typing import Any
 from cosim.core.exceptions import ConfigError
 from cosim.sweeps.results import read_row_log, refuse_non_empty
 from cosim.sweeps.spec import RunTask
+from tracker.config import is_plugin_name
+from tracker.fmu.config import is_fmu_name
 
 DEFAULT_TRACKERS: tuple[str, ...] = (
     "dynamic-nmpc", "kinematic-nmpc", "ltv-mpc", "dynamic-mpc",
@@ -353,8 +355,9 @@ def run_compare(scenarios: Sequence[str], trackers: Sequence[str], seeds: int,
                 resume: bool = False) -> list[dict[str, Any]]:
     """Run every combination on a process pool with a progress bar; the rows, by run id.
 
-    Each scenario and its course are built once first, so a bad name, key or path file is
-    one error before any run. With ``out_dir`` (refused when it holds files, unless
+    Each scenario and its course are built once first, and each scenario's config with each
+    plug-in or FMU tracker, so a bad name, key, path file or FMU is one error before any run.
+    With ``out_dir`` (refused when it holds files, unless
     ``force``, or ``resume`` to run only what an interrupted comparison there left) each row
     is appended to ``out_dir/rows.jsonl`` as one JSON line as it lands (flushed), so an
     interrupt or a crash keeps the finished runs. An interrupt raises
@@ -369,6 +372,9 @@ def run_compare(scenarios: Sequence[str], trackers: Sequence[str], seeds: int,
         raise ConfigError(f"--seeds {seeds}: expected at least 1")
     for scenario in scenarios:
         scenario_course(load_config(scenario, duration_s=duration_s))
+        for tracker in trackers:  # a bad plug-in or FMU: one error before any run
+            if is_plugin_name(tracker) or is_fmu_name(tracker):
+                load_config(scenario, duration_s=duration_s, tracker=tracker)
     log_dir = out_dir / "logs" if out_dir is not None and keep_logs else None
     tasks = make_tasks(scenarios, trackers, seeds, duration_s, log_dir)
     finished: dict[int, dict[str, Any]] = {}
