@@ -10,6 +10,7 @@ import os
 import re
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -41,11 +42,16 @@ def test_the_docs_example_runs_as_written(tmp_path: Path) -> None:
     log = tmp_path / "logs" / "api-example.mcap"
     assert log.is_file()
     assert "refused: tracker.horizon = 1" in done.stdout
-    rows = (tmp_path / "logs" / "friction-sweep" / "results.jsonl").read_text().splitlines()
+    (sweep,) = (tmp_path / "logs").glob("friction-sweep-*")
+    rows = (sweep / "results.jsonl").read_text().splitlines()
     frictions = sorted(json.loads(row)["params"]["plant.tyre_friction"] for row in rows)
     assert frictions == [0.7, 1.0]
     # What the example printed is what the log holds.
     assert main(["inspect", str(log), "--json"]) == 0
+    time.sleep(1.0)  # the second sweep's folder is named by the second
+    again = subprocess.run([sys.executable, str(script)], cwd=tmp_path, env=env,
+                           capture_output=True, text=True, timeout=900)
+    assert again.returncode == 0, again.stderr  # the example runs again as written
 
 
 def test_run_matches_the_command_line(tmp_path: Path,
@@ -87,7 +93,7 @@ def test_run_refuses_an_existing_log_unless_forced(tmp_path: Path) -> None:
     out = tmp_path / "kept.mcap"
     out.write_bytes(b"the user's file")
     config = cosim.load_config("lane-change", duration_s=0.2)
-    with pytest.raises(CosimError, match="exists; expected a new file name"):
+    with pytest.raises(CosimError, match=r"exists; expected a new file name \(or force=True"):
         cosim.run(config, out=out)
     assert out.read_bytes() == b"the user's file"
     with pytest.raises(CosimError, match="is a folder"):

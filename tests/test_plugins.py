@@ -96,6 +96,8 @@ def test_the_plugin_runs_in_sweep_and_compare(installed: dict[str, str],
     ("Raising", ["fail_at_s=0.5"],
      "tracker 'tests.user_trackers:Raising' raised ZeroDivisionError at t = 0.500 s: "
      "the user's bug"),
+    ("Exiting", ["fail_at_s=0.5"],
+     "tracker 'tests.user_trackers:Exiting' called sys.exit(0) at t = 0.500 s"),
     ("NanSteer", ["fail_at_s=0.5"],
      "tracker 'tests.user_trackers:NanSteer' returned a non-finite command at t = 0.500 s"),
     ("Slow", ["fail_at_s=0.5", "sleep_s=0.2"],
@@ -131,3 +133,17 @@ def test_params_without_a_schema_are_passed_as_a_mapping(tmp_path: Path) -> None
         results[gain] = cosim.run(config, out=tmp_path / f"gain{gain}.mcap")
     assert results[0.0].metrics["accel_max_mps2"] == 0.0
     assert results[1.0].metrics["accel_max_mps2"] > 1.0  # 15 -> 20 m/s at gain 1/s
+
+
+def test_the_example_depends_on_this_cosim_by_its_distribution_name() -> None:
+    """The example asks for cosim's own distribution (installed here, so pip fetches
+    nothing): a dependency on the name "cosim" would pull another project from the
+    public index."""
+    import importlib.metadata
+    tomllib = pytest.importorskip("tomllib")  # Python 3.11+
+
+    ours = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["name"]
+    example = tomllib.loads((EXAMPLE / "pyproject.toml").read_text())["project"]
+    assert ours != "cosim"
+    assert example["dependencies"] == [ours]
+    assert importlib.metadata.distribution(ours).metadata["Name"] == ours

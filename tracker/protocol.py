@@ -47,3 +47,12 @@ class RangeObserver(Protocol):
     reading the sensor samples, before the next control step."""
 
     def observe_range(self, reading: RangeReading) -> None: ...
+
+
+@runtime_checkable
+class Closable(Protocol):
+    """A tracker that holds what must be released after the run (an FMU's instance, its
+    library and extracted files: :class:`tracker.fmu.tracker.FmuTracker`); the runner calls
+    :meth:`close` once the run has ended, however it ended."""
+
+    def close(self) -> None: ...

@@ -14,7 +14,10 @@ Start with `cosim run lane-change`, then `cosim plot` or `cosim inspect` on the 
     cosim estimators
     cosim identify [--config FILE.yaml] [--set key.path=value ...] [--json]
     cosim sweep SPEC.yaml [--workers N] [--backend process|ray] [--out DIR] [--keep-logs]
-                          [--resume] [--yes]
+                          [--resume] [--force] [--yes]
+    cosim compare [--trackers A,B] [--scenarios X,Y] [--seeds N] [--out DIR] [--force]
+                  [--resume] [--keep-logs] [--json]
+    cosim export --ros2 LOG.mcap [--out BAG.mcap] [--force]
     cosim render FILE.mcap [--out VIDEO.mp4] [--fps N] [--width W] [--height H]
                            [--start S] [--duration S] [--gl osmesa|egl|glfw]
     cosim config show SCENARIO [--config FILE.yaml] [--set key.path=value ...] [...]
@@ -34,10 +37,10 @@ results say so), 1 if a worker process died, 130 on an interrupt (finish with --
 
 One module per command (or family of commands), each adding its parsers and returning its
 handlers: :mod:`~cosim.cli.run`, :mod:`~cosim.cli.inspect_log`, :mod:`~cosim.cli.views`
-(plot, render), :mod:`~cosim.cli.components` (scenarios, trackers, estimators),
-:mod:`~cosim.cli.compare`, :mod:`~cosim.cli.identify`, :mod:`~cosim.cli.sweep`,
-:mod:`~cosim.cli.config_command`. Each imports the machinery it needs when it runs, so that
-``cosim --help`` stays quick.
+(plot, render), :mod:`~cosim.cli.export`, :mod:`~cosim.cli.components` (scenarios,
+trackers, estimators), :mod:`~cosim.cli.compare`, :mod:`~cosim.cli.identify`,
+:mod:`~cosim.cli.sweep`, :mod:`~cosim.cli.config_command`. Each imports the machinery it
+needs when it runs, so that ``cosim --help`` stays quick.
 """
 
 from __future__ import annotations
@@ -51,6 +54,7 @@ from cosim.cli import (
     compare,
     components,
     config_command,
+    export,
     identify,
     inspect_log,
     run,
@@ -72,7 +76,7 @@ from cosim.core.exceptions import CosimError
 
 __all__ = ["EXIT_BAD_OUTCOME", "EXIT_INTERRUPT", "EXIT_IO", "EXIT_USAGE", "main"]
 
-COMMAND_MODULES = (run, inspect_log, views, components, compare, identify, sweep,
+COMMAND_MODULES = (run, inspect_log, views, export, components, compare, identify, sweep,
                    config_command)
 """Every command's module, in the order ``cosim --help`` lists their commands."""
 

@@ -34,6 +34,10 @@ def add_parsers(commands: Any) -> dict[str, Handler]:
                          "(default logs/compare-<time>)")
     compare.add_argument("--keep-logs", action="store_true",
                          help="keep every run's MCAP log in DIR/logs")
+    compare.add_argument("--force", action="store_true",
+                         help="write into a --out DIR that has files (refused otherwise)")
+    compare.add_argument("--resume", action="store_true",
+                         help="finish the interrupted comparison in --out DIR (same options)")
     return {"compare": command}
 
 
@@ -42,26 +46,34 @@ def command(args: argparse.Namespace) -> int:
     from cosim.sweeps import compare
     from cosim.sweeps.driver import sigterm_as_interrupt
     from tracker.config import is_plugin_name
+    from tracker.fmu.config import is_fmu_name
     from tracker.registry import TRACKER_NAMES
 
     closed_loop = [name for name in TRACKER_NAMES if name != "open-loop"]
     trackers = compare.parse_names(args.trackers, compare.DEFAULT_TRACKERS, None, "trackers")
     for name in trackers:  # built-in closed-loop trackers, or trackers from outside cosim
-        if name not in closed_loop and not is_plugin_name(name):
+        if name not in closed_loop and not is_plugin_name(name) and not is_fmu_name(name):
             raise CosimError(f"--trackers: {name!r} is not one of {', '.join(closed_loop)}, "
-                             "an installed plug-in or module:Class")
+                             "an installed plug-in, module:Class or fmu:PATH.fmu")
     scenarios = compare.parse_names(args.scenarios, compare.DEFAULT_SCENARIOS, None,
                                     "scenarios")
     if args.workers is not None and args.workers < 1:
         raise CosimError(f"--workers {args.workers}: expected at least 1")
+    if args.resume and args.out is None:
+        raise CosimError("--resume: expected --out DIR, the folder of the comparison to finish")
     out = Path(args.out) if args.out else Path("logs") / time.strftime("compare-%Y%m%d-%H%M%S")
     try:
         with sigterm_as_interrupt():
             rows = compare.run_compare(scenarios, trackers, args.seeds, args.workers,
-                                       args.duration, out / "logs" if args.keep_logs else None,
-                                       out / "rows.jsonl")
-    except KeyboardInterrupt:  # Ctrl-C or SIGTERM: the finished runs are kept
-        print(f"cosim: compare interrupted; the finished runs are in {out / 'rows.jsonl'}",
+                                       args.duration, out, args.keep_logs, args.force,
+                                       args.resume)
+    except compare.CompareInterrupted as stop:  # Ctrl-C or SIGTERM: finished runs kept
+        league = ""
+        if stop.rows:
+            compare.write_outputs(stop.rows, out)
+            league = f"the league of the {len(stop.rows)} finished run(s) is in " \
+                f"{out / 'league.md'}; "
+        print(f"cosim: compare interrupted; {league}finish with --resume --out {out}",
               file=sys.stderr)
         return EXIT_INTERRUPT
     table = compare.write_outputs(rows, out)
@@ -75,19 +87,10 @@ def command(args: argparse.Namespace) -> int:
 
 
 def _print_league(table: list[Any]) -> None:
-    from rich.console import Console
-    from rich.table import Table
+    """The league, in the terminal's width (unlimited when piped: every number whole)."""
+    import shutil
 
-    from cosim.sweeps.compare import LEAGUE_METRICS, by_scenario
+    from cosim.sweeps.compare import league_text
 
-    console = Console()
-    for scenario, rows in by_scenario(table).items():
-        view = Table(title=scenario)
-        view.add_column("tracker")
-        for _, title, _ in LEAGUE_METRICS:
-            view.add_column(title, justify="right")
-        view.add_column("failures", justify="right")
-        for r in rows:
-            view.add_row(r.tracker, *[("-" if r.values[k] is None else f"{r.values[k]:.4g}")
-                                      for k, _, _ in LEAGUE_METRICS], str(r.failures))
-        console.print(view)
+    width = shutil.get_terminal_size().columns if sys.stdout.isatty() else None
+    print(league_text(table, width))

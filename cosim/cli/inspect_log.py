@@ -25,6 +25,7 @@ def add_parsers(commands: Any) -> dict[str, Handler]:
 def command(args: argparse.Namespace) -> int:
     from cosim.log.export import csv_command, log_warnings
     from cosim.log.reader import read_summary
+    from cosim.simulation.changes import config_changes
 
     path = Path(args.file)
     if not path.is_file():
@@ -47,6 +48,7 @@ def command(args: argparse.Namespace) -> int:
         "attachments": summary.attachments,
         "versions": summary.versions,
         "config": summary.config,
+        "changes": config_changes(summary.config) if summary.config else [],
         "metrics": summary.metrics or {},
         "warnings": log_warnings(summary),
     }
@@ -75,6 +77,8 @@ def _print_topic(path: Path, summary: Any, topic: str, head: int | None) -> int:
 
 
 def _print_summary(path: Path, summary: Any, document: dict[str, Any]) -> None:
+    from cosim.simulation.changes import base_scenario, changes_text
+
     print(f"{path}  {summary.duration_s:.3f} s  {summary.message_count} messages"
           + ("  (TRUNCATED: read up to the last complete record)" if summary.truncated else ""))
     if summary.metrics:
@@ -88,6 +92,8 @@ def _print_summary(path: Path, summary: Any, document: dict[str, Any]) -> None:
         print(f"scenario {config.get('name')}  seed {config.get('seed')}  tracker "
               f"{config.get('tracker', {}).get('name')}  estimator "
               f"{config.get('estimator', {}).get('name')}")
+        print(f"changed from {base_scenario(config)}: "
+              f"{changes_text(document['changes'], at_most=12)}")
     if summary.versions:
         print("versions " + "  ".join(f"{k} {v}" for k, v in summary.versions.items()))
     for warning in document["warnings"]:

@@ -8,6 +8,7 @@ import datetime
 import json
 import math
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -32,8 +33,8 @@ def add_parsers(commands: Any) -> dict[str, Handler]:
     run.add_argument("--config", metavar="FILE.yaml", help="YAML merged over the scenario")
     run.add_argument("--tracker", metavar="NAME",
                      help="path tracker: dynamic-nmpc (default), kinematic-nmpc, ltv-mpc, "
-                     "dynamic-mpc, open-loop ... (`cosim trackers`), an installed plug-in or "
-                     "my_pkg.my_module:MyTracker")
+                     "dynamic-mpc, open-loop ... (`cosim trackers`), an installed plug-in, "
+                     "my_pkg.my_module:MyTracker or a co-simulation FMU, fmu:PATH.fmu")
     run.add_argument("--estimator", metavar="NAME",
                      help="state estimator: ekf (default), ukf, truth (debugging)")
     run.add_argument("--seed", type=int, metavar="N", help="seed of every noise source")
@@ -66,7 +67,6 @@ def add_parsers(commands: Any) -> dict[str, Handler]:
 
 
 def command(args: argparse.Namespace) -> int:
-    from cosim.log.safe_file import check_output_path
     from cosim.simulation.fail_if import parse_conditions
     from cosim.simulation.runner import run
     from cosim.simulation.scenario_config import load_config
@@ -81,9 +81,8 @@ def command(args: argparse.Namespace) -> int:
         raise CosimError(f"--duration {args.duration}: expected a number of seconds >= 0")
     config = load_config(args.scenario, args.config, args.overrides, args.seed,
                          args.duration, args.tracker, args.estimator)
-    out = _out_path(args, config.name)
-    check_output_path(out, "--out", args.force, (args.config, args.scenario, args.video))
     with contextlib.ExitStack() as stack:
+        out = stack.enter_context(_claim_out(args, config.name))
         mirror = None
         if live is not None:
             from cosim.log.live import LiveStream
@@ -136,29 +135,55 @@ def _live_options(args: argparse.Namespace) -> Any:
                        pace=args.pace if args.pace is not None else 0.0)
 
 
-def _out_path(args: argparse.Namespace, scenario: str) -> Path:
-    """``--out``, or ``logs/<scenario>-<tag>-<time>.mcap`` naming what was changed."""
+@contextlib.contextmanager
+def _claim_out(args: argparse.Namespace, scenario: str) -> Iterator[Path]:
+    """The run's log name, held for this run (:func:`cosim.log.output_claim.claim_output`):
+    ``--out`` as given (refused when another run holds it), else the default name, with
+    ``-2``, ``-3`` ... when a run started in the same second holds that."""
+    from cosim.log.output_claim import OutputTakenError, claim_output
+
+    inputs = (args.config, args.scenario, args.video)
     if args.out is not None:
-        return Path(args.out)
+        with claim_output(Path(args.out), "--out", args.force, inputs) as out:
+            yield out
+        return
     from cosim.log.names import default_log_name, override_tag
+    from cosim.simulation.changes import file_changes
 
     stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
-    tag = override_tag(args.overrides, args.tracker, args.estimator, args.seed,
-                       args.duration, args.config)
-    return Path("logs") / default_log_name(scenario, tag, stamp)
+    tag = override_tag([*file_changes(args.scenario, args.config), *args.overrides],
+                       args.tracker, args.estimator, args.seed, args.duration, args.config)
+    default = Path("logs") / default_log_name(scenario, tag, stamp)
+    for attempt in range(1, 100):
+        name = default if attempt == 1 else \
+            default.with_name(f"{default.stem}-{attempt}{default.suffix}")
+        with contextlib.ExitStack() as stack:
+            try:
+                out = stack.enter_context(claim_output(name, "--out", False, inputs))
+            except OutputTakenError:
+                continue
+            except CosimError:
+                if name.exists():  # made by a run of the same second that has ended
+                    continue
+                raise
+            yield out
+            return
+    raise CosimError(f"--out: every name like {str(default)!r} is taken: expected --out")
 
 
 def _exit_code(result: Any, conditions: list[Any]) -> int:
     """0 for a completed ``ok`` run with no ``--fail-if`` holding, else 3 with one line why."""
-    if not result.completed:
-        print(f"cosim: run aborted ({result.metrics.get('outcome')}): {result.abort_reason}; "
-              f"log: {result.log_path}", file=sys.stderr)
-        return EXIT_BAD_OUTCOME
-    if result.metrics.get("outcome", "ok") != "ok":
-        when = result.metrics.get(f"{result.metrics['outcome']}_t_s")
-        at = f" at t = {when:.2f} s" if isinstance(when, float) else ""
-        print(f"cosim: run ended badly: outcome {result.metrics['outcome']}{at} "
+    outcome = str(result.metrics.get("outcome", "ok"))
+    when = result.metrics.get(f"{outcome}_t_s")
+    if isinstance(when, float):  # an event: it is on /events
+        stopped = "" if result.completed else \
+            "; the run stopped there (--set outcome.keep_going=true runs on)"
+        print(f"cosim: run ended badly: outcome {outcome} at t = {when:.2f} s{stopped} "
               f"(see /events in {result.log_path})", file=sys.stderr)
+        return EXIT_BAD_OUTCOME
+    if not result.completed:
+        print(f"cosim: run aborted ({outcome}): {result.abort_reason}; "
+              f"log: {result.log_path}", file=sys.stderr)
         return EXIT_BAD_OUTCOME
     held = [c for c in conditions if c.holds(result.metrics)]
     if held:

@@ -26,6 +26,8 @@ def add_parsers(commands: Any) -> dict[str, Handler]:
                        help="keep every run's MCAP log under DIR/logs")
     sweep.add_argument("--resume", action="store_true",
                        help="finish the interrupted sweep in --out DIR (same spec)")
+    sweep.add_argument("--force", action="store_true",
+                       help="start the sweep afresh in a --out DIR that has files")
     sweep.add_argument("--yes", action="store_true",
                        help="run a sweep of more than 10 000 runs (refused otherwise)")
     return {"sweep": command}
@@ -41,11 +43,11 @@ def command(args: argparse.Namespace) -> int:
     if not Path(args.spec).is_file():
         raise CosimError(f"{args.spec!r}: no such file (expected a sweep spec YAML)")
     out = Path(args.out) if args.out is not None else default_out_dir(Path(args.spec))
-    check_sweep_dir(out)
+    check_sweep_dir(out, args.force, args.resume)
     resume_hint = f"resume with `cosim sweep {args.spec} --out {out} --resume`"
     try:
         outcome = run_sweep(args.spec, out, args.workers, args.backend, args.keep_logs,
-                            args.resume, yes=args.yes)
+                            args.resume, yes=args.yes, force=args.force)
     except WorkerCrashError as error:
         print(f"cosim: sweep aborted: {error}", file=sys.stderr)
         return EXIT_IO

@@ -10,8 +10,8 @@ from cosim.cli.common import Handler
 
 def add_parsers(commands: Any) -> dict[str, Handler]:
     plot = commands.add_parser("plot", help="PNG figures of a log (or two logs overlaid)")
-    plot.add_argument("file", metavar="FILE.mcap")
-    plot.add_argument("file2", metavar="FILE2.mcap", nargs="?", help="a second log to overlay")
+    plot.add_argument("files", metavar="FILE.mcap", nargs="+",
+                      help="a log, or several (up to 6) to overlay")
     plot.add_argument("--out", metavar="DIR",
                       help="output directory (default <log>-plots beside the log)")
     render = commands.add_parser(
@@ -34,7 +34,7 @@ def add_parsers(commands: Any) -> dict[str, Handler]:
 def plot_command(args: argparse.Namespace) -> int:
     from cosim.plots import plot_command
 
-    return plot_command(args.file, args.file2, args.out)
+    return plot_command(args.files, args.out)
 
 
 def render_command(args: argparse.Namespace) -> int:

@@ -64,7 +64,9 @@ def load_object(name: str, group: str, key: str) -> object:
     except ModuleNotFoundError as error:
         raise PluginError(f"{where}: no module named {error.name!r}: expected an importable "
                           "module (is the package installed?)") from None
-    except Exception as error:  # the user's module failed while importing
+    except KeyboardInterrupt:
+        raise
+    except BaseException as error:  # noqa: BLE001 - the user's module failed while importing
         raise PluginError(f"{where}: importing {module_name!r} raised "
                           f"{type(error).__name__}: {error}") from None
     for part in attribute.split("."):

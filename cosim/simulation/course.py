@@ -138,17 +138,17 @@ def build_course(path: PathConfig, initial: InitialState, plant: VehicleParams,
     elif path.kind == "s-curve":
         shape = shapes.s_curve(path.radius_m, path.arc_deg, path.approach_m, path.length_m)
     elif path.kind == "track":
-        track = load_track(resolve_track_file(path.file))
+        track = load_track(resolve_track_file(path.file), path.closed)
         shape = shapes.Shape(*_to_start_frame(track.x_m, track.y_m), path.closed)
-        geometry = ReferencePath(shape.x_m, shape.y_m, 1.0, closed=shape.closed)
-        s_points = np.array([geometry.project(x, y).s_m
-                             for x, y in zip(shape.x_m, shape.y_m, strict=True)])
-        s_points[0] = 0.0
-        order = np.argsort(s_points)
+        # The spline passes through every point at its knot: the arc length of point i is
+        # the chord length up to it (linear in the point count; projecting each point
+        # onto the path searched the whole path per point).
+        chords = np.hypot(np.diff(shape.x_m), np.diff(shape.y_m))
+        s_points = np.concatenate(([0.0], np.cumsum(chords)))
         default = np.full(track.x_m.size, path.default_width_m)
         left = track.width_left_m if track.width_left_m is not None else default
         right = track.width_right_m if track.width_right_m is not None else default
-        bounds = TrackBounds(s_points[order], left[order], right[order])
+        bounds = TrackBounds(s_points, left, right)
     else:  # validated by choices
         raise AssertionError(f"unhandled path kind {path.kind!r}")
     reference = ReferencePath(shape.x_m, shape.y_m, _profile(path, shape, duration_s),

@@ -87,6 +87,8 @@ class MetricKey:
     """One of :data:`METRIC_KEYS`: outside tests read it."""
     wall_clock: bool = False
     """It measures the machine, not the run: two runs of one seed differ in it."""
+    values: tuple[str, ...] = ()
+    """A ``text`` key's possible values, where they are a fixed list."""
 
     def __post_init__(self) -> None:
         if self.unit not in UNITS:
@@ -203,7 +205,8 @@ RUN = (
     MetricKey("faults_injected", "count", "sensor outputs the scenario's `faults:` changed",
               "", _RUNNER),
     MetricKey("outcome", "text", "how the run ended: `ok`, the most severe event or the "
-              "abort, one of " + ", ".join(f"`{kind}`" for kind in OUTCOMES), "ok", _RUNNER),
+              "abort, one of " + ", ".join(f"`{kind}`" for kind in OUTCOMES), "ok", _RUNNER,
+              values=OUTCOMES),
     MetricKey("events", "count", "outcome events on `/events`", "0", _RUNNER),
     MetricKey("<kind>_t_s", "s", "simulated time of the first event of that kind", "",
               _RUNNER, scope=WHEN_IT_HAPPENS),

@@ -51,13 +51,13 @@ from cosim.sensing.sensors import TruthSensor, make_sensors
 from cosim.simulation.course import Course, build_course
 from cosim.simulation.course_metrics import CourseMonitor
 from cosim.simulation.metrics import MetricsAccumulator
-from cosim.simulation.outcome import OutcomeMonitor
+from cosim.simulation.outcome import TERMINAL, Event, OutcomeMonitor
 from cosim.simulation.scenario_config import ScenarioConfig, steps_per_period
 from cosim.simulation.traffic_loop import CollisionError, TrafficLoop, build_traffic
 from estimation.protocol import CountsUpdates, Estimator, JointUpdater
 from estimation.registry import make_estimator
 from estimation.update_result import UpdateResult
-from tracker.protocol import Tracker
+from tracker.protocol import Closable, Tracker
 from tracker.registry import make_tracker
 
 
@@ -207,7 +207,7 @@ class _Run:
             config.estimator, config.initial, config.tracker.model,
             rng=component_rng(config.seed, "estimator.initial"))
         self.tracker: Tracker = tracker if tracker is not None else \
-            make_tracker(config.tracker, config.manoeuvre)
+            make_tracker(config.tracker, config.manoeuvre, config.sim.control_period_s)
         """The run's tracker; the Gymnasium environment passes one that replays its actions."""
         self.fuse: Callable[[list[Measurement]], list[UpdateResult]] = (
             self.estimator.update_many if isinstance(self.estimator, JointUpdater)
@@ -244,6 +244,9 @@ class _Run:
         """Sim time of the next ``/metrics/live`` message."""
         self.events_registered = False
         """``/events`` is registered with the first event."""
+        self.stopped_by: Event | None = None
+        """The terminal event the run stops at (:data:`cosim.simulation.outcome.TERMINAL`),
+        once it has happened."""
         self.traffic = None if traffic is None else \
             TrafficLoop(config, self.plant, traffic, recorder, self.tracker,
                         component_rng(config.seed, f"sensors.{RADAR}"))
@@ -317,6 +320,9 @@ class _Run:
                 self.recorder.register(topics.EVENTS)
                 self.events_registered = True
             self.recorder.write_finite(topics.EVENTS, t_s, event.to_message())
+            if event.kind in TERMINAL and not self.config.outcome.keep_going \
+                    and self.stopped_by is None:
+                self.stopped_by = event
         self.course_monitor.add_truth(self.truth, metrics.cte_m.last, metrics.last_path_s_m)
         self.recorder.write_finite(topics.CONTROL_ERRORS, t_s, {
             "t_s": t_s, "cte_m": metrics.cte_m.last,
@@ -416,10 +422,13 @@ class _Run:
                 "yaw_rate_change_radps": change.delta_radps})
 
     def observe(self, k: int) -> bool:
-        """Phases 1-2 of step ``k`` (log, sense); False at the end of the run."""
+        """Phases 1-2 of step ``k`` (log, sense); False at the end of the run (its last
+        step, or a terminal event: :attr:`stopped_by`)."""
         t_s = k * self.clock.dt_s
         if k % self.clock.log_steps == 0:
             self.log(k, t_s)
+            if self.stopped_by is not None:
+                return False
         self.sense(k, t_s)
         return k < self.clock.n_steps
 
@@ -455,21 +464,31 @@ def run(
     ``mirror`` sees every message as it is written (``cosim run --live``).
 
     SIGINT and SIGTERM stop the run between two physics steps; the log is finished with
-    ``completed: false`` and the result says ``interrupted``.
+    ``completed: false`` and the result says ``interrupted``. A ``SystemExit`` (or another
+    ``BaseException`` but ``KeyboardInterrupt``) raised by code inside the loop, a user's
+    plug-in calling ``sys.exit``, ends the run the same way with outcome ``error`` and the
+    reason; an ordinary exception is raised on once the log is finished.
     """
     wall_start = time.perf_counter()
     completed, abort_reason, abort = False, "", ""
     # One BLAS thread: the matrices here are small, and an idle BLAS thread spinning on
     # the other core made MPC solve times jitter (ltv-mpc p99 5 ms against 1 ms).
     with threadpool_limits(limits=1, user_api="blas"), McapRecorder(
-            out_path, epoch_ns=config.sim.epoch_ns, mirror=mirror) as recorder:
+            out_path, epoch_ns=config.sim.epoch_ns, mirror=mirror) as recorder, \
+            contextlib.ExitStack() as release:
         state = _Run(config, recorder)
+        if isinstance(state.tracker, Closable):  # released however the run ends
+            release.callback(state.tracker.close)
         state.write_header()
         recorder.publish()  # the run starts for real: the log takes its final name
         try:
             with _stop_on_signals() as stop:
                 state.loop(stop, progress)
-            completed = True
+            completed = state.stopped_by is None
+            if state.stopped_by is not None:
+                event = state.stopped_by
+                abort_reason = (f"stopped at {event.kind} (t = {event.t_s:.2f} s; "
+                                "outcome.keep_going: true runs on)")
         except PhysicsDivergenceError as error:
             abort_reason, abort = str(error), "diverged"
         except TrackerFault as error:  # a plug-in tracker failed: a result, not a crash
@@ -483,6 +502,9 @@ def run(
             _finish(recorder, state, wall_start, False,
                     f"{type(error).__name__}: {error}", "error")
             raise
+        except BaseException as error:  # noqa: BLE001 - SystemExit from a user's plug-in
+            abort_reason, abort = f"{type(error).__name__} raised during the run: " \
+                f"{error}", "error"
         if progress is not None:
             progress(1.0)
         metrics = _finish(recorder, state, wall_start, completed, abort_reason, abort)

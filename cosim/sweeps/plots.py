@@ -39,7 +39,8 @@ def _figure(width_in: float, height_in: float) -> Any:
 def _bound(spec: SweepSpec) -> float | None:
     for criterion in spec.criteria:
         if criterion.metric == spec.metric and not isinstance(criterion.bound, bool):
-            return float(criterion.bound)
+            bound = float(criterion.bound)
+            return bound if math.isfinite(bound) else criterion.lower
     return None
 
 

@@ -73,13 +73,14 @@ accurate on every case above and 6-10 times faster.
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Mapping
 from types import MappingProxyType
 
 import casadi as ca
 import numpy as np
 
-from cosim.core.compiled_function import compiled_library
+from cosim.core.compiled_function import CompiledCacheWarning, compiled_library
 from cosim.core.exceptions import ConfigError
 from tracker.config import TrackerConfig
 from tracker.mpc.fallback import INPUT, INPUT_NAMES
@@ -385,8 +386,15 @@ class NmpcProblem:
             functions = [oracle.oracle(), *map(oracle.get_function, oracle.get_function())]
             library = compiled_library(f"nmpc_{name}", functions, ("-O1",))
             if library is not None:
-                solver = ca.nlpsol(name, "fatrop", str(library), options)
-                return problem.with_solver(cfg.solver, solver)
+                try:
+                    solver = ca.nlpsol(name, "fatrop", str(library), options)
+                except RuntimeError as error:  # checked, so only a changing file gets here
+                    first = (str(error).strip().splitlines() or [""])[-1]
+                    warnings.warn(f"cannot load the compiled NLP {str(library)!r} ({first}): "
+                                  "using CasADi's virtual machine", CompiledCacheWarning,
+                                  stacklevel=2)
+                else:
+                    return problem.with_solver(cfg.solver, solver)
         problem = self.staged_problem()
         options.update(problem.structure)
         solver = ca.nlpsol(name, "fatrop", dict(problem.nlp), options)
