@@ -17,54 +17,15 @@ steady-state steering of the reference's curvature (``curvature_feedforward``; z
 off). Each weight multiplies the square of an SI quantity per second of horizon, so changing
 ``dt_s`` or ``horizon`` does not rescale the balance between the terms.
 
-Default tuning, shared by both NMPCs and made for the default tracker ``dynamic-nmpc``
-(measured on the MuJoCo sedan with Pacejka tyres and the EKF in the loop, stretched double
-lane change at 20 m/s from 15 m/s, about 0.5 g; max CTE for seeds 0/1/2, ``plant.mass_kg=
-2000``, ``plant.tyre_friction=0.7``; details in :mod:`tracker.mpc.dynamic_nmpc`):
+Latency (``latency_compensation``): the estimate is predicted over ``latency_s`` (by
+default ``plant.actuator_delay_s``, the command's transport delay, which no model contains)
+with the commands already in the delay line (:mod:`tracker.mpc.delay_line`). The steering
+actuator's lag is not latency: the dynamic model contains it, and the kinematic model,
+which lacks it, adds ``model.steer_time_constant_s`` to the delay it predicts over
+(:mod:`tracker.mpc.kinematic_nmpc`).
 
-* ``steer_rate = 3`` against ``cte = 10``. The dynamic model carries the yaw and sideslip
-  dynamics and the steering actuator, so the loop can be much faster than the kinematic
-  NMPC's ``steer_rate = 20`` (0.13 m nominal): ``steer_rate`` 1 / 3 / 10 gives
-  0.050 / 0.056 / 0.096 m nominal, 0.094 / 0.110 / 0.157 m with the 2000 kg car. Below 3
-  the gain is a few millimetres, bought with a jumpier wheel on the straight (RMS steering
-  rate from sensor noise 0.048 / 0.032 / 0.020 rad/s) and less margin: with MuJoCo contact
-  tyres (a car with no cornering compliance, far from the belief) ``steer_rate = 1``
-  oscillated to 1.96 m, 3 gives 0.37 m (with noisy sensing, moderate weights
-  beat aggressive ones). The kinematic NMPC with these weights: 0.054 / 0.043 m (seeds
-  0/1) with ``kinematic_understeer`` (the default), 0.80 / 0.75 m with the
-  pure kinematic model (Kong et al. 2015) (1.56 m with 20); with contact tyres 0.12 m with the
-  filter that has no tyre model (0.13 m with 20), 3.0 m with the filter that assumes the belief's
-  linear tyres (0.69 m with 20): ``--set tracker.weights.steer_rate=20`` restores its
-  earlier tuning.
-  The other weights matter little: ``heading`` 0.5 instead of 2 changes nothing; ``speed``
-  against ``accel`` makes the car accelerate at the 3 m/s^2 bound from 15 to 20 m/s, as the
-  ``dynamic-mpc`` design does.
-* ``limit_excess = 1e4``: the soft limit on the dynamic model's slip angles (the linear
-  tyres' range). It never binds at 0.5 g; on Falcone's unstretched path (1.11 g,
-  ``lane-change-limit``) it keeps the car from spinning (0.70 m instead of 15.7 m).
-* ``latency_compensation = true``, ``latency_s`` = ``plant.actuator_delay_s`` unless set:
-  the command's transport delay, which no model contains. The estimate is predicted over it
-  with the commands already in the delay line (:mod:`tracker.mpc.delay_line`). With a 100 ms
-  delay (seed 0): 0.073 m against 0.057 m without delay; without compensation the car
-  spins (8.2 m). The steering actuator's lag is not latency: the dynamic model contains
-  it, and the kinematic model, which lacks it, adds ``model.steer_time_constant_s`` to the
-  delay it predicts over (see :mod:`tracker.mpc.kinematic_nmpc`).
-* ``reference = spline`` with ``curvature_feedforward``: a cubic fitted in the vehicle
-  frame (``cubic-polynomial``) gives 0.047 / 0.063 / 0.074 m (seeds 0/1/2, dynamic-nmpc)
-  against 0.058 / 0.046 / 0.047 m; the feed-forward changes less than a millimetre on
-  the lane change (0.0575 / 0.0462 / 0.0469 m without; it changes little);
-  on a 40 m circle it removes the steering weight's pull off the path (0.06 mm without).
-* ``horizon = 25`` at ``dt_s = 0.05``: 1.25 s or 25 m of preview at 20 m/s, the length of
-  one steering swing of the lane change (longer horizons at higher speed). 20
-  stages: 0.094 m; 30 stages: 0.052 m at about 15 % more solve time.
-* ``solver = fatrop``: IPOPT's optimum (the same NLP to the same tolerance; plans agree
-  to 1e-4 along a closed-loop lane change, ``tests/tracker/mpc/test_nmpc_solvers.py``) 2-3
-  times faster, each interior-point iteration a Riccati recursion over the stages.
-  ``ipopt`` stays selectable as the reference (``--set tracker.solver=ipopt``);
-  ``sqp-rti`` (one Gauss-Newton SQP step per control step, hpipm for the QP) gives the
-  same max CTE on the lane change (seeds 0/1/2, both NMPCs) 6-10 times faster:
-  ``kinematic-nmpc`` at N = 20 0.5-0.6 ms median against 2.4-3.5 ms; ``dynamic-nmpc``
-  0.7-0.9 ms against 5-10 ms (a loaded 2-core machine; table in :mod:`tracker.mpc.nmpc`).
+The defaults of the weights and settings were chosen by measurement, on the default
+tracker ``dynamic-nmpc``; the measurements behind each: README, "Why the defaults".
 """
 
 from __future__ import annotations

@@ -11,10 +11,8 @@ emits a chunk at a time, so a killed process loses at most the chunk being fille
 
 The chunk size also sets the recorder's memory growth: MCAP's summary section indexes every
 chunk, so the writer keeps one chunk index per chunk until the file is finished (about
-1.5 kB each in Python). The default lane change logs about 1 MB a simulated second before
-compression: with 256 kB chunks that was 22 MB an hour (measured: RSS +1.65 MiB every 5
-simulated minutes, ``bench/long_run.py``), with the default :data:`CHUNK_SIZE_BYTES` a
-quarter of it.
+1.5 kB each in Python); larger chunks, fewer indexes (``bench/long_run.py`` measures the
+growth over an hour-long run).
 
 The file is written under a temporary name and renamed to its final name by
 :meth:`McapRecorder.publish` (see :mod:`cosim.log.safe_file`): a run refused before it

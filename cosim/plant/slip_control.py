@@ -3,7 +3,8 @@
 Why: the low-level layer (:mod:`cosim.plant.low_level`) turns the tracker's acceleration into
 torque with the controller's *belief*. A car 30 % lighter than believed gets 43 % too much
 drive torque; on a road of friction 0.7 its rear wheels spin, their lateral grip collapses
-and the car turns round, whatever the tracker does (max CTE 22 m, measured). A production
+and the car turns round, whatever the tracker does (it did, in a run on the default
+sedan). A production
 car's brake ECU prevents that with traction control (TCS) and ABS; this is a minimal one,
 run at the physics rate (a TCS runs at 100 Hz-1 kHz), on what such an ECU measures: the four
 wheel speeds.

@@ -472,7 +472,7 @@ def run(
     wall_start = time.perf_counter()
     completed, abort_reason, abort = False, "", ""
     # One BLAS thread: the matrices here are small, and an idle BLAS thread spinning on
-    # the other core made MPC solve times jitter (ltv-mpc p99 5 ms against 1 ms).
+    # the other core makes MPC solve times jitter (README, "Why the defaults").
     with threadpool_limits(limits=1, user_api="blas"), McapRecorder(
             out_path, epoch_ns=config.sim.epoch_ns, mirror=mirror) as recorder, \
             contextlib.ExitStack() as release:

@@ -2,11 +2,10 @@
 
 Why: the dynamic bicycle's linear tyres (:mod:`tracker.models.dynamic_bicycle`, (D3)) give any
 force the plan asks for, and the acceleration input ``vx' = a`` costs no grip at all. On a
-wet road the plan then asks more of the rear axle than it has: at friction 0.6 the
-rear-driven sedan, accelerating at the 3 m/s^2 bound from 15 to 20 m/s, spun its rear wheels
-(0.5 s into the lane change the car reached 1.2 m/s^2 of the 3 asked for) and turned round
-at 3 s, max CTE 11.3 m, even with the belief knowing the friction. The soft slip-angle
-limits (lateral only) could not see it.
+wet road the plan then asks more of the rear axle than it has: the rear-driven sedan,
+accelerating at its bound into the lane change, spins its rear wheels and turns round, even
+with the belief knowing the friction (README, "Why the defaults"). The soft slip-angle
+limits (lateral only) cannot see it.
 
 The constraint (the friction circle of each axle, e.g. Rajamani 2012, sec. 13.2 "tire
 force limits"; the per-axle form used for MPC by Beal and Gerdes, "Model predictive control
@@ -26,21 +25,8 @@ infeasible. The drive force is ``fmax(F_x, 0)``, whose square is continuously
 differentiable, so the penalty is too. Lateral load transfer is left out (it lowers an
 axle's grip through the tyres' load sensitivity); ``usage_max`` < 1 covers it.
 
-Measured (MuJoCo sedan, EKF, ``lane-change`` at 20 m/s, 0.5 g, ``plant.tyre_friction`` =
-``tracker.model.tyre_friction``; with speed planning, :mod:`tracker.mpc.grip_speed`):
-
-* friction 0.6: the car accelerates at about 2.2 m/s^2 (the rear axle's 0.85 mu F_z) and
-  tracks: max CTE 0.209 / 0.131 / 0.165 / 0.223 / 0.149 m (seeds 0-4), no fallback, no
-  speed reduction (before: spun at 3 s, 11.3 m);
-* friction 0.5: speed planning slows the car to 18.4 m/s for the bends (``speed_reduced``
-  in 64 of 300 plans): 0.292 / 0.309 / 0.242 / 0.326 / 0.247 m;
-* the belief left at 1.0 on a 0.6 road still spins (28 m): the tracker can only respect
-  the friction it believes in; the car's own traction control (``plant.slip_control``)
-  saves that case (0.166 m).
-
-Cost: on the linear bench the NLP with the ellipse took about 15 % longer per step (same
-iterations), so it is added only when the believed friction is below
-``grip.tyre_limits_below_friction`` (0.9).
+Measured, with the cost of the constraint (it is added only when the believed friction is
+below ``grip.tyre_limits_below_friction``): README, "Why the defaults", the friction ellipse.
 """
 
 from __future__ import annotations

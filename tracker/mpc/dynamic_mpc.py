@@ -60,72 +60,9 @@ The plan's states are the path-model states at nodes ``0..Np`` (node 0 is the pr
 starting point, at ``t_s`` plus the latency), its inputs the commands of the ``Np``
 stages; ``dt_s`` is ``Ts``. Nothing depends on wall-clock time but ``solve_time_s``.
 
-Choices, and the measurements behind them (MuJoCo sedan with Pacejka tyres, EKF in the
-loop, ``lane-change``: the stretched double lane change at 20 m/s from 15 m/s, 0.5 g;
-max CTE for seeds 0-4; on its own model, the bench of the tests, 64 mm against the
-reference design's 88 mm):
-
-* **Back-end: HiGHS** (``qp_solver: highs``; its active-set QP solver reports its
-  iterations, about 39 per step: it counts every slack bound it fixes). On 4500 QPs
-  logged from 15 plant runs (seeds 0-4: nominal, 100 ms delay uncompensated, the reference design's
-  belief) HiGHS failed once ("claims optimality, but with primal infeasibilities" of
-  1e-4; the fallback replays the last plan for that step), 0.8 ms median. DAQP (``daqp``)
-  solved all of them in 0.27 ms with the same solutions (within 5e-9) but reports no
-  iteration count through CasADi (logged as 0). qrqp, CasADi's own, failed 349 (cycling,
-  "Failed to calculate search direction"); OSQP failed 1-3 and reports no iterations;
-  qpOASES solves them but prints its licence banner to stdout at every call; HPIPM needs
-  the multiple-shooting structure, not a condensed QP.
-* **A slack per node**, not one per limit over the horizon (the worst violation): the
-  same on the lane change, but from 2 m off the path one slack lets every later node
-  violate as much as the first, which nothing can change, and the car overshoots by
-  0.48 m instead of 0.15 m (the tests' bench). 34 variables instead of 7 cost 0.14 ms.
-  Without the soft limits (``weight_slack = 0``) the lane change is within 7 mm of the
-  same (the 3 deg heading limit is reached in 8 of 300 plans, seed 0); with the earlier
-  ``weight_heading = 10`` it was 0.057-0.084 m instead of 0.047-0.055 m: the limit then
-  bound during the swings and damped them.
-* **Weights.** What matters is ``weight_lateral / weight_steer_increment`` (the scale at
-  a fixed ratio changes nothing: 100/2000, 300/6000, 1000/20000 give the same to 0.2 mm);
-  max CTE over the seeds for the ratio 1 / 0.1 / 0.05 / 0.04 / 0.01 (heading 10):
-  0.089 / 0.065 / 0.055 / 0.061 / 0.157 m. Then ``weight_heading`` 10 / 300 / 1000 at
-  the ratio 0.04: 0.061 / 0.054 / 0.051 m (at 0.05, 10 / 300 / 1000 / 3000: 0.055 /
-  0.053 / 0.056 / 0.069 m). ``weight_accel_increment``
-  ramps the acceleration up over 0.15 s instead of stepping to 3 m/s^2: with 0.1 the
-  rear-driven sedan on ``plant.tyre_friction=0.7`` spins its wheels at the step, keeps
-  accelerating into the lane change and spins out (13-14 m); with 10 it tracks within
-  0.048 m. The reference design reaches 18.3 m/s at 1.1 s, this 18.2 m/s.
-* **The reference design's heading reference** ``e2 = 0``. In a steady turn the heading differs from
-  the path's by the side slip, so the heading weight buys it with a small lateral offset
-  (the bench: 8 mm in a steady 0.5 g turn, 0.1 mm with ``weight_heading = 10``). A
-  reference of minus the belief's steady side slip (S3) removes it, but did not help the
-  lane change (0.050 m at best, heading weight 300), so the reference design's is kept.
-* **No actuator lag in the model** (the reference design's): also predicting over the belief's
-  steering time constant, as :mod:`tracker.mpc.kinematic_nmpc` does, made it worse (with
-  earlier weights: 0.068 m with 25 ms more, 0.086 m with 50 ms, against 0.055 m). On
-  the bench the lag even helps: 84 mm without it (``Nc = 5``: 52 mm).
-
-Measured with the defaults: max CTE [m] for seeds 0 / 1 / 2 / 3 / 4, and the solve time
-[ms], the range over the seeds of the median / of the 99th percentile (two cores shared
-with other work)::
-
-    run                                  max CTE [m], seeds 0-4              solve [ms]
-    defaults                             0.032 0.049 0.050 0.043 0.044   0.95-1.07 / 1.2-1.8
-    plant.actuator_delay_s=0.1           0.027 0.049 0.043 0.052 0.054   0.93-1.05 / 1.1-1.6
-      tracker.latency_compensation=false 0.082 0.154 0.123 0.093 0.102   1.02-1.12 / 1.3-1.9
-    qp_solver=daqp                       identical                       0.37-0.46 / 0.45-0.80
-    control_horizon=5                    0.026 0.046 0.053 0.044 0.044   1.27-1.48 / 1.6-2.6
-    belief C_f 19000, C_r 33000 N/rad    0.562 0.586 0.559 0.553 0.574  0.81-0.86 / 1.1-1.3
-
-No solver failures in these 30 runs; HiGHS takes 39 iterations median (at most 54).
-Max heading error 0.030-0.032 rad (the reference design: < 3 deg = 0.052), max steering
-0.066-0.070 rad. The reference design's belief (C_f 19000, C_r 33000 N/rad) expects 3.8 /
-2.4 times softer tyres than the sedan's (15 deg/g of understeer against 2.2) and a side
-slip of 4.6 deg at 0.5 g, beyond its own 3 deg heading limit. Other cases:
-``plant.mass_kg=2000`` 0.076 / 0.063 / 0.062 m (seeds 0-2), ``plant.tyre_friction=0.7``
-0.042 / 0.048 / 0.046 m; the model has no tyre limits (unlike ``dynamic-nmpc``'s soft
-slip-angle limits), yet Falcone's unstretched path
-(``lane-change-limit``, 1.11 g) ends at 0.44 / 0.48 m (seeds 0 / 1), held by the 15 deg
-steering bound and the heading limit; MuJoCo contact tyres (``plant.tyre_model=contact``,
-no cornering compliance at all) 0.54-0.67 m.
+The choices (back-end HiGHS, a slack per node and limit, the weights, the reference
+design's heading reference ``e2 = 0``, no actuator lag in the model) and the measurements
+behind them: README, "Why the defaults", ``dynamic-mpc``; today's accuracy: ``docs/trackers.md``.
 """
 
 from __future__ import annotations

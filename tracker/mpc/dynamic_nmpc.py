@@ -1,10 +1,9 @@
 """Nonlinear MPC on the linear-tyre dynamic bicycle with its steering actuator.
 
-Why: on the default sedan (Pacejka tyres, understeer gradient 2.2 deg/g) the kinematic NMPC
-does not track the stretched double lane change at 20 m/s (max CTE 1.84 m): its model puts
-the CoG velocity into the turn and expects the full kinematic yaw rate, while the car yaws
-about a third less and its velocity points out of the turn (a kinematic MPC
-becomes unstable on an understeering car; a dynamic model is needed).
+Why: on an understeering car the kinematic NMPC does not track the lane change: its
+model puts the CoG velocity into the turn and expects the full kinematic yaw rate, while the
+car yaws less and its velocity points out of the turn (a kinematic MPC becomes unstable on
+an understeering car; a dynamic model is needed).
 
 The model is the dynamic bicycle of Rajamani, "Vehicle Dynamics and Control", 2nd ed.,
 Springer 2012, sec. 2.3, with the steering actuator as a state
@@ -13,37 +12,13 @@ fallback, safe stop and plan are the shared :class:`tracker.mpc.nmpc.Nmpc` (the 
 NMPC). The belief is ``tracker.model``: mass, yaw inertia, CoG position, the axle cornering
 stiffnesses (defaults from ``cosim identify``), the steering time constant and the friction.
 
-Choices and the measurements behind them (MuJoCo sedan, EKF in the loop, stretched lane
-change, default tuning of :mod:`tracker.config`):
-
-* The actuator as a first-order lag of the command, not the steering rate as the input: the
-  runner holds one command per control period and the plant lags it, which is exactly the
-  model, so the NLP's input stays the command (the fallback, the safe stop and the rate
-  bounds are the kinematic NMPC's) and no latency needs to be predicted over for it. The
-  road-wheel angle is an internal state propagated with the applied commands: on the plant
-  it is within 0.43 mrad RMS of the true angle (the EKF's own ``steer_rad``, from the
-  quantised sensor, is within 1.1 mrad). Steady-state understeer and side slip alone (an
-  earlier experiment in the kinematic model) gave 0.46 m; with the transient dynamics and
-  the actuator the same NLP gives 0.056 m.
-* ``vy`` and ``r`` from the estimate. Propagating ``vy`` through the model instead (as the
-  road-wheel angle) was no better with the current filter (0.058 m against 0.056 m), and
-  worse with the earlier filter, whose ``vy`` and ``yaw`` errors were correlated (-0.88):
-  0.51 m against 0.35 m at ``steer_rate = 20``, since the course they share was better
-  (6.5 mrad RMS) than the yaw alone (14 mrad).
-* Soft limits on both axles' slip angles at the linear tyres' range (``mu m g l_r / (L C_f)``
-  = 0.12 rad front, 0.083 rad rear): they never bind at 0.5 g, and on Falcone's unstretched
-  path (1.11 g) they keep the car from spinning: max CTE 0.70 m, against 15.7 m and a
-  heading error of pi without them. A quadratic exterior penalty, not slack variables
-  (which doubled IPOPT's iterations).
-* Max CTE 0.056 / 0.062 / 0.054 m for seeds 0 / 1 / 2 (the bar for an MPC on this path: 88 mm
-  on its own model without noise, see :mod:`tracker.mpc.dynamic_mpc`), 0.053 m with the true
-  state as the estimate, solve time 5.5 ms median, about 10 ms at the 99th percentile, 5 IPOPT
-  iterations median (IPOPT was then the default solver; fatrop, now the default, reaches the same
-  optimum). On the linear model itself (the test bench) 0.045 m, limited by the moderate
-  ``steer_rate`` weight on purpose: ``steer_rate = 0.2`` with ``cte = 100`` gives 2 mm on the bench
-  and 19 mm on the plant with the true state, but 0.045 m with the EKF (against 0.056 m), the wheel
-  then chasing the sensor noise on the straight six times as fast (0.20 rad/s RMS) and
-  the loop losing margin against a wrong belief (:mod:`tracker.config`).
+Choices: the steering actuator is a first-order lag of the command (the runner holds one
+command per control period and the plant lags it, which is exactly the model), its angle an
+internal state propagated with the applied commands; ``vy`` and ``r`` come from the estimate;
+both axles' slip angles are softly limited to the linear tyres' range
+(``mu m g l_r / (L C_f)``, ``mu m g l_f / (L C_r)``) by a quadratic exterior penalty, not
+slack variables. The measurements behind each choice: README, "Why the defaults",
+``dynamic-nmpc``; today's accuracy: ``docs/trackers.md``.
 """
 
 from __future__ import annotations

@@ -12,20 +12,17 @@ model's speed, the CoG speed; ``vy`` is not read).
 
 The kinematic model has no steering actuator, so its ``unmodelled_lag_s`` is the belief's
 steering time constant ``tracker.model.steer_time_constant_s``: the estimate is predicted
-over it plus ``tracker.latency_s``. This replaces the earlier
-fixed ``latency_s = 0.075`` (lag plus half a period) at no measurable cost: max CTE 1.88 m
-instead of 1.84 m on the default sedan and 0.130 m for both with MuJoCo contact tyres
-(``steer_rate = 20``, the filter without a tyre model).
+over it plus ``tracker.latency_s`` (the earlier fixed ``latency_s``, lag plus half a period,
+did no better: README, "Why the defaults").
 
 ``tracker.kinematic_understeer`` (the default) keeps the four states but turns at the
 steady-state yaw rate and slip angle of the belief's linear tyres ((U1)-(U2) of
 :mod:`tracker.models.kinematic_bicycle`). The pure kinematic model cannot track the
-lane change on the understeering Pacejka sedan (a kinematic MPC becomes unstable on an
-understeering car): max CTE 0.80 / 0.75 m for seeds 0 / 1, the car turning about a
-third less than the model expects. With the steady-state understeer the same NLP gives
-0.054 / 0.043 m, as close as the dynamic NMPC (0.058 / 0.046 m): at 0.5 g the transient
-lateral dynamics settle within a few tenths of a second and the steering lag is predicted
-over, so what the kinematic model lacked was the steady-state gain.
+lane change on an understeering car (a kinematic MPC becomes unstable on an understeering
+car: the car turns less than the model expects); with the steady-state understeer it can:
+at 0.5 g the transient lateral dynamics settle within a few tenths of a second and the
+steering lag is predicted over, so what the kinematic model lacked was the steady-state
+gain (measured: README, "Why the defaults", ``kinematic-nmpc``).
 """
 
 from __future__ import annotations

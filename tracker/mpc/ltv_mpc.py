@@ -61,32 +61,8 @@ The plan's ``solve_time_s`` is the QP back-end's call alone (what the runner's
 :attr:`LtvMpc.timing`. Nothing depends on wall-clock time except those timings, so equal
 inputs give equal outputs.
 
-Measurements (MuJoCo sedan, EKF, stretched lane change at 20 m/s, seeds 0-4; 2-core
-machine shared with other jobs, ``OPENBLAS_NUM_THREADS=1``):
-
-* Max CTE 0.0575 / 0.0462 / 0.0469 / 0.0671 / 0.0634 m, the same as ``dynamic-nmpc`` to
-  0.1 mm (0.0575 / 0.0462 / 0.0469 / 0.0671 / 0.0634 m): linearised about the previous
-  plan, one QP per step converges along the run to the NMPC's solution (on the bench
-  every plan after the first second is a trajectory of the nonlinear model to 0.25 mm).
-  QP solve 0.64-0.70 ms median, 0.8-1.05 ms 99th percentile, 4 HPIPM iterations median
-  (8 at most), against IPOPT's 5.5 ms median; the linearisation adds about 0.27 ms.
-* Every back-end gives the same commands (to 1e-5, HPIPM's interior point staying that
-  far inside an active acceleration bound) and the same CTE; solve medians: hpipm 0.52,
-  qpOASES 0.53, qrqp 0.85, OSQP 1.0 ms (best of five per QP on the bench's QPs).
-* ``previous-plan`` against ``reference``: the same on the lane change (0.0575 against
-  0.0576 m) and on Falcone's unstretched path (0.673 against 0.672 m); from a 0.3 rad
-  heading error on the bench 2.57 against 2.63 m max CTE (the reference's steady turn is
-  no trajectory of a car pointing off the path), from a 3 m offset 2 % less overshoot for
-  the reference (0.294 against 0.301 m). ``previous-plan`` is the default: it needs no
-  model of steady cornering, and a good trajectory to linearise about is one the car can
-  drive.
-* Slip limits: on Falcone's unstretched path (1.11 g) max CTE 0.67 m (``dynamic-nmpc``:
-  0.70 m); without them the car spins (4.7 m, heading error pi). They cost about 0.13 ms
-  per solve (0.39 ms median without).
-
-Without ``OPENBLAS_NUM_THREADS=1`` the 99th percentile of every back-end's solve time is
-about 5 ms on the shared machine: numpy's BLAS threads (the estimator's) spin on the
-second core after each call and compete with the solver. The median is unaffected.
+The measurements behind the defaults (back-end, linearisation trajectory, slip limits):
+README, "Why the defaults", ``ltv-mpc``; today's accuracy: ``docs/trackers.md``.
 """
 
 from __future__ import annotations

@@ -1,21 +1,13 @@
 """Settings of the ``ltv-mpc`` tracker: ``tracker.ltv_mpc`` (Falcone et al. 2007, sec. IV).
 
-Defaults, measured on the MuJoCo sedan (stretched lane change, EKF, seeds 0-4) and on the
-QPs of the bench in ``tests/tracker/mpc/test_ltv_mpc.py``; details in :mod:`tracker.mpc.ltv_mpc`:
+Defaults (the measurements behind them: README, "Why the defaults", ``ltv-mpc``):
 
-* ``qp_solver = hpipm`` on the sparse QP: the fastest that never failed, 0.52 ms per solve
-  median on the bench's QPs (0.64-0.70 ms on the plant), 4 interior-point iterations.
-  qpOASES (condensed) is as fast in the median (0.53 ms) but slower on the first steps
-  (115 working-set changes from a cold start) and prints its licence banner to stdout
-  twice per tracker; qrqp (condensed) 0.85 ms with a 4.8 ms tail; OSQP (condensed) 1.0 ms.
-  On the sparse QP OSQP and qrqp take 1.7 ms, and OSQP fails often at tolerances below
-  1e-6; on the condensed QP HPIPM cannot run (it solves stage-wise problems only).
-* ``linearise_about = previous-plan`` (real-time iteration): as good as the reference on
-  the lane change, better from a large heading error.
-* ``slip_limits = true``: as ``dynamic-nmpc``'s, they never bind at 0.5 g and keep the car
-  from spinning on Falcone's unstretched path, for 0.13 ms more per solve.
-* ``qp_tolerance = 1e-8``: HPIPM's commands then agree with the active-set solvers' to
-  1e-5; at 1e-10 HPIPM no longer converges.
+* ``qp_solver = hpipm`` on the sparse QP: the fastest back-end that never failed on the
+  bench's QPs; qpOASES prints its licence banner to stdout, HPIPM cannot run the condensed
+  QP (it solves stage-wise problems only).
+* ``linearise_about = previous-plan`` (real-time iteration).
+* ``slip_limits = true``, as ``dynamic-nmpc``'s.
+* ``qp_tolerance = 1e-8``: the tightest at which HPIPM still converges.
 """
 
 from __future__ import annotations

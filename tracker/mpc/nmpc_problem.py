@@ -17,57 +17,25 @@ and solves; the solver's own verdict decides success, see :meth:`tracker.mpc.nlp
   the stages per iteration. It needs the NLP stage by stage: ``[z_0, u_0, z_1, ..,
   z_N]`` with ``z_k = [x_k, u_{k-1}]``, the previous input carried as a state so the
   rate bound and the rate costs stay within a stage, the constraints ordered stage by
-  stage (:meth:`NmpcProblem.staged_problem`). Same optimum as IPOPT (first commands within
-  1e-7), same iteration count; each iteration is cheaper.
+  stage (:meth:`NmpcProblem.staged_problem`). The same optimum as IPOPT, in as many
+  iterations; each iteration is cheaper.
 - ``sqp-rti``: a real-time iteration (Diehl): ``rti_iterations`` (1) Gauss-Newton SQP
   steps per control step on the staged NLP, warm-started from the shifted plan, each one
   QP (``rti_qp_solver``: hpipm, a stage-wise Riccati interior point, by default). Not
-  converged within a step (one step from a cold guess is 6e-4 off the optimum's first
-  command) but converged along the run, since the warm start carries the iterate on.
+  converged within a step but converged along the run, since the warm start carries the
+  iterate on.
   CasADi's ``sqpmethod`` with ``max_iter = 1`` would do the same, but it ignores a
   failed QP (:class:`~tracker.mpc.nlp.RealTimeIteration`), so the iteration is written out here.
 
 With ``tracker.compiled`` (fatrop only) the NLP's functions are C instead of CasADi's
 virtual machine: :meth:`NmpcProblem.staged_problem` in MX maps one stage function over the
-horizon, so the generated code holds each derivative once (0.8 MB of C, 13 s with
-``gcc -O1`` on a loaded machine, against 4 MB and 88 s for the inlined SX NLP); the
-library is cached per machine, keyed by the code (model, belief, weights, horizon).
-The same NLP and iterates (plans equal to 1e-9, ``tests/tracker/mpc/test_nmpc_solvers.py``);
-the solve of the lane change about 2-3x faster (``bench/where_time_goes.py``).
+horizon, so the generated code holds each derivative once (a tenth of the C of the inlined
+SX NLP, compiled in a fraction of its time); the library is cached per machine, keyed by
+the code (model, belief, weights, horizon). The same NLP and iterates
+(``tests/tracker/mpc/test_nmpc_solvers.py``), solved faster (``bench/where_time_goes.py``).
 
-Measured with ``bench/solve_time.py`` (MuJoCo sedan, EKF, lane change; p50 and p99 of
-the per-step solve time, median over seeds 0/1/2; max CTE for seeds 0/1/2; 2 cores
-shared with other jobs under load, so every time is inflated, IPOPT's by about 1.5-2x
-against a quiet moment, and p99 mostly shows the scheduler, not the solver):
-
-===================  ===============  ============  =========================  ========
-tracker              solver           p50/p99 [ms]  max CTE, seeds 0/1/2 [m]   failures
-===================  ===============  ============  =========================  ========
-kinematic, N = 20    ipopt            3.50 / 11.2   0.7914 / 0.7499 / 0.7369   0
-kinematic, N = 20    fatrop           0.90 / 5.7    0.7914 / 0.7499 / 0.7369   0
-kinematic, N = 20    sqp-rti, hpipm   0.59 / 4.9    0.7914 / 0.7499 / 0.7369   0
-kinematic, N = 20    sqp-rti, qrqp    0.97 / 6.7    0.7914 / 0.7499 / 0.7369   0
-kinematic, N = 20    sqp-rti, osqp    0.76 / 1.4    0.7914 / 0.7499 / 0.7369   0
-kinematic, N = 25    ipopt            3.30 / 13.2   0.7972 / 0.7542 / 0.7366   0
-kinematic, N = 25    fatrop           1.10 / 6.2    0.7972 / 0.7542 / 0.7366   0
-kinematic, N = 25    sqp-rti, hpipm   0.65 / 5.1    0.7972 / 0.7543 / 0.7366   0
-dynamic, N = 25      ipopt            10.5 / 24.3   0.0575 / 0.0462 / 0.0469   0
-dynamic, N = 25      fatrop           3.12 / 12.1   0.0575 / 0.0462 / 0.0469   0
-dynamic, N = 25      sqp-rti, hpipm   0.92 / 5.5    0.0575 / 0.0462 / 0.0469   0
-dynamic, N = 25      sqp-rti, qrqp    2.48 / 10.8   0.0575 / 0.0462 / 0.0469   0
-dynamic, N = 25      sqp-rti, osqp    8.22 / 21.9   0.0575 / 0.0462 / 0.0469   0
-===================  ===============  ============  =========================  ========
-
-In a quieter moment: kinematic N = 20 p50 2.4-2.5 ms with IPOPT, 0.82-1.1 ms with
-fatrop, 0.49-0.52 ms (p99 0.82 ms) with the RTI; dynamic 5.2 ms with IPOPT, 0.68-0.78
-ms with the RTI. Harder cases (dynamic-nmpc, seed 0, max CTE ipopt / fatrop / RTI):
-Falcone's unstretched path at 1.11 g 0.6734 / 0.6734 / 0.6704 m (the soft slip limits
-active), a 2000 kg car on friction 0.7 0.1584 m for all three, 100 ms actuator delay
-0.0735 m for all three; no failures. ``fatrop`` is the default: it gives IPOPT's
-optimum (the NLP the testbed was tuned against) 2-3 times faster; IPOPT stays
-selectable as the reference. The RTI's plans are one Gauss-Newton step, not an
-optimum (status ``RTI_Completed``), so it is not the default although it is as
-accurate on every case above and 6-10 times faster.
+Solve times and accuracy of each solver, as measured when ``fatrop`` became the default:
+README, "Why the defaults", NMPC solvers; ``bench/solve_time.py`` times them on this machine.
 """
 
 from __future__ import annotations
