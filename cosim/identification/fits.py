@@ -1,7 +1,7 @@
 """Fits of the identification: pure functions from measured data to model parameters.
 
 Nothing here touches the plant; the same functions are tested on synthetic data generated
-by the models themselves (tests/test_identify.py). Every fit returns a frozen record with
+by the models themselves (tests/identification/test_identify.py). Every fit returns a frozen record with
 its parameters, the RMS of its residual in the fitted quantity's units and its number of
 samples.
 

@@ -110,8 +110,12 @@ def test_an_old_key_in_a_sweep_spec_works(tmp_path: Path) -> None:
     spec.write_text("scenario: lane-change\nduration_s: 1\nseeds: 1\n"
                     "set: {plant.tire_friction: 0.9}\ngrid: {tracker.model.tire_friction: "
                     "[0.8, 1.0]}\n")
-    with pytest.warns(DeprecatedKeyWarning, match="write plant.tyre_friction"):
+    with warnings.catch_warnings(record=True) as record:
+        warnings.simplefilter("always")
         loaded = load_spec(spec)
+    notes = _notes(record)
+    assert [n.split(" ")[0] for n in notes] == ["plant.tire_friction",
+                                               "tracker.model.tire_friction"]
     assert loaded.fixed == (("plant.tyre_friction", 0.9),)
     assert [p.path for p in loaded.parameters] == ["tracker.model.tyre_friction"]
 

@@ -12,7 +12,7 @@ from cosim.core.exceptions import ConfigError
 from cosim.log.reader import iter_messages
 from cosim.simulation.runner import run
 from cosim.simulation.scenario_config import load_config
-from tests.test_cli import cosim
+from tests.cli.test_cli import cosim
 
 
 def test_suite_sets_the_belief_unless_it_is_set() -> None:

@@ -28,7 +28,7 @@ from cosim.log.live import LATCHED_TOPICS, LiveOptions, LiveStream
 from cosim.log.reader import iter_messages
 from cosim.log.recorder import McapRecorder
 from cosim.log.schemas import SCENE_UPDATE, VEHICLE_STATE
-from tests.test_run import _payloads, _strip_wall_clock
+from tests.simulation.test_run import _payloads, _strip_wall_clock
 
 SUBPROTOCOLS = ["foxglove.websocket.v1", "foxglove.sdk.v1"]
 """The protocol's two names, offered as the Foxglove app offers them (the SDK's server

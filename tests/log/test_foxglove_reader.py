@@ -16,7 +16,7 @@ import pytest
 from cosim.log.reader import read_summary
 from cosim.simulation.runner import RunResult
 
-JS_DIR = Path(__file__).resolve().parent / "js"
+JS_DIR = Path(__file__).resolve().parents[1] / "js"
 
 pytestmark = pytest.mark.skipif(
     shutil.which("node") is None or shutil.which("npm") is None,

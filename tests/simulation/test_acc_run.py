@@ -218,7 +218,7 @@ def test_the_acc_foxglove_layout_names_logged_fields(cut_in_start: RunResult) ->
 
     from cosim.log.reader import iter_topics
 
-    layout = json.loads((Path(__file__).resolve().parents[1] / "examples"
+    layout = json.loads((Path(__file__).resolve().parents[2] / "examples"
                          / "foxglove-acc-layout.json").read_text())
     first: dict[str, dict] = {}
     for topic, _, message in iter_topics(cut_in_start.log_path):

@@ -18,7 +18,7 @@ from cosim.log.reader import iter_messages, iter_topics, read_summary
 from cosim.simulation.runner import RunResult
 from tests.conftest import run_scenario
 
-LAYOUT = Path(__file__).resolve().parents[1] / "examples" / "foxglove-layout.json"
+LAYOUT = Path(__file__).resolve().parents[2] / "examples" / "foxglove-layout.json"
 SCENE_TOPICS = ("/scene", "/scene/car", "/scene/plan", "/scene/estimate")
 
 

@@ -17,7 +17,7 @@ from cosim.plots.data import load_run
 from cosim.simulation.runner import RunResult, scenario_course
 from cosim.simulation.scenario_config import builtin_scenarios, load_config
 from tests.conftest import run_scenario
-from tests.test_run import _payloads, _strip_wall_clock
+from tests.simulation.test_run import _payloads, _strip_wall_clock
 
 LIBRARY = ("iso-lane-change", "circle", "figure-eight", "slalom", "s-curve", "stop-and-go",
            "track")

@@ -14,7 +14,7 @@ import pytest
 from cosim.core.exceptions import CosimError
 from cosim.simulation.metrics import WALL_CLOCK_KEYS
 from cosim.sweeps.execute import make_backend
-from tests.sweep.rows import wait_for_rows
+from tests.sweeps.rows import wait_for_rows
 
 COSIM = str(Path(sys.executable).with_name("cosim"))
 

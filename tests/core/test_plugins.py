@@ -16,7 +16,7 @@ import cosim
 from cosim.cli import main
 from cosim.log.reader import read_summary
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 EXAMPLE = ROOT / "examples" / "pure-pursuit-plugin"
 BIN = Path(sys.executable).parent
 

@@ -70,7 +70,7 @@ def test_the_mpc_as_policy_matches_cosim_run(tmp_path: Path) -> None:
 
 
 def test_the_docs_random_policy_example_runs(tmp_path: Path) -> None:
-    text = (Path(__file__).resolve().parents[1] / "docs" / "gym.md").read_text()
+    text = (Path(__file__).resolve().parents[2] / "docs" / "gym.md").read_text()
     first = re.findall(r"```python\n(.*?)```", text, flags=re.DOTALL)[0]
     done = subprocess.run([sys.executable, "-c", first], cwd=tmp_path, capture_output=True,
                           text=True, timeout=600, env={"MUJOCO_GL": "disable",
