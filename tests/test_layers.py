@@ -35,14 +35,12 @@ LAYERS: dict[str, int] = {
     "cosim.sensing": 1,
     "cosim.scenarios": 1,
     "cosim.core": 0,
-    "cosim": 0,
+    "cosim": 8,
 }
-"""Layer of each part. ``cosim`` is the package's own ``__init__`` alone (the lazy facade);
-every other module belongs to the longest part its dotted name starts with."""
-
-LAZY_FACADE = ("cosim", "cosim.api")
-"""The one upward import allowed: the package ``cosim`` resolves ``cosim.run`` and the other
-API names from :mod:`cosim.api` on first use (module ``__getattr__``), never at import."""
+"""Layer of each part. ``cosim`` is the package's own ``__init__`` alone, the facade on top:
+it resolves ``cosim.run`` and the other public names on first use (module ``__getattr__``),
+so nothing below may import it (but ``cosim.__version__``); every other module belongs to
+the longest part its dotted name starts with."""
 
 
 def part_of(module: str) -> str | None:
@@ -125,8 +123,6 @@ def test_imports_point_down(path: Path) -> None:
     for line, name in imported_modules(path):
         imported = part_of(name)
         if imported == importer or name in ("cosim.__version__",):
-            continue
-        if (module_name(path), imported) == LAZY_FACADE:
             continue
         if layer_of(imported) >= layer_of(importer):
             upward.append(f"line {line}: {name} (layer {layer_of(imported)}) from "

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+import traceback
 from typing import Any
 
 from cosim.core.config_fields import from_dict, to_dict
@@ -89,6 +90,16 @@ def make_plugin_tracker(config: TrackerConfig) -> Tracker:
     return GuardedTracker(config.name, tracker, config.step_budget_s)
 
 
+def _where(error: BaseException) -> str:
+    """`` (file.py:12, in step)``: the innermost frame of the traceback, the line that
+    raised, in the user's code or below it."""
+    frames = traceback.extract_tb(error.__traceback__)
+    if not frames:
+        return ""
+    last = frames[-1]
+    return f" ({last.filename}:{last.lineno}, in {last.name})"
+
+
 class GuardedTracker:
     """A user's tracker whose failures end the run with a reason instead of a traceback."""
 
@@ -113,8 +124,9 @@ class GuardedTracker:
                 what, detail = f"called sys.exit({error.code!r})", ""
             else:
                 what, detail = f"raised {type(error).__name__}", f": {error}" if str(error) else ""
-            raise TrackerFault(f"tracker {self.name!r} {what} at t = {t_s:.3f} s{detail}") \
-                from error
+            raise TrackerFault(
+                f"tracker {self.name!r} {what} at t = {t_s:.3f} s{detail}{_where(error)}",
+                "".join(traceback.format_exception(error))) from error
         elapsed_s = time.perf_counter() - start_s
         command, plan = check_step_result(self.name, t_s, result)
         if elapsed_s > self._budget_s:

@@ -113,11 +113,16 @@ def check_plan(tracker: str, t_s: float, plan: Plan) -> None:
 
 
 def check_step_result(tracker: str, t_s: float, result: Any) -> tuple[Command, Plan]:
-    """``result`` as ``(Command, Plan)``, every field checked (module docstring)."""
+    """``result`` as ``(Command, Plan)``, every field checked (module docstring); a
+    :class:`Command` alone gets :meth:`Plan.of_command` as its plan."""
+    if isinstance(result, Command):
+        check_command(tracker, t_s, result)
+        return result, Plan.of_command(result)
     if not (isinstance(result, tuple) and len(result) == 2
             and isinstance(result[0], Command) and isinstance(result[1], Plan)):
         raise PluginError(f"tracker.name = {tracker!r}: step returned {_describe(result)}: "
-                          "expected a tuple (Command, Plan) of cosim.core.records")
+                          "expected a Command, or a tuple (Command, Plan) (cosim.Command, "
+                          "cosim.Plan)")
     command, plan = result
     check_plan(tracker, t_s, plan)
     check_command(tracker, t_s, command)

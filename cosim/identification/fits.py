@@ -1,9 +1,9 @@
 """Fits of the identification: pure functions from measured data to model parameters.
 
 Nothing here touches the plant; the same functions are tested on synthetic data generated
-by the models themselves (tests/identification/test_identify.py). Every fit returns a frozen record with
-its parameters, the RMS of its residual in the fitted quantity's units and its number of
-samples.
+by the models themselves (tests/identification/test_identify.py). Every fit returns a
+frozen record with its parameters, the RMS of its residual in the fitted quantity's units
+and its number of samples.
 
 - :func:`fit_wheelbase`: the kinematic bicycle (Rajamani, "Vehicle
   Dynamics and Control", 2nd ed., ch. 2, kinematic model) referenced at the centre of

@@ -10,7 +10,10 @@
 ``tracking.png``       CTE, heading error, speed vs reference over time (``tracking``)
 ``commands.png``       steering, steering rate, acceleration with the tracker's limits
                        (``commands``)
-``estimation.png``     estimate - truth with +-3 sigma, NEES (``estimation``)
+``estimation.png``     the vehicle's states: estimate - truth with +-3 sigma, NEES,
+                       NIS per sensor (``estimation``)
+``estimation_internal.png``  the filter's biases, scales and residuals, truth where
+                       logged (``estimation``)
 ``solver.png``         solve-time histogram with p50/p99, over time, fallbacks
                        (``solver``)
 ``acc.png``            logs with traffic only: gap with the desired and minimum safe
@@ -47,7 +50,7 @@ def plot_logs(paths: Sequence[Path | str], out_dir: Path | str | None = None) ->
     from cosim.plots.acc import acc_figure, load_acc
     from cosim.plots.commands import commands_figure
     from cosim.plots.data import distinct_labels, load_run
-    from cosim.plots.estimation import estimation_figure
+    from cosim.plots.estimation import estimation_figure, estimation_internal_figure
     from cosim.plots.solver import solver_figure
     from cosim.plots.top_view import top_view_figure
     from cosim.plots.tracking import tracking_figure
@@ -69,6 +72,9 @@ def plot_logs(paths: Sequence[Path | str], out_dir: Path | str | None = None) ->
         "solver": solver_figure,
     }
     written = [makers[name](runs, out / f"{name}.png") for name in FIGURES]
+    internal = estimation_internal_figure(runs, out / "estimation_internal.png")
+    if internal is not None:
+        written.insert(FIGURES.index("estimation") + 1, internal)
     acc_logs = [load_acc(run.path) for run in runs]
     if any(log is not None for log in acc_logs):  # runs with traffic
         with_traffic = [(r, log) for r, log in zip(runs, acc_logs, strict=True)

@@ -124,10 +124,8 @@ def config_changes(config: Mapping[str, Any]) -> list[str]:
     for key in config_differences([base, config]):
         if key.split(".")[0].split("[")[0] in NOT_CHANGES:
             continue
-        if key in flat:
+        if key in flat:  # a key the log lacks is one its cosim did not have yet
             changes.append(f"{key}={shown_value(flat.get(key))}")
-        else:  # a list that became shorter: its lost items
-            changes.append(f"{key}=(none)")
     return changes
 
 

@@ -381,6 +381,17 @@ class _Run:
         if self.traffic is not None:
             self.traffic.after_control(t_s)
 
+    def record_fault(self, error: TrackerFault) -> None:
+        """The tracker's failure on ``/events``: kind ``tracker_fault``, the one-line
+        reason and the traceback of the user's code in ``detail``."""
+        if not self.events_registered:
+            self.recorder.register(topics.EVENTS)
+            self.events_registered = True
+        t_s = self.metrics.last_t_s
+        self.recorder.write_finite(topics.EVENTS, t_s, {
+            "t_s": t_s, "kind": "tracker_fault", "value": float("nan"),
+            "threshold": float("nan"), "detail": f"{error}\n{error.detail}".strip()})
+
     def record_collision(self, error: CollisionError) -> None:
         """The ``collision`` event on ``/events`` (the run ends with it)."""
         event = self.monitor.collision(error.t_s, error.car)
@@ -493,6 +504,7 @@ def run(
             abort_reason, abort = str(error), "diverged"
         except TrackerFault as error:  # a plug-in tracker failed: a result, not a crash
             abort_reason, abort = str(error), "error"
+            state.record_fault(error)
         except CollisionError as error:  # the ego hit a traffic car: a result
             abort_reason, abort = "collision", "collision"
             state.record_collision(error)

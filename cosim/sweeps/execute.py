@@ -74,6 +74,7 @@ def _now() -> str:
 
 def _run_task(task: RunTask, row: dict[str, Any]) -> None:
     """Run ``task`` and fill ``row``'s metrics and error (:func:`execute_task`)."""
+    from cosim.simulation.outcome import SEVERITY
     from cosim.simulation.runner import run
     from cosim.simulation.scenario_config import load_config
 
@@ -88,7 +89,9 @@ def _run_task(task: RunTask, row: dict[str, Any]) -> None:
     row["metrics"] = {k: _plain(v) for k, v in result.metrics.items()}
     if result.abort_reason == "interrupted":
         row["interrupted"] = True
-    if not result.completed:
+    if not result.completed and result.outcome not in SEVERITY:
+        # An event (a collision, a spin) ends a run as a result, judged by the pass
+        # criteria; an abort (an exception, diverging physics, an interrupt) is an error.
         row["error"] = result.abort_reason or "run did not complete"
 
 

@@ -19,7 +19,8 @@ A spec is a YAML mapping::
       cte_max_m: 0.3
       completed: true
       gap_min_m: {min: 5}            # a lower bound (a *_min metric must say which)
-    metric: cte_max_m                # optional headline metric of the summary and plots;
+    metric: cte_max_m                # optional headline metric of the summary and plots
+                                     # (a list plots each: [gap_min_m, ttc_min_s]);
                                      # default: the first numeric pass criterion
     ray_address: ray://head:10001    # optional, --backend ray only
 
@@ -232,6 +233,13 @@ class SweepSpec:
     """The tracker the runs use (``tracker``, else the scenario's), for titles."""
     estimator_name: str = ""
     """The estimator the runs use (``estimator``, else the scenario's), for titles."""
+    also_plotted: tuple[str, ...] = ()
+    """Further metrics plotted against each parameter (``metric:`` given as a list)."""
+
+    @property
+    def metrics(self) -> tuple[str, ...]:
+        """Every metric the plots show: the headline first."""
+        return (self.metric, *self.also_plotted)
 
     @property
     def n_runs(self) -> int:
@@ -452,6 +460,14 @@ class _SpecReader:
                              "(at most)")
         return PassCriterion(metric, float(bound))
 
+    def metrics(self, value: Any, criteria: tuple[PassCriterion, ...]) -> tuple[str, ...]:
+        """``metric:``, one name or a list of them (the first is the headline)."""
+        if isinstance(value, list):
+            if not value:
+                raise self.error("metric: []: expected a metric name or a list of them")
+            return tuple(dict.fromkeys(self.metric(v, criteria) for v in value))
+        return (self.metric(value, criteria),)
+
     def metric(self, value: Any, criteria: tuple[PassCriterion, ...]) -> str:
         if value is None:
             numeric = [c.metric for c in criteria if not isinstance(c.bound, bool)]
@@ -482,7 +498,7 @@ def load_spec(path: str | Path) -> SweepSpec:
     fixed = tuple((canonical_key(k, where) if isinstance(k, str) else k, v)
                   for k, v in reader.mapping(data, "set").items())
     criteria = reader.criteria(data)
-    metric = reader.metric(data.get("metric"), criteria)
+    metric, *also_plotted = reader.metrics(data.get("metric"), criteria)
     ray_address = reader.optional_str(data, "ray_address")
 
     def config(extra: tuple[tuple[str, Any], ...], what: str) -> Any:
@@ -513,6 +529,7 @@ def load_spec(path: str | Path) -> SweepSpec:
         scenario=scenario, tracker=tracker, estimator=estimator, duration_s=duration_s,
         seeds=seeds, fixed=fixed, mode=mode, parameters=tuple(parameters),
         random_n=random_n, random_seed=random_seed, criteria=criteria, metric=metric,
+        also_plotted=tuple(also_plotted),
         ray_address=ray_address, scenario_text=scenario_text,
         tracker_name=base.tracker.name, estimator_name=base.estimator.name,
     )

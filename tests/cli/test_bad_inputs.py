@@ -221,8 +221,8 @@ ROWS = [
     Row("plug-in wrong return type", lambda f: [
         "run", "lane-change", "--tracker", "tests.user_trackers:WrongReturn", "--duration",
         "0.2", "--out", f("wrong-return.mcap")],
-        ("'tests.user_trackers:WrongReturn'", "step returned Command",
-         "expected a tuple (Command, Plan)")),
+        ("'tests.user_trackers:WrongReturn'", "step returned (Command)",
+         "expected a Command, or a tuple (Command, Plan)")),
     Row("plug-in Command field a string", lambda f: [
         "run", "lane-change", "--tracker", "tests.user_trackers:StringAccel", "--duration",
         "0.1", "--out", f("string-accel.mcap")],

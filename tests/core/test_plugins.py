@@ -14,7 +14,7 @@ import pytest
 
 import cosim
 from cosim.cli import main
-from cosim.log.reader import read_summary
+from cosim.log.reader import iter_messages, read_summary
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLE = ROOT / "examples" / "pure-pursuit-plugin"
@@ -147,3 +147,39 @@ def test_the_example_depends_on_this_cosim_by_its_distribution_name() -> None:
     assert ours != "cosim"
     assert example["dependencies"] == [ours]
     assert importlib.metadata.distribution(ours).metadata["Name"] == ours
+
+
+def test_a_raising_tracker_is_reported_at_its_line_with_the_traceback_on_events(
+        tmp_path: Path) -> None:
+    config = cosim.load_config("lane-change", tracker="tests.user_trackers:Raising",
+                               duration_s=1.0, overrides=["tracker.params.fail_at_s=0.5"])
+    result = cosim.run(config, out=tmp_path / "raised.mcap")
+    source = ROOT / "tests" / "user_trackers.py"
+    line = next(n for n, text in enumerate(source.read_text().splitlines(), 1)
+                if "raise ZeroDivisionError" in text)
+    assert result.reason.endswith(f"({source}:{line}, in step)"), result.reason
+    (event,) = [m for _, m in iter_messages(tmp_path / "raised.mcap", "/events")]
+    assert event["kind"] == "tracker_fault"
+    assert "Traceback (most recent call last)" in event["detail"]
+    assert f'"{source}", line {line}, in step' in event["detail"]
+
+
+def test_a_tracker_may_return_a_command_alone(tmp_path: Path) -> None:
+    config = cosim.load_config("lane-change", tracker="tests.user_trackers:CommandOnly",
+                               duration_s=1.0)
+    result = cosim.run(config, out=tmp_path / "command.mcap")
+    assert result.completed and result.outcome == "ok"
+    plans = [m for _, m in iter_messages(tmp_path / "command.mcap", "/control/plan")]
+    assert len(plans) == 20 and {p["status"] for p in plans} == {"command"}
+    assert result.metrics["accel_max_mps2"] > 0.0
+
+
+def test_a_module_not_on_the_path_says_how_to_add_the_current_folder(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    (tmp_path / "mine.py").write_text("class Mine:\n    def step(self): ...\n")
+    code = main(["run", "lane-change", "--tracker", "mine:Mine", "--out",
+                 str(tmp_path / "x.mcap")])
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert code == 2
+    assert "no module 'mine' on Python's import path" in line
+    assert "PYTHONPATH=. cosim" in line

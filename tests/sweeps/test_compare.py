@@ -12,8 +12,8 @@ from pathlib import Path
 import pytest
 
 from cosim.sweeps.compare import league, make_tasks, markdown
-from tests.sweeps.rows import wait_for_rows
 from tests.cli.test_cli import COSIM, cosim
+from tests.sweeps.rows import wait_for_rows
 
 
 def _row(run_id: int, scenario: str, tracker: str, seed: int, cte: float,

@@ -197,3 +197,27 @@ def test_a_minimum_metric_takes_a_lower_bound(tmp_path: Path) -> None:
     assert safe.failure({"safe_gap_ok": False}) == "safe_gap_ok=false"
     assert spec.metric == "gap_min_m"
     assert "Infinity" not in json.dumps(spec.to_dict())
+
+
+def test_several_metrics_are_plotted_and_a_lower_bound_is_drawn(tmp_path: Path) -> None:
+    spec = load_spec(write_spec(tmp_path, "scenario: acc-braking\nduration_s: 1\n"
+                                "grid: {traffic.lead.brake_decel_mps2: [3, 6, 9]}\n"
+                                "pass: {gap_min_m: {min: 2}}\n"
+                                "metric: [gap_min_m, ttc_min_s]\n"))
+    assert spec.metric == "gap_min_m" and spec.metrics == ("gap_min_m", "ttc_min_s")
+    from cosim.sweeps.plots import _bounds, _low_is_bad
+
+    assert _bounds(spec, "gap_min_m") == (2.0, None)
+    assert _low_is_bad(spec, "gap_min_m") and _low_is_bad(spec, "ttc_min_s")
+    assert not _low_is_bad(spec, "cte_max_m")
+    flat = [{"traffic.lead.brake_decel_mps2": decel, "gap_min_m": gap, "ttc_min_s": ttc,
+             "pass": ok, "error": "", "outcome": outcome}
+            for decel, gap, ttc, ok, outcome in ((3, 2.4, 2.7, True, "ok"),
+                                                 (6, 1.2, 1.4, False, "ok"),
+                                                 (9, 0.0, 0.0, False, "collision"))]
+    paths = metric_plots(spec, flat, tmp_path)
+    assert [p.name for p in paths] == ["gap_min_m-vs-traffic.lead.brake_decel_mps2.png",
+                                       "ttc_min_s-vs-traffic.lead.brake_decel_mps2.png"]
+    assert all(p.stat().st_size > 10_000 for p in paths)
+    with pytest.raises(ConfigError, match=r"metric: \[\]"):
+        load_spec(write_spec(tmp_path, "scenario: acc-braking\nmetric: []\n", "empty.yaml"))
