@@ -128,6 +128,7 @@ import casadi as ca
 import numpy as np
 
 from cosim.core.records import WHEEL_NAMES
+from cosim.core.vehicle_equations import axle_slip_angles, rk4_step
 from cosim.core.vehicle_params import VehicleParams
 
 VEHICLE_STATE_NAMES: tuple[str, ...] = (
@@ -381,8 +382,8 @@ def axle_forces(s: Mapping[str, ca.SX], bicycle: BicycleParams) -> tuple[ca.SX, 
     speed = slip_speed(s["vx_mps"])
     r = s["yaw_rate_radps"]
     axle_vy = axle_lateral_velocity(s, bicycle)
-    alpha_front = s["steer_rad"] - (axle_vy + bicycle.cog_front_m * r) / speed  # (D1)
-    alpha_rear = -(axle_vy - bicycle.cog_rear_m * r) / speed  # (D2)
+    alpha_front, alpha_rear = axle_slip_angles(  # (D1), (D2)
+        axle_vy, r, s["steer_rad"], speed, bicycle.cog_front_m, bicycle.cog_rear_m)
     linear_front = bicycle.cornering_stiffness_front_npr * alpha_front  # (D3)
     linear_rear = bicycle.cornering_stiffness_rear_npr * alpha_rear
     if bicycle.tyre_model == "linear":
@@ -524,11 +525,7 @@ class ProcessModel:
         x = ca.SX.sym("x", n)
         dt = ca.SX.sym("dt_s")
 
-        k1 = self._derivative(x)
-        k2 = self._derivative(x + 0.5 * dt * k1)
-        k3 = self._derivative(x + 0.5 * dt * k2)
-        k4 = self._derivative(x + dt * k3)
-        x_next = x + dt / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+        x_next = rk4_step(self._derivative, x, dt)
         transition = ca.jacobian(x_next, x)
 
         a = ca.jacobian(self._derivative(x), x)
