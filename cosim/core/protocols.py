@@ -6,7 +6,7 @@ A tracker never sees the plant; an estimator never sees the truth (the debugging
 
 from __future__ import annotations
 
-from typing import Protocol
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
@@ -56,3 +56,11 @@ class Estimator(Protocol):
         """Fuse one measurement (predicting to its time first)."""
 
     def estimate(self) -> Estimate: ...
+
+
+@runtime_checkable
+class ObservableEstimator(Protocol):
+    """An estimator that can be looked at between its own steps without being changed."""
+
+    def estimate_at(self, t_s: float) -> Estimate:
+        """The belief predicted to ``t_s``; the estimator itself stays as it was."""

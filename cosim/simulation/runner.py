@@ -37,6 +37,7 @@ from threadpoolctl import threadpool_limits
 from cosim import __version__
 from cosim.core.config_fields import to_dict
 from cosim.core.exceptions import PhysicsDivergenceError, TrackerFault
+from cosim.core.protocols import ObservableEstimator
 from cosim.core.records import Command, Estimate, Measurement, Plan, VehicleState
 from cosim.log import foxglove
 from cosim.log import schemas as mcap_schemas
@@ -241,7 +242,6 @@ class _Run:
         self.yaw_rate_changes = collections.deque(disturbances.schedule(
             config.disturbances, self.clock.dt_s, component_rng(config.seed, "disturbances")))
         self._truth: VehicleState | None = None
-        self.estimated_speed_mps = config.initial.speed_mps
         self.plan_scene_registered = False
         """``/scene/plan`` is registered with the first plan that has world positions."""
         self.next_live_metrics_s = LIVE_METRICS_PERIOD_S
@@ -296,13 +296,21 @@ class _Run:
             closed=self.reference.closed))
 
     def current_estimate(self, t_s: float) -> Estimate:
+        """The estimator predicted to ``t_s``, for the controller: part of the loop (the
+        filter's predictions follow the control and sensor instants, never the log's)."""
         self.estimator.predict(t_s)
-        estimate = self.estimator.estimate()
-        self.estimated_speed_mps = estimate["vx_mps"]
-        return estimate
+        return self.estimator.estimate()
+
+    def observed_estimate(self, t_s: float) -> Estimate:
+        """The estimate at ``t_s`` without changing the estimator (for the log and the
+        low-level layer): an estimator that cannot be looked at between its steps gives its
+        latest belief as it stands."""
+        if isinstance(self.estimator, ObservableEstimator):
+            return self.estimator.estimate_at(t_s)
+        return self.estimator.estimate()
 
     def log(self, k: int, t_s: float) -> None:
-        estimate = self.current_estimate(t_s)
+        estimate = self.observed_estimate(t_s)
         self.recorder.write_finite("/vehicle/truth", t_s, self.truth.to_message())
         self.recorder.write_finite("/vehicle/estimate", t_s, estimate.to_message())
         self.recorder.write("/tf", t_s, foxglove.frame_transform(self.truth))
@@ -399,7 +407,8 @@ class _Run:
         """Apply the commands that leave the delay line at step ``k``."""
         while self.delay_line and self.delay_line[0][0] <= k:
             _, command = self.delay_line.popleft()
-            actuator = self.low_level.convert(command, self.estimated_speed_mps)
+            speed_mps = self.observed_estimate(t_s)["vx_mps"]
+            actuator = self.low_level.convert(command, speed_mps)
             self.plant.apply(actuator)
             self.metrics.add_command(command)
             self.recorder.write("/control/command", t_s, {
