@@ -22,7 +22,7 @@ import numpy as np
 
 from cosim.core.exceptions import ConfigError
 from cosim.core.initial_state import InitialState
-from cosim.core.vehicle_params import VehicleParams
+from cosim.core.vehicle_params import CarParams
 from cosim.log.foxglove import BODY_WIDTH_OVER_TRACK_M
 from cosim.simulation.path_config import PathConfig
 from tracker.paths import iso3888, shapes
@@ -73,7 +73,7 @@ class Course:
     bounds: TrackBounds | None = None
 
 
-def body_width_m(vehicle: VehicleParams) -> float:
+def body_width_m(vehicle: CarParams) -> float:
     """The car's body width: the wider track plus the body's overhang past the wheels."""
     return vehicle.widest_track_m + BODY_WIDTH_OVER_TRACK_M
 
@@ -105,7 +105,7 @@ def _profile(path: PathConfig, shape: shapes.Shape, duration_s: float) -> SpeedP
     return SpatialSpeed(s, speed, geometry.length_m if shape.closed else None)
 
 
-def build_course(path: PathConfig, initial: InitialState, plant: VehicleParams,
+def build_course(path: PathConfig, initial: InitialState, plant: CarParams,
                  duration_s: float) -> Course:
     """The course the ``path:`` section describes (``plant`` sizes the ISO gates)."""
     if path.kind == "double-lane-change":

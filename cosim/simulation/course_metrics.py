@@ -14,7 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from cosim.core.records import VehicleState
-from cosim.core.vehicle_params import VehicleParams
+from cosim.core.vehicle_params import CarParams
 from cosim.log.foxglove import FRONT_OVERHANG_M, REAR_OVERHANG_M
 from cosim.simulation.course import Course, body_width_m
 from tracker.paths.iso3888 import corners, gate_hit
@@ -25,7 +25,7 @@ class CourseMonitor:
     """Gate hits and track-limit excursions of the true car on a :class:`Course`."""
 
     course: Course
-    vehicle: VehicleParams
+    vehicle: CarParams
     hit: dict[int, bool] = field(default_factory=dict)
     exceedances: int = 0
     outside: bool = False

@@ -25,6 +25,7 @@ import json
 import signal
 import threading
 import time
+import warnings
 import zlib
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -47,10 +48,11 @@ from cosim.plant.car import MujocoPlant
 from cosim.plant.low_level import AccelToTorque
 from cosim.sensing.faults import FaultInjector
 from cosim.sensing.sensors import TruthSensor, make_sensors
+from cosim.simulation.belief_check import BeliefMismatchWarning, belief_mismatches
 from cosim.simulation.course import Course, build_course
 from cosim.simulation.course_metrics import CourseMonitor
 from cosim.simulation.metrics import MetricsAccumulator
-from cosim.simulation.outcome import OutcomeMonitor
+from cosim.simulation.outcome import Event, OutcomeMonitor
 from cosim.simulation.scenario_config import ScenarioConfig, steps_per_period
 from cosim.simulation.traffic_loop import CollisionError, TrafficLoop, build_traffic
 from estimation.registry import make_estimator
@@ -325,10 +327,7 @@ class _Run:
         for event in self.monitor.observe(
                 self.truth, metrics.cte_m.last, metrics.heading_err_rad.last, metrics.last_path_s_m,
                 None if forces is None else tuple(f.load_n for f in forces)):
-            if not self.events_registered:  # a channel exists only when it carries messages
-                self.recorder.register("/events", mcap_schemas.EVENT)
-                self.events_registered = True
-            self.recorder.write_finite("/events", t_s, event.to_message())
+            self.write_event(event)
         self.course_monitor.add_truth(self.truth, metrics.cte_m.last, metrics.last_path_s_m)
         self.recorder.write_finite("/control/errors", t_s, {
             "t_s": t_s, "cte_m": metrics.cte_m.last,
@@ -388,11 +387,14 @@ class _Run:
 
     def record_collision(self, error: CollisionError) -> None:
         """The ``collision`` event on ``/events`` (the run ends with it)."""
-        event = self.monitor.collision(error.t_s, error.car)
+        self.write_event(self.monitor.collision(error.t_s, error.car))
+
+    def write_event(self, event: Event) -> None:
+        """One event on ``/events`` (the channel exists only when it carries messages)."""
         if not self.events_registered:
             self.recorder.register("/events", mcap_schemas.EVENT)
             self.events_registered = True
-        self.recorder.write_finite("/events", error.t_s, event.to_message())
+        self.recorder.write_finite("/events", event.t_s, event.to_message())
 
     def write_plan_scene(self, t_s: float, plan: Plan) -> None:
         scene = foxglove.plan_scene(plan)
@@ -516,6 +518,12 @@ def _finish(recorder: McapRecorder, state: _Run, wall_start: float, completed: b
         values.setdefault(f"{event.kind}_t_s", event.t_s)
     if abort_reason:
         values["abort_reason"] = abort_reason
+    mismatches = belief_mismatches(values, to_dict(state.config))
+    values["belief_mismatches"] = len(mismatches)
+    for mismatch in mismatches:
+        state.write_event(Event("belief_mismatch", metrics.last_t_s, mismatch.nis,
+                                mismatch.bound, mismatch.line))
+        warnings.warn(mismatch.line, BeliefMismatchWarning, stacklevel=2)
     recorder.write_finite("/metrics", metrics.last_t_s, values)
     recorder.add_metadata("metrics", {"json": json.dumps(
         {k: (v if not isinstance(v, float) or np.isfinite(v) else None)

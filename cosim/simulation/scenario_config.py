@@ -13,6 +13,7 @@ import dataclasses
 import datetime
 import importlib.resources
 import math
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -22,7 +23,7 @@ import yaml
 from cosim.core.config_fields import from_dict, items, mapping, section, set_dotted, setting
 from cosim.core.exceptions import ConfigError, RateError
 from cosim.core.initial_state import InitialState
-from cosim.core.vehicle_params import PlantConfig
+from cosim.core.vehicle_params import MOVED_PLANT_KEYS, PlantConfig
 from cosim.core.yaml_io import loads as yaml_loads
 from cosim.core.yaml_io import read_yaml_file, shown
 from cosim.log.foxglove import GeoOrigin
@@ -32,6 +33,7 @@ from cosim.sensing.faults import FaultConfig
 from cosim.sensing.sensors import SensorsConfig, suite_preset
 from cosim.simulation.outcome import OutcomeConfig
 from cosim.simulation.path_config import PathConfig
+from cosim.simulation.unread_keys import UnreadKeyWarning, unread_key_warnings
 from estimation.config import ESTIMATOR_NAMES, EstimatorConfig
 from estimation.noise_config import suite_noise_preset
 from estimation.registry import estimator_class, required_sensors
@@ -200,7 +202,10 @@ def load_config(
         data["sensors"] = _merge(suite_preset(sensors["suite"]), sensors)
         _believe_suite(data, sensors["suite"])
     _believe_actuator_delay(data)
+    _refuse_moved_keys(data)
     config = from_dict(ScenarioConfig, data)
+    for line in unread_key_warnings(data, config.tracker.name, config.plant.tire_model):
+        warnings.warn(line, UnreadKeyWarning, stacklevel=2)
     check_rates(config)
     check_required_sensors(config)
     check_faults(config)
@@ -214,6 +219,19 @@ def load_config(
     if config.estimator.name not in ESTIMATOR_NAMES:
         estimator_class(config.estimator.name)
     return config
+
+
+def _refuse_moved_keys(data: dict[str, Any]) -> None:
+    """A key that moved (:data:`cosim.core.vehicle_params.MOVED_PLANT_KEYS`) is refused
+    with its new name: a silent move would change what an old scenario means."""
+    plant = data.get("plant")
+    if not isinstance(plant, dict):
+        return
+    for key, new in MOVED_PLANT_KEYS.items():
+        if key in plant:
+            raise ConfigError(
+                f"plant.{key}: the plant does not read it (its tyres are the Magic Formula "
+                f"of plant.tyre.*); the controller's belief is {new}")
 
 
 def check_faults(config: ScenarioConfig) -> None:
