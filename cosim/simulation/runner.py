@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import collections
 import contextlib
+import dataclasses
 import importlib.metadata
 import json
 import signal
@@ -101,7 +102,19 @@ def build_reference(config: ScenarioConfig) -> ReferencePath:
 
 def scenario_course(config: ScenarioConfig) -> Course:
     """The course of the scenario: path, speed profile, gates, cones, track bounds."""
-    return build_course(config.path, config.initial, config.plant, config.sim.duration_s)
+    return build_course(config.path, config.initial, config.plant, config.sim.duration_s,
+                        config.tracker)
+
+
+def start_speed_resolved(config: ScenarioConfig, reference: ReferencePath) -> ScenarioConfig:
+    """With ``initial.speed_from_profile``, ``initial.speed_mps`` becomes the reference
+    speed where the car starts (its projection on the path, at t = 0)."""
+    initial = config.initial
+    if not initial.speed_from_profile:
+        return config
+    s_m = reference.project(initial.x_m, initial.y_m).s_m
+    speed_mps = float(reference.speed_ref(s_m, 0.0))
+    return dataclasses.replace(config, initial=dataclasses.replace(initial, speed_mps=speed_mps))
 
 
 def _versions() -> dict[str, str]:
@@ -203,11 +216,13 @@ class _Run:
 
     def __init__(self, config: ScenarioConfig, recorder: McapRecorder,
                  tracker: Tracker | None = None) -> None:
-        self.config = config
         self.clock = _Clock.from_config(config)
         self.recorder = recorder
         self.course = scenario_course(config)
         self.reference = self.course.reference
+        config = start_speed_resolved(config, self.reference)
+        self.config = config
+        """The run's configuration, the start speed resolved (what the log records)."""
         self.course_monitor = CourseMonitor(self.course, config.plant)
         traffic = build_traffic(config)
         self.plant = MujocoPlant(config.plant, self.clock.dt_s, config.initial, traffic=traffic)

@@ -28,6 +28,7 @@ from cosim.core.yaml_io import loads as yaml_loads
 from cosim.core.yaml_io import read_yaml_file, shown
 from cosim.log.foxglove import GeoOrigin
 from cosim.plant.disturbances import DisturbanceConfig
+from cosim.plant.sedan_sampler import sampled_sedan
 from cosim.plant.traffic import traffic_cars
 from cosim.sensing.faults import FaultConfig
 from cosim.sensing.sensors import SensorsConfig, suite_preset
@@ -94,6 +95,12 @@ class ScenarioConfig:
     name: str = setting("custom")
     description: str = setting("")
     seed: int = setting(0, low=0, high=2**63 - 1)
+    vehicle_sample: int = setting(
+        -1, low=-1, high=2**31 - 1,
+        doc="-1: the nominal sedan; n >= 0: the n-th plausible sedan of "
+        "cosim.plant.sedan_sampler (mass, yaw inertia, wheelbase, CoG, tyre stiffness and "
+        "friction over published passenger-car ranges) for the plant and the controller's "
+        "model alike; keys set explicitly win")
     sim: SimConfig = section(SimConfig)
     path: PathConfig = section(PathConfig)
     initial: InitialState = section(InitialState)
@@ -196,6 +203,7 @@ def load_config(
     for text in overrides:
         key, value = parse_override(text)
         set_dotted(data, key, value)
+    data = _with_sampled_vehicle(data)
     sensors = data.get("sensors")
     if isinstance(sensors, dict) and isinstance(sensors.get("suite"), str):
         # The suite presets figures; what the user set explicitly wins.
@@ -204,7 +212,8 @@ def load_config(
     _believe_actuator_delay(data)
     _refuse_moved_keys(data)
     config = from_dict(ScenarioConfig, data)
-    for line in unread_key_warnings(data, config.tracker.name, config.plant.tire_model):
+    for line in unread_key_warnings(data, config.tracker.name, config.plant.tire_model,
+                                    config.initial.speed_from_profile):
         warnings.warn(line, UnreadKeyWarning, stacklevel=2)
     check_rates(config)
     check_required_sensors(config)
@@ -219,6 +228,14 @@ def load_config(
     if config.estimator.name not in ESTIMATOR_NAMES:
         estimator_class(config.estimator.name)
     return config
+
+
+def _with_sampled_vehicle(data: dict[str, Any]) -> dict[str, Any]:
+    """``vehicle_sample: n >= 0``: the sampled sedan's figures under what was set."""
+    index = data.get("vehicle_sample", -1)
+    if isinstance(index, bool) or not isinstance(index, int) or index < 0:
+        return data  # -1, or a bad value that from_dict names
+    return _merge(sampled_sedan(index), data)
 
 
 def _refuse_moved_keys(data: dict[str, Any]) -> None:

@@ -33,12 +33,17 @@ def _leaves(data: Any, prefix: str = "") -> Iterator[tuple[str, Any]]:
         yield prefix, data
 
 
-def unread_key_warnings(data: dict[str, Any], tracker_name: str,
-                        tire_model: str) -> list[str]:
+def unread_key_warnings(data: dict[str, Any], tracker_name: str, tire_model: str,
+                        speed_from_profile: bool = False) -> list[str]:
     """One line per key of the raw configuration ``data`` (scenario, ``--config`` and
-    ``--set`` merged) that the tracker ``tracker_name`` or the plant (``tire_model``) will
-    not read, naming who does."""
+    ``--set`` merged) that the tracker ``tracker_name``, the plant (``tire_model``) or the
+    start (``initial.speed_from_profile``) will not read, naming who does."""
     lines = []
+    initial = data.get("initial")
+    if speed_from_profile and isinstance(initial, dict) and "speed_mps" in initial:
+        lines.append(f"initial.speed_mps = {shown(initial['speed_mps'])} is not read with "
+                     "initial.speed_from_profile = true: the car starts at the profile's "
+                     "speed (set initial.speed_from_profile=false to choose it)")
     tracker = data.get("tracker")
     for key, value in _leaves(tracker if isinstance(tracker, dict) else {}):
         if is_read_by(tracker_name, key):
