@@ -27,7 +27,8 @@ def test_a_sampled_sedan_is_within_the_ranges(index: int) -> None:
     assert RANGES["front_weight_share"][0] - 1e-3 <= share <= RANGES["front_weight_share"][1] + 1e-3
     index_of_inertia = plant["yaw_inertia_kgm2"] / (
         plant["mass_kg"] * plant["cog_front_m"] * plant["cog_rear_m"])
-    assert RANGES["dynamic_index"][0] - 1e-3 <= index_of_inertia <= RANGES["dynamic_index"][1] + 1e-3
+    low, high = RANGES["dynamic_index"]
+    assert low - 1e-3 <= index_of_inertia <= high + 1e-3
     assert RANGES["tire_friction"][0] <= plant["tire_friction"] <= RANGES["tire_friction"][1]
     model = car["tracker"]["model"]
     assert all(model[key] == value for key, value in plant.items() if key != "tyre")
