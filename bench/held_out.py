@@ -55,6 +55,8 @@ class Case:
     lat_ratio: float
     """Peak lateral acceleration over the profile's limit."""
     cte_max_m: float
+    speed_err_max_mps: float
+    """The largest |speed - profile| (how far the car lags the profile into a bend)."""
     error: str
 
     @property
@@ -100,7 +102,9 @@ def _case(row: dict[str, Any]) -> Case:
         seed=int(row["seed"]), outcome=str(metrics.get("outcome", "")),
         exceedances=int(metrics.get("track_limit_exceedances") or 0),
         lat_ratio=(peak / limit) if peak is not None else math.nan,
-        cte_max_m=float(metrics.get("cte_max_m") or math.nan), error=str(row.get("error", "")))
+        cte_max_m=float(metrics.get("cte_max_m") or math.nan),
+        speed_err_max_mps=float(metrics.get("speed_err_max_mps") or math.nan),
+        error=str(row.get("error", "")))
 
 
 def _severity(case: Case) -> tuple[float, ...]:
@@ -127,6 +131,10 @@ def report(cases: list[Case], tracker: str | None, duration_s: float) -> None:
     print(f"lateral acceleration above the profile's limit + 10 %: {len(over)}; peak over "
           f"limit: max {max(ratios, default=math.nan):.3f}, median "
           f"{sorted(ratios)[len(ratios) // 2] if ratios else math.nan:.3f}")
+    for name in ("cte_max_m", "speed_err_max_mps"):
+        values = sorted(getattr(c, name) for c in cases if math.isfinite(getattr(c, name)))
+        if values:
+            print(f"{name}: median {values[len(values) // 2]:.3f}, max {values[-1]:.3f}")
     print(f"pass fraction: {len(passed)}/{n} = {len(passed) / max(n, 1):.3f}")
     done = (not bad_outcomes and not over and len(exceeded) <= 0.02 * n)
     print(f"target (no failure, <= 2 % track-limit exceedances, no lateral excess): "

@@ -24,8 +24,9 @@ Vehicle Dynamics", SAE 1995):
 5. a layout whose track would touch itself (two parts closer than their half-widths plus
    ``CLEARANCE_M``) or that cannot be closed is drawn again from the same generator.
 
-The first point lies a third of the way along the longest straight: a start-finish
-straight, from which the car brakes from top speed into the next corner.
+The first point lies on the longest straight, ``START_BEFORE_END_M`` before its end (at
+its start when it is shorter): a start-finish straight, from which the car brakes from top
+speed into the next corner within seconds.
 """
 
 from __future__ import annotations
@@ -60,6 +61,8 @@ NOISE_MAX_M = 0.05
 """The points' noise per coordinate is drawn up to this [m]."""
 CLEARANCE_M = 5.0
 """Least gap between the edges of two parts of the track that are not neighbours [m]."""
+START_BEFORE_END_M = 150.0
+"""The circuit starts this far before the end of its longest straight [m]."""
 MAX_ATTEMPTS = 200
 """Layouts drawn before giving up (a seed that fails this often is a bug)."""
 
@@ -254,10 +257,10 @@ def _sampled(rng: np.random.Generator, features: list[_Feature], straights: np.n
     gaps = spacing * rng.uniform(0.8, 1.2, int(lap / (0.8 * spacing)) + 2)
     s = np.concatenate(([0.0], np.cumsum(gaps)))
     s = s[s < lap - 0.5 * spacing]
-    # Start a third of the way along the longest straight.
+    # Start on the longest straight, at most START_BEFORE_END_M before its end.
     longest = int(np.argmax(spans[:, 1] - spans[:, 0]))
-    first, last = spans[longest]
-    s_start = (first + (last - first) / 3.0) * fine_step
+    first, last = spans[longest] * fine_step
+    s_start = max(first, last - START_BEFORE_END_M)
     s = np.mod(s + s_start, lap)
     x = np.interp(s, s_fine, xy[:, 0], period=lap)
     y = np.interp(s, s_fine, xy[:, 1], period=lap)
