@@ -97,6 +97,16 @@ def _build_parser() -> argparse.ArgumentParser:
                      dest="fail_if", help="exit 3 when this holds for the run's metrics "
                      "(<, <=, >, >=, ==, !=; repeatable), e.g. 'cte_max_m>0.3'")
     run.add_argument("--json", action="store_true", help="print the metrics as JSON")
+    run.add_argument("--live", action="store_true",
+                     help="stream the run to Foxglove while it happens (a WebSocket server)")
+    run.add_argument("--port", type=int, metavar="N",
+                     help="with --live: the port to serve on (8765; 0: any free port)")
+    run.add_argument("--host", metavar="ADDRESS",
+                     help="with --live: the address to listen on (127.0.0.1: this machine "
+                          "only; 0.0.0.0 serves every network the machine is on)")
+    run.add_argument("--pace", type=float, metavar="RATE",
+                     help="with --live: hold the run at RATE times real time (1: real time; "
+                          "0 or none: as fast as it goes)")
     run.add_argument("--video", metavar="FILE.mp4",
                      help="also render the run to this video (see `cosim render`)")
 
@@ -132,6 +142,7 @@ def _build_parser() -> argparse.ArgumentParser:
                          help="override every scenario's sim.duration_s")
     compare.add_argument("--json", action="store_true",
                          help="print every run as {scenario, tracker, seed, metrics}")
+    compare.add_argument("--live", action="store_true", help=argparse.SUPPRESS)
     compare.add_argument("--out", metavar="DIR",
                          help="write league.md, league.csv, league.png, rows.json "
                          "(default logs/compare-<time>)")
@@ -153,6 +164,7 @@ def _build_parser() -> argparse.ArgumentParser:
                        help="parallel runs (default: the number of cores)")
     sweep.add_argument("--backend", choices=("process", "ray"), default="process",
                        help="process pool on this machine (default) or Ray")
+    sweep.add_argument("--live", action="store_true", help=argparse.SUPPRESS)
     sweep.add_argument("--out", metavar="DIR",
                        help="output directory (default logs/sweep-<spec>-<time>)")
     sweep.add_argument("--keep-logs", action="store_true",
@@ -218,6 +230,7 @@ def _command_run(args: argparse.Namespace) -> int:
     from cosim.simulation.scenario_config import load_config
 
     conditions = parse_conditions(args.fail_if)
+    live = _live_options(args)
     if args.video is not None:
         from cosim.plots.render import check_video_path
 
@@ -236,14 +249,24 @@ def _command_run(args: argparse.Namespace) -> int:
     else:
         out = Path(args.out)
     check_output_path(out, "--out", args.force, (args.config, args.scenario, args.video))
-    if sys.stderr.isatty():
-        from rich.progress import Progress
+    with contextlib.ExitStack() as stack:
+        mirror = None
+        if live is not None:
+            from cosim.log.live import LiveStream
 
-        with Progress(transient=True) as bar:
-            task = bar.add_task(f"{config.name}", total=1.0)
-            result = run(config, out, lambda done: bar.update(task, completed=done))
-    else:
-        result = run(config, out)
+            mirror = stack.enter_context(LiveStream(live))
+            paced = f"paced at {live.pace:g}x real time" if live.pace else "not paced"
+            print(f"cosim: live at {mirror.url} ({paced}); in Foxglove: Open connection > "
+                  "Foxglove WebSocket", file=sys.stderr, flush=True)
+        if sys.stderr.isatty():
+            from rich.progress import Progress
+
+            with Progress(transient=True) as bar:
+                task = bar.add_task(f"{config.name}", total=1.0)
+                result = run(config, out, lambda done: bar.update(task, completed=done),
+                             mirror=mirror)
+        else:
+            result = run(config, out, mirror=mirror)
     shown = _shown_metrics(result.metrics, config.tracker.name == "open-loop")
     if args.json:
         print(json.dumps({"log": str(result.log_path), "metrics": _json_ready(result.metrics)}))
@@ -277,6 +300,29 @@ def _command_run(args: argparse.Namespace) -> int:
               + (f" (and {len(held) - 1} more)" if len(held) > 1 else ""), file=sys.stderr)
         return EXIT_BAD_OUTCOME
     return 0
+
+
+def _live_options(args: argparse.Namespace) -> Any:
+    """``--live`` and its settings as :class:`cosim.log.live.LiveOptions`, or None; a live
+    setting without ``--live`` is refused (it would be ignored)."""
+    given = [f"--{name} {value}" for name, value in
+             (("port", args.port), ("host", args.host), ("pace", args.pace)) if value is not None]
+    if not args.live:
+        if given:
+            raise CosimError(f"{given[0]}: only meaningful with --live; expected --live too "
+                             "(or drop it)")
+        return None
+    from cosim.log.live import DEFAULT_PORT, LiveOptions
+
+    return LiveOptions(host=args.host if args.host is not None else "127.0.0.1",
+                       port=args.port if args.port is not None else DEFAULT_PORT,
+                       pace=args.pace if args.pace is not None else 0.0)
+
+
+def _refuse_live(args: argparse.Namespace, command: str) -> None:
+    if args.live:
+        raise CosimError(f"cosim {command} --live: only a single run streams; expected "
+                         "`cosim run SCENARIO --live` for the case you want to watch")
 
 
 PATH_TRACKING_METRICS = ("cte_max_m", "cte_rms_m", "heading_err_max_rad",
@@ -443,6 +489,7 @@ def _command_identify(args: argparse.Namespace) -> int:
 
 
 def _command_sweep(args: argparse.Namespace) -> int:
+    _refuse_live(args, "sweep")
     from cosim.sweeps.driver import check_sweep_dir, default_out_dir, run_sweep
     from cosim.sweeps.execute import WorkerCrashError
 
@@ -480,6 +527,7 @@ def _command_sweep(args: argparse.Namespace) -> int:
 
 
 def _command_compare(args: argparse.Namespace) -> int:
+    _refuse_live(args, "compare")
     import time as _time
 
     from cosim.sweeps import compare

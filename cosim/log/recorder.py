@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, Any, Protocol
 
 import orjson
 from mcap.writer import CompressionType, Writer
@@ -66,6 +66,17 @@ def encode_message(message: dict[str, Any]) -> bytes:
     return orjson.dumps(message, option=_ORJSON_OPTIONS)
 
 
+class MessageMirror(Protocol):
+    """Something that sees every channel and message the recorder writes, as written
+    (the live stream to Foxglove, :class:`cosim.log.live.LiveStream`). It observes only."""
+
+    def register(self, topic: str, schema_name: str, schema: bytes) -> None:
+        """A channel: its topic, schema name and JSON Schema (as in the file)."""
+
+    def write(self, topic: str, log_time_ns: int, data: bytes) -> None:
+        """A message: its topic, log time and JSON bytes (as in the file)."""
+
+
 CHUNK_SIZE_BYTES = 1024 * 1024
 """Uncompressed bytes per MCAP chunk: about a second of the default lane change."""
 
@@ -74,8 +85,10 @@ class McapRecorder:
     """Writes a run to an MCAP file. Use as a context manager; it always finishes the file."""
 
     def __init__(self, path: Path, chunk_size_bytes: int = CHUNK_SIZE_BYTES,
-                 epoch_ns: int = 0) -> None:
+                 epoch_ns: int = 0, mirror: MessageMirror | None = None) -> None:
         self.path = Path(path)
+        self.mirror = mirror
+        """Also sees every channel and message (``cosim run --live``), or None."""
         self.epoch_ns = epoch_ns
         """Log time of sim time 0 [ns since the Unix epoch]: every message's and
         attachment's log time is ``epoch_ns`` plus its sim time. Readers subtract it
@@ -118,24 +131,30 @@ class McapRecorder:
 
     def register(self, topic: str, schema: dict[str, Any]) -> None:
         """Declare a topic with its JSON schema; the schema's title is its name."""
+        data = json.dumps(schema).encode()
         schema_id = self._writer.register_schema(
-            name=schema["title"], encoding="jsonschema", data=json.dumps(schema).encode()
+            name=schema["title"], encoding="jsonschema", data=data
         )
         self._channels[topic] = self._writer.register_channel(
             topic=topic, message_encoding="json", schema_id=schema_id
         )
         self._sequence[topic] = 0
+        if self.mirror is not None:
+            self.mirror.register(topic, schema["title"], data)
 
     def write(self, topic: str, t_s: float, message: dict[str, Any]) -> None:
         """Write one message at simulated time ``t_s`` (NaN and inf are written as null)."""
         channel_id = self._channels[topic]
         log_time = self.epoch_ns + seconds_to_ns(t_s)
         sequence = self._sequence[topic]
+        data = encode_message(message)
         self._writer.add_message(
-            channel_id=channel_id, log_time=log_time, data=encode_message(message),
+            channel_id=channel_id, log_time=log_time, data=data,
             publish_time=log_time, sequence=sequence,
         )
         self._sequence[topic] = sequence + 1
+        if self.mirror is not None:
+            self.mirror.write(topic, log_time, data)
 
     def write_finite(self, topic: str, t_s: float, message: dict[str, Any]) -> None:
         """:meth:`write`, named for the messages that may carry NaN or inf (written as null)."""

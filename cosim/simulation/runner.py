@@ -43,7 +43,7 @@ from cosim.core.protocols import ObservableEstimator
 from cosim.core.records import Command, Estimate, Measurement, Plan, VehicleState
 from cosim.log import foxglove
 from cosim.log import schemas as mcap_schemas
-from cosim.log.recorder import McapRecorder
+from cosim.log.recorder import McapRecorder, MessageMirror
 from cosim.plant import disturbances
 from cosim.plant.car import MujocoPlant
 from cosim.plant.low_level import AccelToTorque
@@ -478,8 +478,10 @@ def run(
     config: ScenarioConfig,
     out_path: Path,
     progress: Callable[[float], None] | None = None,
+    mirror: MessageMirror | None = None,
 ) -> RunResult:
-    """Run one scenario to ``out_path``; ``progress`` is called with the fraction done.
+    """Run one scenario to ``out_path``; ``progress`` is called with the fraction done;
+    ``mirror`` sees every message as it is written (``cosim run --live``).
 
     SIGINT and SIGTERM stop the run between two physics steps; the log is finished with
     ``completed: false`` and the result says ``interrupted``.
@@ -489,7 +491,7 @@ def run(
     # One BLAS thread: the matrices here are small, and an idle BLAS thread spinning on
     # the other core made MPC solve times jitter (ltv-mpc p99 5 ms against 1 ms).
     with threadpool_limits(limits=1, user_api="blas"), McapRecorder(
-            out_path, epoch_ns=config.sim.epoch_ns) as recorder:
+            out_path, epoch_ns=config.sim.epoch_ns, mirror=mirror) as recorder:
         state = _Run(config, recorder)
         state.write_header()
         recorder.publish()  # the run starts for real: the log takes its final name

@@ -1,0 +1,219 @@
+"""A run streamed to Foxglove while it happens: the log's topics over the Foxglove WebSocket
+protocol, optionally paced at a rate of real time.
+
+:class:`LiveStream` is a mirror of :class:`cosim.log.recorder.McapRecorder`: every channel
+the recorder registers is advertised with the same topic, schema name, schema (JSON Schema)
+and message encoding (JSON), and every message it writes is sent with the same bytes and the
+same log time (the run's epoch plus its simulated time, integer nanoseconds). The server is
+Foxglove's own (the ``foxglove-sdk`` package: ``foxglove.start_server``), on a
+:class:`foxglove.Context` of the stream's own, so nothing else logged in the process
+reaches it. The protocol is the Foxglove WebSocket protocol under the SDK's subprotocol name
+``foxglove.sdk.v1`` (the same messages as ``foxglove.websocket.v1``, renamed by Foxglove
+in 2025; the Foxglove app offers both names).
+
+The stream only observes: it never reads or sets anything of the run, so the log and the
+simulated car are the same with or without it (``tests/log/test_live.py`` compares the
+logs). Pacing sleeps before a message whose simulated time is ahead of the wall clock
+scaled by ``pace`` (``pace = 1``: real time; ``0``: no pacing); the wall clock starts at the
+first message of simulated time 0, so building the run does not count.
+
+What a client that connects late has missed: the messages written before it subscribed.
+The static ones (the reference path and the static scene, written once at the start) are
+sent again whenever a client subscribes to them, so Foxglove shows the road whenever it
+connects. The server announces the simulated time (``broadcastTime``, capability ``time``)
+so Foxglove's clock follows the run.
+"""
+
+from __future__ import annotations
+
+import math
+import socket
+import threading
+import time
+from dataclasses import dataclass
+from typing import Any
+
+from cosim.core.exceptions import ConfigError
+
+LATCHED_TOPICS = ("/reference/path", "/scene")
+"""Topics written once at the start: sent again to every client that subscribes later."""
+
+DEFAULT_PORT = 8765
+"""Foxglove's default port for a WebSocket connection."""
+
+MESSAGE_BACKLOG = 16384
+"""Messages queued per client before the oldest are dropped: about three simulated seconds
+of every topic. An unpaced run can outrun a slow client; the log file keeps everything."""
+
+TIME_BROADCAST_PERIOD_NS = 50_000_000
+"""How often the server tells clients the simulated time (every 50 ms of simulated time)."""
+
+
+@dataclass(frozen=True)
+class LiveOptions:
+    """Where to serve and how fast to run.
+
+    ``port`` 0 asks the operating system for a free port (the stream reports the one it
+    got); ``pace`` is the rate of real time to hold (1.0: real time, 2.0: twice as fast,
+    0: as fast as the run goes).
+    """
+
+    host: str = "127.0.0.1"
+    port: int = DEFAULT_PORT
+    pace: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.port, int) or isinstance(self.port, bool) \
+                or not 0 <= self.port <= 65535:
+            raise ConfigError(f"--port {self.port!r}: expected a TCP port number in "
+                              "0..65535 (0: any free port)")
+        if not isinstance(self.pace, (int, float)) or isinstance(self.pace, bool) \
+                or not math.isfinite(self.pace) or self.pace < 0:
+            raise ConfigError(f"--pace {self.pace!r}: expected a rate of real time >= 0 "
+                              "(1: real time, 0: as fast as it goes)")
+        if not self.host:
+            raise ConfigError("--host '': expected an address to listen on "
+                              "(127.0.0.1 unless you mean to serve other machines)")
+
+
+def _subscription_listener(stream: LiveStream) -> Any:
+    """The server's listener: asks ``stream`` to re-send a latched topic on subscription.
+
+    The callback comes on the server's thread; it only notes the topic, and the run's thread
+    sends it with its next message (never two threads logging on one channel at once).
+    """
+    from foxglove.websocket import ServerListener
+
+    class Subscriptions(ServerListener):
+        def on_subscribe(self, client: Any, channel: Any) -> None:
+            del client
+            stream.request_latched(channel.topic)
+
+    return Subscriptions()
+
+
+def _free_to_serve(options: LiveOptions) -> int:
+    """The port to serve on, checked now so that a busy port or a bad address is refused
+    before the run (for ``port`` 0: one the system has free)."""
+    try:
+        (family, kind, proto, _, address), *_ = socket.getaddrinfo(
+            options.host, options.port, type=socket.SOCK_STREAM)
+        with socket.socket(family, kind, proto) as probe:
+            probe.bind(address)
+            return int(probe.getsockname()[1])
+    except OSError as error:
+        reason = error.strerror or str(error)
+        raise ConfigError(f"--port {options.port} on {options.host}: cannot serve "
+                          f"({reason}); expected a free port (--port 0 picks one) on an "
+                          "address of this machine") from None
+
+
+class LiveStream:
+    """A Foxglove WebSocket server fed by a run's recorder (see the module docstring).
+
+    Use as a context manager (the server stops on exit). ``register`` and ``write`` are
+    the recorder's mirror protocol (:class:`cosim.log.recorder.MessageMirror`).
+    """
+
+    def __init__(self, options: LiveOptions) -> None:
+        import foxglove
+
+        self.options = options
+        self._context = foxglove.Context()
+        self._channels: dict[str, Any] = {}
+        self._latched: dict[str, tuple[bytes, int]] = {}
+        self._resend: set[str] = set()
+        self._lock = threading.Lock()
+        self._epoch_ns: int | None = None
+        self._wall_start_s = 0.0
+        self._next_time_ns = 0
+        self._port = _free_to_serve(options)
+        self._server: Any = None
+        self._closed = False
+
+    def _start(self) -> None:
+        """Start the server: at the run's first message, when the channels of the log's
+        header exist, so a client that connects gets them in one advertisement. (A client
+        that connected while channels were being created one by one could subscribe to
+        one in the instant the server had announced it but not yet filed it.)"""
+        import foxglove
+        from foxglove.websocket import Capability
+
+        try:
+            self._server = foxglove.start_server(
+                name="cosim", host=self.options.host, port=self._port, context=self._context,
+                capabilities=[Capability.Time], message_backlog_size=MESSAGE_BACKLOG,
+                server_listener=_subscription_listener(self))
+        except (RuntimeError, OverflowError, ValueError) as error:
+            reason = str(error).removeprefix("FoxgloveError: ")
+            raise ConfigError(f"--port {self._port} on {self.options.host}: cannot serve "
+                              f"({reason}); expected a free port (--port 0 picks one)") from None
+
+    @property
+    def port(self) -> int:
+        """The port the server listens on (the one the system chose for ``port`` 0)."""
+        return self._port
+
+    @property
+    def url(self) -> str:
+        """The WebSocket address to open in Foxglove (``Open connection`` > Foxglove WebSocket)."""
+        host = self.options.host
+        shown = f"[{host}]" if ":" in host else host
+        return f"ws://{shown}:{self.port}"
+
+    def __enter__(self) -> LiveStream:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Stop the server (idempotent); connected clients see the connection close."""
+        self._closed = True
+        server, self._server = self._server, None
+        if server is not None:
+            server.stop()
+
+    # The recorder's mirror protocol.
+    def register(self, topic: str, schema_name: str, schema: bytes) -> None:
+        """Advertise ``topic`` with the recorder's schema (JSON Schema, JSON messages)."""
+        from foxglove import Channel, Schema
+
+        self._channels[topic] = Channel(
+            topic, schema=Schema(name=schema_name, encoding="jsonschema", data=schema),
+            message_encoding="json", context=self._context)
+
+    def write(self, topic: str, log_time_ns: int, data: bytes) -> None:
+        """Send one message (the recorder's bytes), after pacing to its simulated time."""
+        if self._server is None and not self._closed:
+            self._start()
+        if self._epoch_ns is None:
+            self._epoch_ns = log_time_ns
+            self._wall_start_s = time.perf_counter()
+        if self.options.pace > 0:
+            due_s = self._wall_start_s + (log_time_ns - self._epoch_ns) * 1e-9 / self.options.pace
+            wait_s = due_s - time.perf_counter()
+            if wait_s > 0:
+                time.sleep(wait_s)
+        if topic in LATCHED_TOPICS:
+            self._latched[topic] = (data, log_time_ns)
+        if self._resend:
+            self._send_latched()
+        self._channels[topic].log(data, log_time=log_time_ns)
+        if log_time_ns >= self._next_time_ns and self._server is not None:
+            self._server.broadcast_time(log_time_ns)
+            self._next_time_ns = log_time_ns + TIME_BROADCAST_PERIOD_NS
+
+    def request_latched(self, topic: str) -> None:
+        """Note that a client has just subscribed to ``topic`` (the server's thread)."""
+        if topic in LATCHED_TOPICS:
+            with self._lock:
+                self._resend.add(topic)
+
+    def _send_latched(self) -> None:
+        with self._lock:
+            topics, self._resend = self._resend, set()
+        for topic in topics:
+            latched = self._latched.get(topic)
+            if latched is not None:
+                self._channels[topic].log(latched[0], log_time=latched[1])
