@@ -76,6 +76,9 @@ def test_the_belief_check_names_the_sensor_and_both_sigmas() -> None:
     assert low.bound == 0.3
     # The IMU's figures agree with the belief: its NIS is the filter's model, not a setting.
     assert belief_mismatches({"nis_imu": 11.0, "nis_dof_imu": 900}, config) == []
+    # A noise-free sensor (the ideal suite) cannot be believed: no warning for it.
+    ideal = {**config, "sensors": {"gnss": {"sigma_m": 0.0}}}
+    assert belief_mismatches({"nis_gnss": 0.01, "nis_dof_gnss": 600}, ideal) == []
 
 
 def test_a_wrong_belief_prints_one_warning_and_logs_it(tmp_path: Path,

@@ -12,7 +12,9 @@ of a mean over hundreds of degrees of freedom is a few tenths wide): one line na
 sensor, its NIS and both sigmas, and the runner writes it on ``/events`` (kind
 ``belief_mismatch``; not an outcome event: the run's outcome does not change). It is said
 only when a sensor figure and its belief differ: with equal figures an out-of-band NIS
-(a short run's start, a model error) is the filter's own matter, in ``nis_<sensor>``.
+(a short run's start, a model error) is the filter's own matter, in ``nis_<sensor>``; a
+noise-free sensor (the ``ideal`` suite, for debugging) cannot be believed exactly, so the
+filter is under-confident there by design.
 """
 
 from __future__ import annotations
@@ -72,6 +74,8 @@ def belief_mismatches(metrics: dict[str, Any], config: dict[str, Any]) -> list[B
             continue
         if all(_value(config, truth) == _value(config, belief) for truth, belief in keys):
             continue  # the figures agree: the filter's model, not the configuration
+        if all(_value(config, truth) == 0.0 for truth, _ in keys):
+            continue  # a noise-free sensor (the ideal suite): no filter can believe it
         bound = NIS_HIGH if nis > NIS_HIGH else NIS_LOW
         sigmas = "; ".join(f"{truth} = {_value(config, truth):g}, the filter believes "
                            f"{belief} = {_value(config, belief):g}" for truth, belief in keys)
