@@ -36,6 +36,15 @@ def test_a_key_the_tracker_does_not_read_names_who_does() -> None:
         "tracker lqr"]
 
 
+def test_a_key_at_its_default_is_not_reported() -> None:
+    # A whole configuration (cosim config show) names every key at its default.
+    defaults = {"tracker": {"horizon": 25}}
+    data = {"tracker": {"horizon": 25}}
+    assert unread_key_warnings(data, "dynamic-mpc", "pacejka", defaults=defaults) == []
+    data = {"tracker": {"horizon": 80}}
+    assert len(unread_key_warnings(data, "dynamic-mpc", "pacejka", defaults=defaults)) == 1
+
+
 def test_load_config_warns_once_per_unread_key() -> None:
     with pytest.warns(UnreadKeyWarning, match="tracker.horizon = 80 is not read"):
         load_config("lane-change", tracker="dynamic-mpc", overrides=["tracker.horizon=80"])

@@ -20,7 +20,15 @@ from typing import Any
 
 import yaml
 
-from cosim.core.config_fields import from_dict, items, mapping, section, set_dotted, setting
+from cosim.core.config_fields import (
+    from_dict,
+    items,
+    mapping,
+    section,
+    set_dotted,
+    setting,
+    to_dict,
+)
 from cosim.core.exceptions import ConfigError, RateError
 from cosim.core.initial_state import InitialState
 from cosim.core.vehicle_params import MOVED_PLANT_KEYS, PlantConfig
@@ -213,7 +221,8 @@ def load_config(
     _refuse_moved_keys(data)
     config = from_dict(ScenarioConfig, data)
     for line in unread_key_warnings(data, config.tracker.name, config.plant.tire_model,
-                                    config.initial.speed_from_profile):
+                                    config.initial.speed_from_profile,
+                                    to_dict(ScenarioConfig())):
         warnings.warn(line, UnreadKeyWarning, stacklevel=2)
     check_rates(config)
     check_required_sensors(config)

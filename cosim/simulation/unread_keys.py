@@ -33,20 +33,37 @@ def _leaves(data: Any, prefix: str = "") -> Iterator[tuple[str, Any]]:
         yield prefix, data
 
 
+def _default(defaults: dict[str, Any] | None, dotted: str) -> Any:
+    node: Any = defaults
+    for part in dotted.split("."):
+        if not isinstance(node, dict) or part not in node:
+            return _NO_DEFAULT
+        node = node[part]
+    return node
+
+
+_NO_DEFAULT = object()
+
+
 def unread_key_warnings(data: dict[str, Any], tracker_name: str, tire_model: str,
-                        speed_from_profile: bool = False) -> list[str]:
+                        speed_from_profile: bool = False,
+                        defaults: dict[str, Any] | None = None) -> list[str]:
     """One line per key of the raw configuration ``data`` (scenario, ``--config`` and
     ``--set`` merged) that the tracker ``tracker_name``, the plant (``tire_model``) or the
-    start (``initial.speed_from_profile``) will not read, naming who does."""
+    start (``initial.speed_from_profile``) will not read, naming who does. A key at its
+    value in ``defaults`` (the configuration's defaults, as plain dictionaries) changes
+    nothing either way and is not reported: a whole configuration written by ``cosim config
+    show`` runs without a warning per key."""
     lines = []
     initial = data.get("initial")
-    if speed_from_profile and isinstance(initial, dict) and "speed_mps" in initial:
+    if (speed_from_profile and isinstance(initial, dict) and "speed_mps" in initial
+            and initial["speed_mps"] != _default(defaults, "initial.speed_mps")):
         lines.append(f"initial.speed_mps = {shown(initial['speed_mps'])} is not read with "
                      "initial.speed_from_profile = true: the car starts at the profile's "
                      "speed (set initial.speed_from_profile=false to choose it)")
     tracker = data.get("tracker")
     for key, value in _leaves(tracker if isinstance(tracker, dict) else {}):
-        if is_read_by(tracker_name, key):
+        if is_read_by(tracker_name, key) or value == _default(defaults, f"tracker.{key}"):
             continue
         who = readers(key)
         what = ("plug-in trackers" if key.split(".")[0] in PLUGIN_KEYS
@@ -56,6 +73,8 @@ def unread_key_warnings(data: dict[str, Any], tracker_name: str, tire_model: str
     plant = data.get("plant")
     if tire_model != "pacejka" and isinstance(plant, dict):
         for key, value in _leaves(plant):
+            if value == _default(defaults, f"plant.{key}"):
+                continue
             if key.split(".")[0] in PACEJKA_ONLY_PLANT_KEYS:
                 lines.append(f"plant.{key} = {shown(value)} is not read with plant.tire_model "
                              f"= {tire_model}: the plant reads it with plant.tire_model = "
