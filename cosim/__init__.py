@@ -25,6 +25,13 @@ API_NAMES: tuple[str, ...] = (
 )
 """What ``cosim.<name>`` gives from :mod:`cosim.api`."""
 
+TRACKER_NAMES: dict[str, str] = {
+    "Command": "cosim.core.records", "Plan": "cosim.core.records",
+    "Estimate": "cosim.core.records", "setting": "cosim.core.config_fields",
+    "CosimError": "cosim.core.exceptions",
+}
+"""What a tracker of your own needs (``from cosim import Command``), and its module."""
+
 if TYPE_CHECKING:
     from cosim.api import (
         RunResult,
@@ -34,9 +41,13 @@ if TYPE_CHECKING:
         run,
         sweep,
     )
+    from cosim.core.config_fields import setting
+    from cosim.core.exceptions import CosimError
+    from cosim.core.records import Command, Estimate, Plan
 
 __all__ = [
-    "RunResult", "ScenarioConfig", "SweepOutcome", "__version__", "load_config", "run", "sweep",
+    "Command", "CosimError", "Estimate", "Plan", "RunResult", "ScenarioConfig", "SweepOutcome",
+    "__version__", "load_config", "run", "setting", "sweep",
 ]
 
 
@@ -46,8 +57,12 @@ def __getattr__(name: str) -> Any:
         from cosim import api
 
         return getattr(api, name)
+    if name in TRACKER_NAMES:
+        import importlib
+
+        return getattr(importlib.import_module(TRACKER_NAMES[name]), name)
     raise AttributeError(f"module 'cosim' has no attribute {name!r}")
 
 
 def __dir__() -> list[str]:
-    return sorted({*globals(), *API_NAMES})
+    return sorted({*globals(), *API_NAMES, *TRACKER_NAMES})

@@ -23,7 +23,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from cosim.core.exceptions import ConfigError
-from cosim.log.safe_file import check_output_path
+from cosim.log.output_claim import claim_output
 from cosim.simulation.runner import RunResult
 from cosim.simulation.runner import run as _run_loop
 from cosim.simulation.scenario_config import ScenarioConfig
@@ -70,7 +70,8 @@ def run(
 
     ``config`` is a :class:`ScenarioConfig` (from :func:`load_config`) or a scenario name or
     path, loaded with its defaults. ``out`` is refused, as ``--out`` is, when it is a folder
-    or already exists (unless ``force``). ``progress`` is called with the fraction done.
+    or already exists (unless ``force``), or while another run writes it. ``progress`` is
+    called with the fraction done.
 
     A run that ends badly is a result, not an exception: ``result.completed`` is false when
     it aborted (``result.reason`` says why), and ``result.outcome`` names how it ended
@@ -82,9 +83,8 @@ def run(
     if not isinstance(config, ScenarioConfig):
         raise ConfigError(f"config = {type(config).__name__}: expected a ScenarioConfig "
                           "(cosim.load_config) or a scenario name")
-    path = Path(out)
-    check_output_path(path, "out", force)
-    return _run_loop(config, path, progress)
+    with claim_output(Path(out), "out", force) as path:
+        return _run_loop(config, path, progress)
 
 
 def sweep(
@@ -96,6 +96,7 @@ def sweep(
     keep_logs: bool = False,
     resume: bool = False,
     yes: bool = False,
+    force: bool = False,
 ) -> SweepOutcome:
     """Run the sweep spec ``spec`` (YAML, see :mod:`cosim.sweeps.spec`) into directory ``out``.
 
@@ -103,7 +104,8 @@ def sweep(
     ``summary.md`` and the plots land in ``out`` (their paths: ``outcome.files``);
     ``workers`` parallel runs (default: the usable cores), ``backend`` ``process`` or
     ``ray``, ``keep_logs`` keeps each run's MCAP under ``out/logs``, ``resume`` finishes
-    an interrupted sweep in ``out``, ``yes`` allows more than 10 000 runs. A bad spec raises
+    an interrupted sweep in ``out``, ``force`` starts afresh in an ``out`` that has files
+    (refused otherwise), ``yes`` allows more than 10 000 runs. A bad spec raises
     :class:`cosim.core.exceptions.CosimError` before any run; an interrupt re-raises
     ``KeyboardInterrupt`` with the finished rows kept.
 
@@ -119,5 +121,6 @@ def sweep(
     if workers is not None and workers < 1:
         raise ConfigError(f"workers = {workers}: expected at least 1")
     out_dir = Path(out)
-    check_sweep_dir(out_dir)
-    return run_sweep(spec_path, out_dir, workers, backend, keep_logs, resume, yes=yes)
+    check_sweep_dir(out_dir, force, resume)
+    return run_sweep(spec_path, out_dir, workers, backend, keep_logs, resume, yes=yes,
+                     force=force)

@@ -14,7 +14,10 @@ Start with `cosim run lane-change`, then `cosim plot` or `cosim inspect` on the 
     cosim estimators
     cosim identify [--config FILE.yaml] [--set key.path=value ...] [--json]
     cosim sweep SPEC.yaml [--workers N] [--backend process|ray] [--out DIR] [--keep-logs]
-                          [--resume] [--yes]
+                          [--resume] [--force] [--yes]
+    cosim compare [--trackers A,B] [--scenarios X,Y] [--seeds N] [--out DIR] [--force]
+                  [--resume] [--keep-logs] [--json]
+    cosim export --ros2 LOG.mcap [--out BAG.mcap] [--force]
     cosim render FILE.mcap [--out VIDEO.mp4] [--fps N] [--width W] [--height H]
                            [--start S] [--duration S] [--gl osmesa|egl|glfw]
     cosim config show SCENARIO [--config FILE.yaml] [--set key.path=value ...] [...]
@@ -43,7 +46,7 @@ import math
 import os
 import sys
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
@@ -79,8 +82,8 @@ def _build_parser() -> argparse.ArgumentParser:
     run.add_argument("--config", metavar="FILE.yaml", help="YAML merged over the scenario")
     run.add_argument("--tracker", metavar="NAME",
                      help="path tracker: dynamic-nmpc (default), kinematic-nmpc, ltv-mpc, "
-                     "dynamic-mpc, open-loop ... (`cosim trackers`), an installed plug-in or "
-                     "my_pkg.my_module:MyTracker")
+                     "dynamic-mpc, open-loop ... (`cosim trackers`), an installed plug-in, "
+                     "my_pkg.my_module:MyTracker or a co-simulation FMU, fmu:PATH.fmu")
     run.add_argument("--estimator", metavar="NAME",
                      help="state estimator: ekf (default), ukf, truth (debugging)")
     run.add_argument("--seed", type=int, metavar="N", help="seed of every noise source")
@@ -119,10 +122,20 @@ def _build_parser() -> argparse.ArgumentParser:
                          help="write each topic (or only --topic) as DIR/<topic>.csv")
 
     plot = commands.add_parser("plot", help="PNG figures of a log (or two logs overlaid)")
-    plot.add_argument("file", metavar="FILE.mcap")
-    plot.add_argument("file2", metavar="FILE2.mcap", nargs="?", help="a second log to overlay")
+    plot.add_argument("files", metavar="FILE.mcap", nargs="+",
+                      help="a log, or several (up to 6) to overlay")
     plot.add_argument("--out", metavar="DIR",
                       help="output directory (default <log>-plots beside the log)")
+
+    export = commands.add_parser(
+        "export", help="a log in another format: --ros2, an MCAP of ROS 2 messages")
+    export.add_argument("--ros2", metavar="LOG.mcap", required=True,
+                        help="the run log to export as standard ROS 2 messages (nav_msgs, "
+                        "sensor_msgs, tf2_msgs, ackermann_msgs; CDR) for ros2 bag play")
+    export.add_argument("--out", metavar="BAG.mcap",
+                        help="the MCAP to write (default <log>-ros2.mcap beside the log)")
+    export.add_argument("--force", action="store_true",
+                        help="replace --out if it exists (refused otherwise)")
 
     commands.add_parser("scenarios", help="list the built-in scenarios")
     commands.add_parser("trackers", help="list the trackers: built in and installed plug-ins")
@@ -148,6 +161,10 @@ def _build_parser() -> argparse.ArgumentParser:
                          "(default logs/compare-<time>)")
     compare.add_argument("--keep-logs", action="store_true",
                          help="keep every run's MCAP log in DIR/logs")
+    compare.add_argument("--force", action="store_true",
+                         help="write into a --out DIR that has files (refused otherwise)")
+    compare.add_argument("--resume", action="store_true",
+                         help="finish the interrupted comparison in --out DIR (same options)")
 
     identify = commands.add_parser(
         "identify", help="identify the plant's bicycle-model parameters and actuator lags")
@@ -171,6 +188,8 @@ def _build_parser() -> argparse.ArgumentParser:
                        help="keep every run's MCAP log under DIR/logs")
     sweep.add_argument("--resume", action="store_true",
                        help="finish the interrupted sweep in --out DIR (same spec)")
+    sweep.add_argument("--force", action="store_true",
+                       help="start the sweep afresh in a --out DIR that has files")
     sweep.add_argument("--yes", action="store_true",
                        help="run a sweep of more than 10 000 runs (refused otherwise)")
 
@@ -224,7 +243,6 @@ def _json_ready(values: dict[str, Any]) -> dict[str, Any]:
 
 
 def _command_run(args: argparse.Namespace) -> int:
-    from cosim.log.safe_file import check_output_path
     from cosim.simulation.fail_if import parse_conditions
     from cosim.simulation.runner import run
     from cosim.simulation.scenario_config import load_config
@@ -239,17 +257,8 @@ def _command_run(args: argparse.Namespace) -> int:
         raise CosimError(f"--duration {args.duration}: expected a number of seconds >= 0")
     config = load_config(args.scenario, args.config, args.overrides, args.seed,
                          args.duration, args.tracker, args.estimator)
-    if args.out is None:
-        from cosim.log.names import default_log_name, override_tag
-
-        stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
-        tag = override_tag(args.overrides, args.tracker, args.estimator, args.seed,
-                           args.duration, args.config)
-        out = Path("logs") / default_log_name(config.name, tag, stamp)
-    else:
-        out = Path(args.out)
-    check_output_path(out, "--out", args.force, (args.config, args.scenario, args.video))
     with contextlib.ExitStack() as stack:
+        out = stack.enter_context(_claim_out(args, config.name))
         mirror = None
         if live is not None:
             from cosim.log.live import LiveStream
@@ -282,15 +291,17 @@ def _command_run(args: argparse.Namespace) -> int:
 
         print(describe(render_for_cli(result.log_path, args.video, RenderOptions())),
               file=sys.stderr if args.json else sys.stdout)
-    if not result.completed:
-        print(f"cosim: run aborted ({result.metrics.get('outcome')}): {result.abort_reason}; "
-              f"log: {result.log_path}", file=sys.stderr)
-        return EXIT_BAD_OUTCOME
-    if result.metrics.get("outcome", "ok") != "ok":
-        when = result.metrics.get(f"{result.metrics['outcome']}_t_s")
-        at = f" at t = {when:.2f} s" if isinstance(when, float) else ""
-        print(f"cosim: run ended badly: outcome {result.metrics['outcome']}{at} "
+    outcome = str(result.metrics.get("outcome", "ok"))
+    when = result.metrics.get(f"{outcome}_t_s")
+    if isinstance(when, float):  # an event: it is on /events
+        stopped = "" if result.completed else \
+            "; the run stopped there (--set outcome.keep_going=true runs on)"
+        print(f"cosim: run ended badly: outcome {outcome} at t = {when:.2f} s{stopped} "
               f"(see /events in {result.log_path})", file=sys.stderr)
+        return EXIT_BAD_OUTCOME
+    if not result.completed:
+        print(f"cosim: run aborted ({outcome}): {result.abort_reason}; "
+              f"log: {result.log_path}", file=sys.stderr)
         return EXIT_BAD_OUTCOME
     held = [c for c in conditions if c.holds(result.metrics)]
     if held:
@@ -300,6 +311,42 @@ def _command_run(args: argparse.Namespace) -> int:
               + (f" (and {len(held) - 1} more)" if len(held) > 1 else ""), file=sys.stderr)
         return EXIT_BAD_OUTCOME
     return 0
+
+
+@contextlib.contextmanager
+def _claim_out(args: argparse.Namespace, scenario: str) -> Iterator[Path]:
+    """The run's log name, held for this run (:func:`cosim.log.output_claim.claim_output`):
+    ``--out`` as given (refused when another run holds it), else the default name, with
+    ``-2``, ``-3`` ... when a run started in the same second holds that."""
+    from cosim.log.output_claim import OutputTakenError, claim_output
+
+    inputs = (args.config, args.scenario, args.video)
+    if args.out is not None:
+        with claim_output(Path(args.out), "--out", args.force, inputs) as out:
+            yield out
+        return
+    from cosim.log.names import default_log_name, override_tag
+    from cosim.simulation.changes import file_changes
+
+    stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+    tag = override_tag([*file_changes(args.scenario, args.config), *args.overrides],
+                       args.tracker, args.estimator, args.seed, args.duration, args.config)
+    default = Path("logs") / default_log_name(scenario, tag, stamp)
+    for attempt in range(1, 100):
+        name = default if attempt == 1 else \
+            default.with_name(f"{default.stem}-{attempt}{default.suffix}")
+        with contextlib.ExitStack() as stack:
+            try:
+                out = stack.enter_context(claim_output(name, "--out", False, inputs))
+            except OutputTakenError:
+                continue
+            except CosimError:
+                if name.exists():  # made by a run of the same second that has ended
+                    continue
+                raise
+            yield out
+            return
+    raise CosimError(f"--out: every name like {str(default)!r} is taken: expected --out")
 
 
 def _live_options(args: argparse.Namespace) -> Any:
@@ -342,6 +389,7 @@ def _shown_metrics(metrics: dict[str, Any], open_loop: bool) -> dict[str, Any]:
 def _command_inspect(args: argparse.Namespace) -> int:
     from cosim.log.export import csv_command, log_warnings
     from cosim.log.reader import iter_messages, read_summary
+    from cosim.simulation.changes import base_scenario, changes_text, config_changes
 
     path = Path(args.file)
     if not path.is_file():
@@ -374,6 +422,7 @@ def _command_inspect(args: argparse.Namespace) -> int:
         "attachments": summary.attachments,
         "versions": summary.versions,
         "config": summary.config,
+        "changes": config_changes(summary.config) if summary.config else [],
         "metrics": summary.metrics or {},
         "warnings": log_warnings(summary),
     }
@@ -393,6 +442,8 @@ def _command_inspect(args: argparse.Namespace) -> int:
         print(f"scenario {config.get('name')}  seed {config.get('seed')}  tracker "
               f"{config.get('tracker', {}).get('name')}  estimator "
               f"{config.get('estimator', {}).get('name')}")
+        print(f"changed from {base_scenario(config)}: "
+              f"{changes_text(document['changes'], at_most=12)}")
     if summary.versions:
         print("versions " + "  ".join(f"{k} {v}" for k, v in summary.versions.items()))
     for warning in document["warnings"]:
@@ -407,7 +458,7 @@ def _command_inspect(args: argparse.Namespace) -> int:
 def _command_plot(args: argparse.Namespace) -> int:
     from cosim.plots import plot_command
 
-    return plot_command(args.file, args.file2, args.out)
+    return plot_command(args.files, args.out)
 
 
 def _command_scenarios(args: argparse.Namespace) -> int:
@@ -498,11 +549,11 @@ def _command_sweep(args: argparse.Namespace) -> int:
     if not Path(args.spec).is_file():
         raise CosimError(f"{args.spec!r}: no such file (expected a sweep spec YAML)")
     out = Path(args.out) if args.out is not None else default_out_dir(Path(args.spec))
-    check_sweep_dir(out)
+    check_sweep_dir(out, args.force, args.resume)
     resume_hint = f"resume with `cosim sweep {args.spec} --out {out} --resume`"
     try:
         outcome = run_sweep(args.spec, out, args.workers, args.backend, args.keep_logs,
-                            args.resume, yes=args.yes)
+                            args.resume, yes=args.yes, force=args.force)
     except WorkerCrashError as error:
         print(f"cosim: sweep aborted: {error}", file=sys.stderr)
         return EXIT_IO
@@ -533,26 +584,34 @@ def _command_compare(args: argparse.Namespace) -> int:
     from cosim.sweeps import compare
     from cosim.sweeps.driver import sigterm_as_interrupt
     from tracker.config import is_plugin_name
+    from tracker.fmu.config import is_fmu_name
     from tracker.registry import TRACKER_NAMES
 
     closed_loop = [name for name in TRACKER_NAMES if name != "open-loop"]
     trackers = compare.parse_names(args.trackers, compare.DEFAULT_TRACKERS, None, "trackers")
     for name in trackers:  # built-in closed-loop trackers, or trackers from outside cosim
-        if name not in closed_loop and not is_plugin_name(name):
+        if name not in closed_loop and not is_plugin_name(name) and not is_fmu_name(name):
             raise CosimError(f"--trackers: {name!r} is not one of {', '.join(closed_loop)}, "
-                             "an installed plug-in or module:Class")
+                             "an installed plug-in, module:Class or fmu:PATH.fmu")
     scenarios = compare.parse_names(args.scenarios, compare.DEFAULT_SCENARIOS, None,
                                     "scenarios")
     if args.workers is not None and args.workers < 1:
         raise CosimError(f"--workers {args.workers}: expected at least 1")
+    if args.resume and args.out is None:
+        raise CosimError("--resume: expected --out DIR, the folder of the comparison to finish")
     out = Path(args.out) if args.out else Path("logs") / _time.strftime("compare-%Y%m%d-%H%M%S")
     try:
         with sigterm_as_interrupt():
             rows = compare.run_compare(scenarios, trackers, args.seeds, args.workers,
-                                       args.duration, out / "logs" if args.keep_logs else None,
-                                       out / "rows.jsonl")
-    except KeyboardInterrupt:  # Ctrl-C or SIGTERM: the finished runs are kept
-        print(f"cosim: compare interrupted; the finished runs are in {out / 'rows.jsonl'}",
+                                       args.duration, out, args.keep_logs, args.force,
+                                       args.resume)
+    except compare.CompareInterrupted as stop:  # Ctrl-C or SIGTERM: finished runs kept
+        league = ""
+        if stop.rows:
+            compare.write_outputs(stop.rows, out)
+            league = f"the league of the {len(stop.rows)} finished run(s) is in " \
+                f"{out / 'league.md'}; "
+        print(f"cosim: compare interrupted; {league}finish with --resume --out {out}",
               file=sys.stderr)
         return EXIT_INTERRUPT
     table = compare.write_outputs(rows, out)
@@ -566,22 +625,31 @@ def _command_compare(args: argparse.Namespace) -> int:
 
 
 def _print_league(table: list[Any]) -> None:
-    from rich.console import Console
-    from rich.table import Table
+    """The league, in the terminal's width (unlimited when piped: every number whole)."""
+    import shutil
 
-    from cosim.sweeps.compare import LEAGUE_METRICS, by_scenario
+    from cosim.sweeps.compare import league_text
 
-    console = Console()
-    for scenario, rows in by_scenario(table).items():
-        view = Table(title=scenario)
-        view.add_column("tracker")
-        for _, title, _ in LEAGUE_METRICS:
-            view.add_column(title, justify="right")
-        view.add_column("failures", justify="right")
-        for r in rows:
-            view.add_row(r.tracker, *[("-" if r.values[k] is None else f"{r.values[k]:.4g}")
-                                      for k, _, _ in LEAGUE_METRICS], str(r.failures))
-        console.print(view)
+    width = shutil.get_terminal_size().columns if sys.stdout.isatty() else None
+    print(league_text(table, width))
+
+
+def _command_export(args: argparse.Namespace) -> int:
+    from cosim.log.ros2 import require_rosbags
+
+    require_rosbags()
+    from cosim.log.ros2.bag import export_ros2
+
+    result = export_ros2(args.ros2, args.out, args.force)
+    if result.truncated:
+        print(f"cosim: warning: {args.ros2!r} was cut off: exported up to its last complete "
+              "record", file=sys.stderr)
+    print(f"{sum(result.message_counts.values())} ROS 2 messages -> {result.path}")
+    for topic, count in result.message_counts.items():
+        print(f"  {topic:<20} {count}")
+    print(f"replay: ros2 bag play -s mcap {result.path} --clock  (nodes with "
+          "use_sim_time:=true; the stamps are simulated time from sim.epoch)")
+    return 0
 
 
 def _command_render(args: argparse.Namespace) -> int:
@@ -610,6 +678,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 "scenarios": _command_scenarios, "identify": _command_identify,
                 "sweep": _command_sweep, "render": _command_render,
                 "config": _command_config, "compare": _command_compare,
+                "export": _command_export,
                 "trackers": _command_trackers, "estimators": _command_estimators}
     try:
         with warnings.catch_warnings():

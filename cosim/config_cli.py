@@ -65,9 +65,14 @@ def keys_table(prefix: str = "") -> list[tuple[str, str, str, str, str]]:
     """``(key, unit, default, accepted values, doc)`` rows of every key starting with
     ``prefix``; an unknown prefix is a :class:`ConfigError` naming the sections."""
     from cosim.core.config_fields import key_infos
+    from cosim.plant.traffic import TrafficCarConfig
     from cosim.simulation.scenario_config import ScenarioConfig
 
     infos = key_infos(ScenarioConfig)
+    # Each traffic car's keys, under a placeholder, or under the car the prefix names.
+    parts = prefix.split(".")
+    named = parts[0] == "traffic" and len(parts) > 1 and not "NAME".startswith(parts[1])
+    infos += key_infos(TrafficCarConfig, f"traffic.{parts[1] if named else 'NAME'}")
     rows = [(i.key, i.unit, _format_default(i.default), i.expected, i.doc)
             for i in infos if i.key.startswith(prefix)]
     if not rows:

@@ -10,6 +10,7 @@ import os
 import re
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -41,11 +42,16 @@ def test_the_docs_example_runs_as_written(tmp_path: Path) -> None:
     log = tmp_path / "logs" / "api-example.mcap"
     assert log.is_file()
     assert "refused: tracker.horizon = 1" in done.stdout
-    rows = (tmp_path / "logs" / "friction-sweep" / "results.jsonl").read_text().splitlines()
+    (sweep,) = (tmp_path / "logs").glob("friction-sweep-*")
+    rows = (sweep / "results.jsonl").read_text().splitlines()
     frictions = sorted(json.loads(row)["params"]["plant.tire_friction"] for row in rows)
     assert frictions == [0.7, 1.0]
     # What the example printed is what the log holds.
     assert main(["inspect", str(log), "--json"]) == 0
+    time.sleep(1.0)  # the second sweep's folder is named by the second
+    again = subprocess.run([sys.executable, str(script)], cwd=tmp_path, env=env,
+                           capture_output=True, text=True, timeout=900)
+    assert again.returncode == 0, again.stderr  # the example runs again as written
 
 
 def test_run_matches_the_command_line(tmp_path: Path,
@@ -87,7 +93,7 @@ def test_run_refuses_an_existing_log_unless_forced(tmp_path: Path) -> None:
     out = tmp_path / "kept.mcap"
     out.write_bytes(b"the user's file")
     config = cosim.load_config("lane-change", duration_s=0.2)
-    with pytest.raises(CosimError, match="exists; expected a new file name"):
+    with pytest.raises(CosimError, match=r"exists; expected a new file name \(or force=True"):
         cosim.run(config, out=out)
     assert out.read_bytes() == b"the user's file"
     with pytest.raises(CosimError, match="is a folder"):
@@ -139,3 +145,43 @@ def test_the_package_exposes_the_api_lazily() -> None:
     done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
                           check=True)
     assert done.stdout.strip() == "[]"
+
+
+def ten_line_tracker() -> str:
+    """The ```python block under "Your controller in ten lines" in docs/api.md."""
+    text = (ROOT / "docs" / "api.md").read_text()
+    section = text.split("## Your controller in ten lines", 1)[1].split("\n## ", 1)[0]
+    (block,) = re.findall(r"```python\n(.*?)```", section, flags=re.DOTALL)
+    return block
+
+
+@pytest.mark.slow
+def test_the_ten_line_tracker_runs_compares_and_sweeps(tmp_path: Path) -> None:
+    (tmp_path / "my_tracker.py").write_text(ten_line_tracker())
+    code = [line for line in ten_line_tracker().split("class Proportional", 1)[1].splitlines()
+            if line.strip() and not line.strip().startswith(('"""', "#"))]
+    assert len(code) <= 10, code
+    env = {**os.environ, "MUJOCO_GL": "disable",  # "PYTHONPATH=. cosim ...", as docs say
+           "PYTHONPATH": os.pathsep.join(p for p in (".", os.environ.get("PYTHONPATH")) if p)}
+    cosim_bin = str(Path(sys.executable).with_name("cosim"))
+
+    def cosim_cli(*args: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run([cosim_bin, *args], cwd=tmp_path, env=env, capture_output=True,
+                              text=True, timeout=900)
+
+    ran = cosim_cli("run", "lane-change", "--tracker", "my_tracker:Proportional", "--json")
+    assert ran.returncode == 0, ran.stderr
+    metrics = json.loads(ran.stdout)["metrics"]
+    assert metrics["outcome"] == "ok" and metrics["cte_max_m"] < 0.5
+    compared = cosim_cli("compare", "--trackers", "my_tracker:Proportional,pid", "--scenarios",
+                         "lane-change", "--duration", "3", "--json", "--workers", "1")
+    assert compared.returncode == 0, compared.stderr
+    assert {r["tracker"] for r in json.loads(compared.stdout)} == {
+        "my_tracker:Proportional", "pid"}
+    (tmp_path / "spec.yaml").write_text(
+        "scenario: lane-change\ntracker: my_tracker:Proportional\nduration_s: 3\nseeds: 1\n"
+        "grid:\n  plant.mass_kg: [1400, 1800]\npass:\n  completed: true\n")
+    swept = cosim_cli("sweep", "spec.yaml", "--workers", "1", "--out", "sweep")
+    assert swept.returncode == 0, swept.stderr
+    rows = (tmp_path / "sweep" / "results.jsonl").read_text().splitlines()
+    assert [json.loads(r)["metrics"]["completed"] for r in rows] == [True, True]

@@ -9,6 +9,7 @@ disk, signals) is in ``test_faults.py``.
 from __future__ import annotations
 
 import hashlib
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -44,11 +45,30 @@ def _write_other_tool_mcap(path: Path) -> None:
         writer.finish()
 
 
+def _write_foreign_truth_mcap(path: Path) -> None:
+    """Another tool's log on cosim's truth topic, without a position (nulls)."""
+    with path.open("wb") as stream:
+        writer = Writer(stream)
+        writer.start(profile="", library="some-other-tool 1.0")
+        schema = writer.register_schema(name="truth", encoding="jsonschema", data=b"{}")
+        channel = writer.register_channel(topic="/vehicle/truth", message_encoding="json",
+                                          schema_id=schema)
+        for i in range(5):
+            writer.add_message(channel_id=channel, log_time=i * 10**7, publish_time=i * 10**7,
+                               data=b'{"t_s": %.2f, "x_m": null, "y_m": null}' % (i / 100))
+        writer.finish()
+
+
 def _write_empty_mcap(path: Path) -> None:
     with path.open("wb") as stream:
         writer = Writer(stream)
         writer.start(profile="", library="cosim 0.1.0")
         writer.finish()
+
+
+def _loop(points: int = 40, radius_m: float = 50.0) -> list[tuple[float, float]]:
+    return [(radius_m * math.cos(2 * math.pi * i / points),
+             radius_m * math.sin(2 * math.pi * i / points)) for i in range(points)]
 
 
 @pytest.fixture()
@@ -72,6 +92,10 @@ def files(tmp_path: Path) -> Files:
         "spec-latin1-scenario.yaml": "scenario: latin1.yaml\nseeds: 1\n",
         "spec-good.yaml": "scenario: lane-change\nseeds: 1\nduration_s: 0.1\n",
         "notes.txt": "not an MCAP file, just text\n",
+        "one-point.csv": "x,y\n1,2\n",
+        "huge.csv": "x,y\n" + "".join(f"{1e12 * x},{1e12 * y}\n" for x, y in _loop()),
+        "open.csv": "x,y\n" + "".join(f"{x},0\n" for x in range(0, 100, 2))
+                    + "".join(f"{x},50\n" for x in range(100, 0, -2)),
     }
     for name, text in texts.items():
         if text is not None:
@@ -84,19 +108,28 @@ def files(tmp_path: Path) -> Files:
     (root / "a-file").write_text("a file where a directory is expected\n")
     _write_other_tool_mcap(root / "other.mcap")
     _write_empty_mcap(root / "empty.mcap")
+    _write_foreign_truth_mcap(root / "foreign-truth.mcap")
     good = (root / "good.mcap")
     good.write_bytes((root / "other.mcap").read_bytes())
     corrupt = bytearray((root / "other.mcap").read_bytes())
     corrupt[40:200] = bytes(160)
     (root / "corrupt.mcap").write_bytes(bytes(corrupt))
     (root / "folder").mkdir()
+    (root / "full").mkdir()
+    (root / "full" / "results.csv").write_text("an earlier study's results\n")
     user = {name: root / name for name in (
         "good.yaml", "existing.mcap", "latin1.yaml", "binary.yaml", "a-file", "other.mcap",
-        "corrupt.mcap", "spec-good.yaml")}
+        "corrupt.mcap", "spec-good.yaml", "full/results.csv")}
     return Files(root, user)
 
 
 Args = Callable[[Files], list[str]]
+
+
+def _fail_if(condition: str) -> Args:
+    """A short run with one --fail-if condition (refused before the run when bad)."""
+    return lambda f: ["run", "lane-change", "--duration", "0.1", "--fail-if", condition,
+                      "--out", f("fail-if.mcap")]
 
 
 @dataclass(frozen=True)
@@ -134,7 +167,12 @@ ROWS = [
     Row("set without =", lambda f: ["run", "lane-change", "--set", "plant.mass_kg"],
         ("plant.mass_kg", "expected key.path=value")),
     Row("set unknown key", lambda f: ["run", "lane-change", "--set", "plant.mas_kg=1"],
-        ("plant.mas_kg", "expected one of")),
+        ("unknown key 'plant.mas_kg'", "did you mean 'plant.mass_kg'?",
+         "`cosim config keys plant`")),
+    Row("set key without its unit", lambda f: ["run", "lane-change", "--set", "plant.mass=1500"],
+        ("unknown key 'plant.mass'", "did you mean 'plant.mass_kg'?")),
+    Row("set key nothing like any", lambda f: ["run", "lane-change", "--set", "plant.zzz=1"],
+        ("unknown key 'plant.zzz'", "expected one of", "mass_kg")),
     Row("set negative mass", lambda f: ["run", "lane-change", "--set", "plant.mass_kg=-5"],
         ("plant.mass_kg = -5", "expected a number in")),
     Row("set exponent out of range", lambda f: ["run", "lane-change", "--set",
@@ -183,8 +221,26 @@ ROWS = [
     Row("plug-in wrong return type", lambda f: [
         "run", "lane-change", "--tracker", "tests.user_trackers:WrongReturn", "--duration",
         "0.2", "--out", f("wrong-return.mcap")],
-        ("'tests.user_trackers:WrongReturn'", "step returned Command",
-         "expected a tuple (Command, Plan)")),
+        ("'tests.user_trackers:WrongReturn'", "step returned (Command)",
+         "expected a Command, or a tuple (Command, Plan)")),
+    Row("plug-in Command field a string", lambda f: [
+        "run", "lane-change", "--tracker", "tests.user_trackers:StringAccel", "--duration",
+        "0.1", "--out", f("string-accel.mcap")],
+        ("'tests.user_trackers:StringAccel'", "Command.accel_mps2 = 'fast' (str)",
+         "expected a finite number")),
+    Row("plug-in Command field an array", lambda f: [
+        "run", "lane-change", "--tracker", "tests.user_trackers:ArraySteer", "--duration",
+        "0.1", "--out", f("array-steer.mcap")],
+        ("Command.steer_rad = array([0.1, 0.2]) (ndarray)", "expected a finite number")),
+    Row("plug-in Plan of the wrong shape", lambda f: [
+        "run", "lane-change", "--tracker", "tests.user_trackers:BadPlanStates", "--duration",
+        "0.1", "--out", f("bad-plan.mcap")],
+        ("Plan.states = an array of shape (2, 3)", "expected shape (rows, 1)")),
+    Row("plug-in calls sys.exit", lambda f: [
+        "run", "lane-change", "--tracker", "tests.user_trackers:Exiting", "--duration",
+        "0.3", "--set", "tracker.params.fail_at_s=0.1", "--out", f("exiting.mcap")],
+        ("run aborted (error)", "'tests.user_trackers:Exiting' called sys.exit(0)",
+         "t = 0.100 s"), code=3),
     Row("plug-in params unknown key", lambda f: [
         "run", "lane-change", "--tracker", "tests.user_trackers:Straight",
         "--set", "tracker.params.gian=2"], ("tracker.params.gian", "expected one of")),
@@ -209,6 +265,29 @@ ROWS = [
         ("faults[0].kind = 'meltdown'", "expected one of")),
     Row("fail-if malformed", lambda f: ["run", "lane-change", "--fail-if", "cte_max_m~0.3"],
         ("--fail-if 'cte_max_m~0.3'", "expected METRIC OP VALUE")),
+    Row("fail-if number with a unit", _fail_if("cte_max_m>0.3m"),
+        ("'0.3m' is not a number", '(without a unit: 0.3)')),
+    Row("fail-if doubled operator", _fail_if("cte_max_m>>0.3"),
+        ("'>0.3' is not a number", 'expected cte_max_m > a finite number')),
+    Row("fail-if order on a word", _fail_if("outcome<ok"),
+        ('outcome is a word', 'expected == or !=')),
+    Row("fail-if flag not true or false", _fail_if("completed==yes"),
+        ("'yes'", 'expected true or false for completed')),
+    Row("fail-if unknown metric", _fail_if("cte_mx_m>0.3"),
+        ("unknown metric 'cte_mx_m'", "did you mean 'cte_max_m'?")),
+    Row("fail-if unknown outcome", _fail_if("outcome==spinned"),
+        ("'spinned' (did you mean 'spun'?)", 'expected one of ok,')),
+    # traffic against the ego and the ACC's sensor
+    Row("ACC with the radar off", lambda f: ["run", "acc-braking", "--set",
+                                             "sensors.radar.enabled=false", "--out", f("a.mcap")],
+        ("sensors.radar.enabled = false", "tracker.acc.enabled = true",
+         "expected sensors.radar.enabled=true")),
+    Row("traffic car inside the ego", lambda f: ["run", "acc", "--set", "traffic.lead.gap_m=0",
+                                                 "--out", f("a.mcap")],
+        ("traffic.lead: gap_m = 0", "starts inside the ego's body", "expected gap_m beyond")),
+    Row("traffic car null", lambda f: ["run", "acc", "--set", "traffic.lead=null",
+                                       "--out", f("a.mcap")],
+        ("traffic.lead = null", "expected a mapping of the car's settings")),
     # cosim run: where the log goes
     Row("out exists", lambda f: ["run", "lane-change", "--out", f("existing.mcap")],
         ("existing.mcap", "exists", "--force")),
@@ -224,6 +303,24 @@ ROWS = [
         "run", "lane-change", "--duration", "0.1", "--config", f("bad-channel.yaml"),
         "--out", f("existing.mcap"), "--force"],
         ("channel = 'nope'", "expected one of")),
+    # circuit files (path.file)
+    Row("track file a device", lambda f: ["run", "track", "--set", "path.file=/dev/zero",
+                                          "--out", f("t.mcap")],
+        ("path.file '/dev/zero'", "not a regular file", "expected a CSV file")),
+    Row("track file of one point", lambda f: ["run", "track", "--set",
+                                              f"path.file={f('one-point.csv')}",
+                                              "--out", f("t.mcap")],
+        ("one-point.csv", "1 distinct point(s), expected at least 3")),
+    Row("track coordinates scaled by 1e12", lambda f: ["run", "track", "--set",
+                                                      f"path.file={f('huge.csv')}",
+                                                      "--out", f("t.mcap")],
+        ("huge.csv", "coordinate beyond 1e+07 m", "expected metres")),
+    Row("track file open but path.closed", lambda f: ["run", "track", "--set",
+                                                      f"path.file={f('open.csv')}",
+                                                      "--out", f("t.mcap")],
+        ("open.csv", "last point is 50.0 m from its first", "path.closed=false")),
+    Row("config keys of an unknown section", lambda f: ["config", "keys", "plnt"],
+        ("config keys 'plnt'", "no key starts with it")),
     # cosim inspect and plot
     Row("inspect missing", lambda f: ["inspect", f("missing.mcap")],
         ("missing.mcap", "no such file")),
@@ -239,6 +336,9 @@ ROWS = [
         ("empty.mcap", "nothing to plot")),
     Row("plot other tool's", lambda f: ["plot", f("other.mcap"), "--out", f("plots")],
         ("other.mcap", "nothing to plot")),
+    Row("plot other tool's truth without positions", lambda f: [
+        "plot", f("foreign-truth.mcap"), "--out", f("plots")],
+        ("foreign-truth.mcap", "no /vehicle/truth message with a finite", "nothing to plot")),
     Row("plot corrupted", lambda f: ["plot", f("corrupt.mcap"), "--out", f("plots")],
         ("corrupt.mcap",)),
     # cosim sweep
@@ -257,6 +357,14 @@ ROWS = [
     Row("sweep out unmakeable", lambda f: ["sweep", f("spec-good.yaml"), "--out",
                                            f("a-file") + "/sweep"],
         ("a-file/sweep", "cannot make the directory", "expected a writable place")),
+    Row("sweep out not empty", lambda f: ["sweep", f("spec-good.yaml"), "--out", f("full")],
+        ("full", "not empty (results.csv)", "--force", "--resume")),
+    Row("compare out not empty", lambda f: ["compare", "--trackers", "pid", "--scenarios",
+                                            "circle", "--duration", "0.1", "--out", f("full")],
+        ("full", "not empty (results.csv)", "--force", "--resume")),
+    Row("compare resume without a comparison", lambda f: [
+        "compare", "--trackers", "pid", "--scenarios", "circle", "--out", f("folder"),
+        "--resume"], ("folder", "holds no comparison to finish")),
     Row("sweep resume without out", lambda f: ["sweep", f("spec-good.yaml"), "--resume"],
         ("--resume", "expected --out DIR")),
     Row("sweep zero workers", lambda f: ["sweep", f("spec-good.yaml"), "--workers", "0",

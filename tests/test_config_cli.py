@@ -8,6 +8,7 @@ import sys
 import typing
 from pathlib import Path
 
+import pytest
 import yaml
 
 from cosim.log.reader import read_summary
@@ -81,8 +82,10 @@ def test_show_rejects_bad_input_in_one_line() -> None:
 
 
 def test_keys_lists_every_key_with_its_unit() -> None:
+    from cosim.plant.traffic import TrafficCarConfig
+
     rows = keys_output()
-    expected = leaf_keys(ScenarioConfig)
+    expected = leaf_keys(ScenarioConfig) + leaf_keys(TrafficCarConfig, "traffic.NAME")
     assert len(expected) > 150
     assert sorted(rows) == sorted(expected)
     suffix_units = {"_s": "s", "_m": "m", "_mps": "m/s", "_mps2": "m/s^2", "_rad": "rad",
@@ -118,3 +121,14 @@ def test_version() -> None:
     result = cosim("--version")
     assert result.returncode == 0
     assert result.stdout.strip() == f"cosim {__version__}"
+
+
+def test_keys_of_a_traffic_car_list_its_settings(capsys: pytest.CaptureFixture[str]) -> None:
+    from cosim.cli import main
+
+    assert main(["config", "keys", "traffic.lead"]) == 0
+    keys = [line.split()[0] for line in capsys.readouterr().out.splitlines()[1:]]
+    assert "traffic.lead.gap_m" in keys and "traffic.lead.speed_profile" in keys
+    assert all(key.startswith("traffic.lead.") for key in keys)
+    assert main(["config", "keys", "traffic"]) == 0
+    assert "traffic.NAME.gap_m" in capsys.readouterr().out

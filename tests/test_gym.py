@@ -78,3 +78,71 @@ def test_the_docs_random_policy_example_runs(tmp_path: Path) -> None:
     assert done.returncode == 0, done.stderr
     cte_max_m, outcome = done.stdout.split()
     assert float(cte_max_m) > 0.0 and outcome in ("ok", "off_road", "spun", "end_of_path")
+
+
+@pytest.mark.parametrize(("action", "fragment"), [
+    (np.zeros(3), "action of shape (3,): expected shape (2,)"),
+    (np.zeros((1, 2)), "action of shape (1, 2): expected shape (2,)"),
+    (np.array([np.nan, 0.0]), "action [nan, 0.0]: expected finite numbers"),
+    (np.array([0.0, np.inf]), "action [0.0, inf]: expected finite numbers"),
+    ("left", "action 'left': expected 2 numbers"),
+])
+def test_a_malformed_action_is_named_not_clipped_or_blamed_on_the_brake(
+        action: object, fragment: str) -> None:
+    env = CosimEnv(overrides=("sim.duration_s=1",))
+    env.reset(seed=0)
+    with pytest.raises(ValueError) as error:
+        env.step(action)  # type: ignore[arg-type]
+    assert fragment in str(error.value)
+    env.step(np.array([2.0, -3.0], dtype=np.float32))  # out of the box: clipped, as before
+    env.close()
+
+
+def _steer_to_path(observations: np.ndarray) -> np.ndarray:
+    """A policy of the observation alone: steer against the lateral and heading errors,
+    hold a light throttle (works on a batch of observations or a single one)."""
+    obs = np.atleast_2d(observations)
+    lateral = obs[:, OBS_NAMES.index("lateral_error_m")]
+    heading = obs[:, OBS_NAMES.index("heading_error_rad")]
+    steer = np.clip(-0.5 * lateral - 1.5 * heading, -1.0, 1.0)
+    actions = np.stack([steer, np.full_like(steer, 0.55)], axis=1).astype(np.float32)
+    return actions if np.ndim(observations) == 2 else actions[0]
+
+
+def test_observations_are_finite_and_inside_the_space() -> None:
+    env = CosimEnv(overrides=("sim.duration_s=2",))
+    space = env.observation_space
+    assert np.all(np.isfinite(space.low)) and np.all(np.isfinite(space.high))
+    observation, _ = env.reset(seed=4)
+    done = False
+    while not done:  # full left lock: the car leaves the path, errors grow
+        assert space.contains(observation), observation
+        observation, _, terminated, truncated, _ = env.step(np.array([1.0, 1.0], np.float32))
+        done = terminated or truncated
+    assert space.contains(observation)
+    env.close()
+
+
+def test_a_vector_env_runs_several_cars_as_single_envs_would() -> None:
+    """``gymnasium.make_vec`` in subprocesses: each car is the single environment of its
+    seed, step for step."""
+    cosim.gym.register_envs()
+    steps, seeds = 30, (5, 6)
+    vector = gymnasium.make_vec("cosim/LaneChange-v0", num_envs=2,
+                                vectorization_mode="async")
+    observations, _ = vector.reset(seed=list(seeds))
+    batched = [observations]
+    for _ in range(steps):
+        observations, *_ = vector.step(_steer_to_path(observations))
+        batched.append(observations)
+    vector.close()
+    for car, seed in enumerate(seeds):
+        env = CosimEnv("lane-change")
+        observation, _ = env.reset(seed=seed)
+        single = [observation]
+        for _ in range(steps):
+            observation, *_ = env.step(_steer_to_path(observation))
+            single.append(observation)
+        env.close()
+        np.testing.assert_array_equal(np.array(single), np.array(batched)[:, car])
+    assert not np.array_equal(np.array(batched)[:, 0], np.array(batched)[:, 1])

@@ -95,9 +95,20 @@ def test_starting_off_the_lane_is_off_road(tmp_path: Path) -> None:
     config = load_config("lane-change", duration_s=0.5, tracker="ltv-mpc",
                          overrides=["initial.y_m=2.5"])  # the path starts at y = 0
     result = run(config, tmp_path / "off.mcap")
-    assert result.completed and result.metrics["outcome"] == "off_road"
+    # The run stops at the event, so its metrics describe the run up to it.
+    assert not result.completed and result.metrics["outcome"] == "off_road"
     assert result.metrics["off_road_t_s"] == 0.0
+    assert result.metrics["sim_duration_s"] == 0.0
+    assert "stopped at off_road" in result.abort_reason
     assert [e["kind"] for e in _events(tmp_path / "off.mcap")] == ["off_road"]
+
+
+def test_keep_going_runs_on_after_a_terminal_event(tmp_path: Path) -> None:
+    config = load_config("lane-change", duration_s=0.5, tracker="ltv-mpc",
+                         overrides=["initial.y_m=2.5", "outcome.keep_going=true"])
+    result = run(config, tmp_path / "off.mcap")
+    assert result.completed and result.metrics["outcome"] == "off_road"
+    assert result.metrics["sim_duration_s"] == pytest.approx(0.5)
 
 
 def test_driving_past_the_end_of_the_path(tmp_path: Path) -> None:

@@ -19,7 +19,7 @@ def test_wheel_holds_models_and_scenarios(tmp_path: Path) -> None:
          str(ROOT)],
         check=True, capture_output=True, timeout=600,
     )
-    (wheel,) = tmp_path.glob("cosim-*.whl")
+    (wheel,) = tmp_path.glob("cosim_testbed-*.whl")
     names = set(zipfile.ZipFile(wheel).namelist())
     assert "cosim/models/sedan.xml" in names
     assert "cosim/models/README.md" in names

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from cosim.cli import main
+from cosim.core.exceptions import CosimError
 from cosim.plots import FIGURES, plot_logs
 from cosim.plots.data import distinct_labels, load_run
 from cosim.simulation.runner import RunResult, run
@@ -68,6 +69,22 @@ def test_overlay_of_two_trackers(
     assert "e1_m" in runs[1].plans.state_names
 
 
+def test_three_runs_overlay_and_too_many_are_refused(
+        nmpc_run: RunResult, path_error_run: RunResult, tmp_path: Path) -> None:
+    from cosim.plots import MAX_LOGS
+    from cosim.plots.style import run_colour
+
+    logs = [nmpc_run.log_path, path_error_run.log_path, nmpc_run.log_path]
+    written = plot_logs(logs, tmp_path / "three")
+    two = plot_logs(logs[:2], tmp_path / "two")
+    for three_runs, two_runs in zip(written, two, strict=True):
+        _assert_real_figure(three_runs)
+        assert three_runs.read_bytes() != two_runs.read_bytes(), three_runs.name
+    assert len({run_colour(i) for i in range(MAX_LOGS)}) == MAX_LOGS  # each its colour
+    with pytest.raises(CosimError, match=f"expected one log, or up to {MAX_LOGS}"):
+        plot_logs([nmpc_run.log_path] * (MAX_LOGS + 1), tmp_path / "many")
+
+
 def test_overlaid_runs_are_named_by_their_difference_and_told_apart_by_style(
         nmpc_run: RunResult) -> None:
     from dataclasses import replace
@@ -101,7 +118,8 @@ def test_a_spin_is_plotted_as_a_spin(tmp_path: Path) -> None:
     covers the whole CTE (not a band of centimetres), on both sides."""
     from cosim.plots.top_view import DEVIATION_TITLE, top_view
 
-    config = load_config("lane-change", overrides=["plant.tire_friction=0.3"], duration_s=10.0)
+    config = load_config("lane-change", duration_s=10.0,  # on after the spin, metres off
+                         overrides=["plant.tire_friction=0.3", "outcome.keep_going=true"])
     result = run(config, tmp_path / "spin.mcap")
     data = load_run(result.log_path)
     assert data.tracking is not None

@@ -14,7 +14,7 @@ import pytest
 
 import cosim
 from cosim.cli import main
-from cosim.log.reader import read_summary
+from cosim.log.reader import iter_messages, read_summary
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "pure-pursuit-plugin"
@@ -45,7 +45,7 @@ def test_the_installed_plugin_is_listed_and_runs(installed: dict[str, str],
     # The example's README command, as written there, completes ok.
     readme = (EXAMPLE / "README.md").read_text()
     command = next(line.split("#")[0].split() for line in readme.splitlines()
-                   if line.strip().startswith("cosim run "))
+                   if line.strip().removeprefix(".venv/bin/").startswith("cosim run "))
     done = cosim_cli(installed, tmp_path, *command[1:], "--json", "--out", "pp.mcap")
     assert done.returncode == 0, done.stderr
     metrics = json.loads(done.stdout)["metrics"]
@@ -98,6 +98,8 @@ def test_the_plugin_runs_in_sweep_and_compare(installed: dict[str, str],
     ("Raising", ["fail_at_s=0.5"],
      "tracker 'tests.user_trackers:Raising' raised ZeroDivisionError at t = 0.500 s: "
      "the user's bug"),
+    ("Exiting", ["fail_at_s=0.5"],
+     "tracker 'tests.user_trackers:Exiting' called sys.exit(0) at t = 0.500 s"),
     ("NanSteer", ["fail_at_s=0.5"],
      "tracker 'tests.user_trackers:NanSteer' returned a non-finite command at t = 0.500 s"),
     ("Slow", ["fail_at_s=0.5", "sleep_s=0.2"],
@@ -133,3 +135,53 @@ def test_params_without_a_schema_are_passed_as_a_mapping(tmp_path: Path) -> None
         results[gain] = cosim.run(config, out=tmp_path / f"gain{gain}.mcap")
     assert results[0.0].metrics["accel_max_mps2"] == 0.0
     assert results[1.0].metrics["accel_max_mps2"] > 1.0  # 15 -> 20 m/s at gain 1/s
+
+
+def test_the_example_depends_on_this_cosim_by_its_distribution_name() -> None:
+    """The example asks for cosim's own distribution (installed here, so pip fetches
+    nothing): a dependency on the name "cosim" would pull another project from the
+    public index."""
+    import importlib.metadata
+    tomllib = pytest.importorskip("tomllib")  # Python 3.11+
+
+    ours = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["name"]
+    example = tomllib.loads((EXAMPLE / "pyproject.toml").read_text())["project"]
+    assert ours != "cosim"
+    assert example["dependencies"] == [ours]
+    assert importlib.metadata.distribution(ours).metadata["Name"] == ours
+
+
+def test_a_raising_tracker_is_reported_at_its_line_with_the_traceback_on_events(
+        tmp_path: Path) -> None:
+    config = cosim.load_config("lane-change", tracker="tests.user_trackers:Raising",
+                               duration_s=1.0, overrides=["tracker.params.fail_at_s=0.5"])
+    result = cosim.run(config, out=tmp_path / "raised.mcap")
+    source = ROOT / "tests" / "user_trackers.py"
+    line = next(n for n, text in enumerate(source.read_text().splitlines(), 1)
+                if "raise ZeroDivisionError" in text)
+    assert result.reason.endswith(f"({source}:{line}, in step)"), result.reason
+    (event,) = [m for _, m in iter_messages(tmp_path / "raised.mcap", "/events")]
+    assert event["kind"] == "tracker_fault"
+    assert "Traceback (most recent call last)" in event["detail"]
+    assert f'"{source}", line {line}, in step' in event["detail"]
+
+
+def test_a_tracker_may_return_a_command_alone(tmp_path: Path) -> None:
+    config = cosim.load_config("lane-change", tracker="tests.user_trackers:CommandOnly",
+                               duration_s=1.0)
+    result = cosim.run(config, out=tmp_path / "command.mcap")
+    assert result.completed and result.outcome == "ok"
+    plans = [m for _, m in iter_messages(tmp_path / "command.mcap", "/control/plan")]
+    assert len(plans) == 20 and {p["status"] for p in plans} == {"command"}
+    assert result.metrics["accel_max_mps2"] > 0.0
+
+
+def test_a_module_not_on_the_path_says_how_to_add_the_current_folder(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    (tmp_path / "mine.py").write_text("class Mine:\n    def step(self): ...\n")
+    code = main(["run", "lane-change", "--tracker", "mine:Mine", "--out",
+                 str(tmp_path / "x.mcap")])
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert code == 2
+    assert "no module 'mine' on Python's import path" in line
+    assert "PYTHONPATH=. cosim" in line

@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+import sys
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -60,7 +62,7 @@ class Slow(Straight):
 
 class WrongReturn(Straight):
     def step(self, t_s: float, estimate: Estimate, reference: Any) -> Any:
-        return Command(t_s, 0.0, 0.0)  # the plan is missing
+        return (Command(t_s, 0.0, 0.0),)  # a tuple without its plan
 
 
 class NoParams:
@@ -83,3 +85,48 @@ class NoStep:
 
 
 not_a_class = 3
+
+
+class Exiting(Straight):
+    """Calls ``sys.exit`` from ``fail_at_s`` on, as a script's habit might."""
+
+    def step(self, t_s: float, estimate: Estimate, reference: Any) -> tuple[Command, Plan]:
+        if self.failing(t_s):
+            sys.exit(0)
+        return super().step(t_s, estimate, reference)
+
+
+class StringAccel(Straight):
+    def step(self, t_s: float, estimate: Estimate, reference: Any) -> tuple[Command, Plan]:
+        return Command(t_s, "fast", 0.0), _plan(t_s, 0.0, 0.0)  # type: ignore[arg-type]
+
+
+class ArraySteer(Straight):
+    def step(self, t_s: float, estimate: Estimate, reference: Any) -> tuple[Command, Plan]:
+        steer = np.array([0.1, 0.2])
+        return Command(t_s, 0.0, steer), _plan(t_s, 0.0, 0.0)  # type: ignore[arg-type]
+
+
+class BadPlanStates(Straight):
+    def step(self, t_s: float, estimate: Estimate, reference: Any) -> tuple[Command, Plan]:
+        plan = dataclasses.replace(_plan(t_s, 0.0, 0.0), states=np.zeros((2, 3)))
+        return Command(t_s, 0.0, 0.0), plan
+
+
+class ExitsAtOnce(Straight):
+    """Calls ``sys.exit`` at its first step after 0.1 s (no params needed: for compare)."""
+
+    def step(self, t_s: float, estimate: Estimate, reference: Any) -> tuple[Command, Plan]:
+        if t_s >= 0.1:
+            sys.exit("the user's script gave up")
+        return super().step(t_s, estimate, reference)
+
+
+class CommandOnly:
+    """Returns a Command alone (no plan): speeds up a little, wheel straight."""
+
+    def __init__(self, params: Any, config: Any) -> None:
+        del params, config
+
+    def step(self, t_s: float, estimate: Estimate, reference: Any) -> Command:
+        return Command(t_s, 1.0, 0.0)

@@ -79,6 +79,7 @@ from cosim.core.plugins import entry_point_names, is_import_path
 from cosim.core.vehicle_params import MAX_STEER_BOUND_RAD, VehicleParams
 from tracker.acc.config import AccConfig
 from tracker.baselines.config import BaselineConfig
+from tracker.fmu.config import FmuConfig, is_fmu_name
 from tracker.mpc.dynamic_mpc_config import DynamicMpcConfig
 from tracker.mpc.grip_config import GripConfig
 from tracker.mpc.horizon_reference import REFERENCE_KINDS
@@ -96,7 +97,10 @@ PLUGIN_GROUP = "cosim.trackers"
 
 
 def is_plugin_name(name: str) -> bool:
-    """Whether ``name`` names a tracker from outside cosim: an import path or a plug-in."""
+    """Whether ``name`` names a tracker class from outside cosim: an import path or a
+    plug-in (not an FMU: ``fmu:ctrl.fmu`` has the form of an import path)."""
+    if is_fmu_name(name):
+        return False
     return is_import_path(name) or name in entry_point_names(PLUGIN_GROUP)
 
 
@@ -141,7 +145,8 @@ class TrackerConfig:
         "dynamic-nmpc",
         doc="tracker to build: one of " + ", ".join(TRACKER_CHOICES) + "; or a tracker "
         "from outside cosim: an installed plug-in (entry point group cosim.trackers, "
-        "`cosim trackers`) or an import path my_pkg.my_module:MyTracker (tracker.plugin)",
+        "`cosim trackers`) or an import path my_pkg.my_module:MyTracker (tracker.plugin); "
+        "or a co-simulation FMU, fmu:PATH.fmu (FMI 2 or 3; tracker.fmu, docs/fmu.md)",
     )
     params: dict[str, Any] = mapping(
         doc="a plug-in tracker's own settings, passed to it (validated by its Params schema "
@@ -149,7 +154,7 @@ class TrackerConfig:
     )
     step_budget_s: float = setting(
         1.0, low=1e-4, high=3600.0,
-        doc="a plug-in tracker's step that takes longer (wall clock) ends the run",
+        doc="a plug-in or FMU tracker's step that takes longer (wall clock) ends the run",
     )
     horizon: int = setting(25, low=2, high=200, doc="number of stages N")
     dt_s: float = setting(0.05, low=0.005, high=1.0, doc="length of one stage [s]")
@@ -239,15 +244,19 @@ class TrackerConfig:
     ltv_mpc: LtvMpcConfig = section(LtvMpcConfig)
     baseline: BaselineConfig = section(BaselineConfig)
     grip: GripConfig = section(GripConfig)
+    fmu: FmuConfig = section(FmuConfig)
+    """How an FMU tracker (``name: fmu:PATH.fmu``, :mod:`tracker.fmu`) is fed."""
     acc: AccConfig = section(AccConfig)
     """Adaptive cruise control (:mod:`tracker.acc.law`): when enabled it sets the acceleration
     from the range sensor and this tracker only steers."""
 
     def __post_init__(self) -> None:
-        if self.name not in TRACKER_CHOICES and not is_plugin_name(self.name):
+        if (self.name not in TRACKER_CHOICES and not is_fmu_name(self.name)
+                and not is_plugin_name(self.name)):
             raise ConfigError(
                 f"name = {self.name!r}: expected one of {', '.join(TRACKER_CHOICES)}, an "
-                "installed plug-in (cosim trackers) or an import path module:Class"
+                "installed plug-in (cosim trackers), an import path module:Class or "
+                "fmu:PATH.fmu"
             )
         if not self.accel_min_mps2 < self.accel_max_mps2:
             raise ConfigError(

@@ -14,16 +14,19 @@ entry point of the group ``cosim.trackers`` (:mod:`cosim.core.plugins`). The cla
   steering and acceleration bounds, ``dt_s``).
 
 The runner cannot vouch for such code, so each step goes through :class:`GuardedTracker`:
-a step that raises, returns something other than ``(Command, Plan)``, a non-finite command
-or overruns ``tracker.step_budget_s`` ends the run (``completed: false``, the log kept) with a
-reason naming the tracker.
+a step that raises (any exception, ``SystemExit`` included: only ``KeyboardInterrupt`` goes
+on, as the user's interrupt), returns a non-finite command or overruns
+``tracker.step_budget_s`` ends the run (``completed: false``, the log kept) with a reason
+naming the tracker; a step that returns something other than ``(Command, Plan)``, or a
+field of either of the wrong type or shape (:mod:`tracker.plugin_checks`), is refused as a
+broken interface (exit code 2), naming the field.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import math
 import time
+import traceback
 from typing import Any
 
 from cosim.core.config_fields import from_dict, to_dict
@@ -32,6 +35,7 @@ from cosim.core.plugins import load_object
 from cosim.core.records import Command, Estimate, Plan
 from tracker.config import PLUGIN_GROUP, TrackerConfig
 from tracker.paths.reference_path import ReferencePath
+from tracker.plugin_checks import check_step_result
 from tracker.protocol import Tracker
 
 GROUP = PLUGIN_GROUP
@@ -78,12 +82,22 @@ def make_plugin_tracker(config: TrackerConfig) -> Tracker:
     cls = tracker_class(config.name)
     try:
         tracker = cls(plugin_params(cls, config.params), config)
-    except ConfigError:
+    except (ConfigError, KeyboardInterrupt):
         raise
-    except Exception as error:
+    except BaseException as error:  # noqa: BLE001 - user code: SystemExit included
         raise PluginError(f"tracker.name = {config.name!r}: {cls.__name__}(params, config) "
                           f"raised {type(error).__name__}: {error}") from None
     return GuardedTracker(config.name, tracker, config.step_budget_s)
+
+
+def _where(error: BaseException) -> str:
+    """`` (file.py:12, in step)``: the innermost frame of the traceback, the line that
+    raised, in the user's code or below it."""
+    frames = traceback.extract_tb(error.__traceback__)
+    if not frames:
+        return ""
+    last = frames[-1]
+    return f" ({last.filename}:{last.lineno}, in {last.name})"
 
 
 class GuardedTracker:
@@ -104,28 +118,20 @@ class GuardedTracker:
         start_s = time.perf_counter()
         try:
             result = self._tracker.step(t_s, estimate, reference)
-        except Exception as error:
-            raise TrackerFault(f"tracker {self.name!r} raised {type(error).__name__} at "
-                               f"t = {t_s:.3f} s: {error}") from error
+        except KeyboardInterrupt:
+            raise
+        except BaseException as error:  # noqa: BLE001 - user code: SystemExit included
+            if isinstance(error, SystemExit):  # its text is only the exit code again
+                what, detail = f"called sys.exit({error.code!r})", ""
+            else:
+                what, detail = f"raised {type(error).__name__}", f": {error}" if str(error) else ""
+            raise TrackerFault(
+                f"tracker {self.name!r} {what} at t = {t_s:.3f} s{detail}{_where(error)}",
+                "".join(traceback.format_exception(error))) from error
         elapsed_s = time.perf_counter() - start_s
-        if not (isinstance(result, tuple) and len(result) == 2
-                and isinstance(result[0], Command) and isinstance(result[1], Plan)):
-            raise PluginError(f"tracker.name = {self.name!r}: step returned "
-                              f"{_describe(result)}: expected a tuple (Command, Plan) of "
-                              "cosim.core.records")
-        command, plan = result
-        if not (math.isfinite(command.accel_mps2) and math.isfinite(command.steer_rad)):
-            raise TrackerFault(f"tracker {self.name!r} returned a non-finite command at "
-                               f"t = {t_s:.3f} s (accel_mps2 = {command.accel_mps2}, "
-                               f"steer_rad = {command.steer_rad})")
+        command, plan = check_step_result(self.name, t_s, result)
         if elapsed_s > self._budget_s:
             raise TrackerFault(f"tracker {self.name!r} took {elapsed_s:.3f} s for the step at "
                                f"t = {t_s:.3f} s: more than tracker.step_budget_s = "
                                f"{self._budget_s:g} s")
         return command, plan
-
-
-def _describe(value: object) -> str:
-    if isinstance(value, tuple):
-        return "(" + ", ".join(type(v).__name__ for v in value) + ")"
-    return type(value).__name__

@@ -6,7 +6,7 @@ It lives with the trackers rather than at the base of ``cosim/`` because its arg
 
 from __future__ import annotations
 
-from typing import Protocol
+from typing import Protocol, runtime_checkable
 
 from cosim.core.records import Command, Estimate, Plan
 from tracker.paths.reference_path import ReferencePath
@@ -18,3 +18,12 @@ class Tracker(Protocol):
     def step(
         self, t_s: float, estimate: Estimate, reference: ReferencePath
     ) -> tuple[Command, Plan]: ...
+
+
+@runtime_checkable
+class Closable(Protocol):
+    """A tracker that holds what must be released after the run (an FMU's instance, its
+    library and extracted files: :class:`tracker.fmu.tracker.FmuTracker`); the runner calls
+    :meth:`close` once the run has ended, however it ended."""
+
+    def close(self) -> None: ...

@@ -2,7 +2,8 @@
 
 A tracker is anything with ``step(t_s, estimate, reference) -> (Command, Plan)`` and
 ``reset()`` (the :class:`cosim.core.protocols.Tracker` protocol). A name that is not built in is a
-tracker from outside cosim (an import path or an installed plug-in: :mod:`tracker.plugin`).
+tracker from outside cosim (an import path or an installed plug-in: :mod:`tracker.plugin`),
+or a co-simulation FMU, ``fmu:PATH.fmu`` (:mod:`tracker.fmu`).
 """
 
 from __future__ import annotations
@@ -17,6 +18,8 @@ from tracker.baselines.pid import make_pid
 from tracker.baselines.pure_pursuit import make_pure_pursuit
 from tracker.baselines.stanley import make_stanley
 from tracker.config import TrackerConfig, is_plugin_name
+from tracker.fmu import make_fmu_tracker
+from tracker.fmu.config import is_fmu_name
 from tracker.maneuver import ManeuverConfig
 from tracker.mpc.dynamic_mpc import DynamicMpc
 from tracker.mpc.dynamic_nmpc import DynamicNmpc
@@ -46,12 +49,19 @@ TRACKER_NAMES: tuple[str, ...] = tuple(_CONSTRUCTORS)
 """Every tracker name :func:`make_tracker` knows (the choices of ``tracker.name``)."""
 
 
-def make_tracker(config: TrackerConfig, maneuver: ManeuverConfig | None = None) -> Tracker:
-    """Build the tracker ``config.name``; ``maneuver`` drives the ``open-loop`` tracker.
+def make_tracker(config: TrackerConfig, maneuver: ManeuverConfig | None = None,
+                 control_period_s: float | None = None) -> Tracker:
+    """Build the tracker ``config.name``; ``maneuver`` drives the ``open-loop`` tracker;
+    ``control_period_s`` is how often the runner will call ``step`` (``sim.control_period_s``:
+    an FMU's communication step; ``tracker.dt_s`` when not given).
 
     With ``tracker.acc.enabled`` it steers and the ACC (:class:`tracker.acc.law.AccTracker`,
     updated every ``tracker.dt_s``) sets the acceleration."""
-    tracker = _make_path_tracker(config, maneuver)
+    if is_fmu_name(config.name):
+        tracker: Tracker = make_fmu_tracker(
+            config, control_period_s if control_period_s is not None else config.dt_s)
+    else:
+        tracker = _make_path_tracker(config, maneuver)
     if config.acc.enabled:
         return AccTracker(tracker, config.acc, config.dt_s)
     return tracker

@@ -8,20 +8,29 @@ every call of ``function(...)``. Inputs may be any float64 C-contiguous arrays w
 outlives the binding, MuJoCo's ``MjData`` arrays included (their memory is fixed for the
 life of the ``MjData``), so a physics step passes MuJoCo's state with no copy at all.
 
-The library is cached under ``$XDG_CACHE_HOME/cosim`` (``~/.cache/cosim``), named by a
-hash of the generated source, so a given function is compiled once per machine (about a
-second); :func:`compile_function` returns None when no C compiler works, and the caller
-keeps its plain implementation.
+The library is cached under ``$XDG_CACHE_HOME/cosim`` (``~/.cache/cosim``), in a folder named
+by a hash of the generated source, so a given function is compiled once per machine (about a
+second). The cache is not trusted: every entry is written under a temporary name and renamed
+into place whole, and its library's size and SHA-256 are checked before each load (a
+truncated library mapped into the process would end it with SIGBUS; another library under
+the name would lack the function). A damaged entry is rebuilt once, an unwritable cache
+is worked around for the run, each with a one-line warning
+(:func:`compiled_library`). :func:`compile_function` returns None when no C compiler works,
+and the caller keeps its plain implementation.
 """
 
 from __future__ import annotations
 
+import atexit
+import contextlib
 import ctypes
 import hashlib
+import json
 import os
 import shutil
 import subprocess
 import tempfile
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -74,11 +83,101 @@ class CompiledFunction:
             raise RuntimeError(f"{self._name}: the compiled function reported an error")
 
 
+class CompiledCacheWarning(UserWarning):
+    """The cache of compiled libraries is damaged or cannot be written (the run goes on)."""
+
+
+MANIFEST = "manifest.json"
+"""Beside each cached library: its size and SHA-256, checked before every load."""
+
+
+def _digest(path: Path) -> str:
+    sha = hashlib.sha256()
+    with path.open("rb") as stream:
+        for block in iter(lambda: stream.read(1 << 20), b""):
+            sha.update(block)
+    return sha.hexdigest()
+
+
+def _damage(entry: Path, name: str) -> str:
+    """Why the cache entry ``entry`` cannot be loaded ("" when its library is intact)."""
+    library = entry / f"{name}.so"
+    try:
+        manifest = json.loads((entry / MANIFEST).read_text())
+        size, digest = int(manifest["size"]), str(manifest["sha256"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return f"its {MANIFEST} is missing or unreadable"
+    try:
+        actual = library.stat().st_size
+    except OSError:
+        return "the library is missing"
+    if actual != size:
+        return f"the library has {actual} bytes, {size} were written"
+    if _digest(library) != digest:
+        return "the library's SHA-256 differs from the one written"
+    return ""
+
+
+def _discard(entry: Path) -> None:
+    """Remove a cache entry (renamed away first, so no other process loads it half-gone)."""
+    trash = entry.with_name(f".{entry.name}.{os.getpid()}.trash")
+    with contextlib.suppress(OSError):
+        os.rename(entry, trash)
+    shutil.rmtree(trash, ignore_errors=True)
+
+
+def _install(built: Path, entry: Path, name: str) -> Path:
+    """Put the library ``built`` into the cache as ``entry`` (a folder with the library and
+    its manifest), atomically: written under a temporary name and renamed, so a concurrent
+    run sees either no entry or a whole one. Another run that installed first wins."""
+    entry.parent.mkdir(parents=True, exist_ok=True)
+    staging = entry.with_name(f".{entry.name}.{os.getpid()}.tmp")
+    shutil.rmtree(staging, ignore_errors=True)
+    staging.mkdir()
+    try:
+        shutil.copyfile(built, staging / f"{name}.so")
+        manifest = {"size": built.stat().st_size, "sha256": _digest(built)}
+        (staging / MANIFEST).write_text(json.dumps(manifest))
+        try:
+            os.rename(staging, entry)
+        except OSError:
+            if not entry.is_dir():
+                raise
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    return entry / f"{name}.so"
+
+
+def _private_copy(built: Path) -> Path:
+    """``built`` copied to a folder of this process's own, removed when it exits."""
+    folder = Path(tempfile.mkdtemp(prefix="cosim-compiled-"))
+    atexit.register(shutil.rmtree, folder, ignore_errors=True)
+    return Path(shutil.copy2(built, folder / built.name))
+
+
+def _build(compiler: str, flags: Sequence[str], source: Path, name: str) -> Path | None:
+    """Compile ``source`` into a library beside it; None when the compiler fails."""
+    library = source.with_name(f"{name}.so")
+    try:
+        subprocess.run([compiler, *flags, "-o", str(library), str(source), "-lm"],
+                       check=True, capture_output=True)
+    except (OSError, subprocess.CalledProcessError):
+        return None
+    return library
+
+
 def compiled_library(name: str, functions: Sequence[ca.Function],
                      flags: Sequence[str] = COMPILER_FLAGS) -> Path | None:
     """The shared library holding ``functions`` (each under its own name), compiled with
     ``flags`` or found in the cache; None when no C compiler is available or compiling
-    fails. ``name`` names the file (a C identifier)."""
+    fails. ``name`` names the file (a C identifier).
+
+    The cache entry is keyed by a hash of the generated source and the flags, and holds
+    the library with its size and SHA-256, checked before it is used: a damaged entry (a
+    truncated file, another library under the name) is rebuilt once, with a one-line
+    :class:`CompiledCacheWarning`. When the cache cannot be written the library is compiled
+    into a folder of this process's own, with a one-line warning, and the run goes on.
+    """
     compiler = shutil.which(os.environ.get("CC", "gcc"))
     if compiler is None:
         return None
@@ -88,22 +187,27 @@ def compiled_library(name: str, functions: Sequence[ca.Function],
         for function in functions:
             generator.add(function)
         generator.generate(f"{tmp}/")
-        source = Path(tmp, f"{name}.c").read_bytes()
-        digest = hashlib.sha256(source + " ".join(flags).encode()).hexdigest()[:16]
-        library = _cache_dir() / f"{name}-{digest}.so"
-        if not library.is_file():
-            try:
-                library.parent.mkdir(parents=True, exist_ok=True)
-                partial = Path(tmp, library.name)
-                subprocess.run([compiler, *flags, "-o", str(partial),
-                                str(Path(tmp, f"{name}.c")), "-lm"],
-                               check=True, capture_output=True)
-                # Atomic: a concurrent run (a sweep's workers) never loads half a file.
-                shutil.copyfile(partial, f"{library}.{os.getpid()}")
-                os.replace(f"{library}.{os.getpid()}", library)
-            except (OSError, subprocess.CalledProcessError):
-                return None
-    return library
+        source = Path(tmp, f"{name}.c")
+        digest = hashlib.sha256(source.read_bytes() + " ".join(flags).encode()).hexdigest()
+        entry = _cache_dir() / f"{name}-{digest[:16]}"
+        if entry.is_dir():
+            damage = _damage(entry, name)
+            if not damage:
+                return entry / f"{name}.so"
+            warnings.warn(f"the compiled library {str(entry)!r} is damaged ({damage}): "
+                          "rebuilding it", CompiledCacheWarning, stacklevel=2)
+            _discard(entry)
+        built = _build(compiler, flags, source, name)
+        if built is None:
+            return None
+        try:
+            return _install(built, entry, name)
+        except OSError as error:
+            warnings.warn(f"cannot write the compiled-code cache {str(entry.parent)!r} "
+                          f"({error.strerror or error}): compiling for this run only "
+                          "(XDG_CACHE_HOME names the cache)", CompiledCacheWarning,
+                          stacklevel=1)  # one place: said once per process, not per library
+            return _private_copy(built)
 
 
 def compile_function(function: ca.Function) -> ctypes.CDLL | None:
@@ -113,6 +217,10 @@ def compile_function(function: ca.Function) -> ctypes.CDLL | None:
     if library is None:
         return None
     try:
-        return ctypes.CDLL(str(library))
-    except OSError:
+        loaded = ctypes.CDLL(str(library))
+        getattr(loaded, function.name())
+    except (OSError, AttributeError) as error:  # checked, so only a changing file gets here
+        warnings.warn(f"cannot load the compiled library {str(library)!r} ({error}): using "
+                      "the plain implementation", CompiledCacheWarning, stacklevel=2)
         return None
+    return loaded

@@ -11,6 +11,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import datetime
+import difflib
 import math
 import typing
 from typing import Any, TypeVar
@@ -119,6 +120,19 @@ def _mapping(data: Any, key: str) -> dict[str, Any]:
     return copy.deepcopy(data)
 
 
+def unknown_key_error(prefix: str, name: str, known: list[str]) -> ConfigError:
+    """``prefix.name`` is not a key: the closest known one suggested (difflib's ratio), else
+    the known ones listed."""
+    key = f"{prefix}.{name}" if prefix else name
+    close = difflib.get_close_matches(name, known, n=1, cutoff=0.6)
+    if close:
+        keys = f"`cosim config keys {prefix}`" if prefix else "`cosim config keys`"
+        suggestion = f"{prefix}.{close[0]}" if prefix else close[0]
+        return ConfigError(f"unknown key {shown(key)}: did you mean {suggestion!r}? (every "
+                           f"key: {keys})")
+    return ConfigError(f"unknown key {shown(key)}: expected one of {', '.join(known)}")
+
+
 def from_dict(cls: type[T], data: Any, prefix: str = "") -> T:
     """Build the dataclass ``cls`` from ``data``, validating every key and value.
 
@@ -132,10 +146,9 @@ def from_dict(cls: type[T], data: Any, prefix: str = "") -> T:
         raise ConfigError(f"{where} = {shown(data)}: expected a mapping of keys to values")
     hints = typing.get_type_hints(cls)
     fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
-    unknown = sorted(set(data) - set(fields))
+    unknown = sorted(set(data) - set(fields), key=str)
     if unknown:
-        key = f"{prefix}.{unknown[0]}" if prefix else str(unknown[0])
-        raise ConfigError(f"unknown key {shown(key)}: expected one of {', '.join(sorted(fields))}")
+        raise unknown_key_error(prefix, str(unknown[0]), sorted(fields))
     kwargs: dict[str, Any] = {}
     for name, value in data.items():
         key = f"{prefix}.{name}" if prefix else name

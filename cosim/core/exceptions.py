@@ -46,4 +46,11 @@ class PluginError(CosimError):
 
 class TrackerFault(CosimError):
     """A tracker from outside cosim failed during a run (raised, returned a non-finite
-    command, overran its time budget): the run ends with ``completed: false``."""
+    command, overran its time budget): the run ends with ``completed: false``.
+
+    ``detail`` holds what the one-line message leaves out (the traceback of an exception
+    in the user's code), for the log's ``/events``."""
+
+    def __init__(self, message: str, detail: str = "") -> None:
+        super().__init__(message)
+        self.detail = detail

@@ -53,9 +53,20 @@ def load_object(name: str, group: str, key: str) -> object:
     try:
         obj: object = importlib.import_module(module_name)
     except ModuleNotFoundError as error:
-        raise PluginError(f"{where}: no module named {error.name!r}: expected an importable "
-                          "module (is the package installed?)") from None
-    except Exception as error:  # the user's module failed while importing
+        if error.name is not None and module_name.split(".")[0] == error.name.split(".")[0]:
+            # The module itself is not on the import path (a file in the current folder
+            # is not: the `cosim` command's path starts at its own folder).
+            raise PluginError(
+                f"{where}: no module {error.name!r} on Python's import path (the installed "
+                "packages and PYTHONPATH): expected an installed package, or the folder "
+                f"holding {error.name.split('.')[0]}.py on PYTHONPATH (for the current "
+                "folder: PYTHONPATH=. cosim ...)") from None
+        raise PluginError(f"{where}: importing {module_name!r} needs the module "
+                          f"{error.name!r}, which is not installed: expected it installed "
+                          "in the environment cosim runs in") from None
+    except KeyboardInterrupt:
+        raise
+    except BaseException as error:  # noqa: BLE001 - the user's module failed while importing
         raise PluginError(f"{where}: importing {module_name!r} raised "
                           f"{type(error).__name__}: {error}") from None
     for part in attribute.split("."):

@@ -142,6 +142,17 @@ class Plan:
     """The tracker planned below the reference speed because the path ahead cannot be
     held at it (the believed friction; :mod:`tracker.mpc.grip_speed`)."""
 
+    @classmethod
+    def of_command(cls, command: Command, status: str = "command") -> Plan:
+        """The plan of a tracker that plans nothing: no predicted states, one input row
+        (the command itself), no cost, success. What a tracker whose ``step`` returns a
+        :class:`Command` alone is logged with."""
+        return cls(t_s=command.t_s, dt_s=0.0, state_names=(), states=np.zeros((1, 0)),
+                   input_names=("accel_mps2", "steer_rad"),
+                   inputs=np.array([[command.accel_mps2, command.steer_rad]], dtype=float),
+                   cost=0.0, solve_time_s=0.0, iterations=0, status=status, success=True,
+                   fallback=False)
+
     def column(self, name: str) -> np.ndarray:
         """One predicted state or input over the horizon, by name."""
         if name in self.state_names:

@@ -1,5 +1,5 @@
 """A Gymnasium environment around cosim's closed loop (optional extra: ``pip install
-cosim[gym]``).
+'cosim-testbed[gym]'``, or ``.[gym]`` from a checkout).
 
     import gymnasium
     import cosim.gym

@@ -5,15 +5,16 @@ The loop is the run's own (:class:`cosim.simulation.runner.RunState`): MuJoCo pl
 sensors, the filter, the actuator delay line, outcome events. The agent replaces the tracker:
 one :meth:`CosimEnv.step` is one control period (``sim.control_period_s``).
 
-Observation (``float64``, :data:`OBS_NAMES`): what a tracker may know, never the truth:
-the filter's estimate of ``vx_mps``, ``vy_mps``, ``yaw_rate_radps``, ``steer_rad``,
-``ax_mps2``; the estimated position relative to the path (``lateral_error_m``, positive
-left of it, ``heading_error_rad``); the reference speed there; the path's curvature at
-:data:`PREVIEW_M` ahead.
+Observation (``float64``, :data:`OBS_NAMES`, bounded by :data:`OBS_BOUNDS`): what a
+tracker may know, never the truth: the filter's estimate of ``vx_mps``, ``vy_mps``,
+``yaw_rate_radps``, ``steer_rad``, ``ax_mps2``; the estimated position relative to the path
+(``lateral_error_m``, positive left of it, ``heading_error_rad``); the reference speed
+there; the path's curvature at :data:`PREVIEW_M` ahead.
 
 Action (``float32`` Box ``[-1, 1]^2``): ``[steer, accel]`` normalised, ``steer_rad = a0
 tracker.max_steer_rad`` and ``accel_mps2`` affine from ``[-1, 1]`` onto
-``[tracker.accel_min_mps2, tracker.accel_max_mps2]``.
+``[tracker.accel_min_mps2, tracker.accel_max_mps2]``; values outside are clipped, an action
+of another shape or with NaN is a ``ValueError`` (:meth:`CosimEnv.command_of`).
 
 Reward per step: ``-(cte_m^2 + heading_err_rad^2 + 0.1 (v - v_ref)^2 + 0.1 steer_rate^2)``
 with the simulator's true tracking errors (the reward is the experimenter's, not the
@@ -47,6 +48,22 @@ OBS_NAMES: tuple[str, ...] = (
     *(f"curvature_{int(d)}m_1pm" for d in PREVIEW_M),
 )
 """The observation vector's layout."""
+
+OBS_BOUNDS: dict[str, float] = {
+    "vx_mps": 100.0,           # 360 km/h, beyond any car of the scenarios
+    "vy_mps": 50.0,
+    "yaw_rate_radps": 10.0,    # a spinning car turns at a few rad/s
+    "steer_rad": 1.6,          # the road wheel's mechanical limit is below pi/2
+    "ax_mps2": 50.0,           # 5 g: only a crash is harder
+    "lateral_error_m": 100.0,  # a car this far off the path is long off the road
+    "heading_error_rad": float(np.pi),
+    "ref_speed_mps": 100.0,
+    **{f"curvature_{int(d)}m_1pm": 1.0 for d in PREVIEW_M},  # a 1 m radius
+}
+"""Each observation lies in ``[-bound, bound]`` (``ref_speed_mps`` in ``[0, bound]``): a
+value beyond (a diverging filter, a car far off its path) is clipped to it, so the
+observation space is finite, as learning code expects (Gymnasium's checker warns on
+infinite bounds)."""
 
 TERMINAL_EVENTS = ("off_road", "spun", "rolled_over", "end_of_path")
 
@@ -95,8 +112,9 @@ class CosimEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         self._accel_mid = 0.5 * (tracker.accel_max_mps2 + tracker.accel_min_mps2)
         self._accel_half = 0.5 * (tracker.accel_max_mps2 - tracker.accel_min_mps2)
         self.action_space = gymnasium.spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
-        self.observation_space = gymnasium.spaces.Box(
-            -np.inf, np.inf, shape=(len(OBS_NAMES),), dtype=np.float64)
+        high = np.array([OBS_BOUNDS[name] for name in OBS_NAMES])
+        low = np.where(np.array(OBS_NAMES) == "ref_speed_mps", 0.0, -high)
+        self.observation_space = gymnasium.spaces.Box(low, high, dtype=np.float64)
         self._state: RunState | None = None
         self._recorder: Any = None
         self._k = 0
@@ -113,8 +131,23 @@ class CosimEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         return self._state.reference
 
     def command_of(self, action: np.ndarray) -> Command:
-        """The command an action stands for (clipped to the action space)."""
-        a = np.clip(np.asarray(action, dtype=float), -1.0, 1.0)
+        """The command an action stands for (clipped to the action space).
+
+        An action of another shape, or with a NaN or infinite entry, is a ``ValueError``
+        naming it: clipping would hide an agent's bug (NaN passes through ``clip`` and came
+        out as a NaN brake torque deep in the plant)."""
+        try:
+            a = np.asarray(action, dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(f"action {action!r}: expected 2 numbers [steer, accel] in "
+                             "[-1, 1]") from None
+        if a.shape != self.action_space.shape:
+            raise ValueError(f"action of shape {a.shape}: expected shape "
+                             f"{self.action_space.shape}, [steer, accel] in [-1, 1]")
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"action {a.tolist()}: expected finite numbers [steer, accel] "
+                             "in [-1, 1] (the agent produced NaN or infinity)")
+        a = np.clip(a, -1.0, 1.0)
         return Command(0.0, self._accel_mid + self._accel_half * float(a[1]),
                        self._steer_max_rad * float(a[0]))
 
@@ -195,7 +228,10 @@ class CosimEnv(gymnasium.Env[np.ndarray, np.ndarray]):
             projection.lateral_error_m, float(np.arctan2(np.sin(heading), np.cos(heading))),
             float(reference.speed_ref(projection.s_m, estimate.t_s)),
             *preview["curvature_1pm"].tolist()]
-        return np.asarray(values, dtype=np.float64)
+        observation = np.asarray(values, dtype=np.float64)
+        # A NaN (a filter that diverged) becomes the bound's middle, 0: still in the space.
+        observation = np.nan_to_num(observation, nan=0.0)
+        return np.clip(observation, self.observation_space.low, self.observation_space.high)
 
     def _close_episode(self, completed: bool = False,
                        abort: str = "interrupted") -> dict[str, Any] | None:

@@ -53,7 +53,9 @@ def log_warnings(summary: LogSummary) -> list[str]:
         reason = metrics.get("abort_reason") or "no reason logged"
         warnings.append(f"run did not complete (completed: false): {reason}")
     if metrics and metrics.get("outcome", "ok") != "ok":
-        warnings.append(f"run ended badly: outcome {metrics['outcome']} (see /events)")
+        has_events = "/events" in {c.topic for c in summary.channels}
+        warnings.append(f"run ended badly: outcome {metrics['outcome']}"
+                        + (" (see /events)" if has_events else ""))
     warnings.extend(_solver_warnings(summary))
     if metrics:
         warnings.extend(_rejection_warnings(metrics))

@@ -50,8 +50,9 @@ def check_output_path(path: Path, option: str, force: bool,
     if path.is_dir():
         raise ConfigError(f"{option} {str(path)!r}: is a folder; expected a file name")
     if path.exists() and not force:
+        force_option = "--force" if option.startswith("--") else "force=True"
         raise ConfigError(f"{option} {str(path)!r}: exists; expected a new file name "
-                          "(or --force to replace it)")
+                          f"(or {force_option} to replace it)")
 
 
 class PendingFile:

@@ -386,13 +386,18 @@ def _add_anti_roll_bars(root: mjcf.RootElement, config: PlantConfig) -> None:
         tendon.add("joint", joint=f"{axle}_right_suspension", coef=-1.0)
 
 
+def body_box_m(params: CarParams) -> tuple[float, float, float]:
+    """The ego's body box in its vehicle frame: ``(centre ahead of the CoG, half length,
+    half width)`` [m], fitted to the wheelbase and the wider track."""
+    return (0.5 * (params.cog_front_m - params.cog_rear_m),
+            0.5 * params.wheelbase_m + OVERHANG_M, 0.5 * params.widest_track_m + 0.1)
+
+
 def _shape_body(root: mjcf.RootElement, params: CarParams) -> None:
     """Fit the visual body boxes to the wheelbase and the wider track (no mass: explicit
     inertials)."""
     height = params.cog_height_m
-    length_half = 0.5 * params.wheelbase_m + OVERHANG_M
-    centre_x = 0.5 * (params.cog_front_m - params.cog_rear_m)
-    width_half = 0.5 * params.widest_track_m + 0.1
+    centre_x, length_half, width_half = body_box_m(params)
     shell = root.find("geom", "chassis_shell")
     shell_bottom, shell_top = GROUND_CLEARANCE_M, GROUND_CLEARANCE_M + 0.65
     shell.pos = [centre_x, 0.0, 0.5 * (shell_bottom + shell_top) - height]

@@ -115,6 +115,11 @@ def traffic_cars(section: dict[str, Any]) -> tuple[tuple[str, TrafficCarConfig],
         if not isinstance(name, str) or not _NAME.match(name):
             raise ConfigError(f"traffic.{shown(name)}: expected a car name of lower-case "
                               "letters, digits and _ (starting with a letter)")
+        if not isinstance(data, dict):  # null would silently be a car of defaults
+            value = "null" if data is None else shown(data)
+            raise ConfigError(f"traffic.{name} = {value}: expected a mapping of the car's "
+                              f"settings (e.g. traffic.{name}.gap_m; `cosim config keys "
+                              "traffic.NAME`), or traffic={} for no traffic")
         cars.append((name, from_dict(TrafficCarConfig, data, f"traffic.{name}")))
     return tuple(cars)
 

@@ -1,4 +1,5 @@
-"""`cosim plot`: PNG figures of one run, or of two runs overlaid.
+"""`cosim plot`: PNG figures of one run, or of several runs overlaid (up to
+:data:`MAX_LOGS`).
 
 ``data`` reads a log into typed arrays; one module per figure group:
 
@@ -9,7 +10,10 @@
 ``tracking.png``       CTE, heading error, speed vs reference over time (``tracking``)
 ``commands.png``       steering, steering rate, acceleration with the tracker's limits
                        (``commands``)
-``estimation.png``     estimate - truth with +-3 sigma, NEES (``estimation``)
+``estimation.png``     the vehicle's states: estimate - truth with +-3 sigma, NEES,
+                       NIS per sensor (``estimation``)
+``estimation_internal.png``  the filter's biases, scales and residuals, truth where
+                       logged (``estimation``)
 ``solver.png``         solve-time histogram with p50/p99, over time, fallbacks
                        (``solver``)
 ``acc.png``            logs with traffic only: gap with the desired and minimum safe
@@ -26,29 +30,35 @@ from pathlib import Path
 
 from cosim.core.exceptions import CosimError
 
+MAX_LOGS = 6
+"""Logs one figure overlays: more lines than this no eye tells apart."""
+
 FIGURES = ("top_view", "tracking", "commands", "estimation", "solver")
 """The PNG files written, in this order (``<name>.png``)."""
 
 
 def default_out_dir(paths: Sequence[Path]) -> Path:
-    """Beside the first log: ``<stem>-plots`` or ``<stem>-vs-<stem2>-plots``."""
-    stem = "-vs-".join(p.stem for p in paths)
+    """Beside the first log: ``<stem>-plots``, ``<stem>-vs-<stem2>-plots``, or for more
+    logs ``<stem>-vs-<n>-more-plots``."""
+    stem = "-vs-".join(p.stem for p in paths) if len(paths) <= 2 else \
+        f"{paths[0].stem}-vs-{len(paths) - 1}-more"
     return paths[0].parent / f"{stem}-plots"
 
 
 def plot_logs(paths: Sequence[Path | str], out_dir: Path | str | None = None) -> list[Path]:
-    """Write every figure of one log, or of two logs overlaid; returns the PNG paths."""
+    """Write every figure of one log, or of several logs overlaid; returns the PNG paths."""
     from cosim.plots.acc import acc_figure, load_acc
     from cosim.plots.commands import commands_figure
     from cosim.plots.data import distinct_labels, load_run
-    from cosim.plots.estimation import estimation_figure
+    from cosim.plots.estimation import estimation_figure, estimation_internal_figure
     from cosim.plots.solver import solver_figure
     from cosim.plots.top_view import top_view_figure
     from cosim.plots.tracking import tracking_figure
 
     paths = [Path(p) for p in paths]
-    if not 1 <= len(paths) <= 2:
-        raise CosimError(f"{len(paths)} logs: expected one log, or two to overlay")
+    if not 1 <= len(paths) <= MAX_LOGS:
+        raise CosimError(f"{len(paths)} logs: expected one log, or up to {MAX_LOGS} to "
+                         "overlay")
     runs = distinct_labels([load_run(p) for p in paths])
     out = Path(out_dir) if out_dir is not None else default_out_dir(paths)
     try:
@@ -62,6 +72,9 @@ def plot_logs(paths: Sequence[Path | str], out_dir: Path | str | None = None) ->
         "solver": solver_figure,
     }
     written = [makers[name](runs, out / f"{name}.png") for name in FIGURES]
+    internal = estimation_internal_figure(runs, out / "estimation_internal.png")
+    if internal is not None:
+        written.insert(FIGURES.index("estimation") + 1, internal)
     acc_logs = [load_acc(run.path) for run in runs]
     if any(log is not None for log in acc_logs):  # runs with traffic
         with_traffic = [(r, log) for r, log in zip(runs, acc_logs, strict=True)
@@ -71,8 +84,8 @@ def plot_logs(paths: Sequence[Path | str], out_dir: Path | str | None = None) ->
     return written
 
 
-def plot_command(file: str, file2: str | None, out_dir: str | None) -> int:
-    """`cosim plot FILE [FILE2] [--out DIR]`: write the PNGs and print their paths."""
-    for written in plot_logs([file] if file2 is None else [file, file2], out_dir):
+def plot_command(files: Sequence[str], out_dir: str | None) -> int:
+    """`cosim plot FILE [FILE ...] [--out DIR]`: write the PNGs and print their paths."""
+    for written in plot_logs(list(files), out_dir):
         print(written)
     return 0

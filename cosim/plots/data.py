@@ -11,7 +11,6 @@ the true horizontal speed minus the reference speed.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -20,6 +19,7 @@ import numpy as np
 
 from cosim.core.exceptions import CosimError, LogReadError
 from cosim.log.reader import iter_topics, read_summary
+from cosim.simulation.changes import config_changes, config_differences, flat_config, shown_value
 from cosim.simulation.metrics import NEES_STATES
 from tracker.paths.reference_path import ReferencePath, wrap_angle
 
@@ -176,6 +176,9 @@ class RunLog:
     estimation: EstimationErrors | None
     nis: dict[str, SensorNis] | None = None
     """Per sensor; None for logs without ``/estimator/updates``."""
+    changes: tuple[str, ...] = ()
+    """What the run changed from its scenario (``plant.mass_kg=2000``;
+    :func:`cosim.simulation.changes.config_changes`)."""
 
     @property
     def tracker_name(self) -> str:
@@ -322,6 +325,9 @@ def load_run(path: Path | str) -> RunLog:
     if not messages["/vehicle/truth"]:
         raise LogReadError(f"{str(path)!r}: no /vehicle/truth messages (nothing to plot)")
     truth = _truth(messages["/vehicle/truth"])
+    if not np.any(np.isfinite(truth.t_s) & np.isfinite(truth.x_m) & np.isfinite(truth.y_m)):
+        raise LogReadError(f"{str(path)!r}: no /vehicle/truth message with a finite t_s, x_m "
+                           "and y_m (nothing to plot): expected a log that cosim wrote")
     estimate = _estimate(messages["/vehicle/estimate"])
     reference = _reference(messages["/reference/path"])
     config = summary.config
@@ -334,6 +340,7 @@ def load_run(path: Path | str) -> RunLog:
         tracking=_tracking(truth, reference, messages["/control/errors"]),
         estimation=_estimation(truth, estimate),
         nis=_nis(messages["/estimator/updates"]),
+        changes=tuple(config_changes(config)) if config else (),
     )
 
 
@@ -355,40 +362,6 @@ MAX_LABEL_DIFFERENCES = 3
 """A run's label names at most this many configuration differences (then "+n more")."""
 
 
-def flat_config(config: Any, prefix: str = "") -> dict[str, Any]:
-    """The logged configuration as ``dotted.key -> value`` (lists as ``key[i]``)."""
-    if isinstance(config, dict):
-        flat: dict[str, Any] = {}
-        for key, value in config.items():
-            flat.update(flat_config(value, f"{prefix}.{key}" if prefix else str(key)))
-        return flat
-    if isinstance(config, list):
-        flat = {}
-        for i, value in enumerate(config):
-            flat.update(flat_config(value, f"{prefix}[{i}]"))
-        return flat or {prefix: "[]"}
-    return {prefix: config}
-
-
-def config_differences(configs: Sequence[dict[str, Any]]) -> list[str]:
-    """The dotted keys whose values differ between the logged configurations, in the order
-    of the first one (keys only one of them has count as different); ``description`` and
-    a ``tracker.latency_s`` that follows ``plant.actuator_delay_s`` are left out."""
-    flats = [flat_config(config) for config in configs]
-    keys = list(dict.fromkeys(key for flat in flats for key in flat))
-    missing = object()
-    differing = [key for key in keys
-                 if key != "description"
-                 and len({repr(flat.get(key, missing)) for flat in flats}) > 1]
-    if "plant.actuator_delay_s" in differing and "tracker.latency_s" in differing:
-        differing.remove("tracker.latency_s")
-    return differing
-
-
-def _label_value(value: Any) -> str:
-    if isinstance(value, float):
-        return f"{value:g}"
-    return "n/a" if value is None else str(value)
 def load_estimation(path: Path | str) -> EstimationErrors | None:
     """The estimation errors of a log (and their NEES) alone: reads only the truth and the
     estimate, for ensembles of many runs (:mod:`cosim.sweeps.ensemble`)."""
@@ -417,7 +390,7 @@ def distinct_labels(runs: list[RunLog]) -> list[RunLog]:
         labelled = []
         for run in runs:
             flat = flat_config(run.config)
-            parts = [f"{key}={_label_value(flat.get(key))}" for key in shown]
+            parts = [f"{key}={shown_value(flat.get(key))}" for key in shown]
             if more > 0:
                 parts.append(f"+{more} more")
             labelled.append(replace(run, label=f"{run.label}: {', '.join(parts)}"))

@@ -1,6 +1,8 @@
 """Estimation: every estimated state with the filter's own +-3 sigma, NEES, and NIS per sensor.
 
-One panel per state the estimator reports, in its order. Where the truth has the same
+Two figures: ``estimation.png`` holds the states the car's truth has, with NEES and NIS;
+``estimation_internal.png`` the filter's own states (biases, scales, residuals). One panel
+per state, in the estimator's order. Where the truth has the same
 quantity (pose, velocities, yaw rate, longitudinal acceleration, road-wheel angle, roll) the
 panel shows the error, estimate minus truth at the log times both topics share (angles
 wrapped), inside the band of +-3 sigma from the diagonal of the logged covariance: a
@@ -228,43 +230,77 @@ def _headroom(ax: Any) -> None:
         ax.set_ylim(low, high + LEGEND_HEADROOM * (high - low))
 
 
-def estimation_figure(runs: Sequence[RunLog], path: Path) -> Path:
-    names = _state_names(runs)
-    rows = -(-(len(names) + 2) // COLUMNS)
+def _with_truth(runs: Sequence[RunLog], name: str) -> bool:
+    """Whether any run logs the truth of state ``name`` (so its error can be drawn)."""
+    return any(run.estimation is not None and name in run.estimation.error for run in runs)
+
+
+def _state_panel(ax: Any, runs: Sequence[RunLog], name: str) -> None:
+    """One state's panel: estimate - truth with +-3 sigma, or the estimate and its band."""
+    extent = _Range()
+    kind = ""
+    for i, run in enumerate(runs):
+        if _error_panel(ax, run, i, name, extent):
+            kind = kind or "error"
+        elif _estimate_panel(ax, run, i, name, extent):
+            kind = kind or "estimate"
+        else:
+            note(ax, f"{run.label}: does not estimate {name}")
+    _, unit = _plot_unit(name)
+    title = f"{name}: " + ("estimate - truth" if kind == "error" else "estimate")
+    if 0.0 < extent.settled < extent.extreme / 1.3 and kind == "error":
+        ax.set_ylim(-1.3 * extent.settled, 1.3 * extent.settled)
+        title += f" (first {SETTLE_S:g} s off scale)"
+    ax.set_title(title, fontsize=10)
+    ax.set_ylabel(f"[{unit}]")
+
+
+def _panels_figure(runs: Sequence[RunLog], names: Sequence[str], extra: int) -> tuple[Any, list]:
+    """A figure with a panel per state of ``names`` and ``extra`` more, two columns."""
+    rows = max(1, -(-(len(names) + extra) // COLUMNS))
     figure = new_figure(16.0, 2.3 * rows + 1.5)
     grid = figure.subplots(rows, COLUMNS, sharex=True, squeeze=False)
     axes = list(grid.ravel())
     for ax, name in zip(axes, names, strict=False):
-        extent = _Range()
-        kind = ""
-        for i, run in enumerate(runs):
-            if _error_panel(ax, run, i, name, extent):
-                kind = kind or "error"
-            elif _estimate_panel(ax, run, i, name, extent):
-                kind = kind or "estimate"
-            else:
-                note(ax, f"{run.label}: does not estimate {name}")
-        scale, unit = _plot_unit(name)
-        title = f"{name}: " + ("estimate - truth" if kind == "error" else "estimate")
-        if 0.0 < extent.settled < extent.extreme / 1.3:
-            if kind == "error":
-                ax.set_ylim(-1.3 * extent.settled, 1.3 * extent.settled)
-                title += f" (first {SETTLE_S:g} s off scale)"
-        ax.set_title(title, fontsize=10)
-        ax.set_ylabel(f"[{unit}]")
-    nees_ax, nis_ax = axes[len(names)], axes[len(names) + 1]
-    _nees_panel(nees_ax, runs)
-    _nis_panel(nis_ax, runs)
-    for ax in axes[len(names) + 2:]:
+        _state_panel(ax, runs, name)
+    for ax in axes[len(names) + extra:]:
         ax.set_axis_off()
     for ax in grid[-1]:
         time_axis(ax)
-    for ax in axes[:len(names) + 2]:
+    return figure, axes
+
+
+def _finish(figure: Any, axes: list, used: int, runs: Sequence[RunLog], what: str,
+            path: Path) -> Path:
+    for ax in axes[:used]:
         _headroom(ax)
         style_axes(ax)
         legend(ax, runs, loc="upper right", bbox_to_anchor=None, fontsize=7,
                ncol=2 if len(runs) > 1 else 1)
-    suptitle(figure, "State estimation: every estimated state with the filter's ±3σ, "
-                     "NEES and NIS", runs)
+    suptitle(figure, what, runs)
     run_legend(figure, runs)
     return save(figure, path)
+
+
+def estimation_figure(runs: Sequence[RunLog], path: Path) -> Path:
+    """``estimation.png``: the states the car's truth has (pose, velocities, yaw rate,
+    acceleration, road-wheel angle, roll), each as estimate - truth inside the filter's
+    +-3 sigma, then NEES and NIS per sensor."""
+    names = [n for n in _state_names(runs) if _with_truth(runs, n)]
+    figure, axes = _panels_figure(runs, names, 2)
+    _nees_panel(axes[len(names)], runs)
+    _nis_panel(axes[len(names) + 1], runs)
+    return _finish(figure, axes, len(names) + 2, runs, "State estimation: the vehicle's states "
+                   "(estimate - truth, the filter's ±3σ), NEES and NIS", path)
+
+
+def estimation_internal_figure(runs: Sequence[RunLog], path: Path) -> Path | None:
+    """``estimation_internal.png``: the filter's own states (sensor biases, scale factors,
+    residual forces, rates): the error where the truth is logged, else the estimate with
+    its +-3 sigma (does it settle, how sure is it); None when every state has a truth."""
+    names = [n for n in _state_names(runs) if not _with_truth(runs, n)]
+    if not names:
+        return None
+    figure, axes = _panels_figure(runs, names, 0)
+    return _finish(figure, axes, len(names), runs, "State estimation: the filter's internal "
+                   "states (biases, scales, residuals) with its ±3σ", path)

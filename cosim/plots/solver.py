@@ -98,6 +98,8 @@ def solver_figure(runs: Sequence[RunLog], path: Path) -> Path:
     for ax in (hist_ax, time_ax):
         style_axes(ax)
         legend(ax, runs)
+    if len(title_parts) > 1 and len(set(title_parts)) == 1:  # the same for every run
+        title_parts = [f"each: {title_parts[0]}"]
     suptitle(figure, "Tracker solve time — " + (" vs ".join(title_parts) or "no plans"), runs)
     run_legend(figure, runs)
     return save(figure, path)

@@ -6,15 +6,17 @@ global state, no display needed.
 
 from __future__ import annotations
 
+import textwrap
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from cosim.plots.data import RunLog
+from cosim.simulation.changes import changes_text
 
 DPI = 130
-RUN_COLOURS = ("tab:blue", "tab:orange")
-"""Run A, run B."""
+RUN_COLOURS = ("tab:blue", "tab:orange", "tab:purple", "tab:brown", "tab:pink", "tab:olive")
+"""Run A, run B, ... (green is the estimate's, grey the reference's)."""
 REFERENCE_COLOUR = "0.25"
 ESTIMATE_COLOUR = "tab:green"
 LIMIT_COLOUR = "tab:red"
@@ -53,7 +55,8 @@ def run_line(index: int) -> dict[str, Any]:
 
 
 def suptitle(figure: Any, what: str, runs: Sequence[RunLog]) -> None:
-    """``what``, then the runs: label, seed, and TRUNCATED / not completed marks."""
+    """``what``, then the runs: label, seed, what a single run changed from its scenario,
+    and TRUNCATED / not completed marks."""
     parts = []
     for run in runs:
         marks = []
@@ -63,8 +66,17 @@ def suptitle(figure: Any, what: str, runs: Sequence[RunLog]) -> None:
             marks.append(f"aborted: {run.metrics.get('abort_reason', '?')}")
         seed = run.config.get("seed")
         text = run.label + (f", seed {seed}" if seed is not None else "")
+        if len(runs) == 1 and run.changes:  # runs of several logs name their differences
+            text += f" — {changes_text(run.changes)}"
         parts.append(text + (f" ({'; '.join(marks)})" if marks else ""))
-    figure.suptitle(f"{what}\n" + "  vs  ".join(parts), fontsize=FONT_SIZE + 3)
+    common = [c for c in runs[0].changes if all(c in run.changes for run in runs[1:])] \
+        if len(runs) > 1 else []
+    shared = f"\nall runs: {changes_text(common)}" if common else ""
+    # As many characters a line as the figure is wide (about 9 per inch at this size).
+    columns = max(40, int(figure.get_figwidth() * 9)) if hasattr(figure, "get_figwidth") \
+        else 10_000
+    runs_text = textwrap.fill("  vs  ".join(parts), columns, break_long_words=False)
+    figure.suptitle(f"{what}\n{runs_text}{shared}", fontsize=FONT_SIZE + 3)
 
 
 def note(ax: Any, text: str, loc: str = "lower right") -> None:

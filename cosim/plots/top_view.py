@@ -331,56 +331,70 @@ def _close_up_panel(ax: Any, runs: Sequence[RunLog], centre: RunLog, t_s: float)
     nearest to ``centre``'s CoG at ``t_s``: the CTE as an arrow, the estimate, the
     predicted path's first metres."""
     assert centre.reference is not None and centre.tracking is not None
-    index = int(np.argmin(np.abs(centre.truth.t_s - t_s)))
-    origin = centre.reference.path.point(float(centre.tracking.s_m[index]))
-    ox, oy = origin.x_m, origin.y_m
+
+    def origin_of(run: RunLog) -> tuple[float, float]:
+        """The reference point nearest to the run's CoG at ``t_s``: each run is drawn
+        around its own, so runs that are apart along the path still overlay their CTE."""
+        tracking = run.tracking if run.tracking is not None else centre.tracking
+        reference = run.reference if run.reference is not None else centre.reference
+        k = int(np.argmin(np.abs(run.truth.t_s - t_s)))
+        point = reference.path.point(float(tracking.s_m[min(k, len(tracking.s_m) - 1)]))
+        return point.x_m, point.y_m
+
+    ox, oy = origin_of(centre)
     offsets = []
     for run in runs:
         if run.tracking is not None:
             k = int(np.argmin(np.abs(run.truth.t_s - t_s)))
-            offsets.append(np.hypot(run.truth.x_m[k] - ox, run.truth.y_m[k] - oy))
+            rx, ry = origin_of(run)
+            offsets.append(np.hypot(run.truth.x_m[k] - rx, run.truth.y_m[k] - ry))
     half_m = max(0.1, 2.5 * max(offsets, default=0.0))
     # Centimetres for a close-up; metres once the car is metres off (a spin).
     scale, unit = (100.0, "cm") if half_m <= CLOSE_UP_CM_UP_TO_M else (1.0, "m")
     half = half_m * scale
-    ref = centre.reference.path.sample(np.linspace(origin.s_m - 3 * half_m,
-                                                   origin.s_m + 3 * half_m, 50))
+    s0 = float(centre.reference.path.project(ox, oy).s_m)
+    ref = centre.reference.path.sample(np.linspace(s0 - 3 * half_m, s0 + 3 * half_m, 50))
     ax.plot((ref["x_m"] - ox) * scale, (ref["y_m"] - oy) * scale, color=REFERENCE_COLOUR,
             linestyle="--", linewidth=1.2, label="reference path")
     for i, run in enumerate(runs):
         colour = run_colour(i)
+        rx, ry = origin_of(run)
         k = int(np.argmin(np.abs(run.truth.t_s - t_s)))
-        near = np.hypot(run.truth.x_m - ox, run.truth.y_m - oy) < 4 * half_m
-        ax.plot((run.truth.x_m[near] - ox) * scale, (run.truth.y_m[near] - oy) * scale,
+        near = np.hypot(run.truth.x_m - rx, run.truth.y_m - ry) < 4 * half_m
+        ax.plot((run.truth.x_m[near] - rx) * scale, (run.truth.y_m[near] - ry) * scale,
                 linewidth=1.2, **run_line(i), label=generic(i, "true CoG path"))
-        px, py = (run.truth.x_m[k] - ox) * scale, (run.truth.y_m[k] - oy) * scale
+        px, py = (run.truth.x_m[k] - rx) * scale, (run.truth.y_m[k] - ry) * scale
         cte_text = (f"CTE {run.tracking.cte_m[k] * scale:+.{1 if unit == 'cm' else 2}f} {unit}"
                     if run.tracking is not None else "")
         ax.annotate("", xy=(px, py), xytext=(0.0, 0.0),
                     arrowprops={"arrowstyle": "->", "color": colour, "linewidth": 1.5})
         ax.plot(px, py, marker="o", color=colour, markersize=6, linestyle="none",
                 label=generic(i, f"true CoG at t = {t_s:.2f} s"))
-        ax.annotate(cte_text, xy=(0.5 * px, 0.5 * py), xytext=(6, 12 * i),
-                    textcoords="offset points", color=colour, fontsize=FONT_SIZE,
-                    va="center")
+        # Labels stacked in the panel's corner: arrows of several runs never hide them.
+        ax.text(0.02, 0.96 - 0.08 * i, cte_text, transform=ax.transAxes, color=colour,
+                fontsize=FONT_SIZE, va="top", ha="left")
         if run.estimate is not None:
             e = int(np.argmin(np.abs(run.estimate.t_s - t_s)))
-            ax.plot((run.estimate.column("x_m")[e] - ox) * scale,
-                    (run.estimate.column("y_m")[e] - oy) * scale, marker="x",
+            ax.plot((run.estimate.column("x_m")[e] - rx) * scale,
+                    (run.estimate.column("y_m")[e] - ry) * scale, marker="x",
                     color=ESTIMATE_COLOUR if len(runs) == 1 else colour, markersize=8,
                     markeredgewidth=2, linestyle="none", label=generic(i, "estimated CoG"))
         plans = run.plans
         if plans is not None and plans.has_positions:
             p = int(np.argmin(np.abs(plans.t_s - t_s)))
-            ax.plot((plans.predicted[p]["x_m"] - ox) * scale,
-                    (plans.predicted[p]["y_m"] - oy) * scale, color=colour,
+            ax.plot((plans.predicted[p]["x_m"] - rx) * scale,
+                    (plans.predicted[p]["y_m"] - ry) * scale, color=colour,
                     linestyle=(0, (4, 2)), linewidth=1.0, marker=".", markersize=4,
                     label=generic(i, f"MPC predicted path (t = {plans.t_s[p]:.2f} s)"))
     ax.set_xlim(-half, half)
     ax.set_ylim(-0.6 * half, 0.6 * half)
     ax.set_aspect("equal", adjustable="box")
-    ax.set_xlabel(f"x {'-' if ox >= 0 else '+'} {abs(ox):.2f} m [{unit}]")
-    ax.set_ylabel(f"y {'-' if oy >= 0 else '+'} {abs(oy):.2f} m [{unit}]")
+    if len(runs) == 1:
+        ax.set_xlabel(f"x {'-' if ox >= 0 else '+'} {abs(ox):.2f} m [{unit}]")
+        ax.set_ylabel(f"y {'-' if oy >= 0 else '+'} {abs(oy):.2f} m [{unit}]")
+    else:  # each run around its own nearest reference point
+        ax.set_xlabel(f"x east of each run's nearest reference point [{unit}]")
+        ax.set_ylabel(f"y north of it [{unit}]")
     ax.set_title(f"close-up (true scale, {unit}) at the largest |CTE|, t = {t_s:.2f} s",
                  fontsize=10)
 

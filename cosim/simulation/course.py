@@ -192,7 +192,7 @@ def build_course(path: PathConfig, initial: InitialState, plant: CarParams,
     elif path.kind == "s-curve":
         shape = shapes.s_curve(path.radius_m, path.arc_deg, path.approach_m, path.length_m)
     elif path.kind in ("track", "generated"):
-        track = (load_track(resolve_track_file(path.file)) if path.kind == "track"
+        track = (load_track(resolve_track_file(path.file), path.closed) if path.kind == "track"
                  else generated_circuit(path.seed))
         shape, bounds = _circuit(track, path)
     else:  # validated by choices
@@ -217,8 +217,14 @@ def _circuit(track: TrackData, path: PathConfig) -> tuple[shapes.Shape, TrackBou
     shape = shapes.Shape(*frame.apply(x_m, y_m), closed)
     geometry = ReferencePath(shape.x_m, shape.y_m, 1.0, closed=shape.closed)
     raw_x, raw_y = frame.apply(track.x_m, track.y_m)
-    s_points = np.array([geometry.project(x, y).s_m
-                         for x, y in zip(raw_x, raw_y, strict=True)])
+    # Each point's arc length: its chord length along the points, scaled to the path's,
+    # refined by a projection searched near it (a search of the whole path per point
+    # would cost the point count squared).
+    chords = np.concatenate(([0.0], np.cumsum(np.hypot(np.diff(raw_x), np.diff(raw_y)))))
+    guess = chords * geometry.length_m / max(chords[-1] + np.hypot(
+        raw_x[-1] - raw_x[0], raw_y[-1] - raw_y[0]) * closed, 1e-9)
+    s_points = np.array([geometry.project(x, y, near_s_m=g).s_m
+                         for x, y, g in zip(raw_x, raw_y, guess, strict=True)])
     s_points[0] = 0.0
     order = np.argsort(s_points)
     default = np.full(track.x_m.size, path.default_width_m)

@@ -19,6 +19,10 @@ kept. The thresholds are the ``outcome:`` section of the config (:class:`Outcome
 - ``collision``: the ego's body touched a traffic car's (runs with traffic,
   :mod:`cosim.simulation.traffic_loop`); the run ends there, ``completed: false``.
 
+A run stops at the first of the :data:`TERMINAL` events (a spin, a rollover, leaving the
+road), ``completed: false`` with the reason, so that its metrics (``cte_max_m`` ...) describe
+the run up to the event; ``outcome.keep_going: true`` runs on to the end instead.
+
 The run's ``outcome`` metric is ``ok`` when it completed without events; else the abort
 (``interrupted``, ``diverged``, ``error``) or the most severe event's kind, in the order of
 :data:`SEVERITY`. Open-loop manoeuvres follow no path, so only slip and roll count there.
@@ -61,6 +65,14 @@ class OutcomeConfig:
                                   doc="off-road beyond half of it from the path")
     end_margin_m: float = setting(1.0, low=0.0, high=1000.0,
                                   doc="the end of an open path is this close")
+    keep_going: bool = setting(False, doc="go on after a spin, a rollover or leaving the "
+                               "road (false: the run stops there, so its metrics describe "
+                               "the run up to it)")
+
+
+TERMINAL = ("rolled_over", "spun", "off_road")
+"""Events after which a run stops unless ``outcome.keep_going``: nothing after them tells
+how well the car was driven."""
 
 
 @dataclass(frozen=True)

@@ -53,13 +53,13 @@ from cosim.simulation.belief_check import BeliefMismatchWarning, belief_mismatch
 from cosim.simulation.course import Course, build_course
 from cosim.simulation.course_metrics import CourseMonitor
 from cosim.simulation.metrics import MetricsAccumulator
-from cosim.simulation.outcome import Event, OutcomeMonitor
+from cosim.simulation.outcome import TERMINAL, Event, OutcomeMonitor
 from cosim.simulation.scenario_config import ScenarioConfig, steps_per_period
 from cosim.simulation.traffic_loop import CollisionError, TrafficLoop, build_traffic
 from estimation.registry import make_estimator
 from estimation.update_result import UpdateResult
 from tracker.paths.reference_path import ReferencePath
-from tracker.protocol import Tracker
+from tracker.protocol import Closable, Tracker
 from tracker.registry import make_tracker
 
 
@@ -230,7 +230,7 @@ class _Run:
             config.estimator, config.initial, config.tracker.model,
             rng=component_rng(config.seed, "estimator.initial"))
         self.tracker = tracker if tracker is not None else \
-            make_tracker(config.tracker, config.maneuver)
+            make_tracker(config.tracker, config.maneuver, config.sim.control_period_s)
         """The run's tracker; the Gymnasium environment passes one that replays its actions."""
         self.fuse: Callable[[list[Measurement]], list[UpdateResult]] = getattr(
             self.estimator, "update_many", None) or self._fuse_one_by_one
@@ -265,6 +265,9 @@ class _Run:
         """Sim time of the next ``/metrics/live`` message."""
         self.events_registered = False
         """``/events`` is registered with the first event."""
+        self.stopped_by: Event | None = None
+        """The terminal event the run stops at (:data:`cosim.simulation.outcome.TERMINAL`),
+        once it has happened."""
         self.traffic = None if traffic is None else \
             TrafficLoop(config, self.plant, traffic, recorder, self.tracker,
                         component_rng(config.seed, "sensors.radar"))
@@ -343,6 +346,9 @@ class _Run:
                 self.truth, metrics.cte_m.last, metrics.heading_err_rad.last, metrics.last_path_s_m,
                 None if forces is None else tuple(f.load_n for f in forces)):
             self.write_event(event)
+            if event.kind in TERMINAL and not self.config.outcome.keep_going \
+                    and self.stopped_by is None:
+                self.stopped_by = event
         self.course_monitor.add_truth(self.truth, metrics.cte_m.last, metrics.last_path_s_m)
         self.recorder.write_finite("/control/errors", t_s, {
             "t_s": t_s, "cte_m": metrics.cte_m.last,
@@ -400,6 +406,17 @@ class _Run:
         if self.traffic is not None:
             self.traffic.after_control(t_s)
 
+    def record_fault(self, error: TrackerFault) -> None:
+        """The tracker's failure on ``/events``: kind ``tracker_fault``, the one-line
+        reason and the traceback of the user's code in ``detail``."""
+        if not self.events_registered:
+            self.recorder.register("/events", mcap_schemas.EVENT)
+            self.events_registered = True
+        t_s = self.metrics.last_t_s
+        self.recorder.write_finite("/events", t_s, {
+            "t_s": t_s, "kind": "tracker_fault", "value": float("nan"),
+            "threshold": float("nan"), "detail": f"{error}\n{error.detail}".strip()})
+
     def record_collision(self, error: CollisionError) -> None:
         """The ``collision`` event on ``/events`` (the run ends with it)."""
         self.write_event(self.monitor.collision(error.t_s, error.car))
@@ -445,10 +462,13 @@ class _Run:
                 "yaw_rate_change_radps": change.delta_radps})
 
     def observe(self, k: int) -> bool:
-        """Phases 1-2 of step ``k`` (log, sense); False at the end of the run."""
+        """Phases 1-2 of step ``k`` (log, sense); False at the end of the run (its last
+        step, or a terminal event: :attr:`stopped_by`)."""
         t_s = k * self.clock.dt_s
         if k % self.clock.log_steps == 0:
             self.log(k, t_s)
+            if self.stopped_by is not None:
+                return False
         self.sense(k, t_s)
         return k < self.clock.n_steps
 
@@ -484,25 +504,36 @@ def run(
     ``mirror`` sees every message as it is written (``cosim run --live``).
 
     SIGINT and SIGTERM stop the run between two physics steps; the log is finished with
-    ``completed: false`` and the result says ``interrupted``.
+    ``completed: false`` and the result says ``interrupted``. A ``SystemExit`` (or another
+    ``BaseException`` but ``KeyboardInterrupt``) raised by code inside the loop, a user's
+    plug-in calling ``sys.exit``, ends the run the same way with outcome ``error`` and the
+    reason; an ordinary exception is raised on once the log is finished.
     """
     wall_start = time.perf_counter()
     completed, abort_reason, abort = False, "", ""
     # One BLAS thread: the matrices here are small, and an idle BLAS thread spinning on
     # the other core made MPC solve times jitter (ltv-mpc p99 5 ms against 1 ms).
     with threadpool_limits(limits=1, user_api="blas"), McapRecorder(
-            out_path, epoch_ns=config.sim.epoch_ns, mirror=mirror) as recorder:
+            out_path, epoch_ns=config.sim.epoch_ns, mirror=mirror) as recorder, \
+            contextlib.ExitStack() as release:
         state = _Run(config, recorder)
+        if isinstance(state.tracker, Closable):  # released however the run ends
+            release.callback(state.tracker.close)
         state.write_header()
         recorder.publish()  # the run starts for real: the log takes its final name
         try:
             with _stop_on_signals() as stop:
                 state.loop(stop, progress)
-            completed = True
+            completed = state.stopped_by is None
+            if state.stopped_by is not None:
+                event = state.stopped_by
+                abort_reason = (f"stopped at {event.kind} (t = {event.t_s:.2f} s; "
+                                "outcome.keep_going: true runs on)")
         except PhysicsDivergenceError as error:
             abort_reason, abort = str(error), "diverged"
         except TrackerFault as error:  # a plug-in tracker failed: a result, not a crash
             abort_reason, abort = str(error), "error"
+            state.record_fault(error)
         except CollisionError as error:  # the ego hit a traffic car: a result
             abort_reason, abort = "collision", "collision"
             state.record_collision(error)
@@ -512,6 +543,9 @@ def run(
             _finish(recorder, state, wall_start, False,
                     f"{type(error).__name__}: {error}", "error")
             raise
+        except BaseException as error:  # noqa: BLE001 - SystemExit from a user's plug-in
+            abort_reason, abort = f"{type(error).__name__} raised during the run: " \
+                f"{error}", "error"
         if progress is not None:
             progress(1.0)
         metrics = _finish(recorder, state, wall_start, completed, abort_reason, abort)

@@ -37,16 +37,18 @@ from cosim.core.yaml_io import read_yaml_file, shown
 from cosim.log.foxglove import GeoOrigin
 from cosim.plant.disturbances import DisturbanceConfig
 from cosim.plant.sedan_sampler import sampled_sedan
-from cosim.plant.traffic import traffic_cars
 from cosim.sensing.faults import FaultConfig
 from cosim.sensing.sensors import SensorsConfig, suite_preset
 from cosim.simulation.outcome import OutcomeConfig
 from cosim.simulation.path_config import PathConfig
+from cosim.simulation.traffic_checks import check_traffic
 from cosim.simulation.unread_keys import UnreadKeyWarning, unread_key_warnings
 from estimation.config import ESTIMATOR_NAMES, EstimatorConfig
 from estimation.noise_config import suite_noise_preset
 from estimation.registry import estimator_class, required_sensors
 from tracker.config import TrackerConfig, is_plugin_name
+from tracker.fmu import check_fmu
+from tracker.fmu.config import is_fmu_name
 from tracker.maneuver import ManeuverConfig
 from tracker.plugin import check_plugin
 
@@ -227,13 +229,16 @@ def load_config(
     check_rates(config)
     check_required_sensors(config)
     check_faults(config)
-    traffic_cars(config.traffic)  # refuses a bad car here, before any run
-    if config.tracker.acc.enabled and not config.traffic:
-        raise ConfigError("tracker.acc.enabled = true: expected a scenario with traffic "
-                          "(a traffic: section naming at least one car)")
-    # A bad plug-in is refused here, before any run starts.
+    check_traffic(config)  # a bad car, or one the ego or its ACC cannot meet: here
+    # A bad plug-in or FMU is refused here, before any run starts.
     if is_plugin_name(config.tracker.name):
         check_plugin(config.tracker)
+    if is_fmu_name(config.tracker.name):
+        check_fmu(config.tracker, config.sim.control_period_s,
+                  getattr(estimator_class(config.estimator.name), "state_names", None))
+    elif config.tracker.fmu.parameters:
+        warnings.warn(f"tracker.fmu.parameters is set but tracker.name = "
+                      f"{config.tracker.name!r} is no FMU: ignored", stacklevel=2)
     if config.estimator.name not in ESTIMATOR_NAMES:
         estimator_class(config.estimator.name)
     return config

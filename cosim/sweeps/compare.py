@@ -23,8 +23,13 @@ rate penalty, follows. With ``tracker.weights.steer_rate=0.3`` ``dynamic-nmpc`` 
 0.053 m, with ``tracker.weights.cte=100`` 0.051 m, both ahead of the LQR.
 
 Outputs in ``--out DIR``: ``league.md`` and ``league.csv`` (the table), ``league.png``
-(``cte_rms_m`` per scenario and tracker, log scale), ``rows.json`` (every run's metrics) and
-``rows.jsonl`` (each run's row as it finished, kept if the comparison is interrupted).
+(``cte_rms_m`` per scenario and tracker), ``rows.json`` (every run's metrics),
+``rows.jsonl`` (each run's row as it finished, kept if the comparison is interrupted) and
+``compare.json`` (what was compared). A folder with files in it is refused unless
+``--force`` (start afresh) or ``--resume`` (finish the interrupted comparison it holds). An
+interrupt (Ctrl-C, or SIGTERM or SIGINT to the command alone) stops the running runs within
+a second (:meth:`cosim.sweeps.execute.ProcessBackend.run`) and writes the league of the
+finished ones.
 """
 
 from __future__ import annotations
@@ -38,7 +43,10 @@ from pathlib import Path
 from typing import Any
 
 from cosim.core.exceptions import ConfigError
+from cosim.sweeps.results import read_row_log, refuse_non_empty
 from cosim.sweeps.spec import RunTask
+from tracker.config import is_plugin_name
+from tracker.fmu.config import is_fmu_name
 
 DEFAULT_TRACKERS: tuple[str, ...] = (
     "dynamic-nmpc", "kinematic-nmpc", "ltv-mpc", "dynamic-mpc",
@@ -158,6 +166,47 @@ def by_scenario(table: Sequence[LeagueRow]) -> dict[str, list[LeagueRow]]:
             for scenario, rows in groups.items()}
 
 
+def _aligned(header: list[str], body: list[list[str]]) -> list[str]:
+    """Columns padded to their widest cell: the first left-aligned, the rest right."""
+    widths = [max(len(r[i]) for r in [header, *body]) for i in range(len(header))]
+
+    def line(cells: list[str]) -> str:
+        return "  ".join(c.ljust(w) if i == 0 else c.rjust(w)
+                         for i, (c, w) in enumerate(zip(cells, widths, strict=True))).rstrip()
+
+    return [line(header), *(line(r) for r in body)]
+
+
+def league_text(table: Sequence[LeagueRow], width: int | None = None) -> str:
+    """The league as plain text that fits ``width`` columns (None: no limit, as when
+    piped): a row per tracker when that fits, else a row per metric with the trackers as
+    columns, else a block per tracker. Every number is shown whole, never cut."""
+    sections = []
+    for scenario, rows in by_scenario(table).items():
+        keys = [key for key, _, _ in LEAGUE_METRICS]
+        titles = [title for _, title, _ in LEAGUE_METRICS]
+        wide = _aligned(["tracker", *titles, "failures"],
+                        [[r.tracker, *(_cell(r.values[k]) for k in keys), str(r.failures)]
+                         for r in rows])
+        tall = _aligned(["metric", *(r.tracker for r in rows)],
+                        [[title, *(_cell(r.values[key]) for r in rows)]
+                         for key, title in zip(keys, titles, strict=True)]
+                        + [["failures", *(str(r.failures) for r in rows)]])
+        if width is None or max(map(len, wide)) <= width:
+            lines = wide
+        elif max(map(len, tall)) <= width:
+            lines = tall
+        else:
+            lines = []
+            for r in rows:
+                lines += [r.tracker] + [f"  {line}" for line in _aligned(
+                    ["metric", "value"], [[t, _cell(r.values[k])] for k, t in zip(keys, titles,
+                                                                          strict=True)]
+                    + [["failures", str(r.failures)]])[1:]]
+        sections.append("\n".join([scenario, *lines]))
+    return "\n\n".join(sections)
+
+
 def markdown(table: Sequence[LeagueRow]) -> str:
     """The league table as Markdown, one section per scenario, best RMS CTE first."""
     lines = []
@@ -184,31 +233,42 @@ def write_csv(table: Sequence[LeagueRow], path: Path) -> None:
 
 
 def write_chart(table: Sequence[LeagueRow], path: Path) -> None:
-    """Grouped bars of RMS CTE: one group per scenario, one bar per tracker (log scale)."""
-    import numpy as np
+    """RMS CTE of every tracker, one panel per scenario: horizontal bars on a linear axis
+    from zero (so lengths compare), best first, each labelled with its value; hatched bars
+    are the classic baselines. Scenarios differ by orders of magnitude, so each panel has
+    its own scale."""
+    import math
+
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    scenarios = list(dict.fromkeys(r.scenario for r in table))
-    trackers = list(dict.fromkeys(r.tracker for r in table))
-    figure = Figure(figsize=(max(6.0, 1.4 * len(scenarios) + 2.0), 4.5))
+    groups = by_scenario(table)
+    columns = 1 if len(groups) <= 3 else 2
+    panel_rows = math.ceil(len(groups) / columns)
+    trackers = max((len(rows) for rows in groups.values()), default=1)
+    figure = Figure(figsize=(6.5 * columns, 0.9 + panel_rows * (0.9 + 0.32 * trackers)),
+                    layout="constrained")
     FigureCanvasAgg(figure)
-    ax = figure.add_subplot()
-    width = 0.8 / max(1, len(trackers))
-    lookup = {(r.scenario, r.tracker): r.values["cte_rms_m"] for r in table}
-    for k, tracker in enumerate(trackers):
-        heights = [lookup.get((s, tracker)) or np.nan for s in scenarios]
-        hatch = "" if tracker in MPC_TRACKERS else "//"
-        ax.bar(np.arange(len(scenarios)) + (k - (len(trackers) - 1) / 2) * width, heights,
-               width, label=tracker, hatch=hatch)
-    ax.set_xticks(np.arange(len(scenarios)), [Path(s).stem for s in scenarios],
-                  rotation=20, ha="right")
-    ax.set_yscale("log")
-    ax.set_ylabel("RMS cross-track error [m]")
-    ax.set_title("cosim compare: RMS CTE per scenario (hatched: classic baselines)")
-    ax.grid(True, axis="y", which="both", alpha=0.3)
-    ax.legend(fontsize="small", ncol=2)
-    figure.tight_layout()
+    axes = figure.subplots(panel_rows, columns, squeeze=False).ravel()
+    for ax, (scenario, rows) in zip(axes, groups.items(), strict=False):
+        shown = [r for r in rows if r.values["cte_rms_m"] is not None][::-1]  # best on top
+        values = [float(r.values["cte_rms_m"] or 0.0) for r in shown]
+        bars = ax.barh([r.tracker for r in shown], values,
+                       color=["C0" if r.tracker in MPC_TRACKERS else "C1" for r in shown],
+                       hatch=["" if r.tracker in MPC_TRACKERS else "//" for r in shown])
+        ax.bar_label(bars, labels=[f"{v:.3g}" for v in values], padding=3, fontsize=8)
+        ax.set_xlim(0.0, 1.18 * max(values, default=1.0) or 1.0)
+        ax.set_title(Path(scenario).stem, fontsize=10)
+        ax.set_xlabel("RMS cross-track error [m]", fontsize=9)
+        ax.grid(True, axis="x", alpha=0.3)
+        missing = [r.tracker for r in rows if r.values["cte_rms_m"] is None]
+        if missing:
+            ax.text(0.99, 0.02, "no value: " + ", ".join(missing), transform=ax.transAxes,
+                    ha="right", va="bottom", fontsize=7)
+    for ax in axes[len(groups):]:
+        ax.set_visible(False)
+    figure.suptitle("cosim compare: RMS cross-track error\n(hatched: classic baselines; "
+                    "best on top)", fontsize=11)
     figure.savefig(path, dpi=110)
 
 
@@ -235,14 +295,73 @@ def write_outputs(rows: Sequence[dict[str, Any]], out_dir: Path) -> list[LeagueR
     return table
 
 
+COMPARE_FILE = "compare.json"
+"""In ``--out DIR``: what was compared, so that ``--resume`` finishes the same comparison."""
+
+ROWS_FILE = "rows.jsonl"
+
+
+class CompareInterrupted(KeyboardInterrupt):
+    """A comparison stopped by Ctrl-C or SIGTERM; ``rows`` holds every finished run."""
+
+    def __init__(self, rows: list[dict[str, Any]]) -> None:
+        super().__init__()
+        self.rows = rows
+
+
+def non_empty_refusal(out_dir: Path, force: bool, resume: bool) -> None:
+    """Refuse an ``--out`` that is a file, or a folder with files in it unless ``force`` or
+    ``resume`` (the earlier results would be overwritten or mixed in)."""
+    if out_dir.exists() and not out_dir.is_dir():
+        raise ConfigError(f"--out {str(out_dir)!r}: is a file: expected a folder")
+    if not (force or resume):
+        refuse_non_empty(out_dir, "replace its results", "finish the run that wrote them")
+
+
+def _prepare(out_dir: Path, what: dict[str, Any], force: bool,
+             resume: bool) -> dict[int, dict[str, Any]]:
+    """Start ``out_dir`` for the comparison ``what``, or (``resume``) read its finished rows."""
+    non_empty_refusal(out_dir, force, resume)
+    stored = out_dir / COMPARE_FILE
+    if resume:
+        try:
+            earlier = json.loads(stored.read_text())
+        except (OSError, ValueError):
+            raise ConfigError(f"--resume: {str(out_dir)!r} holds no comparison to finish (no "
+                              f"readable {COMPARE_FILE}): expected the --out of an "
+                              "interrupted comparison") from None
+        if earlier != what:
+            raise ConfigError(f"--resume: {str(out_dir)!r} compared {shown_what(earlier)}: "
+                              f"expected the same scenarios, trackers, seeds and duration "
+                              f"(now {shown_what(what)})")
+        return read_row_log(out_dir / ROWS_FILE)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    (out_dir / ROWS_FILE).write_text("")
+    stored.write_text(json.dumps(what, indent=1) + "\n")
+    return {}
+
+
+def shown_what(what: Any) -> str:
+    """A comparison's description in a few words (for messages)."""
+    if not isinstance(what, dict):
+        return "something else"
+    return (f"{','.join(what.get('scenarios', []))} x {','.join(what.get('trackers', []))} "
+            f"x {what.get('seeds')} seed(s), duration {what.get('duration_s')}")
+
+
 def run_compare(scenarios: Sequence[str], trackers: Sequence[str], seeds: int,
-                workers: int | None, duration_s: float | None, log_dir: Path | None,
-                rows_path: Path | None = None) -> list[dict[str, Any]]:
+                workers: int | None, duration_s: float | None, out_dir: Path | None,
+                keep_logs: bool = False, force: bool = False,
+                resume: bool = False) -> list[dict[str, Any]]:
     """Run every combination on a process pool with a progress bar; the rows, by run id.
 
-    Each scenario and its course are built once first, so a bad name, key or path file is
-    one error before any run. With ``rows_path`` each row is appended to it as one JSON line
-    as it lands (flushed), so an interrupt or a crash keeps the finished runs.
+    Each scenario and its course are built once first, and each scenario's config with each
+    plug-in or FMU tracker, so a bad name, key, path file or FMU is one error before any run.
+    With ``out_dir`` (refused when it holds files, unless
+    ``force``, or ``resume`` to run only what an interrupted comparison there left) each row
+    is appended to ``out_dir/rows.jsonl`` as one JSON line as it lands (flushed), so an
+    interrupt or a crash keeps the finished runs. An interrupt raises
+    :class:`CompareInterrupted` with the rows finished so far.
     """
     from cosim.simulation.runner import scenario_course
     from cosim.simulation.scenario_config import load_config
@@ -253,18 +372,32 @@ def run_compare(scenarios: Sequence[str], trackers: Sequence[str], seeds: int,
         raise ConfigError(f"--seeds {seeds}: expected at least 1")
     for scenario in scenarios:
         scenario_course(load_config(scenario, duration_s=duration_s))
+        for tracker in trackers:  # a bad plug-in or FMU: one error before any run
+            if is_plugin_name(tracker) or is_fmu_name(tracker):
+                load_config(scenario, duration_s=duration_s, tracker=tracker)
+    log_dir = out_dir / "logs" if out_dir is not None and keep_logs else None
     tasks = make_tasks(scenarios, trackers, seeds, duration_s, log_dir)
-    rows: list[dict[str, Any]] = []
-    if rows_path is not None:
-        rows_path.parent.mkdir(parents=True, exist_ok=True)
-        rows_path.write_text("")
-    with RunProgress(len(tasks), 0, "compare") as progress:
+    finished: dict[int, dict[str, Any]] = {}
+    rows_path = None
+    if out_dir is not None:
+        what = {"scenarios": list(scenarios), "trackers": list(trackers), "seeds": seeds,
+                "duration_s": duration_s}
+        finished = _prepare(out_dir, what, force, resume)
+        rows_path = out_dir / ROWS_FILE
+    rows = [row for row in finished.values() if row["run_id"] < len(tasks)]
+    missing = [task for task in tasks if task.run_id not in finished]
+    with RunProgress(len(tasks), len(rows), "compare") as progress:
         def land(row: dict[str, Any]) -> None:
+            if row.get("interrupted"):
+                return  # not a result: --resume runs it again
             rows.append(row)
             if rows_path is not None:
                 with rows_path.open("a") as handle:
                     handle.write(json.dumps(row) + "\n")
             progress.update(row, "error" if row["error"] else "ok")
 
-        ProcessBackend(workers or default_workers()).run(tasks, land)
+        try:
+            ProcessBackend(workers or default_workers()).run(missing, land)
+        except KeyboardInterrupt:
+            raise CompareInterrupted(sorted(rows, key=lambda r: r["run_id"])) from None
     return sorted(rows, key=lambda r: r["run_id"])

@@ -34,6 +34,7 @@ from cosim.sweeps.results import (
     SweepDir,
     append_row,
     failures,
+    refuse_non_empty,
     summary_markdown,
     write_tables,
 )
@@ -141,11 +142,14 @@ def check_size(spec: SweepSpec, spec_path: Path, yes: bool) -> None:
                          f"most {RUN_LIMIT:,} (or --yes to run them all)")
 
 
-def check_sweep_dir(out: Path) -> None:
-    """Refuse a sweep --out that names a file, or a place where no directory can be made
-    (checked without making anything: a refused spec leaves no directory behind)."""
+def check_sweep_dir(out: Path, force: bool = False, resume: bool = False) -> None:
+    """Refuse a sweep --out that names a file, a folder with files in it (unless ``force``
+    or ``resume``), or a place where no directory can be made (checked without making
+    anything: a refused spec leaves no directory behind)."""
     if out.exists() and not out.is_dir():
         raise CosimError(f"--out {str(out)!r}: is a file: expected a directory for the sweep")
+    if not (force or resume):
+        refuse_non_empty(out, "start the sweep afresh there", "finish the sweep it holds")
     existing = next(p for p in (out, *out.parents) if p.exists() or p == Path(p.anchor))
     if not existing.is_dir():
         raise CosimError(f"--out {str(out)!r}: cannot make the directory ({str(existing)!r} "
@@ -159,11 +163,12 @@ def run_sweep(spec_path: str | Path, out_dir: str | Path | None = None,
               workers: int | None = None, backend: str = "process",
               keep_logs: bool = False, resume: bool = False,
               on_row: Callable[[dict[str, Any]], None] | None = None,
-              yes: bool = False) -> SweepOutcome:
+              yes: bool = False, force: bool = False) -> SweepOutcome:
     """Run (or finish, with ``resume``) the sweep of ``spec_path`` into ``out_dir``.
 
     ``workers``: processes (``process``) or tasks in flight (``ray``); default: the cores
-    this process may use (``process``), Ray's own scheduling (``ray``). ``on_row`` is called
+    this process may use (``process``), Ray's own scheduling (``ray``). ``force`` starts the
+    sweep afresh in a folder that holds another (its rows are dropped). ``on_row`` is called
     with each raw row as it lands (tests use it). Raises :class:`cosim.core.exceptions.CosimError`
     on bad input (a sweep above :data:`RUN_LIMIT` runs without ``yes`` included),
     ``KeyboardInterrupt`` after an interrupt (rows kept, tables written, plots skipped so
@@ -177,7 +182,8 @@ def run_sweep(spec_path: str | Path, out_dir: str | Path | None = None,
     runner = make_backend(backend, workers, spec.ray_address)
     directory = SweepDir(Path(out_dir) if out_dir is not None else default_out_dir(spec_path))
     tasks = spec.tasks(directory.log_dir if keep_logs else None)
-    directory.prepare(spec, spec_path.read_text(encoding="utf-8-sig"), resume, len(tasks))
+    directory.prepare(spec, spec_path.read_text(encoding="utf-8-sig"), resume, len(tasks),
+                      force)
     rows = {run_id: row for run_id, row in directory.read_rows().items()
             if run_id < len(tasks)}
     missing = [task for task in tasks if task.run_id not in rows]

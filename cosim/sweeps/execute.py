@@ -4,7 +4,8 @@
 :func:`cosim.simulation.scenario_config.load_config` from the task's overrides and seed,
 calls :func:`cosim.simulation.runner.run` and returns the row as a plain dictionary (no numpy,
 no paths), so it crosses process and machine boundaries unchanged. It never raises for a failed
-run: an exception or a diverging plant becomes a row with ``error`` set, and the sweep goes on. Only
+run: an exception (``SystemExit`` from a user's plug-in included) or a diverging plant becomes
+a row with ``error`` set, and the sweep goes on. Only
 an interrupted run (SIGINT/SIGTERM inside the worker) is not a result: its row has
 ``interrupted: true`` and the driver drops it, so ``--resume`` runs it again.
 
@@ -36,7 +37,7 @@ import sys
 import tempfile
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -71,6 +72,29 @@ def _now() -> str:
     return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="milliseconds")
 
 
+def _run_task(task: RunTask, row: dict[str, Any]) -> None:
+    """Run ``task`` and fill ``row``'s metrics and error (:func:`execute_task`)."""
+    from cosim.simulation.outcome import SEVERITY
+    from cosim.simulation.runner import run
+    from cosim.simulation.scenario_config import load_config
+
+    config = load_config(task.scenario, None, list(task.overrides), task.seed,
+                         task.duration_s, task.tracker, task.estimator)
+    if task.log_path is None:
+        with tempfile.TemporaryDirectory(prefix="cosim-sweep-") as tmp:
+            result = run(config, Path(tmp) / "run.mcap")
+    else:
+        Path(task.log_path).parent.mkdir(parents=True, exist_ok=True)
+        result = run(config, Path(task.log_path))
+    row["metrics"] = {k: _plain(v) for k, v in result.metrics.items()}
+    if result.abort_reason == "interrupted":
+        row["interrupted"] = True
+    if not result.completed and result.outcome not in SEVERITY:
+        # An event (a collision, a spin) ends a run as a result, judged by the pass
+        # criteria; an abort (an exception, diverging physics, an interrupt) is an error.
+        row["error"] = result.abort_reason or "run did not complete"
+
+
 def execute_task(task: RunTask) -> dict[str, Any]:
     """Run one task and return its row: ids, varied values, seed, metrics, error, times.
 
@@ -78,9 +102,6 @@ def execute_task(task: RunTask) -> dict[str, Any]:
     ``None``); ``error`` is ``""`` for a run that completed, else the exception or the abort
     reason. ``started_at``/``finished_at`` are UTC wall-clock stamps.
     """
-    from cosim.simulation.runner import run
-    from cosim.simulation.scenario_config import load_config
-
     row: dict[str, Any] = {
         "run_id": task.run_id, "point": task.point, "seed": task.seed,
         "params": dict(task.params), "metrics": {}, "error": "", "interrupted": False,
@@ -88,23 +109,14 @@ def execute_task(task: RunTask) -> dict[str, Any]:
     }
     start = time.perf_counter()
     try:
-        config = load_config(task.scenario, None, list(task.overrides), task.seed,
-                             task.duration_s, task.tracker, task.estimator)
-        if task.log_path is None:
-            with tempfile.TemporaryDirectory(prefix="cosim-sweep-") as tmp:
-                result = run(config, Path(tmp) / "run.mcap")
-        else:
-            Path(task.log_path).parent.mkdir(parents=True, exist_ok=True)
-            result = run(config, Path(task.log_path))
-        row["metrics"] = {k: _plain(v) for k, v in result.metrics.items()}
-        if result.abort_reason == "interrupted":
-            row["interrupted"] = True
-        if not result.completed:
-            row["error"] = result.abort_reason or "run did not complete"
+        with _sigterm_interrupts():
+            _run_task(task, row)
     except KeyboardInterrupt:
         row["interrupted"] = True
         row["error"] = "interrupted"
-    except Exception as error:  # a failed run is a row, never the end of the sweep
+    except BaseException as error:  # noqa: BLE001 - a failed run is a row, never the end
+        # of the sweep: SystemExit from a user's plug-in included (re-raised in the parent
+        # by the pool, it would end the sweep with no rows)
         message = " ".join(str(error).split())
         row["error"] = f"{type(error).__name__}: {message}"
     row["task_wall_s"] = time.perf_counter() - start
@@ -124,6 +136,31 @@ def _init_worker(parent_pid: int) -> None:
         os.environ.setdefault(name, "1")
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     die_with_parent(parent_pid)
+
+
+def _interrupt(signum: int, frame: object) -> None:
+    del signum, frame
+    raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def _sigterm_interrupts() -> Iterator[None]:
+    """While a task runs, SIGTERM (the parent stopping its workers) is an interrupt, so a
+    run still being set up ends its row as interrupted; an idle worker keeps the default
+    (it ends quietly)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+STOP_GRACE_S = 0.8
+"""After an interrupt, how long running workers get to finish their rows (SIGTERM: a run
+stops between two physics steps and closes its log) before they are killed."""
 
 
 PARENT_CHECK_S = 0.5
@@ -176,10 +213,12 @@ class ProcessBackend:
     def run(self, tasks: Sequence[RunTask], on_row: RowSink) -> None:
         """Run every task, calling ``on_row`` with each row as it finishes.
 
-        On ``KeyboardInterrupt`` (Ctrl-C, or SIGTERM as the driver maps it) no further task
-        is handed to the pool, the running ones are waited for and their rows still handed
-        over (a run the interrupt stopped says so in its row), then the interrupt goes on.
-        No worker outlives the call.
+        On ``KeyboardInterrupt`` (Ctrl-C, or SIGTERM as the driver maps it, whether or not
+        the workers got the signal too) no further task is handed to the pool and every
+        worker is sent SIGTERM: its run stops between two physics steps and hands over its
+        row (saying it was interrupted). Rows that land within :data:`STOP_GRACE_S` are
+        handed over; workers still running then are killed, and the interrupt goes on. No
+        worker outlives the call.
         """
         if not tasks:
             return
@@ -202,12 +241,32 @@ class ProcessBackend:
                     for future in done:
                         on_row(_result(future))
             except KeyboardInterrupt:
-                for future in concurrent.futures.as_completed(running):
-                    if future.exception() is None:
-                        on_row(future.result())
+                _stop(executor, running, on_row)
                 raise
         finally:
             executor.shutdown(wait=True, cancel_futures=True)
+
+
+def _stop(executor: concurrent.futures.ProcessPoolExecutor,
+          running: set[concurrent.futures.Future[dict[str, Any]]], on_row: RowSink) -> None:
+    """Stop the pool's workers after an interrupt (:meth:`ProcessBackend.run`)."""
+    # The executor keeps its worker processes by pid; there is no public accessor before
+    # Python 3.14's terminate_workers().
+    workers = list(getattr(executor, "_processes", {}).values())
+    for worker in workers:
+        with contextlib.suppress(OSError, ValueError):
+            if worker.pid is not None:
+                os.kill(worker.pid, signal.SIGTERM)
+    done, _ = concurrent.futures.wait(running, timeout=STOP_GRACE_S)
+    for future in done:
+        if future.exception() is None:
+            on_row(future.result())
+    for worker in workers:
+        with contextlib.suppress(OSError, ValueError):
+            if worker.is_alive():
+                worker.kill()
+    for future in running:
+        future.cancel()
 
 
 def _result(future: concurrent.futures.Future[dict[str, Any]]) -> dict[str, Any]:

@@ -36,11 +36,29 @@ def _figure(width_in: float, height_in: float) -> Any:
     return figure
 
 
-def _bound(spec: SweepSpec) -> float | None:
+def _bounds(spec: SweepSpec, metric: str) -> tuple[float | None, float | None]:
+    """The pass criterion's (lower, upper) bound on ``metric`` (None where it has none)."""
     for criterion in spec.criteria:
-        if criterion.metric == spec.metric and not isinstance(criterion.bound, bool):
-            return float(criterion.bound)
-    return None
+        if criterion.metric == metric and not isinstance(criterion.bound, bool):
+            upper = float(criterion.bound)
+            lower = criterion.lower
+            return (lower if lower is not None and math.isfinite(lower) else None,
+                    upper if math.isfinite(upper) else None)
+    return None, None
+
+
+def _bound(spec: SweepSpec) -> float | None:
+    lower, upper = _bounds(spec, spec.metric)
+    return upper if upper is not None else lower
+
+
+def _low_is_bad(spec: SweepSpec, metric: str) -> bool:
+    """Whether a smaller value of ``metric`` is the worse one: a criterion with only a
+    lower bound (``gap_min_m: {min: 5}``), or a minimum over the run (``*_min_*``)."""
+    lower, upper = _bounds(spec, metric)
+    if lower is not None or upper is not None:
+        return lower is not None and upper is None
+    return "_min_" in f"{metric}_" and not metric.endswith("_max")
 
 
 def _tick_labels(parameter: Parameter) -> list[str]:
@@ -176,30 +194,41 @@ def _log_ticks(log_low: float, log_high: float, bound: float) -> list[float]:
 
 def metric_plots(spec: SweepSpec, flat: Sequence[dict[str, Any]], directory: Path
                  ) -> list[Path]:
-    """One ``<metric>-vs-<parameter>.png`` per varied parameter; returns the paths."""
+    """One ``<metric>-vs-<parameter>.png`` per plotted metric and varied parameter."""
     paths = []
-    for parameter in spec.parameters:
-        path = directory / f"{spec.metric}-vs-{parameter.path}.png"
-        _metric_plot(spec, flat, parameter, path)
-        paths.append(path)
+    for metric in spec.metrics:
+        for parameter in spec.parameters:
+            path = directory / f"{metric}-vs-{parameter.path}.png"
+            _metric_plot(spec, flat, parameter, path, metric)
+            paths.append(path)
     return paths
 
 
+EVENT_MARKERS = {"collision": "X", "spun": "v", "rolled_over": "s", "off_road": "D",
+                 "end_of_path": ">"}
+"""How a run that ended in an event is drawn (its outcome names it in the legend)."""
+
+
 def _metric_plot(spec: SweepSpec, flat: Sequence[dict[str, Any]], parameter: Parameter,
-                 path: Path) -> None:
-    metric, unit = spec.metric, unit_of(spec.metric)
-    bound = _bound(spec)
+                 path: Path, metric: str | None = None) -> None:
+    metric = metric or spec.metric
+    unit = unit_of(metric)
+    lower, upper = _bounds(spec, metric)
+    low_is_bad = _low_is_bad(spec, metric)
     numeric = all(isinstance(v, (int, float)) and not isinstance(v, bool)
                   for v in (parameter.values or (0.0,)))
 
     def position(value: Any) -> float:
         return float(value) if numeric else float(parameter.values.index(value))
 
+    def ended_in_event(row: dict[str, Any]) -> bool:
+        return not row["error"] and row.get("outcome") in EVENT_MARKERS
+
     figure = _figure(6.4, 4.2)
     axes = figure.add_subplot()
     good = [(position(r[parameter.path]), as_number(r[metric])) for r in flat if r["pass"]]
     bad = [(position(r[parameter.path]), as_number(r[metric])) for r in flat
-           if not r["pass"] and not r["error"]]
+           if not r["pass"] and not r["error"] and not ended_in_event(r)]
     errored = sum(bool(r["error"]) for r in flat)
     if good:
         axes.plot(*zip(*good, strict=True), "o", color="tab:green", alpha=0.7,
@@ -207,6 +236,24 @@ def _metric_plot(spec: SweepSpec, flat: Sequence[dict[str, Any]], parameter: Par
     if bad:
         axes.plot(*zip(*bad, strict=True), "x", color="tab:red", markersize=8,
                   label="run: fail")
+    events = sorted({str(r["outcome"]) for r in flat if ended_in_event(r)})
+    for kind in events:
+        points = [(position(r[parameter.path]), as_number(r[metric])) for r in flat
+                  if ended_in_event(r) and r["outcome"] == kind]
+        axes.plot(*zip(*points, strict=True), EVENT_MARKERS[kind], color="black",
+                  markersize=8, label=f"run: {kind.replace('_', ' ')}")
+    if events and numeric and parameter.values:
+        # Where the outcome turns: the first value with an event, the last without.
+        hit = [v for v in parameter.values if any(
+            ended_in_event(r) for r in flat if r[parameter.path] == v)]
+        clear = [v for v in parameter.values if v not in hit]
+        first = min(float(v) for v in hit)
+        below = [float(v) for v in clear if float(v) < first]
+        edge = 0.5 * (first + max(below)) if below else first
+        kinds = " / ".join(k.replace("_", " ") for k in events)
+        axes.axvspan(edge, max(float(v) for v in parameter.values) + 1e-9, color="tab:red",
+                     alpha=0.08, label=f"{kinds} from {first:g}"
+                     + (f" (none at {max(below):g})" if below else ""))
     if parameter.values:
         xs, ys = [], []
         for value in parameter.values:
@@ -214,18 +261,19 @@ def _metric_plot(spec: SweepSpec, flat: Sequence[dict[str, Any]], parameter: Par
                        and not r["error"]]
             if members:
                 xs.append(position(value))
-                ys.append(max(members))
+                ys.append(min(members) if low_is_bad else max(members))
         axes.plot(xs, ys, "-", color="0.3", linewidth=1.0, label="worst per value")
         if not numeric:
             axes.set_xticks(range(len(parameter.values)), [str(v) for v in parameter.values])
-    if bound is not None:
-        axes.axhline(bound, color="black", linestyle="--", linewidth=1.0,
-                     label=f"bound {bound:g} {unit}")
+    for bound, name in ((upper, "bound"), (lower, "lower bound")):
+        if bound is not None:
+            axes.axhline(bound, color="black", linestyle="--", linewidth=1.0,
+                         label=f"{name} {bound:g} {unit}")
     if isinstance(parameter.nominal, (int, float)) and numeric:
         axes.axvline(float(parameter.nominal), color="tab:blue", linestyle=":",
                      linewidth=1.0, label=f"nominal {parameter.nominal:g}")
     values = [v for _, v in good + bad if math.isfinite(v) and v > 0]
-    if values and max(values) / min(values) > 30.0:
+    if values and max(values) / min(values) > 30.0 and not events:
         axes.set_yscale("log")
     axes.set_xlabel(axis_label(parameter.path))
     axes.set_ylabel(f"{metric} [{unit}]")

@@ -41,6 +41,35 @@ RANDOM_BINS = 4
 """A random sweep's per-parameter aggregates group the values into this many equal bins."""
 
 
+def read_row_log(path: Path) -> dict[int, dict[str, Any]]:
+    """The finished rows of a row log (JSON lines) by run id; a torn or damaged line and an
+    interrupted run's row are skipped (``--resume`` runs them again)."""
+    rows: dict[int, dict[str, Any]] = {}
+    if not path.is_file():
+        return rows
+    for line in path.read_bytes().splitlines():
+        try:
+            row = json.loads(line.decode("utf-8"))
+        except ValueError:  # UnicodeDecodeError included
+            continue  # a line a kill or a full disk cut short, or damaged: run it again
+        if isinstance(row, dict) and isinstance(row.get("run_id"), int) \
+                and not row.get("interrupted"):
+            rows[row["run_id"]] = row
+    return rows
+
+
+def refuse_non_empty(out: Path, force_does: str, resume_does: str) -> None:
+    """Refuse ``--out`` naming a folder with files in it (their results would be overwritten
+    or mixed in); the message says what ``--force`` and ``--resume`` would do instead."""
+    if not out.is_dir():
+        return
+    entries = sorted(p.name for p in out.iterdir())
+    if entries:
+        names = ", ".join(entries[:3]) + (" ..." if len(entries) > 3 else "")
+        raise CosimError(f"--out {str(out)!r}: not empty ({names}): expected a new or empty "
+                         f"folder (or --force to {force_does}, --resume to {resume_does})")
+
+
 @dataclass(frozen=True)
 class SweepDir:
     """The paths of one sweep's output directory."""
@@ -59,13 +88,18 @@ class SweepDir:
     def log_dir(self) -> Path:
         return self.root / "logs"
 
-    def prepare(self, spec: SweepSpec, spec_text: str, resume: bool, n_runs: int) -> None:
+    def prepare(self, spec: SweepSpec, spec_text: str, resume: bool, n_runs: int,
+                force: bool = False) -> None:
         """Start a new sweep here, or check that ``--resume`` continues the same spec.
 
-        A directory that already holds a sweep is never overwritten: without ``--resume``
-        it is refused, with ``--resume`` its spec hash must match this spec's.
+        A directory that already holds a sweep is not overwritten: without ``--resume``
+        it is refused (unless ``force``: its rows are dropped and the sweep starts afresh),
+        with ``--resume`` its spec hash must match this spec's.
         """
         digest = spec.digest()
+        if self.sweep_file.is_file() and force and not resume:
+            self.rows_file.unlink(missing_ok=True)
+            self.sweep_file.unlink()
         if self.sweep_file.is_file():
             if not resume:
                 raise CosimError(
@@ -95,18 +129,7 @@ class SweepDir:
 
     def read_rows(self) -> dict[int, dict[str, Any]]:
         """The finished rows of ``results.jsonl`` by run id (a torn last line is skipped)."""
-        rows: dict[int, dict[str, Any]] = {}
-        if not self.rows_file.is_file():
-            return rows
-        for line in self.rows_file.read_bytes().splitlines():
-            try:
-                row = json.loads(line.decode("utf-8"))
-            except ValueError:  # UnicodeDecodeError included
-                continue  # a line a kill or a full disk cut short, or damaged: run it again
-            if isinstance(row, dict) and isinstance(row.get("run_id"), int) \
-                    and not row.get("interrupted"):
-                rows[row["run_id"]] = row
-        return rows
+        return read_row_log(self.rows_file)
 
     def open_rows(self) -> IO[str]:
         """``results.jsonl`` for appending; a torn last line is ended first."""

@@ -18,7 +18,9 @@ A spec is a YAML mapping::
     pass:                            # optional; upper bounds, or true/false for booleans
       cte_max_m: 0.3
       completed: true
-    metric: cte_max_m                # optional headline metric of the summary and plots;
+      gap_min_m: {min: 5}            # a lower bound (a *_min metric must say which)
+    metric: cte_max_m                # optional headline metric of the summary and plots
+                                     # (a list plots each: [gap_min_m, ttc_min_s]);
                                      # default: the first numeric pass criterion
     ray_address: ray://head:10001    # optional, --backend ray only
 
@@ -30,7 +32,8 @@ a model mismatch; the summary shows both sides.
 Validation happens here, before any run: every dotted path must be a key of the scenario's
 configuration, every grid value and both ends of every random range must pass the
 configuration's own checks (``ConfigError`` names the key and the accepted range), and
-every pass criterion must name a metric of :data:`cosim.simulation.metrics.METRIC_KEYS`.
+every pass criterion must name a metric a run produces
+(:func:`cosim.simulation.fail_if.metric_kind`: the traffic, course and manoeuvre metrics too).
 
 The list of runs (:meth:`SweepSpec.tasks`) depends on the spec only: per-run seeds are the
 spec's seeds, random values come from a generator seeded by ``random.seed``, and run ids
@@ -53,6 +56,7 @@ import yaml
 
 from cosim.core.exceptions import ConfigError
 from cosim.core.yaml_io import read_yaml_file, shown
+from cosim.simulation.fail_if import FLAG, NUMBER, WORD, known_metrics, metric_kind
 from cosim.simulation.metrics import METRIC_KEYS
 from tracker.config import is_plugin_name
 from tracker.plugin import resolved_params
@@ -145,15 +149,24 @@ class Parameter:
 
 @dataclass(frozen=True)
 class PassCriterion:
-    """``metric <= bound`` for a number, ``metric == bound`` for a boolean metric."""
+    """``lower <= metric <= bound`` for a number (``bound`` infinite: no upper bound),
+    ``metric == bound`` for a boolean metric."""
 
     metric: str
     bound: float | bool
+    lower: float = -math.inf
 
     def describe(self) -> str:
         if isinstance(self.bound, bool):
             return f"{self.metric} is {str(self.bound).lower()}"
-        return f"{self.metric} <= {_format(self.bound)} {unit_of(self.metric)}".rstrip(" -")
+        unit = unit_of(self.metric)
+        if math.isinf(self.lower):
+            text = f"{self.metric} <= {_format(self.bound)} {unit}"
+        elif math.isinf(self.bound):
+            text = f"{self.metric} >= {_format(self.lower)} {unit}"
+        else:
+            text = f"{_format(self.lower)} <= {self.metric} <= {_format(self.bound)} {unit}"
+        return text.rstrip(" -")
 
     def failure(self, metrics: dict[str, Any]) -> str | None:
         """Why ``metrics`` fail this criterion (``None`` when they pass)."""
@@ -165,6 +178,8 @@ class PassCriterion:
             return f"{self.metric}=n/a"
         if value > self.bound:
             return f"{self.metric}={value:.4g}>{self.bound:g}"
+        if value < self.lower:
+            return f"{self.metric}={value:.4g}<{self.lower:g}"
         return None
 
 
@@ -216,6 +231,13 @@ class SweepSpec:
     """The tracker the runs use (``tracker``, else the scenario's), for titles."""
     estimator_name: str = ""
     """The estimator the runs use (``estimator``, else the scenario's), for titles."""
+    also_plotted: tuple[str, ...] = ()
+    """Further metrics plotted against each parameter (``metric:`` given as a list)."""
+
+    @property
+    def metrics(self) -> tuple[str, ...]:
+        """Every metric the plots show: the headline first."""
+        return (self.metric, *self.also_plotted)
 
     @property
     def n_runs(self) -> int:
@@ -260,6 +282,10 @@ class SweepSpec:
         """The spec as plain data (what ``sweep.json`` stores and the hash covers)."""
         data = dataclasses.asdict(self)
         data.pop("scenario_text")
+        for criterion in data["criteria"]:  # plain JSON, and the hash of specs before it
+            for key in ("bound", "lower"):
+                if isinstance(criterion[key], float) and math.isinf(criterion[key]):
+                    criterion.pop(key)
         return json.loads(json.dumps(data, default=str))
 
     def digest(self) -> str:
@@ -369,27 +395,60 @@ class _SpecReader:
     def criteria(self, data: dict[str, Any]) -> tuple[PassCriterion, ...]:
         criteria = []
         for metric, bound in self.mapping(data, "pass").items():
-            if metric not in METRIC_KEYS:
-                close = difflib.get_close_matches(str(metric), METRIC_KEYS, n=1)
+            kind = metric_kind(str(metric))
+            if kind is None:
+                close = difflib.get_close_matches(str(metric), known_metrics(), n=1)
                 hint = f" (did you mean {close[0]}?)" if close else ""
-                raise self.error(f"pass: unknown metric {shown(metric)}{hint}: expected one of "
-                                 f"{', '.join(METRIC_KEYS)}")
-            if metric in BOOLEAN_METRICS:
+                raise self.error(f"pass: unknown metric {shown(metric)}{hint}: expected a "
+                                 "metric of `cosim inspect --json` (e.g. cte_max_m)")
+            if kind == WORD:
+                raise self.error(f"pass: {metric}: a word, not a number: expected a numeric "
+                                 "or true/false metric (e.g. completed: true)")
+            if kind == FLAG:
                 if not isinstance(bound, bool):
                     raise self.error(f"pass: {metric}: {shown(bound)}: expected true or false")
-            elif not _is_number(bound):
-                raise self.error(f"pass: {metric}: {shown(bound)}: expected a number "
-                                 f"(an upper bound in {unit_of(metric)})")
-            criteria.append(PassCriterion(metric, bound if isinstance(bound, bool)
-                                          else float(bound)))
+                criteria.append(PassCriterion(str(metric), bound))
+                continue
+            criteria.append(self.range_criterion(str(metric), bound))
         return tuple(criteria)
+
+    def range_criterion(self, metric: str, bound: Any) -> PassCriterion:
+        """A bare number is an upper bound; ``{min: X}``, ``{max: Y}`` or both say which."""
+        unit = unit_of(metric)
+        if isinstance(bound, dict):
+            extra = sorted(set(bound) - {"min", "max"}, key=str)
+            values = list(bound.values())
+            if extra or not bound or not all(_is_number(v) for v in values):
+                raise self.error(f"pass: {metric}: {shown(bound)}: expected {{min: X}}, "
+                                 f"{{max: Y}} or both, numbers in {unit}")
+            low, high = float(bound.get("min", -math.inf)), float(bound.get("max", math.inf))
+            if low > high:
+                raise self.error(f"pass: {metric}: {shown(bound)}: expected min <= max")
+            return PassCriterion(metric, high, low)
+        if not _is_number(bound):
+            raise self.error(f"pass: {metric}: {shown(bound)}: expected a number "
+                             f"(an upper bound in {unit}) or {{min: X}}")
+        if "_min" in metric:  # "gap_min_m: 5" reads as "at least 5": say which is meant
+            raise self.error(f"pass: {metric}: {shown(bound)}: {metric} is a minimum: "
+                             f"expected {{min: {bound}}} (at least) or {{max: {bound}}} "
+                             "(at most)")
+        return PassCriterion(metric, float(bound))
+
+    def metrics(self, value: Any, criteria: tuple[PassCriterion, ...]) -> tuple[str, ...]:
+        """``metric:``, one name or a list of them (the first is the headline)."""
+        if isinstance(value, list):
+            if not value:
+                raise self.error("metric: []: expected a metric name or a list of them")
+            return tuple(dict.fromkeys(self.metric(v, criteria) for v in value))
+        return (self.metric(value, criteria),)
 
     def metric(self, value: Any, criteria: tuple[PassCriterion, ...]) -> str:
         if value is None:
             numeric = [c.metric for c in criteria if not isinstance(c.bound, bool)]
             return numeric[0] if numeric else DEFAULT_METRIC
-        if value not in METRIC_KEYS or value in BOOLEAN_METRICS:
-            raise self.error(f"metric: {shown(value)}: expected a numeric metric, one of "
+        if metric_kind(str(value)) != NUMBER:
+            raise self.error(f"metric: {shown(value)}: expected a numeric metric of `cosim "
+                             "inspect --json`, e.g. one of "
                              f"{', '.join(k for k in METRIC_KEYS if k not in BOOLEAN_METRICS)}")
         return str(value)
 
@@ -411,7 +470,7 @@ def load_spec(path: str | Path) -> SweepSpec:
     seeds = reader.seeds(data.get("seeds"))
     fixed = tuple(reader.mapping(data, "set").items())
     criteria = reader.criteria(data)
-    metric = reader.metric(data.get("metric"), criteria)
+    metric, *also_plotted = reader.metrics(data.get("metric"), criteria)
     ray_address = reader.optional_str(data, "ray_address")
 
     def config(extra: tuple[tuple[str, Any], ...], what: str) -> Any:
@@ -497,6 +556,7 @@ def load_spec(path: str | Path) -> SweepSpec:
         scenario=scenario, tracker=tracker, estimator=estimator, duration_s=duration_s,
         seeds=seeds, fixed=fixed, mode=mode, parameters=tuple(parameters),
         random_n=random_n, random_seed=random_seed, criteria=criteria, metric=metric,
+        also_plotted=tuple(also_plotted),
         ray_address=ray_address, scenario_text=scenario_text,
         tracker_name=base.tracker.name, estimator_name=base.estimator.name,
     )

@@ -83,25 +83,91 @@ def test_bad_track_csv_is_one_line_and_exit_2(tmp_path: Path) -> None:
 
 
 @pytest.mark.slow
-def test_sigterm_stops_a_comparison_and_keeps_the_finished_runs(tmp_path: Path) -> None:
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+def test_a_signal_to_compare_alone_stops_its_runs_and_writes_the_league(
+        tmp_path: Path, signum: int) -> None:
+    """SIGTERM, or a SIGINT sent to the parent only (not a terminal's Ctrl-C, which reaches
+    every worker): the run in progress is stopped, not waited for, the league of the
+    finished runs is written, and --resume finishes the rest."""
     out = tmp_path / "league"
     rows_file = out / "rows.jsonl"
     env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "disable")}
-    process = subprocess.Popen(
-        [COSIM, "compare", "--trackers", "pid,lqr,stanley,pure-pursuit", "--scenarios",
-         "circle", "--duration", "2", "--workers", "1", "--out", str(out)],
-        env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    args = [COSIM, "compare", "--trackers", "pid,lqr,stanley", "--scenarios", "circle",
+            "--duration", "3", "--workers", "1", "--out", str(out)]
+    process = subprocess.Popen(args, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               text=True, start_new_session=True)  # no group-wide signal
     try:
         wait_for_rows(process, rows_file)
-        process.send_signal(signal.SIGTERM)
+        process.send_signal(signum)
         _, stderr = process.communicate(timeout=120)
     finally:
         if process.poll() is None:
             process.kill()
     assert process.returncode == 130, stderr
     assert stderr.strip().splitlines()[-1] == (
-        f"cosim: compare interrupted; the finished runs are in {rows_file}")
+        "cosim: compare interrupted; the league of the 1 finished run(s) is in "
+        f"{out / 'league.md'}; finish with --resume --out {out}")
     assert "Traceback" not in stderr
     rows = [json.loads(line) for line in rows_file.read_text().splitlines()]
-    assert 1 <= len(rows) < 4
-    assert all(row["metrics"]["completed"] for row in rows)
+    assert len(rows) == 1, "the run in progress was waited for instead of stopped"
+    assert rows[0]["metrics"]["completed"]
+    assert rows[0]["params"]["tracker"] in (out / "league.md").read_text()
+    again = cosim(*args[1:], "--resume")
+    assert again.returncode == 0, again.stderr
+    rows = [json.loads(line) for line in rows_file.read_text().splitlines()]
+    assert sorted(r["run_id"] for r in rows) == [0, 1, 2]
+    league_md = (out / "league.md").read_text()
+    assert all(name in league_md for name in ("pid", "lqr", "stanley"))
+
+
+def test_compare_refuses_a_folder_with_results_unless_told(tmp_path: Path) -> None:
+    out = tmp_path / "earlier"
+    out.mkdir()
+    (out / "rows.jsonl").write_text('{"earlier": "row"}\n')
+    result = cosim("compare", "--trackers", "pid", "--scenarios", "circle", "--duration",
+                   "0.2", "--out", str(out))
+    assert result.returncode == 2
+    (line,) = result.stderr.strip().splitlines()
+    assert "not empty (rows.jsonl)" in line and "--force" in line and "--resume" in line
+    assert (out / "rows.jsonl").read_text() == '{"earlier": "row"}\n'
+    forced = cosim("compare", "--trackers", "pid", "--scenarios", "circle", "--duration",
+                   "0.2", "--out", str(out), "--force")
+    assert forced.returncode == 0, forced.stderr
+    assert "earlier" not in (out / "rows.jsonl").read_text()
+
+
+def test_a_plugin_that_exits_is_one_failed_row_not_the_end(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``sys.exit`` in a user's tracker: its run is a row with the reason, the others land,
+    the league is written (in-process: the pool's workers import ``tests``)."""
+    from cosim.cli import main
+
+    out = tmp_path / "league"
+    code = main(["compare", "--trackers", "pid,tests.user_trackers:ExitsAtOnce",
+                 "--scenarios", "lane-change", "--duration", "0.3", "--workers", "2",
+                 "--json", "--out", str(out)])
+    assert code == 0, capsys.readouterr().err
+    rows = {r["tracker"]: r for r in json.loads(capsys.readouterr().out)}
+    assert rows["pid"]["metrics"]["completed"] is True
+    exited = rows["tests.user_trackers:ExitsAtOnce"]
+    assert exited["metrics"]["completed"] is False
+    assert "called sys.exit(\"the user's script gave up\")" in exited["error"]
+    assert "tests.user_trackers:ExitsAtOnce" in (out / "league.md").read_text()
+
+
+def test_the_league_text_fits_any_width_and_cuts_no_number() -> None:
+    from cosim.sweeps.compare import LEAGUE_METRICS, LeagueRow, league_text
+
+    values = {key: 1.23456789e-3 * (i + 1) for i, (key, _, _) in enumerate(LEAGUE_METRICS)}
+    rows = [LeagueRow("lane-change", name, 1, dict(values), 0, ())
+            for name in ("dynamic-nmpc", "pure-pursuit", "lqr", "pid")]
+    shown = [f"{v:.4g}" for v in values.values()]
+    for width in (None, 200, 90, 40):
+        text = league_text(rows, width)
+        lines = text.splitlines()
+        if width is not None:
+            assert max(map(len, lines)) <= width, (width, text)
+        assert "…" not in text
+        for number in shown:  # every figure whole, for every tracker
+            assert text.count(number) == len(rows), (width, number)
+    assert len(league_text(rows, None).splitlines()) == 1 + 1 + len(rows)  # a row a tracker

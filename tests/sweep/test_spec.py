@@ -100,6 +100,13 @@ def test_units_come_from_the_key_names() -> None:
         ("scenario: lane-change\ngrid: {plant.mass_kg: [-1]}", "plant.mass_kg = -1"),
         ("scenario: lane-change\nseeds: 0", "seeds: 0"),
         ("scenario: lane-change\ngirdd: {}", "unknown key 'girdd'"),
+        ("scenario: acc-braking\npass: {gap_min_m: 5}",
+         "gap_min_m is a minimum: expected {min: 5} (at least) or {max: 5} (at most)"),
+        ("scenario: acc-braking\npass: {gap_min_m: {least: 5}}",
+         "expected {min: X}, {max: Y} or both"),
+        ("scenario: acc-braking\npass: {gap_min_m: {min: 5, max: 2}}", "expected min <= max"),
+        ("scenario: lane-change\npass: {outcome: ok}", "a word, not a number"),
+        ("scenario: lane-change\npass: {gap_mn_m: {min: 5}}", "did you mean gap_min_m?"),
         ("scenario: lane-change\nset: {plant.mass_kg: 1300}\ngrid: {plant.mass_kg: [1200]}",
          "also fixed"),
         ("scenario: lane-change\npass: {completed: 1}", "completed: 1: expected true or false"),
@@ -175,3 +182,42 @@ def test_tables_summary_and_plots_from_rows(tmp_path: Path) -> None:
     assert "| 1 | 1 | 1/1 |" not in summary  # aggregates count every seed and point
     worst_table = summary.split("## Worst cases")[1]
     assert worst_table.splitlines()[4].startswith("| 0 | 1100 | 0.7 | 0 | n/a | - | **FAIL**")
+
+
+def test_a_minimum_metric_takes_a_lower_bound(tmp_path: Path) -> None:
+    """Traffic and course metrics are criteria too; ``{min: X}`` is a lower bound."""
+    spec = load_spec(write_spec(tmp_path, "scenario: acc-braking\nduration_s: 1\n"
+                                "pass: {gap_min_m: {min: 5}, ttc_min_s: {min: 2, max: 99}, "
+                                "safe_gap_ok: true}\n"))
+    gap, ttc, safe = spec.criteria
+    assert gap.describe() == "gap_min_m >= 5 m"
+    assert gap.failure({"gap_min_m": 4.5}) == "gap_min_m=4.5<5"
+    assert gap.failure({"gap_min_m": 12.0}) is None
+    assert ttc.failure({"ttc_min_s": 100.0}) == "ttc_min_s=100>99"
+    assert safe.failure({"safe_gap_ok": False}) == "safe_gap_ok=false"
+    assert spec.metric == "gap_min_m"
+    assert "Infinity" not in json.dumps(spec.to_dict())
+
+
+def test_several_metrics_are_plotted_and_a_lower_bound_is_drawn(tmp_path: Path) -> None:
+    spec = load_spec(write_spec(tmp_path, "scenario: acc-braking\nduration_s: 1\n"
+                                "grid: {traffic.lead.brake_decel_mps2: [3, 6, 9]}\n"
+                                "pass: {gap_min_m: {min: 2}}\n"
+                                "metric: [gap_min_m, ttc_min_s]\n"))
+    assert spec.metric == "gap_min_m" and spec.metrics == ("gap_min_m", "ttc_min_s")
+    from cosim.sweeps.plots import _bounds, _low_is_bad
+
+    assert _bounds(spec, "gap_min_m") == (2.0, None)
+    assert _low_is_bad(spec, "gap_min_m") and _low_is_bad(spec, "ttc_min_s")
+    assert not _low_is_bad(spec, "cte_max_m")
+    flat = [{"traffic.lead.brake_decel_mps2": decel, "gap_min_m": gap, "ttc_min_s": ttc,
+             "pass": ok, "error": "", "outcome": outcome}
+            for decel, gap, ttc, ok, outcome in ((3, 2.4, 2.7, True, "ok"),
+                                                 (6, 1.2, 1.4, False, "ok"),
+                                                 (9, 0.0, 0.0, False, "collision"))]
+    paths = metric_plots(spec, flat, tmp_path)
+    assert [p.name for p in paths] == ["gap_min_m-vs-traffic.lead.brake_decel_mps2.png",
+                                       "ttc_min_s-vs-traffic.lead.brake_decel_mps2.png"]
+    assert all(p.stat().st_size > 10_000 for p in paths)
+    with pytest.raises(ConfigError, match=r"metric: \[\]"):
+        load_spec(write_spec(tmp_path, "scenario: acc-braking\nmetric: []\n", "empty.yaml"))

@@ -144,3 +144,40 @@ def test_ray_backend_gives_the_same_results(one_worker: Path, tiny_spec: Path) -
                    "--workers", "2")
     assert result.returncode == 0, result.stderr
     assert comparable_rows(out) == comparable_rows(one_worker)
+
+
+def test_a_plugin_that_exits_fails_its_row_and_the_sweep_goes_on(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """In-process (the pool's workers import ``tests``): one point exits, the other passes."""
+    from cosim.cli import main
+
+    spec = tmp_path / "exits.yaml"
+    spec.write_text("scenario: lane-change\ntracker: tests.user_trackers:Exiting\n"
+                    "duration_s: 0.3\nseeds: 1\ngrid: {tracker.params.fail_at_s: [0.1, 1.0]}\n"
+                    "pass: {completed: true}\n")
+    code = main(["sweep", str(spec), "--out", str(tmp_path / "out"), "--workers", "2"])
+    assert code == 0, capsys.readouterr().err
+    rows = [json.loads(line) for line in
+            (tmp_path / "out" / "results.jsonl").read_text().splitlines()]
+    by_fail = {r["params"]["tracker.params.fail_at_s"]: r for r in rows}
+    assert set(by_fail) == {0.1, 1.0}
+    assert "called sys.exit(0) at t = 0.100 s" in by_fail[0.1]["error"]
+    assert by_fail[1.0]["error"] == "" and by_fail[1.0]["metrics"]["completed"] is True
+
+
+@pytest.mark.slow
+def test_the_acc_braking_example_ends_in_a_collision_as_a_result(tmp_path: Path) -> None:
+    """The shipped example: a collision is a run that failed its criteria, with its outcome,
+    not an error; the plots show the gap and the time to collision."""
+    example = Path(__file__).resolve().parents[2] / "examples" / "acc-braking.yaml"
+    done = subprocess.run([COSIM, "sweep", str(example), "--out", str(tmp_path / "out"),
+                           "--workers", "2"], capture_output=True, text=True, timeout=1200)
+    assert done.returncode in (0, 3), done.stderr
+    rows = [json.loads(line) for line in
+            (tmp_path / "out" / "results.jsonl").read_text().splitlines()]
+    by_decel = {r["params"]["traffic.lead.brake_decel_mps2"]: r for r in rows}
+    assert by_decel[9.0]["metrics"]["outcome"] == "collision"
+    assert by_decel[9.0]["error"] == ""
+    assert by_decel[3.0]["metrics"]["outcome"] == "ok"
+    for metric in ("gap_min_m", "ttc_min_s"):
+        assert (tmp_path / "out" / f"{metric}-vs-traffic.lead.brake_decel_mps2.png").is_file()

@@ -43,7 +43,7 @@ from cosim.core.traffic_records import RangeReading
 from tracker.acc.config import AccConfig, EscGainConfig
 from tracker.acc.esc import EscAdaptation, EscChannel, EscFilters, ExtremumSeeker, warn_breaches
 from tracker.paths.reference_path import ReferencePath
-from tracker.protocol import Tracker
+from tracker.protocol import Closable, Tracker
 
 GAIN_NAMES = ("k_v", "k_x", "k_vrel")
 """The tuned gains, in the ESC's parameter order."""
@@ -144,6 +144,11 @@ class AccTracker:
         self._last_t_s: float | None = None
         self.status: AccStatus | None = None
         """The last step's status (None before the first step)."""
+
+    def close(self) -> None:
+        """Release what the path tracker holds (:class:`tracker.protocol.Closable`)."""
+        if isinstance(self.lateral, Closable):
+            self.lateral.close()
 
     def observe_range(self, reading: RangeReading) -> None:
         """A range reading arrived (the runner delivers each one the sensor samples)."""

@@ -122,6 +122,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
@@ -129,7 +130,7 @@ from types import MappingProxyType
 import casadi as ca
 import numpy as np
 
-from cosim.core.compiled_function import compiled_library
+from cosim.core.compiled_function import CompiledCacheWarning, compiled_library
 from cosim.core.exceptions import ConfigError
 from cosim.core.records import Command, Estimate, Plan
 from tracker.config import TrackerConfig
@@ -738,8 +739,15 @@ class Nmpc:
             functions = [oracle.oracle(), *map(oracle.get_function, oracle.get_function())]
             library = compiled_library(f"nmpc_{name}", functions, ("-O1",))
             if library is not None:
-                solver = ca.nlpsol(name, "fatrop", str(library), options)
-                return problem.with_solver(cfg.solver, solver)
+                try:
+                    solver = ca.nlpsol(name, "fatrop", str(library), options)
+                except RuntimeError as error:  # checked, so only a changing file gets here
+                    first = (str(error).strip().splitlines() or [""])[-1]
+                    warnings.warn(f"cannot load the compiled NLP {str(library)!r} ({first}): "
+                                  "using CasADi's virtual machine", CompiledCacheWarning,
+                                  stacklevel=2)
+                else:
+                    return problem.with_solver(cfg.solver, solver)
         problem = self._staged_problem()
         options.update(problem.structure)
         solver = ca.nlpsol(name, "fatrop", dict(problem.nlp), options)

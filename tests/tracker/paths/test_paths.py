@@ -40,7 +40,9 @@ def test_plain_xy_csv_is_read_with_or_without_a_header(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize(("text", "fragment"), [
     ("# x_m,y_m,w_tr_right_m\n0,0,1\n1,0,1\n1,1,1\n", "missing column(s) w_tr_left_m"),
-    ("x,y\n0,0\n1,0\n", "2 point(s), expected at least 3"),
+    ("x,y\n0,0\n1,0\n", "2 distinct point(s), expected at least 3"),
+    ("x,y\n3,4\n", "1 distinct point(s), expected at least 3"),
+    ("x,y\n0,0\n1,0\n0,0\n1,0\n", "2 distinct point(s)"),
     ("x,y\n0,0\n1,nan\n2,2\n", "data row 2 is not finite"),
     ("x,y\n0,0\n1,0\n1,0\n2,2\n", "data rows 2 and 3 are the same point"),
     ("x,y\n0,0\n1\n2,2\n", "data row 2 has 1 column(s)"),
@@ -162,3 +164,84 @@ def test_figure_eight_crosses_itself_at_right_angles_and_closes() -> None:
     headings = np.degrees(samples["yaw_rad"][near])
     assert np.any(np.abs(headings) < 3.0) and np.any(np.abs(np.abs(headings) - 90.0) < 3.0)
     assert np.max(np.abs(samples["curvature_1pm"])) == pytest.approx(1 / 30.0, rel=0.05)
+
+
+def _circle_rows(n: int = 40, radius: float = 30.0) -> list[tuple[float, float]]:
+    return [(radius * math.cos(2 * math.pi * i / n), radius * math.sin(2 * math.pi * i / n))
+            for i in range(n)]
+
+
+@pytest.mark.parametrize("newline", ["\n", "\r\n"])
+@pytest.mark.parametrize("racetrack", [False, True])
+def test_a_byte_order_mark_and_crlf_lose_no_point(tmp_path: Path, newline: str,
+                                                  racetrack: bool) -> None:
+    rows = _circle_rows()
+    lines = (["# x_m,y_m,w_tr_right_m,w_tr_left_m"] + [f"{x},{y},4,5" for x, y in rows]
+             if racetrack else [f"{x},{y}" for x, y in rows])
+    path = tmp_path / "bom.csv"
+    path.write_bytes(b"\xef\xbb\xbf" + newline.join(lines).encode() + newline.encode())
+    track = load_track(path)
+    np.testing.assert_allclose(track.x_m, [x for x, _ in rows])
+    assert (track.width_left_m is not None) == racetrack
+
+
+def test_a_device_is_refused_without_reading_it() -> None:
+    with pytest.raises(ConfigError, match="not a regular file"):
+        load_track("/dev/zero")
+
+
+@pytest.mark.parametrize(("rows", "closed", "fragment"), [
+    ([(1e12 * x, 1e12 * y) for x, y in _circle_rows()], True, "coordinate beyond 1e+07 m"),
+    ([(1e4 * x, 1e4 * y) for x, y in _circle_rows()], True, "m long: expected at most 100,000"),
+    ([(float(x), 0.0) for x in range(0, 60, 2)] + [(float(x), 60.0) for x in range(60, 0, -2)],
+     True, "its last point is 60.0 m from its first"),
+    ([(float(x), 0.0) for x in range(0, 60, 2)] + [(float(x), 0.01) for x in range(58, -60, -2)],
+     False, "the path turns back by 180 deg between data rows"),
+])
+def test_a_course_out_of_bounds_open_or_turning_back_is_refused(
+        tmp_path: Path, rows: list[tuple[float, float]], closed: bool, fragment: str) -> None:
+    path = _write(tmp_path, "x,y\n" + "".join(f"{x},{y}\n" for x, y in rows))
+    with pytest.raises(ConfigError) as error:
+        load_track(path, closed)
+    assert fragment in str(error.value)
+
+
+def test_an_open_path_is_accepted_when_said_open(tmp_path: Path) -> None:
+    rows = [(float(x), 0.0) for x in range(0, 60, 2)]
+    rows += [(60.0 + x, float(x)) for x in range(2, 40, 2)]
+    text = "x,y\n" + "".join(f"{x},{y}\n" for x, y in rows)
+    track = load_track(_write(tmp_path, text), False)
+    assert len(track.x_m) == len(rows)
+
+
+def _crossing_by_brute_force(x: np.ndarray, y: np.ndarray, closed: bool) -> int | None:
+    """The plain O(n^2) reference: every pair of non-adjacent segments."""
+    p = np.column_stack((x, y))
+    n = len(p)
+    segments = n if closed else n - 1
+
+    def cross(o: np.ndarray, u: np.ndarray, v: np.ndarray) -> float:
+        return float((u[0] - o[0]) * (v[1] - o[1]) - (u[1] - o[1]) * (v[0] - o[0]))
+
+    for i in range(segments):
+        for j in range(i + 2, segments):
+            if closed and i == 0 and j == n - 1:
+                continue
+            a, b, c, d = p[i], p[(i + 1) % n], p[j], p[(j + 1) % n]
+            if cross(c, d, a) * cross(c, d, b) < 0 and cross(a, b, c) * cross(a, b, d) < 0:
+                return i
+    return None
+
+
+@pytest.mark.parametrize("seed", range(8))
+@pytest.mark.parametrize("closed", [True, False])
+def test_the_crossing_search_matches_the_brute_force(seed: int, closed: bool) -> None:
+    from tracker.paths.track_csv import first_self_intersection
+
+    rng = np.random.default_rng(seed)
+    # A random walk with a turning heading and a few long strides (the k-d tree's
+    # long-segment branch): it crosses itself at a random place, or not at all.
+    heading = np.cumsum(rng.normal(0.0, 0.6, 50))
+    stride = np.where(rng.uniform(size=50) < 0.05, 30.0, rng.uniform(1.0, 3.0, 50))
+    x, y = np.cumsum(stride * np.cos(heading)), np.cumsum(stride * np.sin(heading))
+    assert first_self_intersection(x, y, closed) == _crossing_by_brute_force(x, y, closed)

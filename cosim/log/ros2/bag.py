@@ -1,0 +1,140 @@
+"""``cosim export --ros2 LOG.mcap``: a run's log as an MCAP of standard ROS 2 messages.
+
+The output is a single MCAP file as rosbag2 writes them (the MCAP specification's ``ros2``
+profile: one ``ros2msg`` schema per type, named ``package/msg/Type`` and holding the type's
+full definition; CDR messages serialised by rosbags; each channel's
+``offered_qos_profiles``, empty, so that the player offers its default QoS; zstd chunks),
+so ``ros2 bag play -s mcap BAG.mcap`` plays it and any MCAP reader opens it. What each
+topic holds: :mod:`cosim.log.ros2.messages`.
+
+Timestamps. Each message's MCAP log and publish times and its ``header.stamp`` are the
+source message's log time: ``sim.epoch`` (2026-01-01T00:00:00Z unless the run set another)
+plus the simulated time, in nanoseconds. So the bag lives in simulated time, months away
+from the wall clock: replay it with ``ros2 bag play -s mcap BAG.mcap --clock``, which
+publishes ``/clock`` from the bag's time, and start every node that should follow it (RViz,
+tf2 listeners) with ``use_sim_time:=true`` (e.g. ``ros2 run rviz2 rviz2 --ros-args -p
+use_sim_time:=true``); without them a node compares the 2026 stamps with its wall clock and
+drops the transforms as too old or too new.
+
+The export never touches the source log, refuses an existing ``--out`` without ``force``
+and the source file itself, and writes under a temporary name that takes the final name
+only when the file is complete (:class:`cosim.log.safe_file.PendingFile`): an error or an
+interrupt leaves no half-written bag and whatever was at the final name untouched. A
+truncated source log (a run that was killed) is exported up to its last complete record.
+The run's metadata (config, seed, versions) is copied as the MCAP metadata ``cosim_run``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from mcap.writer import CompressionType, Writer
+
+from cosim.core.config_fields import from_dict
+from cosim.core.exceptions import CosimError
+from cosim.log.foxglove import GeoOrigin
+from cosim.log.reader import LogSummary, iter_topics, read_summary
+from cosim.log.ros2 import types as ros
+from cosim.log.ros2.messages import RosMessages
+from cosim.log.safe_file import PendingFile, check_output_path
+
+CHUNK_SIZE_BYTES = 1 << 20
+"""Uncompressed bytes per MCAP chunk."""
+
+OUTPUTS: tuple[tuple[str, str, str, str], ...] = (
+    # (source topic, ROS 2 topic, ROS 2 type, RosMessages method)
+    ("/reference/path", "/reference/path", ros.PATH, "path"),
+    ("/vehicle/truth", "/vehicle/truth", ros.ODOMETRY, "truth_odometry"),
+    ("/vehicle/truth", "/tf", ros.TF_MESSAGE, "transforms"),
+    ("/vehicle/estimate", "/vehicle/estimate", ros.ODOMETRY, "estimate_odometry"),
+    ("/sensors/imu", "/sensors/imu", ros.IMU, "imu"),
+    ("/sensors/gnss", "/sensors/gnss", ros.NAV_SAT_FIX, "nav_sat_fix"),
+    ("/control/command", "/control/command", ros.ACKERMANN_DRIVE_STAMPED, "ackermann"),
+)
+"""Every ROS 2 topic of an export, in the order the channels are registered."""
+
+
+@dataclass(frozen=True)
+class ExportResult:
+    """What an export wrote."""
+
+    path: Path
+    message_counts: dict[str, int]
+    """Messages per ROS 2 topic."""
+    truncated: bool
+    """The source log was cut off; the bag holds what it had."""
+
+
+def default_out(log: Path) -> Path:
+    """``LOG-ros2.mcap`` beside the log."""
+    return log.with_name(f"{log.stem}-ros2.mcap")
+
+
+def export_ros2(log: Path | str, out: Path | str | None = None,
+                force: bool = False) -> ExportResult:
+    """Export the run log ``log`` to ``out`` (module docstring); bad input is a one-line
+    :class:`CosimError`."""
+    log = Path(log)
+    summary = _run_log(log)
+    out = default_out(log) if out is None else Path(out)
+    check_output_path(out, "--out", force, inputs=[log])
+    origin = from_dict(GeoOrigin, summary.config.get("geo") or {}, "geo")
+    store = ros.typestore()
+    build = RosMessages(store, origin)
+    converters: dict[str, list[tuple[str, str, Callable[[int, dict[str, Any]], Any]]]] = {}
+    for source, topic, typename, method in OUTPUTS:
+        converters.setdefault(source, []).append((topic, typename, getattr(build, method)))
+    counts = {topic: 0 for _, topic, _, _ in OUTPUTS}
+    pending = PendingFile(out)
+    try:
+        writer = Writer(pending.file, chunk_size=CHUNK_SIZE_BYTES,
+                        compression=CompressionType.ZSTD)
+        writer.start(profile="ros2", library=f"{summary.library} (cosim export --ros2)")
+        channels = _register(writer, store)
+        writer.add_metadata("cosim_run", summary.metadata.get("run", {}))
+        for source, t_ns, message in iter_topics(log, set(converters)):
+            stamp_ns = summary.epoch_ns + t_ns
+            for topic, typename, convert in converters[source]:
+                data = store.serialize_cdr(convert(stamp_ns, message), typename)
+                writer.add_message(channels[topic], log_time=stamp_ns, publish_time=stamp_ns,
+                                   data=bytes(data), sequence=counts[topic])
+                counts[topic] += 1
+        writer.finish()
+        pending.publish()
+    finally:
+        pending.close()
+    return ExportResult(out, counts, summary.truncated)
+
+
+def _run_log(log: Path) -> LogSummary:
+    """The summary of ``log``, refused unless it is a run log cosim wrote."""
+    if not log.is_file():
+        what = "is a folder" if log.is_dir() else "no such file"
+        raise CosimError(f"--ros2 {str(log)!r}: {what} (expected the MCAP log of a cosim run)")
+    summary = read_summary(log)
+    encodings = {c.topic: c.message_encoding for c in summary.channels}
+    if not summary.written_by_cosim or encodings.get("/vehicle/truth") != "json":
+        writer = summary.library or "unknown"
+        raise CosimError(f"--ros2 {str(log)!r}: not a run log (written by {writer!r}, "
+                         f"topics {', '.join(sorted(encodings)[:4]) or 'none'}"
+                         + (" ..." if len(encodings) > 4 else "")
+                         + "): expected the MCAP log of a cosim run")
+    return summary
+
+
+def _register(writer: Writer, store: Any) -> dict[str, int]:
+    """One ``ros2msg`` schema per type, one CDR channel per topic: topic -> channel id."""
+    schemas: dict[str, int] = {}
+    channels: dict[str, int] = {}
+    for _, topic, typename, _ in OUTPUTS:
+        if typename not in schemas:
+            definition, _ = store.generate_msgdef(typename, ros_version=2)
+            schemas[typename] = writer.register_schema(name=typename, encoding="ros2msg",
+                                                       data=definition.encode())
+        channels[topic] = writer.register_channel(topic=topic, message_encoding="cdr",
+                                                  schema_id=schemas[typename],
+                                                  metadata={"offered_qos_profiles": ""})
+    return channels

@@ -1,0 +1,119 @@
+"""The cache of compiled CasADi functions is checked before every load: a damaged entry is
+rebuilt once with a one-line warning, an unwritable cache is worked around for the run."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from cosim.core.compiled_function import (
+    MANIFEST,
+    CompiledCacheWarning,
+    CompiledFunction,
+    compile_function,
+    compiled_library,
+)
+
+COSIM = str(Path(sys.executable).with_name("cosim"))
+
+
+def _function(name: str = "cache_probe") -> ca.Function:
+    x = ca.SX.sym("x", 2)
+    return ca.Function(name, [x], [ca.vertcat(x[0] * x[1], x[0] + 3.0)])
+
+
+def _evaluates_right(library: object, function: ca.Function) -> bool:
+    inputs, outputs = [np.array([2.0, 5.0])], [np.zeros(2)]
+    CompiledFunction(library, function, inputs, outputs)()
+    return bool(np.array_equal(outputs[0], [10.0, 5.0]))
+
+
+@pytest.fixture()
+def cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    return tmp_path / "cache" / "cosim"
+
+
+def _load_quietly(function: ca.Function) -> object:
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a healthy cache says nothing
+        return compile_function(function)
+
+
+def test_an_entry_is_a_library_with_its_size_and_hash(cache: Path) -> None:
+    function = _function()
+    library = _load_quietly(function)
+    assert library is not None and _evaluates_right(library, function)
+    (entry,) = cache.iterdir()
+    manifest = json.loads((entry / MANIFEST).read_text())
+    assert manifest["size"] == (entry / "cache_probe.so").stat().st_size
+    stamp = (entry / "cache_probe.so").stat().st_mtime_ns
+    assert compiled_library("cache_probe", [function]) == entry / "cache_probe.so"
+    assert (entry / "cache_probe.so").stat().st_mtime_ns == stamp  # found, not rebuilt
+    assert not [p for p in cache.iterdir() if p.name.startswith(".")]  # no temporaries
+
+
+@pytest.mark.parametrize("damage", ["truncated", "another library", "garbage", "no manifest"])
+def test_a_damaged_entry_is_rebuilt_once_with_a_warning(cache: Path, damage: str) -> None:
+    function = _function()
+    # Made, not loaded: damaging a library this process has mapped would end the test
+    # itself with SIGBUS (the very failure the check keeps other runs from).
+    assert compiled_library("cache_probe", [function]) is not None
+    (entry,) = cache.iterdir()
+    library = entry / "cache_probe.so"
+    if damage == "truncated":
+        library.write_bytes(library.read_bytes()[: library.stat().st_size // 2])
+    elif damage == "another library":
+        other = compiled_library("other_probe", [_function("other_probe")])
+        assert other is not None
+        library.write_bytes(other.read_bytes())
+    elif damage == "garbage":
+        library.write_bytes(os.urandom(library.stat().st_size))
+    else:
+        (entry / MANIFEST).unlink()
+    with pytest.warns(CompiledCacheWarning, match="is damaged .*: rebuilding it") as caught:
+        loaded = compile_function(function)
+    assert len(caught) == 1
+    assert loaded is not None and _evaluates_right(loaded, function)
+    _load_quietly(function)  # rebuilt once: the next load is quiet
+
+
+def test_an_unwritable_cache_is_said_once_and_the_library_still_works(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    blocker = tmp_path / "a-file"
+    blocker.write_text("not a folder")  # even root cannot make a folder under a file
+    monkeypatch.setenv("XDG_CACHE_HOME", str(blocker))
+    function = _function()
+    with pytest.warns(CompiledCacheWarning, match="cannot write the compiled-code cache"):
+        library = compile_function(function)
+    assert library is not None and _evaluates_right(library, function)
+
+
+@pytest.mark.slow
+def test_a_truncated_tyre_library_no_longer_kills_every_run(tmp_path: Path) -> None:
+    """The SIGBUS of a half-written library mapped into the plant: now a note and a rebuild."""
+    env = {**os.environ, "XDG_CACHE_HOME": str(tmp_path / "cache"),
+           "MUJOCO_GL": os.environ.get("MUJOCO_GL", "disable")}
+
+    def run(name: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run([COSIM, "run", "lane-change", "--duration", "0.1", "--out",
+                               str(tmp_path / name)], env=env, capture_output=True,
+                              text=True, timeout=300, check=False)
+
+    assert run("first.mcap").returncode == 0
+    (library,) = (tmp_path / "cache").rglob("cosim_tyre_patches.so")
+    library.write_bytes(library.read_bytes()[:4096])
+    damaged = run("second.mcap")
+    assert damaged.returncode == 0, damaged.stderr
+    (line,) = damaged.stderr.strip().splitlines()
+    assert "is damaged (the library has 4096 bytes" in line
+    again = run("third.mcap")
+    assert again.returncode == 0 and again.stderr == ""
