@@ -87,3 +87,29 @@ class PathConfig:
         "may use; the rest is the speed loop's authority to catch up")
     cruise_s: float = setting(4.0, low=0.0, high=3600.0, doc="stop-and-go: time at speed")
     stop_s: float = setting(2.0, low=0.0, high=3600.0, doc="stop-and-go: time standing")
+
+
+_PROFILE_KEYS: dict[str, tuple[str, ...]] = {
+    "constant": (),
+    "friction-limited": ("lat_accel_max_mps2", "accel_max_mps2", "decel_max_mps2",
+                         "grip_share", "tracking_share"),
+    "stop-and-go": ("accel_max_mps2", "decel_max_mps2", "cruise_s", "stop_s"),
+}
+_SHAPE_KEYS: dict[str, tuple[str, ...]] = {
+    "double-lane-change": ("stretch", "length_m"),
+    "straight": ("length_m",),
+    "iso-lane-change": ("approach_m", "vehicle_width_m", "length_m"),
+    "circle": ("radius_m",),
+    "figure-eight": ("radius_m",),
+    "slalom": ("spacing_m", "cones", "amplitude_m", "approach_m", "length_m"),
+    "s-curve": ("radius_m", "arc_deg", "approach_m", "length_m"),
+    "track": ("file", "closed", "smoothing", "default_width_m"),
+    "generated": ("seed", "smoothing", "default_width_m"),
+}
+
+
+def path_keys_read(kind: str, speed_profile: str) -> tuple[str, ...]:
+    """The ``path.*`` keys a path of ``kind`` with ``speed_profile`` reads
+    (:func:`cosim.simulation.course.build_course`); the others are ignored."""
+    return ("kind", "speed_mps", "speed_profile", *_SHAPE_KEYS[kind],
+            *_PROFILE_KEYS[speed_profile])
