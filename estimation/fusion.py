@@ -295,6 +295,23 @@ class KalmanFusion(ABC):
             covariance=np.array(self._p, dtype=float),
         )
 
+    def estimate_at(self, t_s: float) -> Estimate:
+        """The belief predicted to ``t_s``, leaving the filter as it was.
+
+        For observers (the log, the metrics): the prediction runs on the filter and is then
+        undone (mean, covariance and time restored exactly), so the filter's own sequence of
+        predictions, and with it every later estimate, is the same whether or not, and how
+        often, anyone looks.
+        """
+        mean, covariance, t0_s = self._x.copy(), self._p.copy(), self._t_s
+        try:
+            self.predict(t_s)
+            return self.estimate()
+        finally:
+            self._set_mean(mean)
+            self._set_covariance(covariance)
+            self._t_s = t0_s
+
     def counts(self) -> dict[str, dict[str, int]]:
         """Per sensor: accepted, rejected (by cause), ignored and gate-released updates."""
         return {sensor: dataclasses.asdict(c) for sensor, c in sorted(self._counts.items())}

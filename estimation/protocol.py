@@ -57,3 +57,13 @@ class CountsUpdates(Protocol):
     def counts(self) -> dict[str, dict[str, int]]:
         """Per sensor, counter name to count (``rejected_gate``, ``channels_gated``,
         ``surprises`` ...)."""
+
+
+@runtime_checkable
+class ObservableEstimator(Protocol):
+    """An estimator that can be looked at between its own steps without being changed (the
+    runner's observers, e.g. the live view, look through it; without it they see
+    :meth:`Estimator.estimate`)."""
+
+    def estimate_at(self, t_s: float) -> Estimate:
+        """The belief predicted to ``t_s``; the estimator itself stays as it was."""

@@ -136,6 +136,16 @@ class TruthEstimator:
             covariance=np.zeros((len(names), len(names))),
         )
 
+    def estimate_at(self, t_s: float) -> Estimate:
+        """The last truth extrapolated to ``t_s`` (:meth:`predict`), leaving the estimator
+        as it was (for observers: the log, the metrics)."""
+        mean, t0_s = self._mean, self._t_s
+        try:
+            self.predict(t_s)
+            return self.estimate()
+        finally:
+            self._mean, self._t_s = mean, t0_s
+
     def counts(self) -> dict[str, dict[str, int]]:
         """Per sensor: accepted, rejected (by cause) and ignored samples."""
         return {sensor: dataclasses.asdict(c) for sensor, c in sorted(self._counts.items())}

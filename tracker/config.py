@@ -124,7 +124,7 @@ class TrackerConfig:
     )
     params: dict[str, Any] = mapping(
         doc="a plug-in tracker's own settings, passed to it (validated by its Params schema "
-        "if it declares one), e.g. --set tracker.params.lookahead_time_s=0.8",
+        "if it declares one), e.g. --set tracker.params.lookahead_time_s=0.3",
     )
     step_budget_s: float = setting(
         1.0, low=1e-4, high=3600.0,

@@ -17,14 +17,14 @@ from dataclasses import dataclass
 
 from cosim.core.config_fields import setting
 
-MANEUVER_KINDS = ("steady-circle", "step-steer", "ramp-steer")
+MANOEUVRE_KINDS = ("steady-circle", "step-steer", "ramp-steer")
 
 
 @dataclass(frozen=True)
 class ManoeuvreConfig:
     """Steering profile and speed hold of the ``open-loop`` tracker."""
 
-    kind: str = setting("steady-circle", choices=MANEUVER_KINDS)
+    kind: str = setting("steady-circle", choices=MANOEUVRE_KINDS)
     speed_mps: float = setting(10.0, low=0.0, high=80.0, doc="speed held by the speed loop")
     steer_rad: float = setting(0.05, low=-1.0, high=1.0, doc="road-wheel angle (final)")
     step_time_s: float = setting(1.0, low=0.0, high=3600.0, doc="start of the steering input")

@@ -5,11 +5,13 @@
     cosim config keys [PREFIX]
 
 ``show`` resolves the configuration exactly as ``cosim run`` would (same sources, same
-order, same validation) and prints it as YAML; that YAML is itself a scenario file, which
-runs the same configuration. ``keys`` lists every key with its type, unit (from the
-name's suffix: ``_s`` seconds, ``_mps`` m/s ...), default, accepted values and a line of
-documentation, read from the config dataclasses themselves (:func:`cosim.core.config_fields.
-key_infos`), so the list cannot drift from what the validation accepts.
+order, same validation) and prints as YAML what the run reads
+(:func:`cosim.simulation.used_config.used_config`), or with ``--all`` every key; either YAML
+is itself a scenario file, which runs the same car the same way. ``keys`` lists every key
+with its type, unit (from the name's suffix: ``_s`` seconds, ``_mps`` m/s ...), default,
+accepted values and a line of documentation, read from the config dataclasses themselves
+(:func:`cosim.core.config_fields.key_infos`), so the list cannot drift from what the
+validation accepts.
 """
 
 from __future__ import annotations
@@ -37,6 +39,8 @@ def add_parsers(commands: Any) -> dict[str, Handler]:
     show.add_argument("--estimator", metavar="NAME", help="estimator.name")
     show.add_argument("--seed", type=int, metavar="N", help="the run's seed")
     show.add_argument("--duration", type=float, metavar="S", help="sim.duration_s")
+    show.add_argument("--all", action="store_true",
+                      help="every key, also those the run does not read")
     show.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                       dest="overrides", help="override a config key, e.g. tracker.horizon=30")
     keys = actions.add_parser(
@@ -95,7 +99,17 @@ def command(args: argparse.Namespace) -> int:
 
         config = load_config(args.scenario, args.config, args.overrides, args.seed,
                              args.duration, args.tracker, args.estimator)
-        print(resolved_yaml(config), end="")
+        if args.all:
+            print(resolved_yaml(config), end="")
+            return 0
+        import yaml
+
+        from cosim.core.config_fields import to_dict
+        from cosim.simulation.used_config import used_config
+
+        print("# What this run reads; the keys it does not read are left out "
+              "(`cosim config show --all` prints them).")
+        print(yaml.safe_dump(used_config(to_dict(config)), sort_keys=False), end="")
         return 0
     rows = keys_table(args.prefix)
     header = ("key", "unit", "default", "accepted", "meaning")

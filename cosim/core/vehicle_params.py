@@ -40,8 +40,9 @@ reason, was below CommonRoad's BMW 320i parameter set (1.066 rad) [rad]."""
 
 
 @dataclass(frozen=True)
-class VehicleParams:
-    """Physical parameters of the car (all SI)."""
+class CarParams:
+    """Physical parameters of the car (all SI) that the plant and a controller's belief
+    share; :class:`VehicleParams` (the belief) adds what only a controller's model uses."""
 
     mass_kg: float = setting(1575.0, low=100.0, high=20000.0, doc="total mass incl. wheels")
     yaw_inertia_kgm2: float = setting(2875.0, low=10.0, high=1e6, doc="about the CoG, total")
@@ -88,21 +89,6 @@ class VehicleParams:
     max_steer_rate_radps: float = setting(
         0.8, low=0.05, high=10.0, doc="rate limit of the steering actuator"
     )
-    cornering_stiffness_front_npr: float = setting(
-        72550.0,
-        low=1e3,
-        high=1e6,
-        doc="front-axle cornering stiffness (both tyres), belief for dynamic models; the "
-        "plant's own tyres are the Pacejka model in `plant.tyre` [N/rad]",
-    )
-    cornering_stiffness_rear_npr: float = setting(
-        79580.0,
-        low=1e3,
-        high=1e6,
-        doc="rear-axle cornering stiffness (both tyres), belief for dynamic models; the "
-        "plant's own tyres are the Pacejka model in `plant.tyre` [N/rad]",
-    )
-
     def __post_init__(self) -> None:
         if 4 * self.wheel_mass_kg >= self.mass_kg:
             raise ConfigError(
@@ -143,7 +129,38 @@ class VehicleParams:
 
 
 @dataclass(frozen=True)
-class PlantConfig(VehicleParams):
+class VehicleParams(CarParams):
+    """A controller's belief about the car (``tracker.model``): :class:`CarParams` plus the
+    axle cornering stiffnesses of its linear-tyre models. The plant has no such keys (its
+    tyres are the Magic Formula of ``plant.tyre``): ``plant.cornering_stiffness_*`` is
+    refused with its new name (:data:`MOVED_PLANT_KEYS`)."""
+
+    cornering_stiffness_front_npr: float = setting(
+        72550.0,
+        low=1e3,
+        high=1e6,
+        doc="front-axle cornering stiffness (both tyres), belief for dynamic models; the "
+        "plant's own tyres are the Pacejka model in `plant.tyre` [N/rad]",
+    )
+    cornering_stiffness_rear_npr: float = setting(
+        79580.0,
+        low=1e3,
+        high=1e6,
+        doc="rear-axle cornering stiffness (both tyres), belief for dynamic models; the "
+        "plant's own tyres are the Pacejka model in `plant.tyre` [N/rad]",
+    )
+
+
+MOVED_PLANT_KEYS: dict[str, str] = {
+    "cornering_stiffness_front_npr": "tracker.model.cornering_stiffness_front_npr",
+    "cornering_stiffness_rear_npr": "tracker.model.cornering_stiffness_rear_npr",
+}
+"""Keys that were accepted under ``plant.`` although only a controller's model reads them,
+and where they live now."""
+
+
+@dataclass(frozen=True)
+class PlantConfig(CarParams):
     """The simulated car: its true parameters and how it is simulated."""
 
     actuator_delay_s: float = setting(0.0, low=0.0, high=2.0, doc="command transport delay")

@@ -28,7 +28,7 @@ import numpy as np
 from cosim.core.config_fields import setting
 from cosim.core.records import Estimate, Plan, VehicleState
 from cosim.core.rotations import quaternion_zyx
-from cosim.core.vehicle_params import VehicleParams
+from cosim.core.vehicle_params import CarParams
 
 WGS84_A_M = 6_378_137.0
 """WGS-84 semi-major axis (equatorial radius)."""
@@ -198,7 +198,7 @@ def static_scene(path_x_m: np.ndarray, path_y_m: np.ndarray,
     return _scene(*entities)
 
 
-def car_scene(truth: VehicleState, params: VehicleParams) -> dict[str, object]:
+def car_scene(truth: VehicleState, params: CarParams) -> dict[str, object]:
     """``foxglove.SceneUpdate``: the car body (lower body and cabin) and its four wheels in
     ``base_link``, frame-locked; both front wheels turn by the true road-wheel angle (the
     mean of the two: the Ackermann split is not shown)."""

@@ -43,7 +43,7 @@ from typing import TYPE_CHECKING
 from cosim.core.exceptions import ConfigError
 from cosim.core.records import WHEEL_NAMES
 from cosim.core.suspension_params import SuspensionParams
-from cosim.core.vehicle_params import PlantConfig, VehicleParams
+from cosim.core.vehicle_params import CarParams, PlantConfig
 from cosim.plant.headless import headless_gl
 from cosim.plant.traffic import attach_traffic
 
@@ -125,7 +125,7 @@ def ackermann_angles(steer_rad: float, wheelbase_m: float, track_m: float) -> tu
 
 @dataclass(frozen=True)
 class SedanLayout:
-    """Every number of the MJCF model, derived from a :class:`VehicleParams`.
+    """Every number of the MJCF model, derived from a :class:`CarParams`.
 
     Positions are in the chassis frame, whose origin is the car's nominal centre of gravity
     (ISO 8855 axes: x forward, y left, z up). Per-wheel tuples are in ``WHEEL_NAMES`` order.
@@ -154,7 +154,7 @@ class SedanLayout:
     """Gain of the steering position servo [N m/rad]."""
 
 
-def sedan_layout(params: VehicleParams,
+def sedan_layout(params: CarParams,
                  suspension: SuspensionParams | None = None) -> SedanLayout:
     """Derive chassis mass/inertia, wheel placement and suspension from ``params`` and
     ``suspension`` (``plant.suspension``; default: its defaults).
@@ -364,14 +364,14 @@ def _add_anti_roll_bars(root: mjcf.RootElement, config: PlantConfig) -> None:
         tendon.add("joint", joint=f"{axle}_right_suspension", coef=-1.0)
 
 
-def body_box_m(params: VehicleParams) -> tuple[float, float, float]:
+def body_box_m(params: CarParams) -> tuple[float, float, float]:
     """The ego's body box in its vehicle frame: ``(centre ahead of the CoG, half length,
     half width)`` [m], fitted to the wheelbase and the wider track."""
     return (0.5 * (params.cog_front_m - params.cog_rear_m),
             0.5 * params.wheelbase_m + OVERHANG_M, 0.5 * params.widest_track_m + 0.1)
 
 
-def _shape_body(root: mjcf.RootElement, params: VehicleParams) -> None:
+def _shape_body(root: mjcf.RootElement, params: CarParams) -> None:
     """Fit the visual body boxes to the wheelbase and the wider track (no mass: explicit
     inertials)."""
     height = params.cog_height_m

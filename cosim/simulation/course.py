@@ -6,10 +6,19 @@ and draws but the tracker never sees as such: the ISO 3888-1 cone gates
 (:mod:`tracker.paths.iso3888`), the slalom's cones, and a circuit's track bounds (half-widths
 to each side of the centre line, from the CSV).
 
-A circuit is moved so that its first centre-line point is at the origin and the centre
-line leaves it along +x, where the car starts by default. A ``path.file`` is looked up
-relative to the working directory, then among the built-in
-circuits in ``cosim/scenarios/tracks/`` (``path.file: ring.csv``).
+A circuit (``path.kind: track`` from a CSV, or ``generated``: a procedural circuit of
+:mod:`tracker.paths.generated_circuit`) is smoothed where its points are noisy
+(``path.smoothing``, :mod:`tracker.paths.centre_line`), then moved so that its first
+centre-line point is at the origin and the centre line leaves it along +x, where the car
+starts by default. A ``path.file`` is looked up relative to the working directory, then
+among the built-in circuits in ``cosim/scenarios/tracks/`` (``path.file: ring.csv``).
+
+A friction-limited speed profile (:func:`tracker.paths.speed_profile.friction_limited`) is
+kept within what the car and the tracker can do (:func:`profile_limits`): the lateral limit
+and the braking within ``path.grip_share`` of the believed friction circle
+(``tracker.model.tyre_friction`` g), the acceleration and the braking within
+``path.tracking_share`` of the tracker's bounds (the rest is the speed loop's authority to
+catch up), the acceleration within what the believed drive power gives at the top speed.
 """
 
 from __future__ import annotations
@@ -22,11 +31,14 @@ import numpy as np
 
 from cosim.core.exceptions import ConfigError
 from cosim.core.initial_state import InitialState
-from cosim.core.vehicle_params import VehicleParams
+from cosim.core.vehicle_params import CarParams, VehicleParams
 from cosim.log.foxglove import BODY_WIDTH_OVER_TRACK_M
 from cosim.simulation.path_config import PathConfig
+from tracker.config import TrackerConfig
 from tracker.paths import iso3888, shapes
+from tracker.paths.centre_line import smooth_centre_line
 from tracker.paths.double_lane_change import double_lane_change
+from tracker.paths.generated_circuit import generated_circuit
 from tracker.paths.reference_path import ReferencePath
 from tracker.paths.speed_profile import (
     ConstantSpeed,
@@ -35,7 +47,10 @@ from tracker.paths.speed_profile import (
     friction_limited,
     stop_and_go,
 )
-from tracker.paths.track_csv import load_track
+from tracker.paths.track_csv import TrackData, load_track
+
+GRAVITY_MPS2 = 9.81
+AIR_DENSITY_KGPM3 = 1.2
 
 
 @dataclass(frozen=True)
@@ -64,6 +79,15 @@ class TrackBounds:
 
 
 @dataclass(frozen=True)
+class ProfileLimits:
+    """What a friction-limited speed profile may ask of the car [m/s^2]."""
+
+    lat_accel_max_mps2: float
+    accel_max_mps2: float
+    decel_max_mps2: float
+
+
+@dataclass(frozen=True)
 class Course:
     """Everything laid out on the ground for a run."""
 
@@ -71,9 +95,11 @@ class Course:
     gates: tuple[iso3888.Gate, ...] = ()
     cones_xy_m: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     bounds: TrackBounds | None = None
+    limits: ProfileLimits | None = None
+    """The limits of a friction-limited speed profile (None for other profiles)."""
 
 
-def body_width_m(vehicle: VehicleParams) -> float:
+def body_width_m(vehicle: CarParams) -> float:
     """The car's body width: the wider track plus the body's overhang past the wheels."""
     return vehicle.widest_track_m + BODY_WIDTH_OVER_TRACK_M
 
@@ -91,7 +117,30 @@ def resolve_track_file(name: str) -> Path:
     raise ConfigError(f"path.file = {name!r}: no such file (nor a built-in circuit)")
 
 
-def _profile(path: PathConfig, shape: shapes.Shape, duration_s: float) -> SpeedProfile:
+def profile_limits(path: PathConfig, tracker: TrackerConfig | None) -> ProfileLimits:
+    """The limits of a friction-limited profile (module docstring): ``path``'s, within the
+    car's believed grip and power and the tracker's bounds (``tracker`` None: ``path``'s)."""
+    if tracker is None:
+        return ProfileLimits(path.lat_accel_max_mps2, path.accel_max_mps2,
+                             path.decel_max_mps2)
+    belief: VehicleParams = tracker.model
+    grip = path.grip_share * belief.tyre_friction * GRAVITY_MPS2
+    top = max(path.speed_mps, 1.0)
+    resistance_n = (0.5 * AIR_DENSITY_KGPM3 * belief.drag_area_m2 * top**2
+                    + belief.rolling_resistance * belief.mass_kg * GRAVITY_MPS2)
+    power_accel = (belief.max_drive_power_w / top - resistance_n) / belief.mass_kg
+    return ProfileLimits(
+        lat_accel_max_mps2=min(path.lat_accel_max_mps2, grip),
+        accel_max_mps2=max(0.1, min(path.accel_max_mps2,
+                                    path.tracking_share * tracker.accel_max_mps2,
+                                    power_accel)),
+        decel_max_mps2=min(path.decel_max_mps2, grip,
+                           path.tracking_share * -tracker.accel_min_mps2),
+    )
+
+
+def _profile(path: PathConfig, shape: shapes.Shape, duration_s: float,
+             limits: ProfileLimits) -> SpeedProfile:
     if path.speed_profile == "constant":
         return ConstantSpeed(path.speed_mps)
     if path.speed_profile == "stop-and-go":
@@ -100,25 +149,30 @@ def _profile(path: PathConfig, shape: shapes.Shape, duration_s: float) -> SpeedP
     geometry = ReferencePath(shape.x_m, shape.y_m, path.speed_mps, closed=shape.closed)
     s = np.arange(0.0, geometry.length_m, 1.0)
     speed = friction_limited(s, geometry.sample(s)["curvature_1pm"], path.speed_mps,
-                             path.lat_accel_max_mps2, path.accel_max_mps2,
-                             path.decel_max_mps2, shape.closed)
+                             limits.lat_accel_max_mps2, limits.accel_max_mps2,
+                             limits.decel_max_mps2, shape.closed)
     return SpatialSpeed(s, speed, geometry.length_m if shape.closed else None)
 
 
-def build_course(path: PathConfig, initial: InitialState, plant: VehicleParams,
-                 duration_s: float) -> Course:
-    """The course the ``path:`` section describes (``plant`` sizes the ISO gates)."""
+def build_course(path: PathConfig, initial: InitialState, plant: CarParams,
+                 duration_s: float, tracker: TrackerConfig | None = None) -> Course:
+    """The course the ``path:`` section describes (``plant`` sizes the ISO gates; the
+    ``tracker``'s bounds and belief bound a friction-limited profile, :func:`profile_limits`)."""
+    limits = profile_limits(path, tracker)
     if path.kind == "double-lane-change":
         # Falcone's path keeps its own point list and stays bit for bit as it was.
         reference = double_lane_change(path.speed_mps, path.stretch, path.length_m)
         if path.speed_profile != "constant":
             shape = shapes.Shape(*_points(reference), False)
-            reference = ReferencePath(shape.x_m, shape.y_m, _profile(path, shape, duration_s))
-        return Course(reference)
+            reference = ReferencePath(shape.x_m, shape.y_m,
+                                      _profile(path, shape, duration_s, limits))
+        return Course(reference, limits=_limits_if_used(path, limits))
     if path.kind == "straight":
         x_m = np.linspace(0.0, path.length_m, 4) + initial.x_m
         shape = shapes.Shape(x_m, np.full(4, initial.y_m), False)
-        return Course(ReferencePath(shape.x_m, shape.y_m, _profile(path, shape, duration_s)))
+        return Course(ReferencePath(shape.x_m, shape.y_m,
+                                    _profile(path, shape, duration_s, limits)),
+                      limits=_limits_if_used(path, limits))
     gates: tuple[iso3888.Gate, ...] = ()
     cones = np.zeros((0, 2))
     bounds = None
@@ -137,23 +191,46 @@ def build_course(path: PathConfig, initial: InitialState, plant: VehicleParams,
         cones = shapes.slalom_cones(path.spacing_m, path.cones, path.approach_m)
     elif path.kind == "s-curve":
         shape = shapes.s_curve(path.radius_m, path.arc_deg, path.approach_m, path.length_m)
-    elif path.kind == "track":
-        track = load_track(resolve_track_file(path.file), path.closed)
-        shape = shapes.Shape(*_to_start_frame(track.x_m, track.y_m), path.closed)
-        # The spline passes through every point at its knot: the arc length of point i is
-        # the chord length up to it (linear in the point count; projecting each point
-        # onto the path searched the whole path per point).
-        chords = np.hypot(np.diff(shape.x_m), np.diff(shape.y_m))
-        s_points = np.concatenate(([0.0], np.cumsum(chords)))
-        default = np.full(track.x_m.size, path.default_width_m)
-        left = track.width_left_m if track.width_left_m is not None else default
-        right = track.width_right_m if track.width_right_m is not None else default
-        bounds = TrackBounds(s_points, left, right)
+    elif path.kind in ("track", "generated"):
+        track = (load_track(resolve_track_file(path.file), path.closed) if path.kind == "track"
+                 else generated_circuit(path.seed))
+        shape, bounds = _circuit(track, path)
     else:  # validated by choices
         raise AssertionError(f"unhandled path kind {path.kind!r}")
-    reference = ReferencePath(shape.x_m, shape.y_m, _profile(path, shape, duration_s),
+    reference = ReferencePath(shape.x_m, shape.y_m, _profile(path, shape, duration_s, limits),
                               closed=shape.closed)
-    return Course(reference, gates, cones, bounds)
+    return Course(reference, gates, cones, bounds, _limits_if_used(path, limits))
+
+
+def _limits_if_used(path: PathConfig, limits: ProfileLimits) -> ProfileLimits | None:
+    return limits if path.speed_profile == "friction-limited" else None
+
+
+def _circuit(track: TrackData, path: PathConfig) -> tuple[shapes.Shape, TrackBounds]:
+    """A circuit's centre line (smoothed when noisy, in the start frame) and its bounds."""
+    closed = path.closed if path.kind == "track" else True
+    x_m, y_m = track.x_m, track.y_m
+    if path.smoothing:
+        line = smooth_centre_line(x_m, y_m, closed)
+        x_m, y_m = line.x_m, line.y_m
+    frame = _start_frame(x_m, y_m)
+    shape = shapes.Shape(*frame.apply(x_m, y_m), closed)
+    geometry = ReferencePath(shape.x_m, shape.y_m, 1.0, closed=shape.closed)
+    raw_x, raw_y = frame.apply(track.x_m, track.y_m)
+    # Each point's arc length: its chord length along the points, scaled to the path's,
+    # refined by a projection searched near it (a search of the whole path per point
+    # would cost the point count squared).
+    chords = np.concatenate(([0.0], np.cumsum(np.hypot(np.diff(raw_x), np.diff(raw_y)))))
+    guess = chords * geometry.length_m / max(chords[-1] + np.hypot(
+        raw_x[-1] - raw_x[0], raw_y[-1] - raw_y[0]) * closed, 1e-9)
+    s_points = np.array([geometry.project(x, y, near_s_m=g).s_m
+                         for x, y, g in zip(raw_x, raw_y, guess, strict=True)])
+    s_points[0] = 0.0
+    order = np.argsort(s_points)
+    default = np.full(track.x_m.size, path.default_width_m)
+    left = track.width_left_m if track.width_left_m is not None else default
+    right = track.width_right_m if track.width_right_m is not None else default
+    return shape, TrackBounds(s_points[order], left[order], right[order])
 
 
 def _points(reference: ReferencePath) -> tuple[np.ndarray, np.ndarray]:
@@ -161,9 +238,22 @@ def _points(reference: ReferencePath) -> tuple[np.ndarray, np.ndarray]:
     return samples["x_m"], samples["y_m"]
 
 
-def _to_start_frame(x_m: np.ndarray, y_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Points moved so the first is at the origin and the first segment points along +x."""
-    dx, dy = x_m - x_m[0], y_m - y_m[0]
-    heading = np.arctan2(dy[1], dx[1])
-    c, s = np.cos(heading), np.sin(heading)
-    return c * dx + s * dy, -s * dx + c * dy
+@dataclass(frozen=True)
+class _StartFrame:
+    """The rigid motion that puts a centre line's first point at the origin, heading +x."""
+
+    x0_m: float
+    y0_m: float
+    heading_rad: float
+
+    def apply(self, x_m: np.ndarray, y_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        dx, dy = x_m - self.x0_m, y_m - self.y0_m
+        c, s = np.cos(self.heading_rad), np.sin(self.heading_rad)
+        return c * dx + s * dy, -s * dx + c * dy
+
+
+def _start_frame(x_m: np.ndarray, y_m: np.ndarray) -> _StartFrame:
+    """The frame of the first point, along the first segment (of the smoothed line, when
+    smoothed: a noisy first segment would tilt the start)."""
+    return _StartFrame(float(x_m[0]), float(y_m[0]),
+                       float(np.arctan2(y_m[1] - y_m[0], x_m[1] - x_m[0])))

@@ -32,11 +32,14 @@ EVERY_RUN = "every run"
 OPEN_LOOP = "open-loop manoeuvres (`steady-circle`, `step-steer`, `ramp-steer`)"
 GATES = "courses with ISO 3888-1 gates (`iso-lane-change`)"
 CIRCUIT = "circuits with track bounds (`track`, `path.file`)"
+CLOSED = "closed paths (circuits: `track`, `generated-circuit`, a closed `path.file`)"
+FRICTION_LIMITED = "friction-limited speed profiles (`path.speed_profile: friction-limited`)"
 TRAFFIC = "runs with traffic (`traffic:`)"
 ACC = "runs with the ACC (`tracker.acc.enabled`)"
 WHEN_IT_HAPPENS = "runs where it happens"
 
-SCOPES = (EVERY_RUN, OPEN_LOOP, GATES, CIRCUIT, TRAFFIC, ACC, WHEN_IT_HAPPENS)
+SCOPES = (EVERY_RUN, OPEN_LOOP, GATES, CIRCUIT, CLOSED, FRICTION_LIMITED, TRAFFIC, ACC,
+          WHEN_IT_HAPPENS)
 """When a run has a key, in the order ``docs/metrics.md`` lists them."""
 
 UNITS = ("m", "rad", "m/s", "m/s^2", "m/s^3", "rad/s", "1/s", "s", "ms", "%", "1", "count",
@@ -66,6 +69,7 @@ PLACEHOLDERS: Mapping[str, Placeholder] = MappingProxyType({
     "kind": Placeholder(SEVERITY, meaning="an outcome event (`cosim.simulation.outcome`)"),
     "section": Placeholder((), r"[0-9]+", "an ISO 3888-1 lane section, from 1"),
     "gain": Placeholder(GAIN_NAMES, meaning="an ACC gain"),
+    "lap": Placeholder((), r"[1-9][0-9]*", "a completed lap, from 1"),
 })
 """Every placeholder a key family may use."""
 
@@ -116,6 +120,7 @@ _RUNNER = "cosim.simulation.runner"
 _COURSE = "cosim.simulation.course_metrics"
 _MANOEUVRE = "cosim.simulation.manoeuvre_metrics"
 _TRAFFIC = "cosim.simulation.traffic_loop"
+_BELIEF = "cosim.simulation.belief_check"
 
 TRACKING = (
     MetricKey("cte_max_m", "m", "largest absolute lateral deviation of the true centre of "
@@ -129,6 +134,7 @@ TRACKING = (
               contract=True),
     MetricKey("speed_err_rms_mps", "m/s", "RMS of the true speed minus the reference speed "
               "at the projection and the time", "0", _METRICS, contract=True),
+    MetricKey("speed_err_max_mps", "m/s", "largest absolute such speed error", "0", _METRICS),
     MetricKey("steer_max_rad", "rad", "largest absolute road-wheel angle commanded (as "
               "applied, after the delay line)", "", _METRICS, contract=True),
     MetricKey("accel_max_mps2", "m/s^2", "largest acceleration commanded", "", _METRICS,
@@ -208,6 +214,10 @@ RUN = (
               "abort, one of " + ", ".join(f"`{kind}`" for kind in OUTCOMES), "ok", _RUNNER,
               values=OUTCOMES),
     MetricKey("events", "count", "outcome events on `/events`", "0", _RUNNER),
+    MetricKey("belief_mismatches", "count", "sensors whose NIS per degree of freedom left "
+              "the band while the sensor's noise and the filter's belief about it differ "
+              "(each one also a `belief_mismatch` line on `/events`; the outcome is "
+              "unchanged)", "0", _BELIEF),
     MetricKey("<kind>_t_s", "s", "simulated time of the first event of that kind", "",
               _RUNNER, scope=WHEN_IT_HAPPENS),
     MetricKey("abort_reason", "text", "why the run stopped early (`interrupted`, the error)",
@@ -222,6 +232,20 @@ COURSE = (
     MetricKey("track_limit_exceedances", "count", "times the body's edge went beyond the "
               "track's left or right half-width (one per excursion)", "0", _COURSE,
               scope=CIRCUIT),
+    MetricKey("laps_completed", "count", "laps the car covered (its progress along the path "
+              "from where it started, over the lap length)", "", _COURSE, scope=CLOSED),
+    MetricKey("lap_time_s", "s", "time of the first lap (NaN until one is completed)", "",
+              _COURSE, scope=CLOSED),
+    MetricKey("lap_<lap>_time_s", "s", "time of that lap (its ends interpolated between log "
+              "samples)", "", _COURSE, scope=CLOSED),
+    MetricKey("lap_<lap>_cte_max_m", "m", "largest absolute lateral deviation within that "
+              "lap", "0", _COURSE, scope=CLOSED),
+    MetricKey("lap_<lap>_lat_accel_max_mps2", "m/s^2", "largest absolute lateral "
+              "acceleration of the true centre of gravity within that lap", "at most "
+              "`profile_lat_accel_max_mps2`", _COURSE, scope=CLOSED),
+    MetricKey("profile_lat_accel_max_mps2", "m/s^2", "the lateral limit the speed profile "
+              "was built with (`cosim.simulation.course.profile_limits`), to hold "
+              "`lat_accel_max_mps2` against", "", _COURSE, scope=FRICTION_LIMITED),
 )
 
 MANOEUVRE = (

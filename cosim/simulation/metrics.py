@@ -183,6 +183,7 @@ class MetricsAccumulator:
             "heading_err_max_rad": self.heading_err_rad.max_abs,
             "heading_err_rms_rad": self.heading_err_rad.rms,
             "speed_err_rms_mps": self.speed_err_mps.rms,
+            "speed_err_max_mps": self.speed_err_mps.max_abs,
             "steer_max_rad": self.steer_rad.max_abs,
         }
 

@@ -14,7 +14,7 @@ from cosim.core.config_fields import setting
 
 PATH_KINDS: tuple[str, ...] = (
     "double-lane-change", "straight", "iso-lane-change", "circle", "figure-eight", "slalom",
-    "s-curve", "track",
+    "s-curve", "track", "generated",
 )
 """Values of ``path.kind``."""
 
@@ -48,18 +48,68 @@ class PathConfig:
     file: str = setting(
         "", doc="track: centre-line CSV (racetrack-database x_m,y_m,w_tr_right_m,w_tr_left_m "
         "or plain x,y); relative to the working directory, else a built-in circuit's name")
+    seed: int = setting(
+        0, low=0, high=2**31 - 1,
+        doc="generated: the circuit generator's seed (tracker.paths.generated_circuit: closed "
+        "circuits of 300-3000 m, hairpins down to 12 m radius, chicanes, 6-15 m wide)")
     closed: bool = setting(True, doc="track: the centre line is a closed circuit")
+    smoothing: bool = setting(
+        True,
+        doc="track, generated: fit a smoothing spline to a noisy centre line "
+        "(tracker.paths.centre_line; its noise estimated from the points) so the path's "
+        "curvature is the road's, not the survey's; a clean line is taken as it is")
     default_width_m: float = setting(
         5.0, low=0.5, high=100.0, doc="track: half-width each side when the CSV has none")
     speed_profile: str = setting(
         "constant", choices=SPEED_PROFILES,
         doc="constant (speed_mps), friction-limited (curvature and friction: forward-"
         "backward pass with the accel limits below), stop-and-go (cruise, stop, go again)")
-    lat_accel_max_mps2: float = setting(6.0, low=0.1, high=30.0,
-                                        doc="friction-limited: lateral acceleration limit")
-    accel_max_mps2: float = setting(2.0, low=0.1, high=20.0,
-                                    doc="friction-limited and stop-and-go: acceleration")
-    decel_max_mps2: float = setting(3.0, low=0.1, high=20.0,
-                                    doc="friction-limited and stop-and-go: braking")
+    lat_accel_max_mps2: float = setting(
+        6.0, low=0.1, high=30.0,
+        doc="friction-limited: lateral acceleration limit (at most grip_share of the "
+        "believed friction, tracker.model.tyre_friction x g)")
+    accel_max_mps2: float = setting(
+        2.0, low=0.1, high=20.0,
+        doc="friction-limited and stop-and-go: acceleration (friction-limited: at most "
+        "tracking_share of tracker.accel_max_mps2 and what the believed power gives at "
+        "the top speed)")
+    decel_max_mps2: float = setting(
+        3.0, low=0.1, high=20.0,
+        doc="friction-limited and stop-and-go: braking (friction-limited: at most "
+        "tracking_share of -tracker.accel_min_mps2 and grip_share of the believed friction)")
+    grip_share: float = setting(
+        0.7, low=0.05, high=1.0,
+        doc="friction-limited: the share of the believed friction circle (mu g) the "
+        "profile may use, laterally and in braking")
+    tracking_share: float = setting(
+        0.8, low=0.05, high=1.0,
+        doc="friction-limited: the share of the tracker's acceleration bounds the profile "
+        "may use; the rest is the speed loop's authority to catch up")
     cruise_s: float = setting(4.0, low=0.0, high=3600.0, doc="stop-and-go: time at speed")
     stop_s: float = setting(2.0, low=0.0, high=3600.0, doc="stop-and-go: time standing")
+
+
+_PROFILE_KEYS: dict[str, tuple[str, ...]] = {
+    "constant": (),
+    "friction-limited": ("lat_accel_max_mps2", "accel_max_mps2", "decel_max_mps2",
+                         "grip_share", "tracking_share"),
+    "stop-and-go": ("accel_max_mps2", "decel_max_mps2", "cruise_s", "stop_s"),
+}
+_SHAPE_KEYS: dict[str, tuple[str, ...]] = {
+    "double-lane-change": ("stretch", "length_m"),
+    "straight": ("length_m",),
+    "iso-lane-change": ("approach_m", "vehicle_width_m", "length_m"),
+    "circle": ("radius_m",),
+    "figure-eight": ("radius_m",),
+    "slalom": ("spacing_m", "cones", "amplitude_m", "approach_m", "length_m"),
+    "s-curve": ("radius_m", "arc_deg", "approach_m", "length_m"),
+    "track": ("file", "closed", "smoothing", "default_width_m"),
+    "generated": ("seed", "smoothing", "default_width_m"),
+}
+
+
+def path_keys_read(kind: str, speed_profile: str) -> tuple[str, ...]:
+    """The ``path.*`` keys a path of ``kind`` with ``speed_profile`` reads
+    (:func:`cosim.simulation.course.build_course`); the others are ignored."""
+    return ("kind", "speed_mps", "speed_profile", *_SHAPE_KEYS[kind],
+            *_PROFILE_KEYS[speed_profile])

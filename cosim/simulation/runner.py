@@ -20,11 +20,13 @@ from __future__ import annotations
 
 import collections
 import contextlib
+import dataclasses
 import importlib.metadata
 import json
 import signal
 import threading
 import time
+import warnings
 import zlib
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -48,15 +50,17 @@ from cosim.plant.protocol import Plant
 from cosim.sensing.faults import FaultInjector
 from cosim.sensing.protocol import Sensor
 from cosim.sensing.sensors import TruthSensor, make_sensors
+from cosim.simulation.belief_check import BeliefMismatchWarning, belief_mismatches
 from cosim.simulation.course import Course, build_course
 from cosim.simulation.course_metrics import CourseMonitor
 from cosim.simulation.metrics import MetricsAccumulator
 from cosim.simulation.outcome import TERMINAL, Event, OutcomeMonitor
 from cosim.simulation.scenario_config import ScenarioConfig, steps_per_period
 from cosim.simulation.traffic_loop import CollisionError, TrafficLoop, build_traffic
-from estimation.protocol import CountsUpdates, Estimator, JointUpdater
+from estimation.protocol import CountsUpdates, Estimator, JointUpdater, ObservableEstimator
 from estimation.registry import make_estimator
 from estimation.update_result import UpdateResult
+from tracker.paths.reference_path import ReferencePath
 from tracker.protocol import Closable, Tracker
 from tracker.registry import make_tracker
 
@@ -95,7 +99,19 @@ def component_rng(seed: int, component: str) -> np.random.Generator:
 
 def scenario_course(config: ScenarioConfig) -> Course:
     """The course of the scenario: path, speed profile, gates, cones, track bounds."""
-    return build_course(config.path, config.initial, config.plant, config.sim.duration_s)
+    return build_course(config.path, config.initial, config.plant, config.sim.duration_s,
+                        config.tracker)
+
+
+def start_speed_resolved(config: ScenarioConfig, reference: ReferencePath) -> ScenarioConfig:
+    """With ``initial.speed_from_profile``, ``initial.speed_mps`` becomes the reference
+    speed where the car starts (its projection on the path, at t = 0)."""
+    initial = config.initial
+    if not initial.speed_from_profile:
+        return config
+    s_m = reference.project(initial.x_m, initial.y_m).s_m
+    speed_mps = float(reference.speed_ref(s_m, 0.0))
+    return dataclasses.replace(config, initial=dataclasses.replace(initial, speed_mps=speed_mps))
 
 
 def _versions() -> dict[str, str]:
@@ -194,11 +210,13 @@ class _Run:
 
     def __init__(self, config: ScenarioConfig, recorder: Recorder,
                  tracker: Tracker | None = None) -> None:
-        self.config = config
         self.clock = _Clock.from_config(config)
         self.recorder = recorder
         self.course = scenario_course(config)
         self.reference = self.course.reference
+        config = start_speed_resolved(config, self.reference)
+        self.config = config
+        """The run's configuration, the start speed resolved (what the log records)."""
         self.course_monitor = CourseMonitor(self.course, config.plant)
         traffic = build_traffic(config)
         self.plant: Plant = MujocoPlant(config.plant, self.clock.dt_s, config.initial,
@@ -237,7 +255,6 @@ class _Run:
         self.yaw_rate_changes = collections.deque(disturbances.schedule(
             config.disturbances, self.clock.dt_s, component_rng(config.seed, "disturbances")))
         self._truth: VehicleState | None = None
-        self.estimated_speed_mps = config.initial.speed_mps
         self.plan_scene_registered = False
         """``/scene/plan`` is registered with the first plan that has world positions."""
         self.next_live_metrics_s = LIVE_METRICS_PERIOD_S
@@ -295,13 +312,21 @@ class _Run:
             closed=self.reference.closed))
 
     def current_estimate(self, t_s: float) -> Estimate:
+        """The estimator predicted to ``t_s``, for the controller: part of the loop (the
+        filter's predictions follow the control and sensor instants, never the log's)."""
         self.estimator.predict(t_s)
-        estimate = self.estimator.estimate()
-        self.estimated_speed_mps = estimate["vx_mps"]
-        return estimate
+        return self.estimator.estimate()
+
+    def observed_estimate(self, t_s: float) -> Estimate:
+        """The estimate at ``t_s`` without changing the estimator (for the log and the
+        low-level layer): an estimator that cannot be looked at between its steps gives its
+        latest belief as it stands."""
+        if isinstance(self.estimator, ObservableEstimator):
+            return self.estimator.estimate_at(t_s)
+        return self.estimator.estimate()
 
     def log(self, k: int, t_s: float) -> None:
-        estimate = self.current_estimate(t_s)
+        estimate = self.observed_estimate(t_s)
         self.recorder.write_finite(topics.VEHICLE_TRUTH, t_s, self.truth.to_message())
         self.recorder.write_finite(topics.VEHICLE_ESTIMATE, t_s, estimate.to_message())
         self.recorder.write(topics.TF, t_s, foxglove.frame_transform(self.truth))
@@ -316,10 +341,7 @@ class _Run:
         for event in self.monitor.observe(
                 self.truth, metrics.cte_m.last, metrics.heading_err_rad.last, metrics.last_path_s_m,
                 None if forces is None else tuple(f.load_n for f in forces)):
-            if not self.events_registered:  # a channel exists only when it carries messages
-                self.recorder.register(topics.EVENTS)
-                self.events_registered = True
-            self.recorder.write_finite(topics.EVENTS, t_s, event.to_message())
+            self.write_event(event)
             if event.kind in TERMINAL and not self.config.outcome.keep_going \
                     and self.stopped_by is None:
                 self.stopped_by = event
@@ -394,11 +416,14 @@ class _Run:
 
     def record_collision(self, error: CollisionError) -> None:
         """The ``collision`` event on ``/events`` (the run ends with it)."""
-        event = self.monitor.collision(error.t_s, error.car)
+        self.write_event(self.monitor.collision(error.t_s, error.car))
+
+    def write_event(self, event: Event) -> None:
+        """One event on ``/events`` (the channel exists only when it carries messages)."""
         if not self.events_registered:
             self.recorder.register(topics.EVENTS)
             self.events_registered = True
-        self.recorder.write_finite(topics.EVENTS, error.t_s, event.to_message())
+        self.recorder.write_finite(topics.EVENTS, event.t_s, event.to_message())
 
     def write_plan_scene(self, t_s: float, plan: Plan) -> None:
         scene = foxglove.plan_scene(plan)
@@ -413,7 +438,8 @@ class _Run:
         """Apply the commands that leave the delay line at step ``k``."""
         while self.delay_line and self.delay_line[0][0] <= k:
             _, command = self.delay_line.popleft()
-            actuator = self.low_level.convert(command, self.estimated_speed_mps)
+            speed_mps = self.observed_estimate(t_s)["vx_mps"]
+            actuator = self.low_level.convert(command, speed_mps)
             self.plant.apply(actuator)
             self.metrics.add_command(command)
             self.recorder.write(topics.CONTROL_COMMAND, t_s, {
@@ -541,6 +567,12 @@ def _finish(recorder: Recorder, state: _Run, wall_start: float, completed: bool,
         values.setdefault(f"{event.kind}_t_s", event.t_s)
     if abort_reason:
         values["abort_reason"] = abort_reason
+    mismatches = belief_mismatches(values, to_dict(state.config))
+    values["belief_mismatches"] = len(mismatches)
+    for mismatch in mismatches:
+        state.write_event(Event("belief_mismatch", metrics.last_t_s, mismatch.nis,
+                                mismatch.bound, mismatch.line))
+        warnings.warn(mismatch.line, BeliefMismatchWarning, stacklevel=2)
     recorder.write_finite(topics.METRICS, metrics.last_t_s, values)
     recorder.add_metadata("metrics", {"json": json.dumps(
         {k: (v if not isinstance(v, float) or np.isfinite(v) else None)

@@ -20,20 +20,30 @@ from typing import Any
 
 import yaml
 
-from cosim.core.config_fields import from_dict, items, mapping, section, set_dotted, setting
+from cosim.core.config_fields import (
+    from_dict,
+    items,
+    mapping,
+    section,
+    set_dotted,
+    setting,
+    to_dict,
+)
 from cosim.core.exceptions import ConfigError, RateError
 from cosim.core.initial_state import InitialState
 from cosim.core.key_aliases import canonical_key, rename_old_keys
-from cosim.core.vehicle_params import PlantConfig
+from cosim.core.vehicle_params import MOVED_PLANT_KEYS, PlantConfig
 from cosim.core.yaml_io import loads as yaml_loads
 from cosim.core.yaml_io import read_yaml_file, shown
 from cosim.log.foxglove import GeoOrigin
 from cosim.plant.disturbances import DisturbanceConfig
+from cosim.plant.sedan_sampler import sampled_sedan
 from cosim.sensing.faults import FaultConfig
 from cosim.sensing.sensors import SensorsConfig, suite_preset
 from cosim.simulation.outcome import OutcomeConfig
 from cosim.simulation.path_config import PathConfig
 from cosim.simulation.traffic_checks import check_traffic
+from cosim.simulation.unread_keys import UnreadKeyWarning, unread_key_warnings
 from estimation.config import ESTIMATOR_NAMES, EstimatorConfig
 from estimation.noise_config import suite_noise_preset
 from estimation.registry import estimator_class, required_sensors
@@ -96,6 +106,12 @@ class ScenarioConfig:
     name: str = setting("custom")
     description: str = setting("")
     seed: int = setting(0, low=0, high=2**63 - 1)
+    vehicle_sample: int = setting(
+        -1, low=-1, high=2**31 - 1,
+        doc="-1: the nominal sedan; n >= 0: the n-th plausible sedan of "
+        "cosim.plant.sedan_sampler (mass, yaw inertia, wheelbase, CoG, tyre stiffness and "
+        "friction over published passenger-car ranges) for the plant and the controller's "
+        "model alike; keys set explicitly win")
     sim: SimConfig = section(SimConfig)
     path: PathConfig = section(PathConfig)
     initial: InitialState = section(InitialState)
@@ -200,13 +216,19 @@ def load_config(
         key, value = parse_override(text)
         set_dotted(data, canonical_key(key, "--set"), value)
     rename_old_keys(data, "--set")  # an old key inside a mapping given as a --set value
+    data = _with_sampled_vehicle(data)
     sensors = data.get("sensors")
     if isinstance(sensors, dict) and isinstance(sensors.get("suite"), str):
         # The suite presets figures; what the user set explicitly wins.
         data["sensors"] = _merge(suite_preset(sensors["suite"]), sensors)
         _believe_suite(data, sensors["suite"])
     _believe_actuator_delay(data)
+    _refuse_moved_keys(data)
     config = from_dict(ScenarioConfig, data)
+    for line in unread_key_warnings(data, config.tracker.name, config.plant.tyre_model,
+                                    config.initial.speed_from_profile,
+                                    to_dict(ScenarioConfig())):
+        warnings.warn(line, UnreadKeyWarning, stacklevel=2)
     check_rates(config)
     check_required_sensors(config)
     check_faults(config)
@@ -223,6 +245,27 @@ def load_config(
     if config.estimator.name not in ESTIMATOR_NAMES:
         estimator_class(config.estimator.name)
     return config
+
+
+def _with_sampled_vehicle(data: dict[str, Any]) -> dict[str, Any]:
+    """``vehicle_sample: n >= 0``: the sampled sedan's figures under what was set."""
+    index = data.get("vehicle_sample", -1)
+    if isinstance(index, bool) or not isinstance(index, int) or index < 0:
+        return data  # -1, or a bad value that from_dict names
+    return _merge(sampled_sedan(index), data)
+
+
+def _refuse_moved_keys(data: dict[str, Any]) -> None:
+    """A key that moved (:data:`cosim.core.vehicle_params.MOVED_PLANT_KEYS`) is refused
+    with its new name: a silent move would change what an old scenario means."""
+    plant = data.get("plant")
+    if not isinstance(plant, dict):
+        return
+    for key, new in MOVED_PLANT_KEYS.items():
+        if key in plant:
+            raise ConfigError(
+                f"plant.{key}: the plant does not read it (its tyres are the Magic Formula "
+                f"of plant.tyre.*); the controller's belief is {new}")
 
 
 def check_faults(config: ScenarioConfig) -> None:

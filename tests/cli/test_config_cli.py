@@ -66,8 +66,8 @@ def test_show_prints_a_scenario_that_resolves_to_the_same_config(tmp_path: Path)
     assert load_config(str(printed)) != load_config("lane-change")
 
 
-def test_show_prints_what_the_run_logs(tmp_path: Path) -> None:
-    result = cosim("config", "show", "lane-change", *OPTIONS)
+def test_show_all_prints_what_the_run_logs(tmp_path: Path) -> None:
+    result = cosim("config", "show", "--all", "lane-change", *OPTIONS)
     config = load_config("lane-change", None, ["plant.mass_kg=2000", "sensors.gnss.sigma_m=0.2"],
                          3, 0.3, "ltv-mpc", "ukf")
     log = run(config, tmp_path / "run.mcap").log_path

@@ -83,3 +83,32 @@ def test_track_limit_exceedances_count_excursions_not_samples() -> None:
     for k, offset in enumerate(offsets):
         monitor.add_truth(_state(0.0, x=float(k), y=offset), offset, float(k))
     assert monitor.result() == {"track_limit_exceedances": 2}
+
+
+def test_laps_on_a_circle_by_hand() -> None:
+    # A 50 m circle driven at 10 m/s from its start line: a lap is 2 pi 50 / 10 = 31.4 s.
+    radius, speed = 50.0, 10.0
+    theta = np.linspace(0.0, 2.0 * np.pi, 200, endpoint=False)
+    circle = ReferencePath(radius * np.sin(theta), radius * (1.0 - np.cos(theta)), speed,
+                           closed=True)
+    monitor = CourseMonitor(Course(circle), PlantConfig())
+    lap_s = 2.0 * np.pi * radius / speed
+    for t in np.arange(0.0, 2.5 * lap_s, 0.01):
+        angle = speed * t / radius
+        x, y = radius * np.sin(angle), radius * (1.0 - np.cos(angle)) + 0.3 * (t > 1.1 * lap_s)
+        projection = circle.project(x, y)
+        monitor.add_truth(_state(t, x, y, angle, ay=speed**2 / radius),
+                          projection.lateral_error_m, projection.s_m)
+    result = monitor.result()
+    assert result["laps_completed"] == 2
+    assert result["lap_time_s"] == pytest.approx(lap_s, abs=1e-3)
+    assert result["lap_2_time_s"] == pytest.approx(lap_s, abs=1e-3)
+    assert result["lap_1_cte_max_m"] < 1e-3 and result["lap_2_cte_max_m"] == pytest.approx(
+        0.3, abs=1e-3)
+    assert result["lap_1_lat_accel_max_mps2"] == pytest.approx(2.0)
+
+
+def test_an_open_path_has_no_laps() -> None:
+    monitor = CourseMonitor(Course(_straight()), PlantConfig())
+    monitor.add_truth(_state(0.0), 0.0, 0.0)
+    assert "laps_completed" not in monitor.result()

@@ -40,7 +40,9 @@ At every control step
 
        J = sum_{j=1..Np} ||Y_j - Y_ref||_Q^2 + sum_{i<Nc} ||Delta u_i||_R^2 + slack terms
 
-   with ``Y = [vx, e1, e2]``, ``Y_ref = [v_D, 0, 0]``. Hard bounds: steering within
+   with ``Y = [vx, e1, e2]``, ``Y_ref = [v_D,j, 0, 0]``: ``v_D,j`` the speed profile where
+   and when node ``j`` is expected (preview: the reference design holds one ``v_D``, which
+   lags a braking profile by the whole horizon). Hard bounds: steering within
    ``tracker.max_steer_rad`` (by default 15 deg for this tracker: the reference design's),
    acceleration within ``[tracker.accel_min_mps2, tracker.accel_max_mps2]`` (reference design:
    +-3 m/s^2), steering increments within ``max_steer_rate_radps`` times the time they
@@ -49,7 +51,7 @@ At every control step
    ``0 <= vx <= 30 m/s``, with one slack per limit and node ``1..Np``, penalised squared
    and linearly with ``weight_slack``. The QP is one ``ca.qpsol`` built in the
    constructor with every step-dependent number (starting state, previous input, ``v0``,
-   the desired yaw rates, ``v_D``) as a parameter: a step only evaluates it.
+   the desired yaw rates, the ``v_D,j``) as a parameter: a step only evaluates it.
 4. **Failures** (:mod:`tracker.mpc.base`, the skeleton every MPC shares): a failed QP, a
    numerical error or a non-finite result never raises: the last good plan is replayed,
    shifted by the elapsed time (status ``fallback (...)``), then after
@@ -216,7 +218,7 @@ class DynamicMpc(MpcTracker):
             ("input_prev", n_u),
             ("speed_lin_mps", 1),
             ("yaw_rate_ref_radps", n_p),
-            ("speed_ref_mps", 1),
+            ("speed_ref_mps", n_p),
         ))
         constraints = VectorLayout(
             (("inputs", n_c * n_u),)
@@ -243,9 +245,10 @@ class DynamicMpc(MpcTracker):
 
         weight = {"vx_mps": cfg.weight_speed, "e1_m": cfg.weight_lateral,
                   "e2_rad": cfg.weight_heading}
-        reference = {"vx_mps": par["speed_ref_mps"], "e1_m": 0.0, "e2_rad": 0.0}
         cost = 0
-        for x_j in states[1:]:
+        for j, x_j in enumerate(states[1:]):
+            # The speed reference with preview: the profile where node j is expected.
+            reference = {"vx_mps": par["speed_ref_mps"][j], "e1_m": 0.0, "e2_rad": 0.0}
             y = path_model.outputs(x_j)
             for name in path_model.OUTPUT_NAMES:
                 cost += weight[name] * (y[path_model.OUTPUT[name]] - reference[name]) ** 2
@@ -302,13 +305,14 @@ class DynamicMpc(MpcTracker):
     def _solve(self, t_s: float, start: StartingPoint,  # type: ignore[override]
                reference: ReferencePath) -> Solved:
         """The condensed QP from the starting point (its own :meth:`_start`)."""
-        yaw_rate_ref = self._yaw_rate_ref = self._yaw_rate_reference(reference, start)
+        yaw_rate_ref, speed_ref = self._horizon_references(reference, start)
+        self._yaw_rate_ref = yaw_rate_ref
         params = self._qp.params.pack({
             "state0": start.state,
             "input_prev": self._previous_input,
             "speed_lin_mps": start.state[path_model.STATE["vx_mps"]],
             "yaw_rate_ref_radps": yaw_rate_ref,
-            "speed_ref_mps": self._speed_reference(reference, start),
+            "speed_ref_mps": speed_ref,
         })
         lbx, ubx = self._variable_bounds(t_s)
         began = time.perf_counter()
@@ -384,18 +388,13 @@ class DynamicMpc(MpcTracker):
         path_state = np.array([values[name] for name in path_model.STATE_NAMES], dtype=float)
         return StartingPoint(end_t_s, path_state, s_m)
 
-    @staticmethod
-    def _speed_reference(reference: ReferencePath, start: StartingPoint) -> float:
-        """The speed profile where the car starts from (the model holds one speed reference
-        over the horizon, as the paper does); the top speed before the first projection."""
-        if not math.isfinite(start.s_m):
-            return reference.speed_mps
-        return float(reference.speed_ref(start.s_m, start.t_s))
-
-    def _yaw_rate_reference(self, reference: ReferencePath,
-                            start: StartingPoint) -> np.ndarray:
-        """``psi_D' = v kappa(s)`` (P7) at the middle of every stage: ``s`` the arc length
-        the car is expected to reach at the speeds ``v`` it is expected to drive."""
+    def _horizon_references(self, reference: ReferencePath,
+                            start: StartingPoint) -> tuple[np.ndarray, np.ndarray]:
+        """``psi_D' = v kappa(s)`` (P7) at the middle of every stage, and the speed
+        reference at every node 1..Np (preview: the profile where and when the car is
+        expected there, so it brakes on time for a bend ahead); ``s`` the arc length the car
+        is expected to reach at the speeds ``v`` it is expected to drive. Before the first
+        projection the speed reference is the top speed."""
         n, ts = self._n_p, self._ts
         times = start.t_s + 0.5 * ts * np.arange(2 * n + 1)  # stage boundaries and middles
         speed0 = start.state[path_model.STATE["vx_mps"]]
@@ -409,9 +408,13 @@ class DynamicMpc(MpcTracker):
         speeds = np.maximum(speeds, 0.0)
         s = start.s_m + np.concatenate(
             ([0.0], np.cumsum(0.5 * (speeds[:-1] + speeds[1:]) * 0.5 * ts)))
-        middle = slice(1, None, 2)
+        middle, nodes = slice(1, None, 2), slice(2, None, 2)
         curvature = reference.sample(s[middle])["curvature_1pm"]
-        return speeds[middle] * curvature
+        if math.isfinite(start.s_m):
+            speed_ref = reference.speed_ref(s[nodes], times[nodes])
+        else:
+            speed_ref = np.full(n, reference.speed_mps)
+        return speeds[middle] * curvature, np.asarray(speed_ref, dtype=float)
 
     # ------------------------------------------------------------------ helpers
 

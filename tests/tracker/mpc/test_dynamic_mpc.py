@@ -411,3 +411,17 @@ def test_wrong_name_and_missing_states_are_refused() -> None:
 
 def test_registry_builds_it() -> None:
     assert isinstance(make_tracker(CONFIG), DynamicMpc)
+
+
+def test_the_speed_reference_is_previewed_over_the_horizon() -> None:
+    """A profile that drops ahead of the car is braked for before the car gets there: the
+    QP reads the profile where each node is expected (held at the start's speed, the car
+    would coast on until the drop reached it)."""
+    from tracker.paths.speed_profile import SpatialSpeed  # noqa: PLC0415
+
+    drop = SpatialSpeed(np.array([0.0, 12.0, 20.0, 400.0]), np.array([20.0, 20.0, 10.0, 10.0]))
+    path = ReferencePath(np.linspace(0.0, 400.0, 401), np.zeros(401), drop)
+    tracker = DynamicMpc(CONFIG)
+    command, plan = tracker.step(0.0, estimate_of(0.0, Car(0.0, 0.0, 0.0, 20.0)), path)
+    assert plan.success
+    assert command.accel_mps2 < -0.5  # braking now, at s = 0 where the profile is still 20
