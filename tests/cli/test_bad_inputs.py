@@ -206,8 +206,8 @@ ROWS = [
     # trackers from outside cosim (tests/user_trackers.py)
     Row("plug-in module missing", lambda f: ["run", "lane-change", "--tracker",
                                              "no_such_pkg.mod:Tracker"],
-        ("tracker.name = 'no_such_pkg.mod:Tracker'", "no module named 'no_such_pkg'",
-         "expected an importable module")),
+        ("tracker.name = 'no_such_pkg.mod:Tracker'", "no module 'no_such_pkg' on Python's "
+         "import path", "PYTHONPATH=. cosim")),
     Row("plug-in class missing", lambda f: ["run", "lane-change", "--tracker",
                                             "tests.user_trackers:Nope"],
         ("'tests.user_trackers:Nope'", "no attribute 'Nope'", "expected a class")),
