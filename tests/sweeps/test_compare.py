@@ -42,6 +42,7 @@ def test_tasks_cover_every_combination_once() -> None:
     assert [t.run_id for t in tasks] == list(range(12))
 
 
+@pytest.mark.slow
 def test_compare_runs_every_combination_and_writes_the_table(tmp_path: Path) -> None:
     out = tmp_path / "league"
     result = cosim("compare", "--trackers", "pid,lqr", "--scenarios", "circle",
@@ -120,6 +121,7 @@ def test_a_signal_to_compare_alone_stops_its_runs_and_writes_the_league(
     assert all(name in league_md for name in ("pid", "lqr", "stanley"))
 
 
+@pytest.mark.slow
 def test_compare_refuses_a_folder_with_results_unless_told(tmp_path: Path) -> None:
     out = tmp_path / "earlier"
     out.mkdir()
@@ -136,6 +138,7 @@ def test_compare_refuses_a_folder_with_results_unless_told(tmp_path: Path) -> No
     assert "earlier" not in (out / "rows.jsonl").read_text()
 
 
+@pytest.mark.slow
 def test_a_plugin_that_exits_is_one_failed_row_not_the_end(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """``sys.exit`` in a user's tracker: its run is a row with the reason, the others land,
