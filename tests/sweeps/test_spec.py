@@ -184,6 +184,43 @@ def test_tables_summary_and_plots_from_rows(tmp_path: Path) -> None:
     assert worst_table.splitlines()[4].startswith("| 0 | 1100 | 0.7 | 0 | n/a | - | **FAIL**")
 
 
+GAP_SPEC = """
+scenario: acc-braking
+duration_s: 1
+seeds: 2
+grid:
+  traffic.lead.brake_decel_mps2: [6, 9]
+  tracker.acc.time_gap_s: [1.0, 1.5]
+pass: {gap_min_m: {min: 2}}
+"""
+
+
+def test_the_worst_of_a_minimum_is_the_smallest(tmp_path: Path) -> None:
+    """For ``gap_min_m`` the worst run is the closest one: the summary lists it first, and
+    the per-value and per-cell figures are the smallest gap, not the largest."""
+    spec = load_spec(write_spec(tmp_path, GAP_SPEC))
+    rows = []
+    for task in spec.tasks():
+        params = dict(task.params)
+        gap = 12.0 - params["traffic.lead.brake_decel_mps2"] + 4.0 * params[
+            "tracker.acc.time_gap_s"] - 0.5 * task.seed
+        rows.append({"run_id": task.run_id, "point": task.point, "seed": task.seed,
+                     "params": params, "metrics": {"gap_min_m": gap, "completed": True},
+                     "error": "", "log": "", "started_at": "", "finished_at": ""})
+    directory = SweepDir(tmp_path / "out")
+    directory.prepare(spec, GAP_SPEC, resume=False, n_runs=len(rows))
+    flat = write_tables(directory, spec, rows, len(rows))
+    smallest = min(r["gap_min_m"] for r in flat)
+    summary = summary_markdown(spec, flat, len(rows), [], 1.0)
+    first_row = summary.split("## Worst cases")[1].splitlines()[4]
+    assert f"| {smallest:.4g} |" in first_row, first_row
+    per_value = summary.split("### `traffic.lead.brake_decel_mps2`")[1].split("###")[0]
+    assert per_value.splitlines()[-2].endswith(f"| {smallest:.4g} |"), per_value
+    grid = summary.split("## Worst `gap_min_m` per grid point")[1].split("##")[0]
+    assert f"{smallest:.4g}" in grid and f"{max(r['gap_min_m'] for r in flat):.4g}" \
+        not in grid
+
+
 def test_a_minimum_metric_takes_a_lower_bound(tmp_path: Path) -> None:
     """Traffic and course metrics are criteria too; ``{min: X}`` is a lower bound."""
     spec = load_spec(write_spec(tmp_path, "scenario: acc-braking\nduration_s: 1\n"
