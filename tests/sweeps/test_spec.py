@@ -12,7 +12,7 @@ from cosim.core.exceptions import ConfigError, CosimError
 from cosim.simulation.scenario_config import parse_override
 from cosim.sweeps.execute import execute_task
 from cosim.sweeps.plots import heat_map, metric_plots
-from cosim.sweeps.results import SweepDir, summary_markdown, write_tables
+from cosim.sweeps.results import SweepDir, bounds, low_is_bad, summary_markdown, write_tables
 from cosim.sweeps.spec import load_spec, override_text, unit_of
 
 
@@ -242,11 +242,9 @@ def test_several_metrics_are_plotted_and_a_lower_bound_is_drawn(tmp_path: Path) 
                                 "pass: {gap_min_m: {min: 2}}\n"
                                 "metric: [gap_min_m, ttc_min_s]\n"))
     assert spec.metric == "gap_min_m" and spec.metrics == ("gap_min_m", "ttc_min_s")
-    from cosim.sweeps.plots import _bounds, _low_is_bad
-
-    assert _bounds(spec, "gap_min_m") == (2.0, None)
-    assert _low_is_bad(spec, "gap_min_m") and _low_is_bad(spec, "ttc_min_s")
-    assert not _low_is_bad(spec, "cte_max_m")
+    assert bounds(spec, "gap_min_m") == (2.0, None)
+    assert low_is_bad(spec, "gap_min_m") and low_is_bad(spec, "ttc_min_s")
+    assert not low_is_bad(spec, "cte_max_m")
     flat = [{"traffic.lead.brake_decel_mps2": decel, "gap_min_m": gap, "ttc_min_s": ttc,
              "pass": ok, "error": "", "outcome": outcome}
             for decel, gap, ttc, ok, outcome in ((3, 2.4, 2.7, True, "ok"),
