@@ -167,6 +167,29 @@ def test_a_plugin_that_exits_fails_its_row_and_the_sweep_goes_on(
 
 
 @pytest.mark.slow
+def test_a_run_that_kills_its_worker_is_one_failed_row_and_the_rest_finish(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``os._exit`` in a plug-in takes its worker process down (and the pool with it): the
+    run is named in its row's error, the runs beside it and after it still finish."""
+    from cosim.cli import main
+
+    spec = tmp_path / "dies.yaml"
+    spec.write_text("scenario: lane-change\ntracker: tests.user_trackers:HardExit\n"
+                    "duration_s: 0.3\nseeds: 1\n"
+                    "grid: {tracker.params.fail_at_s: [1.0, 0.1, 1.1, 1.2]}\n"
+                    "pass: {completed: true}\n")
+    code = main(["sweep", str(spec), "--out", str(tmp_path / "out"), "--workers", "2"])
+    assert code == 0, capsys.readouterr().err
+    rows = sorted((json.loads(line) for line in
+                   (tmp_path / "out" / "results.jsonl").read_text().splitlines()),
+                  key=lambda r: r["run_id"])
+    assert [r["run_id"] for r in rows] == [0, 1, 2, 3]
+    assert rows[1]["error"].startswith("WorkerDiedError: its worker process died")
+    for row in (rows[0], rows[2], rows[3]):
+        assert row["error"] == "" and row["metrics"]["completed"] is True, row
+
+
+@pytest.mark.slow
 def test_the_acc_braking_example_ends_in_a_collision_as_a_result(tmp_path: Path) -> None:
     """The shipped example: a collision is a run that failed its criteria, with its outcome,
     not an error; the plots show the gap and the time to collision."""
