@@ -29,7 +29,9 @@ from tests.estimation.drive import (
 
 RTK_SIGMA_M = 0.02
 COARSE_SIGMA_M = 0.5
-FILTERS = ("ekf", "ukf")
+FILTERS = ("ekf", pytest.param("ukf", marks=pytest.mark.slow))
+"""The UKF's closed-loop drives cost twice the EKF's: they run in ``make test``, not in
+``make test-fast``."""
 
 
 def _figures(label: str, run: Run) -> str:
