@@ -30,7 +30,10 @@ TOPICS = {topics.VEHICLE_TRUTH, topics.VEHICLE_ESTIMATE, topics.CONTROL_COMMAND,
 
 TRUTH_FIELDS = ("x_m", "y_m", "yaw_rad", "vx_mps", "vy_mps", "yaw_rate_radps", "ax_mps2",
                 "steer_rad", "roll_rad")
-"""The ``/vehicle/truth`` fields an estimate's state of the same name is compared with."""
+"""The ``/vehicle/truth`` fields of the car's state an estimate's state of the same name is
+compared with."""
+BIAS_FIELDS = ("gyro_bias_radps", "ax_bias_mps2", "ay_bias_mps2")
+"""The IMU's true biases, in ``/vehicle/truth`` when the run has an IMU (NaN otherwise)."""
 ANGLES = ("yaw_rad", "roll_rad")
 """Errors wrapped to (-pi, pi]."""
 
@@ -51,6 +54,10 @@ class Truth:
     steer_rad: np.ndarray
     """Road-wheel angle of the front axle (the steering actuator's output)."""
     roll_rad: np.ndarray
+    gyro_bias_radps: np.ndarray
+    ax_bias_mps2: np.ndarray
+    ay_bias_mps2: np.ndarray
+    """The IMU's true biases (NaN when the log has none: no IMU, or an older log)."""
 
     @property
     def speed_mps(self) -> np.ndarray:
@@ -203,7 +210,7 @@ def _truth(messages: list[tuple[int, dict[str, Any]]]) -> Truth:
     return Truth(
         log_time_ns=np.array([t for t, _ in messages], dtype=np.int64),
         **{name: _column(messages, name)
-           for name in ("t_s", *TRUTH_FIELDS)},
+           for name in ("t_s", *TRUTH_FIELDS, *BIAS_FIELDS)},
     )
 
 
@@ -293,8 +300,8 @@ def _estimation(truth: Truth, estimate: EstimateLog | None) -> EstimationErrors 
         return None
     errors: dict[str, np.ndarray] = {}
     sigmas: dict[str, np.ndarray] = {}
-    for name in TRUTH_FIELDS:
-        if name not in estimate.state_names:
+    for name in (*TRUTH_FIELDS, *BIAS_FIELDS):
+        if name not in estimate.state_names or not np.any(np.isfinite(getattr(truth, name))):
             continue
         error = estimate.column(name)[in_estimate] - getattr(truth, name)[in_truth]
         errors[name] = np.asarray(wrap_angle(error)) if name in ANGLES else error

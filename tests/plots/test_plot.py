@@ -162,6 +162,21 @@ def test_the_plotted_errors_are_the_metrics(nmpc_run: RunResult) -> None:
     assert data.truth.t_s.size == data.estimation.t_s.size == 301
 
 
+def test_the_imu_biases_are_drawn_against_their_truth(nmpc_run: RunResult) -> None:
+    """The truth carries the IMU's own biases, so each bias estimate is drawn as an error:
+    after the first second the EKF's error stays inside its 3 sigma almost always (a bias
+    logged with the wrong sign or channel would be twice the bias, far outside)."""
+    data = load_run(nmpc_run.log_path)
+    assert data.estimation is not None
+    settled = data.estimation.t_s >= 1.0
+    for name in ("gyro_bias_radps", "ax_bias_mps2", "ay_bias_mps2"):
+        truth = getattr(data.truth, name)
+        assert np.all(np.isfinite(truth)) and np.any(truth != 0.0), name
+        error = data.estimation.error[name][settled]
+        sigma = data.estimation.sigma[name][settled]
+        assert np.mean(np.abs(error) <= 3.0 * sigma) > 0.95, name
+
+
 @pytest.mark.slow
 def test_a_truncated_log_is_plotted_and_marked(nmpc_run: RunResult, tmp_path: Path) -> None:
     content = nmpc_run.log_path.read_bytes()
