@@ -8,8 +8,9 @@ every intermediate on the filter object at each call, which cost more than the a
 a 17-state filter fed at 300 Hz, and importing filterpy imports ``scipy.stats`` (a third
 of a second of every process start). ``tests/estimation/test_ekf_update.py`` checks both
 functions against filterpy's. The models and their exact Jacobians come from
-:mod:`estimation.models` (CasADi); when and whether a measurement is fused (time, gating,
-rejection, counters) from :class:`estimation.fusion.KalmanFusion`.
+:mod:`estimation.process_model` and :mod:`estimation.measurement_models` (CasADi); when and
+whether a measurement is fused (time, gating, rejection, counters) from
+:class:`estimation.fusion.KalmanFusion`.
 """
 
 from __future__ import annotations
@@ -19,8 +20,9 @@ from collections.abc import Callable
 import numpy as np
 from scipy.linalg import block_diag
 
-from estimation.fusion import KalmanFusion, Selection, TrialUpdate, residual_function
-from estimation.models import MeasurementModel
+from estimation.fusion import KalmanFusion
+from estimation.innovation import Selection, TrialUpdate, residual_function
+from estimation.measurement_models import MeasurementModel
 
 
 def covariance_prediction(p: np.ndarray, transition: np.ndarray,
@@ -30,7 +32,7 @@ def covariance_prediction(p: np.ndarray, transition: np.ndarray,
 
 
 class Ekf(KalmanFusion):
-    """Extended Kalman filter over :data:`estimation.models.STATE_NAMES`.
+    """Extended Kalman filter over :data:`estimation.state.STATE_NAMES`.
 
     See :class:`estimation.fusion.KalmanFusion` for the arguments and the contract.
     """

@@ -8,8 +8,8 @@ import pytest
 from filterpy.kalman import ExtendedKalmanFilter
 
 from estimation.ekf import covariance_prediction, joseph_update
-from estimation.fusion import residual_function
-from estimation.models import wrap_angle
+from estimation.innovation import residual_function
+from estimation.state import wrap_angle
 
 
 @pytest.mark.parametrize("dim_z, angle_rows", [(1, ()), (2, ()), (3, (1,))])
