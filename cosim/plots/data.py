@@ -386,8 +386,8 @@ def load_estimation(path: Path | str) -> EstimationErrors | None:
 
 def distinct_labels(runs: list[RunLog]) -> list[RunLog]:
     """The runs with labels that tell them apart: by what differs in their logged
-    configurations (``plant.mass_kg=1575`` against ``plant.mass_kg=2000``), else by file
-    name, else by number."""
+    configurations (``plant.mass_kg=1575`` against ``plant.mass_kg=2000``; runs that share
+    a configuration get their file name too), else by file name, else by number."""
     from dataclasses import replace
 
     if len(runs) < 2:
@@ -406,6 +406,11 @@ def distinct_labels(runs: list[RunLog]) -> list[RunLog]:
             labelled.append(replace(run, label=f"{run.label}: {', '.join(parts)}"))
         if len({run.label for run in labelled}) == len(labelled):
             return labelled
+        alike = [sum(other.label == run.label for other in labelled) > 1 for run in labelled]
+        stems = [run.path.stem for run, shared in zip(labelled, alike, strict=True) if shared]
+        if len(set(stems)) == len(stems):  # some runs share a configuration: add the file
+            return [replace(run, label=f"{run.label} ({run.path.stem})") if shared else run
+                    for run, shared in zip(labelled, alike, strict=True)]
     labels = [run.label for run in runs]
     if len(set(labels)) == len(labels):
         return runs

@@ -108,6 +108,13 @@ def test_overlaid_runs_are_named_by_their_difference_and_told_apart_by_style(
     # The same configuration twice: named by file, else numbered.
     assert [r.label for r in distinct_labels([base, base])] == [
         "run 1: lane-change / dynamic-nmpc", "run 2: lane-change / dynamic-nmpc"]
+    # Three runs, two of them alike: the difference still names them, the file tells the
+    # two alike apart.
+    twin = replace(base, path=base.path.with_name("twin.mcap"))
+    assert [r.label for r in distinct_labels([base, twin, heavy])] == [
+        "lane-change / dynamic-nmpc: plant.mass_kg=1575 (nmpc)",
+        "lane-change / dynamic-nmpc: plant.mass_kg=1575 (twin)",
+        "lane-change / dynamic-nmpc: plant.mass_kg=2000"]
     figure = top_view(runs)
     for ax in figure.axes:
         styles = {colour: {str(line.get_linestyle()) for line in ax.get_lines()
