@@ -18,7 +18,6 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-from scipy.linalg import block_diag
 
 from estimation.fusion import KalmanFusion
 from estimation.innovation import Selection, TrialUpdate, residual_function
@@ -99,10 +98,24 @@ class Ekf(KalmanFusion):
             measured.append(np.asarray(z, dtype=float).reshape(-1))
             angle_rows += [offset + row for row in selection.angle_rows]
             offset += len(rows)
-        noise = block_diag(*(r_matrix for *_, r_matrix in blocks))
+        noise = block_diagonal([r_matrix for *_, r_matrix in blocks])
         return joseph_update(x, self._covariance, np.concatenate(measured),
                              np.concatenate(values), np.vstack(jacobians), noise,
                              residual_function(tuple(angle_rows)))
+
+def block_diagonal(blocks: list[np.ndarray]) -> np.ndarray:
+    """The square blocks on the diagonal of one matrix, zeros elsewhere (what
+    ``scipy.linalg.block_diag`` gives, without its general-purpose checks: a joint update
+    builds one at every fused instant)."""
+    size = sum(block.shape[0] for block in blocks)
+    matrix = np.zeros((size, size))
+    start = 0
+    for block in blocks:
+        end = start + block.shape[0]
+        matrix[start:end, start:end] = block
+        start = end
+    return matrix
+
 
 def joseph_update(
     x: np.ndarray,
