@@ -7,6 +7,7 @@ import os
 import signal
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -14,6 +15,7 @@ import pytest
 from cosim.core.exceptions import CosimError
 from cosim.simulation.metrics import WALL_CLOCK_KEYS
 from cosim.sweeps.execute import make_backend
+from tests.conftest import Called
 from tests.sweeps.rows import wait_for_rows
 
 COSIM = str(Path(sys.executable).with_name("cosim"))
@@ -70,10 +72,12 @@ def one_worker(tiny_spec: Path) -> Path:
          "pass: unknown metric 'cte_mx_m'"),
     ],
 )
-def test_bad_spec_is_one_line_and_exit_code_2(spec: str, fragment: str, tmp_path: Path) -> None:
+def test_bad_spec_is_one_line_and_exit_code_2(spec: str, fragment: str, tmp_path: Path,
+                                              cosim_in_process: Callable[..., Called]) -> None:
     path = tmp_path / "bad.yaml"
     path.write_text(spec)
-    result = cosim("sweep", str(path), "--out", str(tmp_path / "out"), cwd=tmp_path)
+    result = cosim_in_process("sweep", str(path), "--out", str(tmp_path / "out"),
+                              cwd=tmp_path)
     assert result.returncode == 2, result.stderr
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1, result.stderr
