@@ -249,7 +249,13 @@ def _run_pool(pending: list[RunTask], workers: int, on_row: RowSink) -> list[Run
             while (pending or running) and not broken:
                 while pending and len(running) < workers:
                     task = pending.pop(0)
-                    running[executor.submit(execute_task, task)] = task
+                    try:
+                        running[executor.submit(execute_task, task)] = task
+                    except concurrent.futures.process.BrokenProcessPool:
+                        pending.insert(0, task)  # never started: it goes on in a fresh pool
+                        break
+                if not running:  # the pool broke with nothing in flight: start a fresh one
+                    break
                 done, _ = concurrent.futures.wait(
                     running, return_when=concurrent.futures.FIRST_COMPLETED)
                 for future in done:
