@@ -1,6 +1,7 @@
 """Every MPC tracker on the lane change over several seeds, against the delta-u MPC's bar.
 
-    .venv/bin/python bench/tracker_seeds.py [--seeds 5] [--tracker NAME ...] [--set k=v ...]
+    .venv/bin/python bench/tracker_seeds.py [--seeds 5] [--first-seed 0] [--tracker NAME ...]
+        [--set k=v ...]
     .venv/bin/python bench/tracker_seeds.py --write docs/trackers.md
 
 With ``--write`` it runs seeds 0-4 (the seeds the default tuning was chosen on) and
@@ -98,6 +99,9 @@ def write_page(path: Path, trackers: tuple[str, ...], overrides: list[str]) -> N
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seeds", type=int, default=5)
+    parser.add_argument("--first-seed", type=int, default=0,
+                        help="seeds first-seed .. first-seed + seeds - 1 (1000 and up: "
+                        "seeds no tuning used)")
     parser.add_argument("--tracker", action="append", dest="trackers")
     parser.add_argument("--set", action="append", default=[], dest="overrides")
     parser.add_argument("--write", metavar="FILE.md",
@@ -113,7 +117,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         for tracker in trackers:
             worst = 0.0
-            for seed in range(args.seeds):
+            for seed in range(args.first_seed, args.first_seed + args.seeds):
                 try:
                     config = load_config("lane-change", overrides=args.overrides, seed=seed,
                                          tracker=tracker)

@@ -32,6 +32,7 @@ def docs_example() -> str:
     return block
 
 
+@pytest.mark.slow
 def test_the_docs_example_runs_as_written(tmp_path: Path) -> None:
     script = tmp_path / "example.py"
     script.write_text(docs_example())

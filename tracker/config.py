@@ -67,7 +67,7 @@ def default_steer_bound_rad(name: str) -> float:
 
 
 PLUGIN_GROUP = "cosim.trackers"
-"""Entry-point group of trackers from other packages (:mod:`tracker.plugin`)."""
+"""Entry-point group of trackers from other packages (:mod:`tracker.plugins.loading`)."""
 
 
 def is_plugin_name(name: str) -> bool:
@@ -119,7 +119,7 @@ class TrackerConfig:
         "dynamic-nmpc",
         doc="tracker to build: one of " + ", ".join(TRACKER_CHOICES) + "; or a tracker "
         "from outside cosim: an installed plug-in (entry point group cosim.trackers, "
-        "`cosim trackers`) or an import path my_pkg.my_module:MyTracker (tracker.plugin); "
+        "`cosim trackers`) or an import path my_pkg.my_module:MyTracker (docs/plugins.md); "
         "or a co-simulation FMU, fmu:PATH.fmu (FMI 2 or 3; tracker.fmu, docs/fmu.md)",
     )
     params: dict[str, Any] = mapping(

@@ -3,7 +3,7 @@
 A tracker implements :class:`tracker.protocol.Tracker` (``step(t_s, estimate, reference)
 -> (Command, Plan)``), and :class:`tracker.protocol.Resettable` when it has memory to
 forget. A name that is not built in is a tracker from outside cosim (an import path or an
-installed plug-in: :mod:`tracker.plugin`), or a co-simulation FMU, ``fmu:PATH.fmu``
+installed plug-in: :mod:`tracker.plugins.loading`), or a co-simulation FMU, ``fmu:PATH.fmu``
 (:mod:`tracker.fmu`).
 """
 
@@ -27,7 +27,7 @@ from tracker.mpc.dynamic_nmpc import DynamicNmpc
 from tracker.mpc.kinematic_nmpc import KinematicNmpc
 from tracker.mpc.ltv_mpc import LtvMpc
 from tracker.open_loop import OpenLoopTracker
-from tracker.plugin import make_plugin_tracker
+from tracker.plugins.loading import make_plugin_tracker
 from tracker.protocol import Tracker
 
 _CONSTRUCTORS: MappingProxyType[

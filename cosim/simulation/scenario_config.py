@@ -51,7 +51,7 @@ from tracker.config import TrackerConfig, is_plugin_name
 from tracker.fmu import check_fmu
 from tracker.fmu.config import is_fmu_name
 from tracker.manoeuvre import ManoeuvreConfig
-from tracker.plugin import check_plugin
+from tracker.plugins.loading import check_plugin
 
 DEFAULT_EPOCH = "2026-01-01T00:00:00Z"
 """Log time of sim time 0 unless ``sim.epoch`` says otherwise: a fixed date, so that two

@@ -55,7 +55,10 @@ DEFAULT_TRACKERS: tuple[str, ...] = (
 """Every closed-loop tracker (``open-loop`` drives manoeuvres, not paths)."""
 
 MPC_TRACKERS: frozenset[str] = frozenset(DEFAULT_TRACKERS[:4])
-"""The model-predictive trackers, the rest being the classic baselines."""
+"""The model-predictive trackers."""
+
+BASELINE_TRACKERS: frozenset[str] = frozenset(DEFAULT_TRACKERS[4:])
+"""The classic baselines (the rest: trackers from outside cosim, plug-ins and FMUs)."""
 
 DEFAULT_SCENARIOS: tuple[str, ...] = (
     "lane-change", "iso-lane-change", "circle", "figure-eight", "slalom", "s-curve",
@@ -90,6 +93,9 @@ class LeagueRow:
     values: dict[str, float | None]
     failures: int
     errors: tuple[str, ...]
+    incomplete: int = 0
+    """Runs that did not reach their end (an error, or ``completed`` false): their metrics
+    cover part of the scenario, so the row ranks below every row whose runs all finished."""
 
 
 def parse_names(text: str | None, default: Sequence[str], known: Sequence[str] | None,
@@ -146,7 +152,10 @@ def league(rows: Sequence[dict[str, Any]]) -> list[LeagueRow]:
         failures = sum(1 for r in group if r["error"]) + sum(
             int(r["metrics"].get("solver_failures") or 0) for r in group)
         errors = tuple(sorted({r["error"] for r in group if r["error"]}))
-        table.append(LeagueRow(scenario, tracker, len(group), values, failures, errors))
+        incomplete = sum(1 for r in group
+                         if r["error"] or r["metrics"].get("completed") is False)
+        table.append(LeagueRow(scenario, tracker, len(group), values, failures, errors,
+                               incomplete))
     return table
 
 
@@ -157,11 +166,13 @@ def _cell(value: float | None) -> str:
 
 
 def by_scenario(table: Sequence[LeagueRow]) -> dict[str, list[LeagueRow]]:
-    """The table's rows per scenario (in run order), each list best RMS CTE first."""
+    """The table's rows per scenario (in run order), each list best RMS CTE first, the
+    trackers with runs that did not finish after every tracker whose runs all did."""
     groups: dict[str, list[LeagueRow]] = {}
     for row in table:
         groups.setdefault(row.scenario, []).append(row)
-    return {scenario: sorted(rows, key=lambda r: (r.values["cte_rms_m"] is None,
+    return {scenario: sorted(rows, key=lambda r: (r.incomplete > 0,
+                                                  r.values["cte_rms_m"] is None,
                                                   r.values["cte_rms_m"] or 0.0))
             for scenario, rows in groups.items()}
 
@@ -186,9 +197,9 @@ def league_text(table: Sequence[LeagueRow], width: int | None = None) -> str:
         keys = [key for key, _, _ in LEAGUE_METRICS]
         titles = [title for _, title, _ in LEAGUE_METRICS]
         wide = _aligned(["tracker", *titles, "failures"],
-                        [[r.tracker, *(_cell(r.values[k]) for k in keys), str(r.failures)]
+                        [[shown_name(r), *(_cell(r.values[k]) for k in keys), str(r.failures)]
                          for r in rows])
-        tall = _aligned(["metric", *(r.tracker for r in rows)],
+        tall = _aligned(["metric", *(shown_name(r) for r in rows)],
                         [[title, *(_cell(r.values[key]) for r in rows)]
                          for key, title in zip(keys, titles, strict=True)]
                         + [["failures", *(str(r.failures) for r in rows)]])
@@ -199,7 +210,7 @@ def league_text(table: Sequence[LeagueRow], width: int | None = None) -> str:
         else:
             lines = []
             for r in rows:
-                lines += [r.tracker] + [f"  {line}" for line in _aligned(
+                lines += [shown_name(r)] + [f"  {line}" for line in _aligned(
                     ["metric", "value"], [[t, _cell(r.values[k])] for k, t in zip(keys, titles,
                                                                           strict=True)]
                     + [["failures", str(r.failures)]])[1:]]
@@ -216,7 +227,7 @@ def markdown(table: Sequence[LeagueRow]) -> str:
                   "|---" * (len(titles) + 2) + "|"]
         for r in rows:
             cells = [_cell(r.values[key]) for key, _, _ in LEAGUE_METRICS]
-            lines.append(f"| {r.tracker} | " + " | ".join(cells) + f" | {r.failures} |")
+            lines.append(f"| {shown_name(r)} | " + " | ".join(cells) + f" | {r.failures} |")
         lines.append("")
     return "\n".join(lines)
 
@@ -234,9 +245,10 @@ def write_csv(table: Sequence[LeagueRow], path: Path) -> None:
 
 def write_chart(table: Sequence[LeagueRow], path: Path) -> None:
     """RMS CTE of every tracker, one panel per scenario: horizontal bars on a linear axis
-    from zero (so lengths compare), best first, each labelled with its value; hatched bars
-    are the classic baselines. Scenarios differ by orders of magnitude, so each panel has
-    its own scale."""
+    from zero (so lengths compare), best first, each labelled with its value; blue bars
+    are the MPCs, hatched ones the classic baselines, green ones trackers from outside
+    cosim; a pale bar (its label says how many) has runs that did not finish. Scenarios
+    differ by orders of magnitude, so each panel has its own scale."""
     import math
 
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -253,9 +265,11 @@ def write_chart(table: Sequence[LeagueRow], path: Path) -> None:
     for ax, (scenario, rows) in zip(axes, groups.items(), strict=False):
         shown = [r for r in rows if r.values["cte_rms_m"] is not None][::-1]  # best on top
         values = [float(r.values["cte_rms_m"] or 0.0) for r in shown]
-        bars = ax.barh([r.tracker for r in shown], values,
-                       color=["C0" if r.tracker in MPC_TRACKERS else "C1" for r in shown],
-                       hatch=["" if r.tracker in MPC_TRACKERS else "//" for r in shown])
+        bars = ax.barh([shown_name(r) for r in shown], values,
+                       color=[_bar_colour(r) for r in shown],
+                       hatch=["//" if r.tracker in BASELINE_TRACKERS else "" for r in shown])
+        for bar, row in zip(bars, shown, strict=True):
+            bar.set_alpha(0.45 if row.incomplete else 1.0)
         ax.bar_label(bars, labels=[f"{v:.3g}" for v in values], padding=3, fontsize=8)
         ax.set_xlim(0.0, 1.18 * max(values, default=1.0) or 1.0)
         ax.set_title(Path(scenario).stem, fontsize=10)
@@ -267,9 +281,23 @@ def write_chart(table: Sequence[LeagueRow], path: Path) -> None:
                     ha="right", va="bottom", fontsize=7)
     for ax in axes[len(groups):]:
         ax.set_visible(False)
-    figure.suptitle("cosim compare: RMS cross-track error\n(hatched: classic baselines; "
-                    "best on top)", fontsize=11)
+    figure.suptitle("cosim compare: RMS cross-track error, best on top\n(blue: MPCs; "
+                    "hatched: classic baselines; green: from outside cosim; pale: runs that "
+                    "did not finish)", fontsize=10)
     figure.savefig(path, dpi=110)
+
+
+def _bar_colour(row: LeagueRow) -> str:
+    if row.tracker in MPC_TRACKERS:
+        return "C0"
+    return "C1" if row.tracker in BASELINE_TRACKERS else "C2"
+
+
+def shown_name(row: LeagueRow) -> str:
+    """The tracker's label: with how many of its runs did not finish, if any."""
+    if not row.incomplete:
+        return row.tracker
+    return f"{row.tracker} ({row.incomplete}/{row.seeds} unfinished)"
 
 
 def json_rows(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:

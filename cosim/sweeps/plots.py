@@ -21,7 +21,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from cosim.sweeps.results import as_number, grid_cells
+from cosim.sweeps.results import as_number, bounds, grid_cells, low_is_bad
 from cosim.sweeps.spec import Parameter, SweepSpec, axis_label, unit_of
 
 DPI = 130
@@ -36,29 +36,9 @@ def _figure(width_in: float, height_in: float) -> Any:
     return figure
 
 
-def _bounds(spec: SweepSpec, metric: str) -> tuple[float | None, float | None]:
-    """The pass criterion's (lower, upper) bound on ``metric`` (None where it has none)."""
-    for criterion in spec.criteria:
-        if criterion.metric == metric and not isinstance(criterion.bound, bool):
-            upper = float(criterion.bound)
-            lower = criterion.lower
-            return (lower if lower is not None and math.isfinite(lower) else None,
-                    upper if math.isfinite(upper) else None)
-    return None, None
-
-
 def _bound(spec: SweepSpec) -> float | None:
-    lower, upper = _bounds(spec, spec.metric)
+    lower, upper = bounds(spec, spec.metric)
     return upper if upper is not None else lower
-
-
-def _low_is_bad(spec: SweepSpec, metric: str) -> bool:
-    """Whether a smaller value of ``metric`` is the worse one: a criterion with only a
-    lower bound (``gap_min_m: {min: 5}``), or a minimum over the run (``*_min_*``)."""
-    lower, upper = _bounds(spec, metric)
-    if lower is not None or upper is not None:
-        return lower is not None and upper is None
-    return "_min_" in f"{metric}_" and not metric.endswith("_max")
 
 
 def _tick_labels(parameter: Parameter) -> list[str]:
@@ -213,8 +193,8 @@ def _metric_plot(spec: SweepSpec, flat: Sequence[dict[str, Any]], parameter: Par
                  path: Path, metric: str | None = None) -> None:
     metric = metric or spec.metric
     unit = unit_of(metric)
-    lower, upper = _bounds(spec, metric)
-    low_is_bad = _low_is_bad(spec, metric)
+    lower, upper = bounds(spec, metric)
+    smaller_is_worse = low_is_bad(spec, metric)
     numeric = all(isinstance(v, (int, float)) and not isinstance(v, bool)
                   for v in (parameter.values or (0.0,)))
 
@@ -261,7 +241,7 @@ def _metric_plot(spec: SweepSpec, flat: Sequence[dict[str, Any]], parameter: Par
                        and not r["error"]]
             if members:
                 xs.append(position(value))
-                ys.append(min(members) if low_is_bad else max(members))
+                ys.append(min(members) if smaller_is_worse else max(members))
         axes.plot(xs, ys, "-", color="0.3", linewidth=1.0, label="worst per value")
         if not numeric:
             axes.set_xticks(range(len(parameter.values)), [str(v) for v in parameter.values])

@@ -222,12 +222,33 @@ def as_number(value: Any) -> float:
     return float(value)
 
 
-def worst(values: Iterable[float]) -> float:
-    """The largest value, NaN if any is NaN (an errored run is the worst case)."""
+def bounds(spec: SweepSpec, metric: str) -> tuple[float | None, float | None]:
+    """The pass criterion's (lower, upper) bound on ``metric`` (None where it has none)."""
+    for criterion in spec.criteria:
+        if criterion.metric == metric and not isinstance(criterion.bound, bool):
+            upper = float(criterion.bound)
+            lower = criterion.lower
+            return (lower if lower is not None and math.isfinite(lower) else None,
+                    upper if math.isfinite(upper) else None)
+    return None, None
+
+
+def low_is_bad(spec: SweepSpec, metric: str) -> bool:
+    """Whether a smaller value of ``metric`` is the worse one: a criterion with only a
+    lower bound (``gap_min_m: {min: 5}``), or a minimum over the run (``*_min_*``)."""
+    lower, upper = bounds(spec, metric)
+    if lower is not None or upper is not None:
+        return lower is not None and upper is None
+    return "_min_" in f"{metric}_" and not metric.endswith("_max")
+
+
+def worst(values: Iterable[float], low_is_bad: bool = False) -> float:
+    """The worst value: the largest, or the smallest where ``low_is_bad``
+    (:func:`low_is_bad`); NaN if any is NaN (an errored run is the worst case)."""
     values = list(values)
     if not values or any(math.isnan(v) for v in values):
         return math.nan
-    return max(values)
+    return min(values) if low_is_bad else max(values)
 
 
 @dataclass(frozen=True)
@@ -254,7 +275,8 @@ def grid_cells(spec: SweepSpec, flat: Sequence[dict[str, Any]]) -> GridCells | N
         row_value, row_passed, row_errors, row_runs = [], [], [], []
         for xv in x.values:
             members = [r for r in flat if r[x.path] == xv and r[y.path] == yv]
-            row_value.append(worst(as_number(r[spec.metric]) for r in members)
+            row_value.append(worst((as_number(r[spec.metric]) for r in members),
+                                   low_is_bad(spec, spec.metric))
                              if members else math.nan)
             row_passed.append(bool(members) and all(r["pass"] for r in members))
             row_errors.append(sum(bool(r["error"]) for r in members))
@@ -361,7 +383,8 @@ def _worst_cases(spec: SweepSpec, flat: Sequence[dict[str, Any]]) -> list[str]:
     """The summary's table of the worst runs by the headline metric."""
     metric, unit = spec.metric, unit_of(spec.metric)
     lines: list[str] = []
-    key = [(-as_number(r[metric]) if not math.isnan(as_number(r[metric])) else -math.inf)
+    sign = 1.0 if low_is_bad(spec, metric) else -1.0  # the worst first
+    key = [(sign * as_number(r[metric]) if not math.isnan(as_number(r[metric])) else -math.inf)
            for r in flat]
     order = sorted(range(len(flat)), key=lambda i: (key[i], flat[i]["run_id"]))
     lines += [f"## Worst cases by `{metric}`", ""]
@@ -418,7 +441,8 @@ def _per_parameter(spec: SweepSpec, flat: Sequence[dict[str, Any]]) -> list[str]
                              f"{good}/{len(members)}" if members else "-",
                              statistics.fmean(finite) if finite else math.nan,
                              f"error ({errored} run(s))" if errored else
-                             worst(values) if members else math.nan])
+                             worst(values, low_is_bad(spec, metric)) if members
+                             else math.nan])
             lines += _table([axis_label(parameter.path), "runs", "pass",
                              f"mean {metric} (finished runs)", f"worst {metric}"], rows)
             lines.append("")

@@ -61,7 +61,7 @@ from cosim.core.yaml_io import read_yaml_file, shown
 from cosim.simulation.fail_if import FLAG, NUMBER, WORD, known_metrics, metric_kind
 from cosim.simulation.metric_keys import METRIC_KEYS, metric_key
 from tracker.config import is_plugin_name
-from tracker.plugin import resolved_params
+from tracker.plugins.loading import resolved_params
 
 Scalar = float | int | bool | str
 """A value a varied parameter can take."""

@@ -88,6 +88,7 @@ def test_scenarios_lists_the_builtins() -> None:
     assert "lane-change " in result.stdout and "lane-change-limit" in result.stdout
 
 
+@pytest.mark.slow
 def test_interrupt_finishes_the_log_with_completed_false(tmp_path: Path) -> None:
     out = tmp_path / "interrupted.mcap"
     process = subprocess.Popen([COSIM, "run", "lane-change", "--out", str(out)],
@@ -113,6 +114,7 @@ def test_interrupt_finishes_the_log_with_completed_false(tmp_path: Path) -> None
     assert summary.metrics["sim_duration_s"] < 15.0
 
 
+@pytest.mark.slow
 def test_a_killed_run_leaves_a_log_that_inspect_reads(tmp_path: Path) -> None:
     out = tmp_path / "killed.mcap"
     process = subprocess.Popen([COSIM, "run", "lane-change", "--out", str(out)],

@@ -34,6 +34,7 @@ def identified() -> IdentifiedModel:
 
 
 @pytest.mark.parametrize("speed_mps", [10.0, 20.0, 30.0])
+@pytest.mark.slow
 def test_steady_yaw_rate_gain_matches_the_identified_bicycle(identified: IdentifiedModel,
                                                              speed_mps: float) -> None:
     # Steer for a quarter g by the identified model itself: delta = (L / v^2 + K) a_y.

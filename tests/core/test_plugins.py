@@ -37,6 +37,7 @@ def cosim_cli(env: dict[str, str], cwd: Path, *args: str) -> subprocess.Complete
                           capture_output=True, text=True, timeout=900)
 
 
+@pytest.mark.slow
 def test_the_installed_plugin_is_listed_and_runs(installed: dict[str, str],
                                                  tmp_path: Path) -> None:
     listed = cosim_cli(installed, tmp_path, "trackers")
@@ -72,6 +73,7 @@ def test_the_plugin_runs_from_the_api(installed: dict[str, str], tmp_path: Path)
     assert done.stdout.split() == ["True", "ok", "True"]
 
 
+@pytest.mark.slow
 def test_the_plugin_runs_in_sweep_and_compare(installed: dict[str, str],
                                               tmp_path: Path) -> None:
     (tmp_path / "spec.yaml").write_text(

@@ -40,6 +40,7 @@ def test_disabled_sensor_the_estimator_needs_is_refused() -> None:
     assert "Traceback" not in result.stderr
 
 
+@pytest.mark.slow
 def test_initial_estimate_is_sampled_without_touching_the_sensor_noise(tmp_path: Path) -> None:
     """The default run starts from a draw around the truth (not the truth), from its own
     generator: the sensors' noise is the same as with ``estimator.initial=truth`` (the
@@ -69,6 +70,7 @@ def test_initial_estimate_is_sampled_without_touching_the_sensor_noise(tmp_path:
 
 @pytest.mark.parametrize("believed_m, low, high", [(0.02, 2.0, np.inf), (0.2, 0.0, 0.5),
                                                    (0.05, 0.6, 1.6)])
+@pytest.mark.slow
 def test_mismatched_gnss_belief_shows_in_its_nis(believed_m: float, low: float, high: float,
                                                  tmp_path: Path) -> None:
     """GNSS truth 0.05 m; believed 0.02 m (over-confident: NIS per dof far above 1), 0.2 m

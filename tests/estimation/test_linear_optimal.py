@@ -194,6 +194,7 @@ def test_steady_state_covariance_solves_the_riccati_equation() -> None:
     assert history.posteriors[-1][i, i] < GNSS_SIGMA_M**2
 
 
+@pytest.mark.slow
 def test_ukf_agrees_with_the_linear_kalman_filter() -> None:
     """Noiseless, linear tyres: the UKF's covariance equals the optimal one to 2 % of the
     standard deviations (the longitudinal channel to 0.1 %: only products such as r vy and

@@ -31,6 +31,7 @@ def _compare(ekf: Run, ukf: Run) -> tuple[np.ndarray, np.ndarray]:
 @pytest.mark.parametrize(
     ("peak_steer_rad", "gnss_sigma_m"), [(0.045, 0.02), (0.045, 0.5), (0.12, 0.5)]
 )
+@pytest.mark.slow
 def test_ukf_agrees_with_ekf(peak_steer_rad: float, gnss_sigma_m: float) -> None:
     profile = lane_change(peak_steer_rad)
     setup = SensorSetup(gnss_sigma_m=gnss_sigma_m, gyro_bias_radps=0.002, ax_bias_mps2=0.02)

@@ -50,6 +50,7 @@ def test_a_random_policy_runs_and_logs(tmp_path: Path) -> None:
     env.close()
 
 
+@pytest.mark.slow
 def test_the_mpc_as_policy_matches_cosim_run(tmp_path: Path) -> None:
     seed = 2
     config = cosim.load_config("lane-change", seed=seed)
@@ -69,6 +70,7 @@ def test_the_mpc_as_policy_matches_cosim_run(tmp_path: Path) -> None:
     assert np.isfinite(expected) and expected > 0.0
 
 
+@pytest.mark.slow
 def test_the_docs_random_policy_example_runs(tmp_path: Path) -> None:
     text = (Path(__file__).resolve().parents[2] / "docs" / "gym.md").read_text()
     first = re.findall(r"```python\n(.*?)```", text, flags=re.DOTALL)[0]
@@ -123,6 +125,7 @@ def test_observations_are_finite_and_inside_the_space() -> None:
     env.close()
 
 
+@pytest.mark.slow
 def test_a_vector_env_runs_several_cars_as_single_envs_would() -> None:
     """``gymnasium.make_vec`` in subprocesses: each car is the single environment of its
     seed, step for step."""

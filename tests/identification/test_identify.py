@@ -203,6 +203,7 @@ def _synthetic_step_steer(truth: DynamicBicycleParams, speed: float, steer: floa
 
 @pytest.mark.parametrize("stiffness_npr", [(19000.0, 33000.0), (80000.0, 110000.0),
                                            (1.5e6, 1.2e6)])
+@pytest.mark.slow
 def test_cornering_stiffness_recovered_from_its_own_model(
         stiffness_npr: tuple[float, float]) -> None:
     truth = DynamicBicycleParams.from_vehicle(SEDAN, *stiffness_npr)

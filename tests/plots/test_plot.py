@@ -50,6 +50,7 @@ def _assert_real_figure(path: Path) -> None:
     assert np.unique(np.round(grey, 2)).size > 20, path
 
 
+@pytest.mark.slow
 def test_every_figure_of_one_run(nmpc_run: RunResult, tmp_path: Path) -> None:
     written = plot_logs([nmpc_run.log_path], tmp_path / "one")
     assert [p.name for p in written] == [f"{name}.png" for name in EXPECTED]
@@ -57,6 +58,7 @@ def test_every_figure_of_one_run(nmpc_run: RunResult, tmp_path: Path) -> None:
         _assert_real_figure(path)
 
 
+@pytest.mark.slow
 def test_overlay_of_two_trackers(
         nmpc_run: RunResult, path_error_run: RunResult, tmp_path: Path) -> None:
     single = plot_logs([nmpc_run.log_path], tmp_path / "single")
@@ -73,6 +75,7 @@ def test_overlay_of_two_trackers(
     assert "e1_m" in runs[1].plans.state_names
 
 
+@pytest.mark.slow
 def test_three_runs_overlay_and_too_many_are_refused(
         nmpc_run: RunResult, path_error_run: RunResult, tmp_path: Path) -> None:
     from cosim.plots import MAX_LOGS
@@ -159,6 +162,7 @@ def test_the_plotted_errors_are_the_metrics(nmpc_run: RunResult) -> None:
     assert data.truth.t_s.size == data.estimation.t_s.size == 301
 
 
+@pytest.mark.slow
 def test_a_truncated_log_is_plotted_and_marked(nmpc_run: RunResult, tmp_path: Path) -> None:
     content = nmpc_run.log_path.read_bytes()
     cut = tmp_path / "cut.mcap"
@@ -170,6 +174,7 @@ def test_a_truncated_log_is_plotted_and_marked(nmpc_run: RunResult, tmp_path: Pa
         _assert_real_figure(path)
 
 
+@pytest.mark.slow
 def test_cli_prints_the_paths(nmpc_run: RunResult, tmp_path: Path,
                               capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "cli"

@@ -78,6 +78,7 @@ def _tiny_tmpfs(where: Path, size: str) -> Iterator[Path]:
         subprocess.run(["umount", "-l", str(where)], check=False)
 
 
+@pytest.mark.slow
 def test_a_full_disk_ends_the_run_with_one_line_and_keeps_the_log(tmp_path: Path) -> None:
     with _tiny_tmpfs(tmp_path / "disk", "400k") as disk:
         out = disk / "run.mcap"
@@ -141,6 +142,7 @@ def _alive(pid: int) -> bool:
 
 
 @pytest.mark.skipif(not Path("/proc").is_dir(), reason="reads /proc")
+@pytest.mark.slow
 def test_sweep_workers_die_with_a_killed_parent(tmp_path: Path) -> None:
     spec = tmp_path / "spec.yaml"
     spec.write_text(SPEC.format(duration=15, seeds=2))
@@ -164,6 +166,7 @@ def test_sweep_workers_die_with_a_killed_parent(tmp_path: Path) -> None:
     assert not survivors, "workers outlived their parent"
 
 
+@pytest.mark.slow
 def test_a_full_disk_under_a_sweep_is_finished_by_resume(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
         capsys: pytest.CaptureFixture[str]) -> None:

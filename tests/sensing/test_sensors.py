@@ -72,6 +72,7 @@ def test_gnss_velocity_is_the_world_frame_velocity_with_its_noise() -> None:
     assert "gnss_velocity" in [s.name for s in make_sensors(enabled.sensors)]
 
 
+@pytest.mark.slow
 def test_imu_bias_is_constant_without_walk_and_wanders_with_it() -> None:
     fixed = ImuSensor(ImuConfig(gyro_sigma_radps=0.0, accel_sigma_mps2=0.0,
                                 gyro_bias_sigma_radps=0.01, gyro_bias_walk_radps=0.0,

@@ -55,6 +55,7 @@ def test_one_seed_one_log(cut_in_start: RunResult, tmp_path: Path) -> None:
         assert first == second, topic
 
 
+@pytest.mark.slow
 def test_cosim_plot_draws_the_acc_figure(cut_in_start: RunResult, tmp_path: Path) -> None:
     written = plot_logs([cut_in_start.log_path], tmp_path)
     assert tmp_path / "acc.png" in written

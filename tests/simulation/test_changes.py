@@ -7,6 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 import yaml
 
 from cosim.core.config_fields import to_dict
@@ -55,6 +56,7 @@ def test_a_scenario_file_is_compared_with_the_built_in_it_came_from(tmp_path: Pa
     assert file_changes("circle", str(config_file)) == ["plant.tyre_friction=0.5"]
 
 
+@pytest.mark.slow
 def test_plots_inspect_and_log_names_show_the_changes(tmp_path: Path) -> None:
     heavy = to_dict(load_config("lane-change", overrides=["plant.mass_kg=2000",
                                                           "sim.duration_s=1"]))

@@ -27,6 +27,7 @@ def _truth(path: Path) -> dict[int, dict[str, object]]:
 
 
 @pytest.mark.parametrize("delay_s", ["0", "0.03"])
+@pytest.mark.slow
 def test_the_truth_does_not_depend_on_the_log_rate(tmp_path: Path, delay_s: str) -> None:
     truths = []
     for i, (log_s, scene_s) in enumerate(RATES):

@@ -144,6 +144,7 @@ def test_lane_change_is_tracked_with_the_ekf_in_the_loop(lane_change_run: RunRes
     assert min(speeds) > 19.0
 
 
+@pytest.mark.slow
 def test_every_message_matches_its_channel_schema(short_run: RunResult) -> None:
     with open(short_run.log_path, "rb") as stream:
         reader = make_reader(stream)

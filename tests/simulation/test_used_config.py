@@ -63,6 +63,7 @@ def test_config_show_leaves_out_what_a_lane_change_does_not_read() -> None:
 
 
 @pytest.mark.parametrize("scenario", ["lane-change", "acc-cut-in"])
+@pytest.mark.slow
 def test_the_printed_config_runs_the_same_car(scenario: str, tmp_path: Path) -> None:
     config = load_config(scenario, duration_s=1.0)
     pruned = tmp_path / "pruned.yaml"

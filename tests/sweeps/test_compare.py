@@ -32,7 +32,7 @@ def test_league_takes_the_mean_of_rms_and_the_worst_of_maxima_over_seeds() -> No
     assert table["pid"].failures == 2
     assert table["lqr"].failures == 1 and table["lqr"].errors == ("PhysicsDivergenceError: boom",)
     text = markdown(list(table.values()))
-    assert text.index("| lqr |") < text.index("| pid |")  # best RMS CTE first
+    assert text.index("| pid |") < text.index("| lqr (1/1 unfinished) |")  # finished first
 
 
 def test_tasks_cover_every_combination_once() -> None:
@@ -42,6 +42,7 @@ def test_tasks_cover_every_combination_once() -> None:
     assert [t.run_id for t in tasks] == list(range(12))
 
 
+@pytest.mark.slow
 def test_compare_runs_every_combination_and_writes_the_table(tmp_path: Path) -> None:
     out = tmp_path / "league"
     result = cosim("compare", "--trackers", "pid,lqr", "--scenarios", "circle",
@@ -120,6 +121,7 @@ def test_a_signal_to_compare_alone_stops_its_runs_and_writes_the_league(
     assert all(name in league_md for name in ("pid", "lqr", "stanley"))
 
 
+@pytest.mark.slow
 def test_compare_refuses_a_folder_with_results_unless_told(tmp_path: Path) -> None:
     out = tmp_path / "earlier"
     out.mkdir()
@@ -136,6 +138,7 @@ def test_compare_refuses_a_folder_with_results_unless_told(tmp_path: Path) -> No
     assert "earlier" not in (out / "rows.jsonl").read_text()
 
 
+@pytest.mark.slow
 def test_a_plugin_that_exits_is_one_failed_row_not_the_end(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """``sys.exit`` in a user's tracker: its run is a row with the reason, the others land,
@@ -171,3 +174,22 @@ def test_the_league_text_fits_any_width_and_cuts_no_number() -> None:
         for number in shown:  # every figure whole, for every tracker
             assert text.count(number) == len(rows), (width, number)
     assert len(league_text(rows, None).splitlines()) == 1 + 1 + len(rows)  # a row a tracker
+
+
+def test_a_tracker_whose_runs_did_not_finish_ranks_below_every_finished_one() -> None:
+    """A run cut short has a small RMS CTE over the little it drove: it must not top the
+    league; the row says how many of its runs did not finish."""
+    from cosim.sweeps.compare import by_scenario, league, markdown
+
+    def row(run_id: int, tracker: str, cte_rms_m: float, error: str = "",
+            completed: bool = True) -> dict[str, object]:
+        return {"run_id": run_id, "params": {"scenario": "circle", "tracker": tracker},
+                "metrics": {"cte_rms_m": cte_rms_m, "completed": completed},
+                "error": error}
+
+    rows = [row(0, "my_pkg:Quitter", 0.01, error="called sys.exit(1)", completed=False),
+            row(1, "pid", 0.08), row(2, "lqr", 0.05),
+            row(3, "stanley", 0.02, completed=False)]
+    ranked = [r.tracker for r in by_scenario(league(rows))["circle"]]
+    assert ranked == ["lqr", "pid", "my_pkg:Quitter", "stanley"]
+    assert "| my_pkg:Quitter (1/1 unfinished) |" in markdown(league(rows))

@@ -12,7 +12,7 @@ from cosim.core.exceptions import ConfigError, CosimError
 from cosim.simulation.scenario_config import parse_override
 from cosim.sweeps.execute import execute_task
 from cosim.sweeps.plots import heat_map, metric_plots
-from cosim.sweeps.results import SweepDir, summary_markdown, write_tables
+from cosim.sweeps.results import SweepDir, bounds, low_is_bad, summary_markdown, write_tables
 from cosim.sweeps.spec import load_spec, override_text, unit_of
 
 
@@ -184,6 +184,43 @@ def test_tables_summary_and_plots_from_rows(tmp_path: Path) -> None:
     assert worst_table.splitlines()[4].startswith("| 0 | 1100 | 0.7 | 0 | n/a | - | **FAIL**")
 
 
+GAP_SPEC = """
+scenario: acc-braking
+duration_s: 1
+seeds: 2
+grid:
+  traffic.lead.brake_decel_mps2: [6, 9]
+  tracker.acc.time_gap_s: [1.0, 1.5]
+pass: {gap_min_m: {min: 2}}
+"""
+
+
+def test_the_worst_of_a_minimum_is_the_smallest(tmp_path: Path) -> None:
+    """For ``gap_min_m`` the worst run is the closest one: the summary lists it first, and
+    the per-value and per-cell figures are the smallest gap, not the largest."""
+    spec = load_spec(write_spec(tmp_path, GAP_SPEC))
+    rows = []
+    for task in spec.tasks():
+        params = dict(task.params)
+        gap = 12.0 - params["traffic.lead.brake_decel_mps2"] + 4.0 * params[
+            "tracker.acc.time_gap_s"] - 0.5 * task.seed
+        rows.append({"run_id": task.run_id, "point": task.point, "seed": task.seed,
+                     "params": params, "metrics": {"gap_min_m": gap, "completed": True},
+                     "error": "", "log": "", "started_at": "", "finished_at": ""})
+    directory = SweepDir(tmp_path / "out")
+    directory.prepare(spec, GAP_SPEC, resume=False, n_runs=len(rows))
+    flat = write_tables(directory, spec, rows, len(rows))
+    smallest = min(r["gap_min_m"] for r in flat)
+    summary = summary_markdown(spec, flat, len(rows), [], 1.0)
+    first_row = summary.split("## Worst cases")[1].splitlines()[4]
+    assert f"| {smallest:.4g} |" in first_row, first_row
+    per_value = summary.split("### `traffic.lead.brake_decel_mps2`")[1].split("###")[0]
+    assert per_value.splitlines()[-2].endswith(f"| {smallest:.4g} |"), per_value
+    grid = summary.split("## Worst `gap_min_m` per grid point")[1].split("##")[0]
+    assert f"{smallest:.4g}" in grid and f"{max(r['gap_min_m'] for r in flat):.4g}" \
+        not in grid
+
+
 def test_a_minimum_metric_takes_a_lower_bound(tmp_path: Path) -> None:
     """Traffic and course metrics are criteria too; ``{min: X}`` is a lower bound."""
     spec = load_spec(write_spec(tmp_path, "scenario: acc-braking\nduration_s: 1\n"
@@ -205,11 +242,9 @@ def test_several_metrics_are_plotted_and_a_lower_bound_is_drawn(tmp_path: Path) 
                                 "pass: {gap_min_m: {min: 2}}\n"
                                 "metric: [gap_min_m, ttc_min_s]\n"))
     assert spec.metric == "gap_min_m" and spec.metrics == ("gap_min_m", "ttc_min_s")
-    from cosim.sweeps.plots import _bounds, _low_is_bad
-
-    assert _bounds(spec, "gap_min_m") == (2.0, None)
-    assert _low_is_bad(spec, "gap_min_m") and _low_is_bad(spec, "ttc_min_s")
-    assert not _low_is_bad(spec, "cte_max_m")
+    assert bounds(spec, "gap_min_m") == (2.0, None)
+    assert low_is_bad(spec, "gap_min_m") and low_is_bad(spec, "ttc_min_s")
+    assert not low_is_bad(spec, "cte_max_m")
     flat = [{"traffic.lead.brake_decel_mps2": decel, "gap_min_m": gap, "ttc_min_s": ttc,
              "pass": ok, "error": "", "outcome": outcome}
             for decel, gap, ttc, ok, outcome in ((3, 2.4, 2.7, True, "ok"),

@@ -146,6 +146,7 @@ def test_ray_backend_gives_the_same_results(one_worker: Path, tiny_spec: Path) -
     assert comparable_rows(out) == comparable_rows(one_worker)
 
 
+@pytest.mark.slow
 def test_a_plugin_that_exits_fails_its_row_and_the_sweep_goes_on(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """In-process (the pool's workers import ``tests``): one point exits, the other passes."""

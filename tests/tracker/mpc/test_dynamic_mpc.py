@@ -257,6 +257,7 @@ def test_straight_line_from_an_offset() -> None:
     assert_every_solve_succeeded(result.plans, CONFIG)
 
 
+@pytest.mark.slow
 def test_circle_is_tracked_to_a_fraction_of_a_millimetre() -> None:
     # R = 100 m at 15 m/s (0.23 g), starting on the path with the wheel straight: a
     # transient of 47 mm (the car has to build up its yaw rate), then the steady turn
@@ -303,6 +304,7 @@ class DelayedTracker:
         return self.queue.popleft(), plan
 
 
+@pytest.mark.slow
 def test_latency_compensation_through_the_delay_line() -> None:
     # A 100 ms transport delay. Predicting over it with the commands in flight (the exact
     # ones, on its own model) gives back the tracking without delay: 64.1 mm against
@@ -363,6 +365,7 @@ def test_failed_qp_falls_back_without_raising() -> None:
         assert np.all(np.isfinite(plan.states))
 
 
+@pytest.mark.slow
 def test_same_inputs_give_identical_commands() -> None:
     first = DynamicMpc(CONFIG)
     result = run_closed_loop(first, LANE_CHANGE, Car(0.0, 0.3, 0.02, 15.0), 3.0, CAR)

@@ -158,6 +158,7 @@ def test_slip_limits_hold_on_the_limit_lane_change() -> None:
     assert not any(plan.fallback for plan in result.plans)
 
 
+@pytest.mark.slow
 def test_friction_awareness_slows_down_for_the_limit_lane_change() -> None:
     # The same 1.11 g path with tracker.grip on, the tyre limits at any friction (by
     # default only below 0.9): the bends cannot be taken at 20 m/s within 0.85 g, so the
@@ -230,6 +231,7 @@ def test_fallback_replays_the_last_good_plan() -> None:
     assert math.isfinite(again.column("road_wheel_angle_rad")[0])
 
 
+@pytest.mark.slow
 def test_same_inputs_give_identical_commands() -> None:
     first = DynamicNmpc(CONFIG)
     result = run_closed_loop(first, LANE_CHANGE, Car(0.0, 0.3, 0.02, 15.0), 3.0, CAR)

@@ -207,6 +207,7 @@ def test_internal_steering_angle_follows_the_actuator(lane_change: ClosedLoopRes
     assert node0 == pytest.approx(bench[: node0.size], abs=1e-9)
 
 
+@pytest.mark.slow
 def test_linearising_about_the_reference_tracks_as_well() -> None:
     # The linearisation point of Lages and Alves 2006: the path in the steady turn of its curvature.
     # On the 0.5 g lane change it tracks exactly as well (0.045 m); with a 0.3 rad heading
@@ -232,6 +233,7 @@ def test_straight_line_offset_is_removed() -> None:
     assert_every_solve_succeeded(result.plans, CONFIG)
 
 
+@pytest.mark.slow
 def test_circle_is_tracked_to_a_tenth_of_a_millimetre() -> None:
     # A 40 m circle at 12 m/s (0.37 g), starting on it straight ahead. With
     # ``weights.steer = 0`` the steady turn's steering costs nothing, so the optimum is on
@@ -247,6 +249,7 @@ def test_circle_is_tracked_to_a_tenth_of_a_millimetre() -> None:
     assert_every_solve_succeeded(result.plans, config)
 
 
+@pytest.mark.slow
 def test_slip_limits_hold_on_the_limit_lane_change() -> None:
     # Falcone's unstretched path at 20 m/s asks for 1.11 g: the linearised soft limits keep
     # the plans within 5 % of the tyres' linear range (12.5 % over it without them), as
@@ -279,6 +282,7 @@ class _Delayed:
         return self.queue.popleft(), plan
 
 
+@pytest.mark.slow
 def test_latency_compensation_predicts_through_the_delay_line() -> None:
     # A 100 ms transport delay (two periods). With compensation the plan's node 0 is the
     # estimate predicted through the commands already on their way: the bench car 100 ms

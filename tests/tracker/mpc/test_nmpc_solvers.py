@@ -164,6 +164,7 @@ def test_rti_takes_exactly_the_configured_iterations() -> None:
 
 @pytest.mark.parametrize("option", CLOSED_LOOP_OPTIONS)
 @pytest.mark.parametrize("tracker", TRACKERS)
+@pytest.mark.slow
 def test_closed_loop_settles_on_a_straight_line(tracker: str, option: str) -> None:
     # From 0.5 m left of a straight line at 20 m/s, on the tracker's own model: the error
     # is under 1 mm after 4 s (measured 5e-9 m kinematic, 3.5e-5 m dynamic after 5 s)

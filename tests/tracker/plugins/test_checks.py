@@ -9,7 +9,7 @@ import pytest
 
 from cosim.core.exceptions import PluginError, TrackerFault
 from cosim.core.records import Command, Plan
-from tracker.plugin_checks import check_step_result
+from tracker.plugins.checks import check_step_result
 
 
 def _good() -> tuple[Command, Plan]:

@@ -18,7 +18,7 @@ a step that raises (any exception, ``SystemExit`` included: only ``KeyboardInter
 on, as the user's interrupt), returns a non-finite command or overruns
 ``tracker.step_budget_s`` ends the run (``completed: false``, the log kept) with a reason
 naming the tracker; a step that returns something other than ``(Command, Plan)``, or a
-field of either of the wrong type or shape (:mod:`tracker.plugin_checks`), is refused as a
+field of either of the wrong type or shape (:mod:`tracker.plugins.checks`), is refused as a
 broken interface (exit code 2), naming the field.
 """
 
@@ -35,7 +35,7 @@ from cosim.core.plugins import load_object
 from cosim.core.records import Command, Estimate, Plan
 from tracker.config import PLUGIN_GROUP, TrackerConfig
 from tracker.paths.reference_path import ReferencePath
-from tracker.plugin_checks import check_step_result
+from tracker.plugins.checks import check_step_result
 from tracker.protocol import Resettable, Tracker
 
 GROUP = PLUGIN_GROUP
