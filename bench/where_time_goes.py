@@ -188,7 +188,7 @@ PART_LABELS = {
     "physics": "physics (MuJoCo, tyres, actuators)",
     "sensors": "sensors",
     "filter": "filter (predict, updates, estimate)",
-    "tracker step": "tracker step (default tracker)",
+    "tracker": "tracker step (default tracker)",
     "logging": "logging (messages, scenes, encoding, MCAP)",
     "metrics": "metrics",
     "runner loop (rest)": "the runner's own loop",

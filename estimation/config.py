@@ -6,14 +6,14 @@ checked by :func:`cosim.core.config_fields.from_dict` and a bad value names its 
 
 Process noise is given as continuous-time power spectral densities (PSD) of white noise
 driving one state each; the filter integrates them over every prediction interval
-(:mod:`estimation.models`), so the tuning does not depend on the sensor rates. A PSD ``q``
+(:mod:`estimation.process_model`), so the tuning does not depend on the sensor rates. A PSD ``q``
 driving a state makes that state a random walk whose standard deviation grows as
 ``sqrt(q * t)``. Units: ``m2ps5`` is m^2/s^5 (jerk), ``rad2ps3`` rad^2/s^3 (yaw
 acceleration), ``m2ps3`` m^2/s^3 (lateral acceleration), ``rad2ps`` rad^2/s, ``m2ps`` m^2/s,
 ``1ps`` 1/s (a dimensionless state: the rolling-radius scale); ``radpmps2`` is rad per m/s^2.
 
 The defaults were set on the MuJoCo sedan (the default plant) from its logged truth: see
-the module docstring of :mod:`estimation.models` and the comments below.
+the module docstring of :mod:`estimation.process_model` and the comments below.
 """
 
 from __future__ import annotations
@@ -26,8 +26,8 @@ from typing import Any
 from cosim.core.config_fields import mapping, section, setting
 from cosim.core.exceptions import ConfigError
 from cosim.core.plugins import entry_point_names, is_import_path
-from estimation.models import TYRE_MODELS
 from estimation.noise_config import NoiseBelief
+from estimation.process_model import TYRE_MODELS
 
 ESTIMATOR_NAMES: tuple[str, ...] = ("ekf", "ukf", "truth")
 """Built-in values of ``estimator.name``; :func:`estimation.registry.make_estimator` builds
@@ -83,7 +83,7 @@ class EstimatorConfig:
         "mu F_z of the static axle load)",
     )
 
-    # Body roll (R2 of estimation.models). Defaults: the MuJoCo sedan's suspension
+    # Body roll (R2 of estimation.process_model). Defaults: the MuJoCo sedan's suspension
     # (models/README.md): roll stiffness 2 (k_f + k_r) (t/2)^2 = 92 570 N m/rad less the
     # sprung weight's m_s g h = 8 260 N m/rad, sprung mass 1495 kg at h = 0.563 m, roll
     # inertia 517 + m_s h^2 = 991 kg m^2, damping 2 (c_f + c_r) (t/2)^2 = 9 400 N m s/rad:
@@ -111,7 +111,7 @@ class EstimatorConfig:
     # set from 20-seed ensembles of the lane change on both sensor suites
     # (bench/estimator_consistency.py), where constant PSDs were under-confident on the
     # straights and over-confident in the swerves at the same time. Once the lateral
-    # accelerometer's bias became a state (``ay_bias_mps2``, estimation.models), the constant
+    # accelerometer's bias became a state (``ay_bias_mps2``, estimation.process_model), the constant
     # floors that had hidden it came down (heading 5e-7 -> 3e-8, lateral acceleration
     # 3e-4 -> 2e-5, residual sigma 0.02 -> 0.005, roll 1e-3 -> 3e-4, transient 1e-5 -> 1e-6).
     yaw_transient_psd_s3: float = setting(

@@ -8,8 +8,9 @@ every intermediate on the filter object at each call, which cost more than the a
 a 17-state filter fed at 300 Hz, and importing filterpy imports ``scipy.stats`` (a third
 of a second of every process start). ``tests/estimation/test_ekf_update.py`` checks both
 functions against filterpy's. The models and their exact Jacobians come from
-:mod:`estimation.models` (CasADi); when and whether a measurement is fused (time, gating,
-rejection, counters) from :class:`estimation.fusion.KalmanFusion`.
+:mod:`estimation.process_model` and :mod:`estimation.measurement_models` (CasADi); when and
+whether a measurement is fused (time, gating, rejection, counters) from
+:class:`estimation.fusion.KalmanFusion`.
 """
 
 from __future__ import annotations
@@ -17,10 +18,10 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-from scipy.linalg import block_diag
 
-from estimation.fusion import KalmanFusion, Selection, TrialUpdate, residual_function
-from estimation.models import MeasurementModel
+from estimation.fusion import KalmanFusion
+from estimation.innovation import Selection, TrialUpdate, residual_function
+from estimation.measurement_models import MeasurementModel
 
 
 def covariance_prediction(p: np.ndarray, transition: np.ndarray,
@@ -30,7 +31,7 @@ def covariance_prediction(p: np.ndarray, transition: np.ndarray,
 
 
 class Ekf(KalmanFusion):
-    """Extended Kalman filter over :data:`estimation.models.STATE_NAMES`.
+    """Extended Kalman filter over :data:`estimation.state.STATE_NAMES`.
 
     See :class:`estimation.fusion.KalmanFusion` for the arguments and the contract.
     """
@@ -97,10 +98,24 @@ class Ekf(KalmanFusion):
             measured.append(np.asarray(z, dtype=float).reshape(-1))
             angle_rows += [offset + row for row in selection.angle_rows]
             offset += len(rows)
-        noise = block_diag(*(r_matrix for *_, r_matrix in blocks))
+        noise = block_diagonal([r_matrix for *_, r_matrix in blocks])
         return joseph_update(x, self._covariance, np.concatenate(measured),
                              np.concatenate(values), np.vstack(jacobians), noise,
                              residual_function(tuple(angle_rows)))
+
+def block_diagonal(blocks: list[np.ndarray]) -> np.ndarray:
+    """The square blocks on the diagonal of one matrix, zeros elsewhere (what
+    ``scipy.linalg.block_diag`` gives, without its general-purpose checks: a joint update
+    builds one at every fused instant)."""
+    size = sum(block.shape[0] for block in blocks)
+    matrix = np.zeros((size, size))
+    start = 0
+    for block in blocks:
+        end = start + block.shape[0]
+        matrix[start:end, start:end] = block
+        start = end
+    return matrix
+
 
 def joseph_update(
     x: np.ndarray,

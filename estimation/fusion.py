@@ -2,7 +2,8 @@
 
 :class:`KalmanFusion` holds everything about *when* and *whether* a measurement is fused;
 its subclasses (:class:`estimation.ekf.Ekf`, :class:`estimation.ukf.Ukf`) say *how*, with
-filterpy's filters and the models of :mod:`estimation.models`:
+filterpy's filters and the models of :mod:`estimation.process_model` and
+:mod:`estimation.measurement_models`:
 
 - time: every measurement is fused at its own time stamp; the filter predicts to it in
   sub-steps of at most ``config.max_step_s`` and refuses to go back;
@@ -36,22 +37,18 @@ from cosim.core.initial_state import InitialState
 from cosim.core.records import Estimate, Measurement
 from cosim.core.sensor_names import FUSED_SENSORS, GNSS
 from cosim.core.vehicle_params import VehicleParams
+from estimation.belief_models import process_noise, roll_params
 from estimation.config import EstimatorConfig
 from estimation.errors import EstimatorError
 from estimation.initial import initial_belief
-from estimation.models import (
-    ANGLE_STATES,
+from estimation.innovation import Innovation, Selection, TrialUpdate, residual_function
+from estimation.measurement_models import MeasurementModel, build_measurement_models
+from estimation.process_model import (
     MAX_STEP_S,
-    STATE_NAMES,
     BicycleParams,
-    MeasurementModel,
     ProcessModel,
-    ProcessNoise,
-    RollParams,
-    build_measurement_models,
-    state_index,
-    wrap_angle,
 )
+from estimation.state import ANGLE_STATES, STATE_NAMES, state_index, wrap_angle
 from estimation.timing import forward_interval_s, is_stale
 from estimation.update_result import (
     ACCEPTED,
@@ -68,30 +65,6 @@ from estimation.update_result import (
 
 
 @dataclass(frozen=True)
-class Selection:
-    """Which channels of a measurement (by its names) the filter fuses, and how."""
-
-    model_rows: tuple[int, ...]
-    measurement_columns: tuple[int, ...]
-    angle_rows: tuple[int, ...]
-    model_variance: np.ndarray
-
-
-@dataclass(frozen=True)
-class TrialUpdate:
-    """A filter's update of some channels, computed but not committed.
-
-    ``innovation`` and ``innovation_covariance`` are the prior's ``y`` and ``S`` (with the
-    measurement noise); ``mean``/``covariance`` the posterior the update would give.
-    """
-
-    innovation: np.ndarray
-    innovation_covariance: np.ndarray
-    mean: np.ndarray
-    covariance: np.ndarray
-
-
-@dataclass(frozen=True)
 class _Checked:
     """A measurement :meth:`KalmanFusion.update` can fuse: its model, the channels, their
     values and the time stamp."""
@@ -102,72 +75,8 @@ class _Checked:
     t_s: float
 
 
-@dataclass(frozen=True)
-class Innovation:
-    """One (group of) channel(s) of a measurement against the current belief."""
-
-    rows: tuple[int, ...]
-    """Rows of the measurement model."""
-    nis: float
-    trial: TrialUpdate
-
-
-def residual_function(
-    angle_rows: tuple[int, ...],
-) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
-    """``z - h`` with the angle channels (rows ``angle_rows``) wrapped to (-pi, pi]."""
-
-    def residual(z: np.ndarray, h: np.ndarray) -> np.ndarray:
-        difference = np.asarray(z, dtype=float) - np.asarray(h, dtype=float)
-        for row in angle_rows:
-            difference[row] = wrap_angle(difference[row])
-        return difference
-
-    return residual
-
-
-def process_noise(config: EstimatorConfig) -> ProcessNoise:
-    """The configured PSDs; the lateral residual's from its stationary sigma and time
-    constant (a first-order Gauss-Markov process: ``q = 2 sigma^2 / tau``); the bias walks
-    from the sensor belief ``config.noise``."""
-    residual_psd = (
-        2.0 * config.lateral_residual_sigma_mps2**2 / config.lateral_residual_time_constant_s
-    )
-    return ProcessNoise(
-        position_psd_m2ps=config.position_psd_m2ps,
-        yaw_psd_rad2ps=config.yaw_psd_rad2ps,
-        lateral_accel_psd_m2ps3=config.lateral_accel_psd_m2ps3,
-        yaw_accel_psd_rad2ps3=config.yaw_accel_psd_rad2ps3,
-        jerk_psd_m2ps5=config.jerk_psd_m2ps5,
-        steer_psd_rad2ps=config.steer_psd_rad2ps,
-        steer_rate_psd_rad2ps3=config.steer_rate_psd_rad2ps3,
-        roll_accel_psd_rad2ps3=config.roll_accel_psd_rad2ps3,
-        lateral_residual_psd_m2ps5=residual_psd,
-        gyro_bias_psd_rad2ps3=config.noise.gyro_bias_psd_rad2ps3,
-        accel_bias_psd_m2ps5=config.noise.accel_bias_psd_m2ps5,
-        rolling_radius_scale_psd_1ps=config.rolling_radius_scale_psd_1ps,
-        wheel_track_scale_psd_1ps=config.wheel_track_scale_psd_1ps,
-        lateral_residual_relative_psd_1ps=(
-            2.0 * config.lateral_residual_relative**2 / config.lateral_residual_time_constant_s
-        ),
-        yaw_transient_psd_s3=config.yaw_transient_psd_s3,
-        roll_accel_relative_psd_s=config.roll_accel_relative_psd_s,
-    )
-
-
-def roll_params(config: EstimatorConfig, belief: VehicleParams) -> RollParams:
-    """The configured roll mode; the CoG sits the belief's ``cog_height_m`` above the roll
-    axis (taken at the ground: independent vertical suspensions)."""
-    return RollParams(
-        gradient_radpmps2=config.roll_gradient_radpmps2,
-        frequency_hz=config.roll_frequency_hz,
-        damping_ratio=config.roll_damping_ratio,
-        sway_arm_m=belief.cog_height_m if config.roll_gradient_radpmps2 > 0.0 else 0.0,
-    )
-
-
 class KalmanFusion(ABC):
-    """A Kalman filter over :data:`estimation.models.STATE_NAMES`, fed asynchronously.
+    """A Kalman filter over :data:`estimation.state.STATE_NAMES`, fed asynchronously.
 
     ``initial`` is the car's initial state and ``config`` the prior's standard deviations;
     the mean is drawn around ``initial`` with ``rng`` as ``config.initial`` says

@@ -16,7 +16,7 @@ initial covariance):
   :class:`estimation.fusion.KalmanFusion`);
 - ``truth``: the mean is the true initial state (debugging only).
 
-The states of the car's motion (:data:`estimation.models.VEHICLE_STATE_NAMES`, the roll
+The states of the car's motion (:data:`estimation.state.VEHICLE_STATE_NAMES`, the roll
 rate and the steering rate) are sampled. The sensor states (gyro and accelerometer biases,
 the rolling-radius and track scales) keep their nominal means (zero, one): their truth is
 itself unknown (a sensor's turn-on bias is drawn by the sensor, the effective radius is the
@@ -31,7 +31,7 @@ import numpy as np
 
 from cosim.core.initial_state import InitialState
 from estimation.config import EstimatorConfig
-from estimation.models import STATE_NAMES, VEHICLE_STATE_NAMES, wrap_angle
+from estimation.state import STATE_NAMES, VEHICLE_STATE_NAMES, wrap_angle
 
 SAMPLED_STATES: tuple[str, ...] = (*VEHICLE_STATE_NAMES, "roll_rate_radps", "steer_rate_radps")
 """States whose initial mean is drawn around the truth in the ``sampled`` mode."""

@@ -19,7 +19,7 @@ from cosim.core.records import Estimate, Measurement
 from cosim.core.sensor_names import TRUTH
 from cosim.core.vehicle_params import VehicleParams
 from estimation.config import EstimatorConfig
-from estimation.models import VEHICLE_STATE_NAMES, wrap_angle
+from estimation.state import VEHICLE_STATE_NAMES, wrap_angle
 from estimation.timing import forward_interval_s, is_stale
 from estimation.update_result import (
     ACCEPTED,

@@ -4,7 +4,8 @@ Built on filterpy's :class:`~filterpy.kalman.UnscentedKalmanFilter` with Van der
 scaled sigma points (:class:`~filterpy.kalman.MerweScaledSigmaPoints`; Van der Merwe, "Sigma-
 Point Kalman Filters for Probabilistic Inference in Dynamic State-Space Models", PhD thesis,
 2004, section 3.2.2). It shares with :class:`estimation.ekf.Ekf` the state, the CasADi
-process and measurement models of :mod:`estimation.models` (evaluated numerically at the
+process and measurement models of :mod:`estimation.process_model` and
+:mod:`estimation.measurement_models` (evaluated numerically at the
 sigma points; the process step mapped over all of them in one call) and everything about
 when and whether a measurement is fused (:class:`estimation.fusion.KalmanFusion`).
 
@@ -29,8 +30,11 @@ from collections.abc import Callable
 import numpy as np
 from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
 
-from estimation.fusion import KalmanFusion, TrialUpdate
-from estimation.models import ANGLE_STATES, STATE_NAMES, MeasurementModel, ProcessModel, state_index
+from estimation.fusion import KalmanFusion
+from estimation.innovation import TrialUpdate
+from estimation.measurement_models import MeasurementModel
+from estimation.process_model import ProcessModel
+from estimation.state import ANGLE_STATES, STATE_NAMES, state_index
 
 
 def _circular_mean_function(
@@ -104,7 +108,7 @@ def _wrap(angle_rad: np.ndarray) -> np.ndarray:
 
 
 class Ukf(KalmanFusion):
-    """Unscented Kalman filter over :data:`estimation.models.STATE_NAMES`.
+    """Unscented Kalman filter over :data:`estimation.state.STATE_NAMES`.
 
     Sigma points: ``config.ukf_alpha``, ``ukf_beta``, ``ukf_kappa`` (Van der Merwe's alpha,
     beta, kappa). The defaults (1, 2, 0) give all-positive weights (no negative centre

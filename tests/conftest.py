@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
@@ -27,3 +29,34 @@ def short_run(tmp_path_factory: pytest.TempPathFactory) -> RunResult:
 def lane_change_run(tmp_path_factory: pytest.TempPathFactory) -> RunResult:
     """The full 15 s lane change with the EKF in the loop (the README's demo)."""
     return run_scenario(tmp_path_factory.mktemp("full"), "lane-change")
+
+
+@dataclass(frozen=True)
+class Called:
+    """What a ``cosim`` command line gave: its exit code and what it printed."""
+
+    returncode: int
+    stdout: str
+    stderr: str
+
+
+@pytest.fixture
+def cosim_in_process(capsys: pytest.CaptureFixture[str],
+                     monkeypatch: pytest.MonkeyPatch) -> Callable[..., Called]:
+    """Runs ``cosim ARGS`` through :func:`cosim.cli.main` in this process (from ``cwd`` if
+    given): the same parser, messages and exit codes as the console script, without an
+    interpreter start per call. ``tests/cli/test_cli.py`` runs the console script itself."""
+    from cosim.cli import main
+
+    def call(*args: str, cwd: Path | None = None) -> Called:
+        if cwd is not None:
+            monkeypatch.chdir(cwd)
+        capsys.readouterr()
+        try:
+            code = main(list(args))
+        except SystemExit as stop:  # argparse's own refusals
+            code = stop.code if isinstance(stop.code, int) else 2
+        printed = capsys.readouterr()
+        return Called(code, printed.out, printed.err)
+
+    return call

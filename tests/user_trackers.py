@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import dataclasses
+import os
 import sys
 import time
 from dataclasses import dataclass
@@ -93,6 +94,16 @@ class Exiting(Straight):
     def step(self, t_s: float, estimate: Estimate, reference: Any) -> tuple[Command, Plan]:
         if self.failing(t_s):
             sys.exit(0)
+        return super().step(t_s, estimate, reference)
+
+
+class HardExit(Straight):
+    """Ends its process from ``fail_at_s`` on with ``os._exit``: nothing can catch it, so a
+    sweep worker dies under its run."""
+
+    def step(self, t_s: float, estimate: Estimate, reference: Any) -> tuple[Command, Plan]:
+        if self.failing(t_s):
+            os._exit(7)
         return super().step(t_s, estimate, reference)
 
 

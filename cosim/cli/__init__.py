@@ -32,8 +32,8 @@ run ended badly (its ``outcome`` is ``spun``, ``rolled_over``, ``off_road``,
 ``end_of_path``, ``diverged`` ...: see cosim.simulation.outcome) or a --fail-if condition
 holds (the log is complete up to the end or the abort in both cases); 130 on an interrupt;
 1 when a file cannot be written (a full disk) or a standard stream is closed.
-A sweep exits 0 when every run has a row (failed runs and failed pass criteria included: the
-results say so), 1 if a worker process died, 130 on an interrupt (finish with --resume).
+A sweep exits 0 when every run has a row (failed runs, failed pass criteria and a run whose
+worker process died included: the results say so), 130 on an interrupt (finish with --resume).
 
 One module per command (or family of commands), each adding its parsers and returning its
 handlers: :mod:`~cosim.cli.run`, :mod:`~cosim.cli.inspect_log`, :mod:`~cosim.cli.views`

@@ -91,15 +91,20 @@ def command(args: argparse.Namespace) -> int:
             paced = f"paced at {live.pace:g}x real time" if live.pace else "not paced"
             print(f"cosim: live at {mirror.url} ({paced}); in Foxglove: Open connection > "
                   "Foxglove WebSocket", file=sys.stderr, flush=True)
-        if sys.stderr.isatty():
-            from rich.progress import Progress
+        try:
+            if sys.stderr.isatty():
+                from rich.progress import Progress
 
-            with Progress(transient=True) as bar:
-                task = bar.add_task(f"{config.name}", total=1.0)
-                result = run(config, out, lambda done: bar.update(task, completed=done),
-                             mirror=mirror)
-        else:
-            result = run(config, out, mirror=mirror)
+                with Progress(transient=True) as bar:
+                    task = bar.add_task(f"{config.name}", total=1.0)
+                    result = run(config, out, lambda done: bar.update(task, completed=done),
+                                 mirror=mirror)
+            else:
+                result = run(config, out, mirror=mirror)
+        except CosimError as error:  # refused during the run: say where its log is
+            if Path(out).is_file():
+                raise type(error)(f"{error} (the log up to it: {out})") from None
+            raise
     shown = shown_metrics(result.metrics, config.tracker.name == "open-loop")
     if args.json:
         print(json.dumps({"log": str(result.log_path), "metrics": json_ready(result.metrics)}))

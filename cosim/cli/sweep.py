@@ -36,7 +36,6 @@ def add_parsers(commands: Any) -> dict[str, Handler]:
 def command(args: argparse.Namespace) -> int:
     refuse_live(args, "sweep")
     from cosim.sweeps.driver import check_sweep_dir, default_out_dir, run_sweep
-    from cosim.sweeps.execute import WorkerCrashError
 
     if args.resume and args.out is None:
         raise CosimError("--resume: expected --out DIR, the directory of the sweep to finish")
@@ -48,9 +47,6 @@ def command(args: argparse.Namespace) -> int:
     try:
         outcome = run_sweep(args.spec, out, args.workers, args.backend, args.keep_logs,
                             args.resume, yes=args.yes, force=args.force)
-    except WorkerCrashError as error:
-        print(f"cosim: sweep aborted: {error}", file=sys.stderr)
-        return EXIT_IO
     except KeyboardInterrupt:
         print(f"cosim: sweep interrupted; finished rows are kept: {resume_hint}",
               file=sys.stderr)

@@ -9,7 +9,7 @@ from cosim.cli.common import Handler
 
 
 def add_parsers(commands: Any) -> dict[str, Handler]:
-    plot = commands.add_parser("plot", help="PNG figures of a log (or two logs overlaid)")
+    plot = commands.add_parser("plot", help="PNG figures of a log (or up to six logs overlaid)")
     plot.add_argument("files", metavar="FILE.mcap", nargs="+",
                       help="a log, or several (up to 6) to overlay")
     plot.add_argument("--out", metavar="DIR",

@@ -21,7 +21,9 @@ _UNSAFE = re.compile(r"[^A-Za-z0-9.+-]+")
 
 
 def _safe(text: str) -> str:
-    return _UNSAFE.sub("", text.replace("_", "-"))
+    """``text`` as part of a file name: underscores and the separators of an import path
+    (``my_pkg.mod:Tracker``) become hyphens, anything else unsafe is dropped."""
+    return _UNSAFE.sub("", text.replace("_", "-").replace(":", "-"))
 
 
 def _key_part(dotted_key: str) -> str:
@@ -53,6 +55,8 @@ def override_tag(overrides: Sequence[str] = (), tracker: str | None = None,
     parts: list[str] = []
     if config_file:
         parts.append(_safe(config_file.replace("\\", "/").rsplit("/", 1)[-1].rsplit(".", 1)[0]))
+    if tracker and tracker.startswith("fmu:"):  # a file: its name, not its folders
+        tracker = "fmu-" + tracker.replace("\\", "/").rsplit("/", 1)[-1].removesuffix(".fmu")
     parts += [_safe(name) for name in (tracker, estimator) if name]
     for text in overrides:
         key, _, value = text.partition("=")

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from cosim.sensing.sensors import TRUTH_FIELDS
+from cosim.sensing.sensors import TRUTH_FIELDS, ImuSensor
 
 NUMBER = {"type": "number"}
 NUMBER_OR_NULL = {"type": ["number", "null"]}
@@ -43,9 +43,11 @@ COLOR = object_schema("foxglove.Color", {"r": NUMBER, "g": NUMBER, "b": NUMBER, 
 
 VEHICLE_STATE = object_schema(
     "cosim.VehicleState",
-    {**{name: NUMBER for name in ("t_s", *TRUTH_FIELDS)}, "wheel_speed_radps": NUMBERS},
+    {**{name: NUMBER for name in ("t_s", *TRUTH_FIELDS)}, "wheel_speed_radps": NUMBERS,
+     **{name: NUMBER for name in ImuSensor.BIAS_NAMES}},
     "True state of the car: CoG position in the ENU world frame, velocities and "
-    "accelerations in the ISO 8855 vehicle frame, wheels FL, FR, RL, RR.",
+    "accelerations in the ISO 8855 vehicle frame, wheels FL, FR, RL, RR; with an IMU, the "
+    "true bias of each of its channels (gyro_bias_radps, ax_bias_mps2, ay_bias_mps2).",
 )
 
 ESTIMATE = {

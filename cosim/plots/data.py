@@ -30,7 +30,10 @@ TOPICS = {topics.VEHICLE_TRUTH, topics.VEHICLE_ESTIMATE, topics.CONTROL_COMMAND,
 
 TRUTH_FIELDS = ("x_m", "y_m", "yaw_rad", "vx_mps", "vy_mps", "yaw_rate_radps", "ax_mps2",
                 "steer_rad", "roll_rad")
-"""The ``/vehicle/truth`` fields an estimate's state of the same name is compared with."""
+"""The ``/vehicle/truth`` fields of the car's state an estimate's state of the same name is
+compared with."""
+BIAS_FIELDS = ("gyro_bias_radps", "ax_bias_mps2", "ay_bias_mps2")
+"""The IMU's true biases, in ``/vehicle/truth`` when the run has an IMU (NaN otherwise)."""
 ANGLES = ("yaw_rad", "roll_rad")
 """Errors wrapped to (-pi, pi]."""
 
@@ -51,6 +54,10 @@ class Truth:
     steer_rad: np.ndarray
     """Road-wheel angle of the front axle (the steering actuator's output)."""
     roll_rad: np.ndarray
+    gyro_bias_radps: np.ndarray
+    ax_bias_mps2: np.ndarray
+    ay_bias_mps2: np.ndarray
+    """The IMU's true biases (NaN when the log has none: no IMU, or an older log)."""
 
     @property
     def speed_mps(self) -> np.ndarray:
@@ -203,7 +210,7 @@ def _truth(messages: list[tuple[int, dict[str, Any]]]) -> Truth:
     return Truth(
         log_time_ns=np.array([t for t, _ in messages], dtype=np.int64),
         **{name: _column(messages, name)
-           for name in ("t_s", *TRUTH_FIELDS)},
+           for name in ("t_s", *TRUTH_FIELDS, *BIAS_FIELDS)},
     )
 
 
@@ -293,8 +300,8 @@ def _estimation(truth: Truth, estimate: EstimateLog | None) -> EstimationErrors 
         return None
     errors: dict[str, np.ndarray] = {}
     sigmas: dict[str, np.ndarray] = {}
-    for name in TRUTH_FIELDS:
-        if name not in estimate.state_names:
+    for name in (*TRUTH_FIELDS, *BIAS_FIELDS):
+        if name not in estimate.state_names or not np.any(np.isfinite(getattr(truth, name))):
             continue
         error = estimate.column(name)[in_estimate] - getattr(truth, name)[in_truth]
         errors[name] = np.asarray(wrap_angle(error)) if name in ANGLES else error
@@ -379,8 +386,8 @@ def load_estimation(path: Path | str) -> EstimationErrors | None:
 
 def distinct_labels(runs: list[RunLog]) -> list[RunLog]:
     """The runs with labels that tell them apart: by what differs in their logged
-    configurations (``plant.mass_kg=1575`` against ``plant.mass_kg=2000``), else by file
-    name, else by number."""
+    configurations (``plant.mass_kg=1575`` against ``plant.mass_kg=2000``; runs that share
+    a configuration get their file name too), else by file name, else by number."""
     from dataclasses import replace
 
     if len(runs) < 2:
@@ -399,6 +406,11 @@ def distinct_labels(runs: list[RunLog]) -> list[RunLog]:
             labelled.append(replace(run, label=f"{run.label}: {', '.join(parts)}"))
         if len({run.label for run in labelled}) == len(labelled):
             return labelled
+        alike = [sum(other.label == run.label for other in labelled) > 1 for run in labelled]
+        stems = [run.path.stem for run, shared in zip(labelled, alike, strict=True) if shared]
+        if len(set(stems)) == len(stems):  # some runs share a configuration: add the file
+            return [replace(run, label=f"{run.label} ({run.path.stem})") if shared else run
+                    for run, shared in zip(labelled, alike, strict=True)]
     labels = [run.label for run in runs]
     if len(set(labels)) == len(labels):
         return runs

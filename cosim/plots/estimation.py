@@ -1,14 +1,15 @@
 """Estimation: every estimated state with the filter's own +-3 sigma, NEES, and NIS per sensor.
 
-Two figures: ``estimation.png`` holds the states the car's truth has, with NEES and NIS;
+Two figures: ``estimation.png`` holds the states of the car's motion, with NEES and NIS;
 ``estimation_internal.png`` the filter's own states (biases, scales, residuals). One panel
-per state, in the estimator's order. Where the truth has the same
-quantity (pose, velocities, yaw rate, longitudinal acceleration, road-wheel angle, roll) the
-panel shows the error, estimate minus truth at the log times both topics share (angles
-wrapped), inside the band of +-3 sigma from the diagonal of the logged covariance: a
-consistent filter keeps its error inside the band almost always. States with no logged
-truth (sensor biases, the lateral-force residual, the rolling-radius scale) show the
-estimate itself with its +-3 sigma band: whether it settles, and how sure the filter is.
+per state, in the estimator's order. Where the log has the truth of the same quantity
+(pose, velocities, yaw rate, longitudinal acceleration, road-wheel angle, roll, and the
+IMU's biases, which the simulated IMU reports) the panel shows the error, estimate minus
+truth at the log times both topics share (angles wrapped), inside the band of +-3 sigma
+from the diagonal of the logged covariance: a consistent filter keeps its error inside the
+band almost always. States with no logged truth (the lateral-force residual, the
+rolling-radius and track scales) show the estimate itself with its +-3 sigma band: whether
+it settles, and how sure the filter is.
 
 NEES is computed per sample over the states the run metrics use (x, y, yaw, v_x: 4 degrees
 of freedom) with the logged covariance block; the shaded band is where 95 % of single-sample
@@ -28,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from cosim.core.config_fields import unit_of
-from cosim.plots.data import RunLog
+from cosim.plots.data import TRUTH_FIELDS, RunLog
 from cosim.plots.style import (
     REFERENCE_COLOUR,
     legend,
@@ -286,7 +287,7 @@ def estimation_figure(runs: Sequence[RunLog], path: Path) -> Path:
     """``estimation.png``: the states the car's truth has (pose, velocities, yaw rate,
     acceleration, road-wheel angle, roll), each as estimate - truth inside the filter's
     +-3 sigma, then NEES and NIS per sensor."""
-    names = [n for n in _state_names(runs) if _with_truth(runs, n)]
+    names = [n for n in _state_names(runs) if n in TRUTH_FIELDS and _with_truth(runs, n)]
     figure, axes = _panels_figure(runs, names, 2)
     _nees_panel(axes[len(names)], runs)
     _nis_panel(axes[len(names) + 1], runs)
@@ -297,8 +298,9 @@ def estimation_figure(runs: Sequence[RunLog], path: Path) -> Path:
 def estimation_internal_figure(runs: Sequence[RunLog], path: Path) -> Path | None:
     """``estimation_internal.png``: the filter's own states (sensor biases, scale factors,
     residual forces, rates): the error where the truth is logged, else the estimate with
-    its +-3 sigma (does it settle, how sure is it); None when every state has a truth."""
-    names = [n for n in _state_names(runs) if not _with_truth(runs, n)]
+    its +-3 sigma (does it settle, how sure is it); None when the filter has no such state."""
+    names = [n for n in _state_names(runs)
+             if not (n in TRUTH_FIELDS and _with_truth(runs, n))]
     if not names:
         return None
     figure, axes = _panels_figure(runs, names, 0)

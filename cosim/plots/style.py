@@ -131,8 +131,18 @@ def run_legend(figure: Any, runs: Sequence[RunLog]) -> None:
 
     handles = [Line2D([], [], linewidth=2.5, label=run.label, **run_line(i))
                for i, run in enumerate(runs)]
-    figure.legend(handles=handles, loc="outside lower center", ncol=len(runs),
+    figure.legend(handles=handles, loc="outside lower center",
+                  ncol=legend_columns([run.label for run in runs], figure, FONT_SIZE + 1),
                   fontsize=FONT_SIZE + 1, frameon=False)
+
+
+def legend_columns(labels: Sequence[str], figure: Any, font_size_pt: float) -> int:
+    """Columns of a figure legend that fit its width: as many entries side by side as the
+    longest label allows (a character is about 0.6 em wide; a handle and the gap about
+    4 em), down to one entry a row."""
+    width_pt = figure.get_figwidth() * 72.0
+    entry_pt = (0.6 * max(map(len, labels), default=1) + 4.0) * font_size_pt
+    return max(1, min(len(labels), int(width_pt // entry_pt)))
 
 
 def save(figure: Any, path: Path) -> Path:

@@ -26,3 +26,15 @@ class Sensor(Protocol):
     period_s: float
 
     def sample(self, truth: VehicleState, rng: np.random.Generator) -> Measurement: ...
+
+
+@runtime_checkable
+class BiasedSensor(Protocol):
+    """A sensor with biases of its own (a capability): their true values, for the log.
+
+    The keys name the bias as the filters' states do (``gyro_bias_radps``, ...), so a plot
+    can draw each bias estimate minus its truth; the values are what the sensor adds to
+    its channels now. Reading them draws nothing and changes nothing.
+    """
+
+    def true_biases(self) -> dict[str, float]: ...

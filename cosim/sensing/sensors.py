@@ -213,6 +213,14 @@ class ImuSensor:
         """The current bias of each channel (zeros before the first sample)."""
         return np.zeros(3) if self._bias is None else self._bias.copy()
 
+    BIAS_NAMES = ("gyro_bias_radps", "ax_bias_mps2", "ay_bias_mps2")
+    """The bias of each channel, in :attr:`names` order, by the name the filters' bias
+    states have (:class:`cosim.sensing.protocol.BiasedSensor`)."""
+
+    def true_biases(self) -> dict[str, float]:
+        """The bias each channel has now (zeros before the first sample)."""
+        return dict(zip(self.BIAS_NAMES, (float(b) for b in self.bias), strict=True))
+
     def sample(self, truth: VehicleState, rng: np.random.Generator) -> Measurement:
         if self._bias is None:
             self._bias = rng.normal(0.0, 1.0, 3) * self._bias_sigma

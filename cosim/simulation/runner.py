@@ -48,7 +48,7 @@ from cosim.plant.car import MujocoPlant
 from cosim.plant.low_level import AccelToTorque
 from cosim.plant.protocol import Plant
 from cosim.sensing.faults import FaultInjector
-from cosim.sensing.protocol import Sensor
+from cosim.sensing.protocol import BiasedSensor, Sensor
 from cosim.sensing.sensors import TruthSensor, make_sensors
 from cosim.simulation.belief_check import BeliefMismatchWarning, belief_mismatches
 from cosim.simulation.course import Course, build_course
@@ -243,6 +243,8 @@ class _Run:
         ]
         self.rngs = {s.name: component_rng(config.seed, f"sensors.{s.name}")
                      for s in self.sensors}
+        self.biased_sensors = [s for s in self.sensors if isinstance(s, BiasedSensor)]
+        """Sensors whose true biases the truth message carries (the log only reads them)."""
         self.faults = {s.name: FaultInjector(config.faults, s.name, s.names)
                        for s in self.sensors}
         open_loop = config.tracker.name == "open-loop"
@@ -327,7 +329,10 @@ class _Run:
 
     def log(self, k: int, t_s: float) -> None:
         estimate = self.observed_estimate(t_s)
-        self.recorder.write_finite(topics.VEHICLE_TRUTH, t_s, self.truth.to_message())
+        truth_message = self.truth.to_message()
+        for sensor in self.biased_sensors:
+            truth_message.update(sensor.true_biases())
+        self.recorder.write_finite(topics.VEHICLE_TRUTH, t_s, truth_message)
         self.recorder.write_finite(topics.VEHICLE_ESTIMATE, t_s, estimate.to_message())
         self.recorder.write(topics.TF, t_s, foxglove.frame_transform(self.truth))
         if k % self.clock.scene_steps == 0:

@@ -200,6 +200,9 @@ def run_sweep(spec_path: str | Path, out_dir: str | Path | None = None,
             rows[row["run_id"]] = row
             ran += 1
             why = failures(row, spec)
+            outcome = row.get("metrics", {}).get("outcome")
+            if why and isinstance(outcome, str) and outcome not in ("ok", "error"):
+                why = [f"outcome {outcome}", *why]  # a collision, a spin: say it first
             progress.update(row, "pass" if not why else "FAIL " + why[0])
             if on_row is not None:
                 on_row(row)

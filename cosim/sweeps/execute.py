@@ -196,10 +196,6 @@ PR_SET_PDEATHSIG = 1
 """``prctl`` option: the signal a process gets when its parent dies (linux/prctl.h)."""
 
 
-class WorkerCrashError(CosimError):
-    """A worker process died (not a failed run: the process itself); finished rows are kept."""
-
-
 RowSink = Callable[[dict[str, Any]], None]
 """Where a backend hands each finished row (the driver appends it to results.jsonl)."""
 
@@ -213,6 +209,12 @@ class ProcessBackend:
     def run(self, tasks: Sequence[RunTask], on_row: RowSink) -> None:
         """Run every task, calling ``on_row`` with each row as it finishes.
 
+        A worker process that dies (``os._exit`` in a plug-in, a signal, out of memory, a
+        crash in native code) breaks the pool and every run in flight with it; those runs
+        are then run again one at a time in a pool of their own, so the run that kills its
+        worker alone becomes a row with that error (named, the others finish) and the
+        remaining tasks go on in a fresh pool.
+
         On ``KeyboardInterrupt`` (Ctrl-C, or SIGTERM as the driver maps it, whether or not
         the workers got the signal too) no further task is handed to the pool and every
         worker is sent SIGTERM: its run stops between two physics steps and hands over its
@@ -220,31 +222,59 @@ class ProcessBackend:
         handed over; workers still running then are killed, and the interrupt goes on. No
         worker outlives the call.
         """
-        if not tasks:
-            return
-        context = multiprocessing.get_context("spawn")
-        workers = max(1, min(self.workers, len(tasks)))
-        executor = concurrent.futures.ProcessPoolExecutor(
-            max_workers=workers, mp_context=context, initializer=_init_worker,
-            initargs=(os.getpid(),))
-        # At most one task per worker is handed to the pool: a task in the pool's queue can
-        # no longer be cancelled, so a deeper queue would run on after an interrupt.
         pending = list(tasks)
-        running: set[concurrent.futures.Future[dict[str, Any]]] = set()
+        while pending:
+            suspects = _run_pool(pending, self.workers, on_row)
+            for task in suspects:
+                if _run_pool([task], 1, on_row):
+                    on_row(_crashed_row(task, WorkerDiedError(
+                        "its worker process died (os._exit, a signal, out of memory or a "
+                        "crash in native code)")))
+
+
+def _run_pool(pending: list[RunTask], workers: int, on_row: RowSink) -> list[RunTask]:
+    """Run ``pending`` (consumed) on a fresh pool until it is empty or the pool breaks;
+    return the tasks that were in flight when a worker died (none if none did)."""
+    context = multiprocessing.get_context("spawn")
+    workers = max(1, min(workers, len(pending)))
+    executor = concurrent.futures.ProcessPoolExecutor(
+        max_workers=workers, mp_context=context, initializer=_init_worker,
+        initargs=(os.getpid(),))
+    # At most one task per worker is handed to the pool: a task in the pool's queue can no
+    # longer be cancelled, so a deeper queue would run on after an interrupt.
+    running: dict[concurrent.futures.Future[dict[str, Any]], RunTask] = {}
+    broken: list[RunTask] = []
+    try:
         try:
-            try:
-                while pending or running:
-                    while pending and len(running) < workers:
-                        running.add(executor.submit(execute_task, pending.pop(0)))
-                    done, running = concurrent.futures.wait(
-                        running, return_when=concurrent.futures.FIRST_COMPLETED)
-                    for future in done:
-                        on_row(_result(future))
-            except KeyboardInterrupt:
-                _stop(executor, running, on_row)
-                raise
-        finally:
-            executor.shutdown(wait=True, cancel_futures=True)
+            while (pending or running) and not broken:
+                while pending and len(running) < workers:
+                    task = pending.pop(0)
+                    running[executor.submit(execute_task, task)] = task
+                done, _ = concurrent.futures.wait(
+                    running, return_when=concurrent.futures.FIRST_COMPLETED)
+                for future in done:
+                    task = running.pop(future)
+                    if isinstance(future.exception(),
+                                  concurrent.futures.process.BrokenProcessPool):
+                        broken.append(task)
+                    else:
+                        on_row(future.result())
+        except KeyboardInterrupt:
+            _stop(executor, set(running), on_row)
+            raise
+    finally:
+        executor.shutdown(wait=True, cancel_futures=True)
+    if broken:  # the runs still in flight went down with the pool
+        for future, task in running.items():
+            if future.done() and future.exception() is None:
+                on_row(future.result())
+            else:
+                broken.append(task)
+    return sorted(broken, key=lambda task: task.run_id)
+
+
+class WorkerDiedError(CosimError):
+    """A run's worker process died under it (the run's row carries this error)."""
 
 
 def _stop(executor: concurrent.futures.ProcessPoolExecutor,
@@ -267,15 +297,6 @@ def _stop(executor: concurrent.futures.ProcessPoolExecutor,
                 worker.kill()
     for future in running:
         future.cancel()
-
-
-def _result(future: concurrent.futures.Future[dict[str, Any]]) -> dict[str, Any]:
-    try:
-        return future.result()
-    except concurrent.futures.process.BrokenProcessPool:
-        raise WorkerCrashError(
-            "a sweep worker process died (killed, out of memory or a crash in native "
-            "code); the rows finished so far are kept: run again with --resume") from None
 
 
 @dataclass(frozen=True)

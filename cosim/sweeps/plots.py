@@ -50,8 +50,11 @@ def _tick_labels(parameter: Parameter) -> list[str]:
 
 
 def _title(spec: SweepSpec) -> str:
+    """The sweep's name, then the scenario unless the sweep is named after it, then the
+    tracker and the estimator."""
     scenario = Path(spec.scenario).stem if spec.scenario_text else spec.scenario
-    return f"{spec.name}: {scenario}, {spec.tracker_name} + {spec.estimator_name}"
+    head = spec.name if spec.name == scenario else f"{spec.name}: {scenario}"
+    return f"{head}, {spec.tracker_name} + {spec.estimator_name}"
 
 
 def _belief_note(spec: SweepSpec) -> str:

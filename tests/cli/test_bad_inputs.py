@@ -227,7 +227,7 @@ ROWS = [
         "run", "lane-change", "--tracker", "tests.user_trackers:StringAccel", "--duration",
         "0.1", "--out", f("string-accel.mcap")],
         ("'tests.user_trackers:StringAccel'", "Command.accel_mps2 = 'fast' (str)",
-         "expected a finite number")),
+         "expected a finite number", "(the log up to it: ", "string-accel.mcap)")),
     Row("plug-in Command field an array", lambda f: [
         "run", "lane-change", "--tracker", "tests.user_trackers:ArraySteer", "--duration",
         "0.1", "--out", f("array-steer.mcap")],

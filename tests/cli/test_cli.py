@@ -7,6 +7,7 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -14,6 +15,7 @@ import pytest
 from cosim.log.reader import read_summary
 from cosim.simulation.metrics import METRIC_KEYS
 from cosim.simulation.runner import RunResult
+from tests.conftest import Called
 
 COSIM = str(Path(sys.executable).with_name("cosim"))
 
@@ -39,12 +41,22 @@ def cosim(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[st
     ],
 )
 def test_bad_input_is_one_line_and_exit_code_2(args: tuple[str, ...], fragment: str,
-                                               tmp_path: Path) -> None:
-    result = cosim(*args, cwd=tmp_path)
+                                               tmp_path: Path,
+                                               cosim_in_process: Callable[..., Called]) -> None:
+    result = cosim_in_process(*args, cwd=tmp_path)
     assert result.returncode == 2, result.stderr
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1, result.stderr
     assert fragment in lines[0]
+    assert "Traceback" not in result.stderr
+
+
+def test_the_console_script_refuses_bad_input_in_one_line(tmp_path: Path) -> None:
+    """The installed ``cosim`` script itself (the rows above call its ``main`` in process)."""
+    result = cosim("run", "lane-change", "--set", "tracker.horizn=3", cwd=tmp_path)
+    assert result.returncode == 2, result.stderr
+    (line,) = result.stderr.strip().splitlines()
+    assert "unknown key 'tracker.horizn'" in line
     assert "Traceback" not in result.stderr
 
 

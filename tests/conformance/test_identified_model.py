@@ -28,13 +28,15 @@ NOMINAL = PlantConfig()
 LATERAL_ACCEL_MPS2 = 0.25 * 9.81
 """The check drives at a quarter g, inside the tyres' linear range."""
 
+pytestmark = pytest.mark.slow  # identifying the plant takes seconds
+
+
 @pytest.fixture(scope="module")
 def identified() -> IdentifiedModel:
     return identify(NOMINAL, VehicleParams(), DT_S)
 
 
 @pytest.mark.parametrize("speed_mps", [10.0, 20.0, 30.0])
-@pytest.mark.slow
 def test_steady_yaw_rate_gain_matches_the_identified_bicycle(identified: IdentifiedModel,
                                                              speed_mps: float) -> None:
     # Steer for a quarter g by the identified model itself: delta = (L / v^2 + K) a_y.

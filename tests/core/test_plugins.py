@@ -62,6 +62,7 @@ def test_the_installed_plugin_is_listed_and_runs(installed: dict[str, str],
     assert "tracker.params.lookahead_time_s = 9: expected a number in [0, 5]" in refused.stderr
 
 
+@pytest.mark.slow
 def test_the_plugin_runs_from_the_api(installed: dict[str, str], tmp_path: Path) -> None:
     script = ("import cosim\n"
               "config = cosim.load_config('lane-change', tracker='my-pursuit', duration_s=2)\n"

@@ -12,7 +12,7 @@ from cosim.sensing.range_sensor import RangeSensor
 from cosim.sensing.sensors import SensorsConfig, TruthSensor, make_sensors
 from cosim.simulation.scenario_config import load_config
 from estimation.fusion import KalmanFusion
-from estimation.models import build_measurement_models
+from estimation.measurement_models import build_measurement_models
 from estimation.noise_config import NoiseBelief
 
 

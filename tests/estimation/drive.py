@@ -1,6 +1,6 @@
 """Synthetic drives for the estimator tests: a dynamic-bicycle truth, noisy sensors, a run.
 
-The truth is integrated here in numpy, independently of estimation/models.py, from
+The truth is integrated here in numpy, independently of estimation/process_model.py, from
 prescribed steering and longitudinal-acceleration profiles: the dynamic bicycle (Rajamani, "Vehicle
 Dynamics and Control", section 2.3) with the tyre law ``F = mu F_z tanh(C alpha / (mu F_z))`` (or
 linear), the belief's mass, inertia, CoG position and cornering stiffnesses, for the point on the
@@ -26,13 +26,12 @@ from cosim.core.records import WHEEL_NAMES, Measurement
 from cosim.core.vehicle_params import VehicleParams
 from cosim.plant.sedan_model import ackermann_angles
 from estimation.config import EstimatorConfig
-from estimation.models import (
+from estimation.process_model import (
     DEFAULT_CORNERING_STIFFNESS_FRONT_NPR,
     DEFAULT_CORNERING_STIFFNESS_REAR_NPR,
-    STATE_NAMES,
-    wrap_angle,
 )
 from estimation.registry import make_estimator
+from estimation.state import STATE_NAMES, wrap_angle
 
 TRUTH_STEP_S = 1e-3
 GNSS_PERIOD_MS = 100

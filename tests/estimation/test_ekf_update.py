@@ -8,8 +8,8 @@ import pytest
 from filterpy.kalman import ExtendedKalmanFilter
 
 from estimation.ekf import covariance_prediction, joseph_update
-from estimation.fusion import residual_function
-from estimation.models import wrap_angle
+from estimation.innovation import residual_function
+from estimation.state import wrap_angle
 
 
 @pytest.mark.parametrize("dim_z, angle_rows", [(1, ()), (2, ()), (3, (1,))])
@@ -57,3 +57,13 @@ def test_covariance_prediction_is_filterpys() -> None:
     filterpy_ekf.predict()
     np.testing.assert_allclose(covariance_prediction(p, transition, noise), filterpy_ekf.P,
                                rtol=1e-13, atol=1e-15)
+
+
+def test_the_joint_noise_matrix_is_scipys_block_diagonal() -> None:
+    import scipy.linalg
+
+    from estimation.ekf import block_diagonal
+
+    rng = np.random.default_rng(4)
+    blocks = [np.diag(rng.random(3)), rng.random((2, 2)), np.diag(rng.random(1))]
+    assert np.array_equal(block_diagonal(blocks), scipy.linalg.block_diag(*blocks))

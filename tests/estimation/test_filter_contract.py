@@ -17,9 +17,9 @@ from cosim.core.vehicle_params import VehicleParams
 from estimation.config import EstimatorConfig
 from estimation.errors import TimeOrderError
 from estimation.fusion import KalmanFusion
-from estimation.models import STATE_NAMES
 from estimation.noise_config import NoiseBelief
 from estimation.registry import make_estimator
+from estimation.state import STATE_NAMES
 from estimation.update_result import REASONS
 
 FILTERS = ("ekf", "ukf")

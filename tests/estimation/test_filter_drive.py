@@ -14,9 +14,10 @@ import pytest
 
 from cosim.core.initial_state import InitialState
 from cosim.core.vehicle_params import VehicleParams
+from estimation.belief_models import process_noise, roll_params
 from estimation.config import EstimatorConfig
-from estimation.fusion import process_noise, roll_params
-from estimation.models import STATE_NAMES, BicycleParams, ProcessModel, state_index
+from estimation.process_model import BicycleParams, ProcessModel
+from estimation.state import STATE_NAMES, state_index
 from tests.estimation.drive import (
     NEES_STATES,
     Run,
@@ -29,7 +30,9 @@ from tests.estimation.drive import (
 
 RTK_SIGMA_M = 0.02
 COARSE_SIGMA_M = 0.5
-FILTERS = ("ekf", "ukf")
+FILTERS = ("ekf", pytest.param("ukf", marks=pytest.mark.slow))
+"""The UKF's closed-loop drives cost twice the EKF's: they run in ``make test``, not in
+``make test-fast``."""
 
 
 def _figures(label: str, run: Run) -> str:

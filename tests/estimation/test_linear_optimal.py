@@ -3,7 +3,7 @@
 Driving due east at constant speed with GNSS only, and every measurement error along x, the
 EKF's linearisation point never leaves yaw = yaw rate = vy = steer = 0: the problem is linear
 and time-invariant. Its reference solution is built here independently of
-estimation/models.py: the continuous system matrix by hand with the lateral block of the
+estimation/process_model.py: the continuous system matrix by hand with the lateral block of the
 tracker's dynamic bicycle (``DynamicBicycleParams.lateral_state_space``, the textbook a11 ..
 b21), its discretisation over the GNSS period with scipy.linalg.expm (Van Loan 1978 for the
 noise), the steady-state prior covariance from the discrete algebraic Riccati equation, and
@@ -25,9 +25,9 @@ from cosim.core.initial_state import InitialState
 from cosim.core.records import Measurement
 from cosim.core.vehicle_params import VehicleParams
 from estimation.config import EstimatorConfig
-from estimation.models import MODEL_STATE_NAMES, STATE_NAMES, VEHICLE_STATE_NAMES
 from estimation.noise_config import NoiseBelief
 from estimation.registry import make_estimator
+from estimation.state import MODEL_STATE_NAMES, STATE_NAMES, VEHICLE_STATE_NAMES
 from tracker.models.dynamic_bicycle import DynamicBicycleParams
 
 SPEED_MPS = 10.0

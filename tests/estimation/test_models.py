@@ -16,20 +16,18 @@ import scipy.linalg
 
 from cosim.core.vehicle_params import VehicleParams
 from cosim.plant.sedan_model import ackermann_angles
+from estimation.belief_models import process_noise, roll_params
 from estimation.config import EstimatorConfig
-from estimation.fusion import process_noise, roll_params
-from estimation.models import (
+from estimation.measurement_models import build_measurement_models
+from estimation.process_model import (
     LOW_SPEED_MPS,
-    STATE_NAMES,
     TYRE_MODELS,
     BicycleParams,
     ProcessModel,
     RollParams,
-    build_measurement_models,
     slip_speed,
-    state_index,
-    wrap_angle,
 )
+from estimation.state import STATE_NAMES, state_index, wrap_angle
 from tracker.models.dynamic_bicycle import DynamicBicycleParams
 
 CONFIG = EstimatorConfig()

@@ -13,7 +13,7 @@ from cosim.core.records import Measurement, VehicleState
 from cosim.core.vehicle_params import VehicleParams
 from estimation.config import EstimatorConfig
 from estimation.errors import TimeOrderError
-from estimation.models import VEHICLE_STATE_NAMES
+from estimation.state import VEHICLE_STATE_NAMES
 from estimation.truth import TRUTH_STATE_NAMES, TruthEstimator
 
 

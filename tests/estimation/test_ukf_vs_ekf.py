@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from estimation.models import STATE_NAMES
+from estimation.state import STATE_NAMES
 from tests.estimation.drive import Run, SensorSetup, lane_change, run_filter
 
 

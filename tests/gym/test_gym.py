@@ -22,6 +22,7 @@ from cosim.log.reader import read_summary  # noqa: E402
 from tracker.registry import make_tracker  # noqa: E402
 
 
+@pytest.mark.slow
 def test_registered_and_passes_the_checker() -> None:
     cosim.gym.register_envs()
     env = gymnasium.make("cosim/LaneChange-v0")

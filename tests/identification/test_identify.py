@@ -347,11 +347,16 @@ def test_identify_json_prints_the_documented_keys(tmp_path: Path) -> None:
         (("identify", "--config", "missing.yaml"), "'missing.yaml': cannot read"),
     ],
 )
-def test_identify_bad_input_is_one_line_and_exit_code_2(args: tuple[str, ...], fragment: str,
-                                                        tmp_path: Path) -> None:
-    result = _cosim(*args, cwd=tmp_path)
-    assert result.returncode == 2, result.stderr
-    lines = result.stderr.strip().splitlines()
-    assert len(lines) == 1, result.stderr
+def test_identify_bad_input_is_one_line_and_exit_code_2(
+        args: tuple[str, ...], fragment: str, tmp_path: Path,
+        monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    from cosim.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    code = main(list(args))
+    err = capsys.readouterr().err
+    assert code == 2, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
     assert fragment in lines[0]
-    assert "Traceback" not in result.stderr
+    assert "Traceback" not in err

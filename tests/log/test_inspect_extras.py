@@ -107,7 +107,8 @@ def test_csv_export_of_every_topic(good_run: RunResult, tmp_path: Path,
     header, rows = _rows(out_dir / "vehicle_truth.csv")
     assert header == ["log_time_ns", "t_s", "x_m", "y_m", "z_m", "roll_rad", "pitch_rad",
                       "yaw_rad", "vx_mps", "vy_mps", "yaw_rate_radps", "ax_mps2", "ay_mps2",
-                      "steer_rad", *(f"wheel_speed_radps[{i}]" for i in range(4))]
+                      "steer_rad", *(f"wheel_speed_radps[{i}]" for i in range(4)),
+                      "gyro_bias_radps", "ax_bias_mps2", "ay_bias_mps2"]
     assert rows[1][0] == "10000000" and float(rows[1][1]) == pytest.approx(0.01)
     # The state names appear once, in the header: no state_names column in the rows; the
     # covariance's columns are named by them (upper triangle, the matrix is symmetric).

@@ -19,6 +19,9 @@ def test_the_tag_names_what_was_overridden() -> None:
     assert override_tag(["plant.tyre_friction=0.3"], tracker="ltv-mpc", seed=3) == (
         "ltv-mpc-tyre-friction0.3-seed3")
     assert override_tag(["tracker.name=dynamic-mpc"]) == "dynamic-mpc"
+    # A plug-in's import path and an FMU's file, readable in a file name.
+    assert override_tag(tracker="my_tracker:Proportional") == "my-tracker-Proportional"
+    assert override_tag(tracker="fmu:logs/fmu/stanley-fmi3.fmu") == "fmu-stanley-fmi3"
     assert default_log_name("lane-change", "mass2000", "20261201-170301") == (
         "lane-change-mass2000-20261201-170301.mcap")
     assert default_log_name("lane-change", "", "20261201-170301") == (

@@ -111,7 +111,7 @@ def check_estimate(odometry: Any, estimate: dict[str, Any]) -> None:
     for rows, matrix in (((0, 1, None, 8, None, 2), odometry.pose.covariance),
                          ((3, 4, None, 9, None, 5), odometry.twist.covariance)):
         # rows: the EKF's index of x, y, z, roll, pitch, yaw (pose) and vx, vy, vz, roll
-        # rate, pitch rate, yaw rate (twist) in estimation.models.STATE_NAMES
+        # rate, pitch rate, yaw rate (twist) in estimation.state.STATE_NAMES
         m = np.asarray(matrix, dtype=float).reshape(6, 6)
         for i, a in enumerate(rows):
             for j, b in enumerate(rows):

@@ -108,6 +108,13 @@ def test_overlaid_runs_are_named_by_their_difference_and_told_apart_by_style(
     # The same configuration twice: named by file, else numbered.
     assert [r.label for r in distinct_labels([base, base])] == [
         "run 1: lane-change / dynamic-nmpc", "run 2: lane-change / dynamic-nmpc"]
+    # Three runs, two of them alike: the difference still names them, the file tells the
+    # two alike apart.
+    twin = replace(base, path=base.path.with_name("twin.mcap"))
+    assert [r.label for r in distinct_labels([base, twin, heavy])] == [
+        "lane-change / dynamic-nmpc: plant.mass_kg=1575 (nmpc)",
+        "lane-change / dynamic-nmpc: plant.mass_kg=1575 (twin)",
+        "lane-change / dynamic-nmpc: plant.mass_kg=2000"]
     figure = top_view(runs)
     for ax in figure.axes:
         styles = {colour: {str(line.get_linestyle()) for line in ax.get_lines()
@@ -160,6 +167,21 @@ def test_the_plotted_errors_are_the_metrics(nmpc_run: RunResult) -> None:
     assert float(np.nanmean(data.estimation.nees)) == pytest.approx(metrics["nees_mean"],
                                                                     rel=1e-6)
     assert data.truth.t_s.size == data.estimation.t_s.size == 301
+
+
+def test_the_imu_biases_are_drawn_against_their_truth(nmpc_run: RunResult) -> None:
+    """The truth carries the IMU's own biases, so each bias estimate is drawn as an error:
+    after the first second the EKF's error stays inside its 3 sigma almost always (a bias
+    logged with the wrong sign or channel would be twice the bias, far outside)."""
+    data = load_run(nmpc_run.log_path)
+    assert data.estimation is not None
+    settled = data.estimation.t_s >= 1.0
+    for name in ("gyro_bias_radps", "ax_bias_mps2", "ay_bias_mps2"):
+        truth = getattr(data.truth, name)
+        assert np.all(np.isfinite(truth)) and np.any(truth != 0.0), name
+        error = data.estimation.error[name][settled]
+        sigma = data.estimation.sigma[name][settled]
+        assert np.mean(np.abs(error) <= 3.0 * sigma) > 0.95, name
 
 
 @pytest.mark.slow

@@ -90,6 +90,7 @@ def test_the_belief_check_names_the_sensor_and_both_sigmas() -> None:
     assert belief_mismatches({"nis_gnss": 0.01, "nis_dof_gnss": 600}, ideal) == []
 
 
+@pytest.mark.slow
 def test_a_wrong_belief_prints_one_warning_and_logs_it(tmp_path: Path,
                                                        capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "wrong.mcap"

@@ -7,12 +7,14 @@ import json
 import os
 import signal
 import subprocess
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 
 from cosim.sweeps.compare import league, make_tasks, markdown
 from tests.cli.test_cli import COSIM, cosim
+from tests.conftest import Called
 from tests.sweeps.rows import wait_for_rows
 
 
@@ -65,9 +67,10 @@ def test_compare_runs_every_combination_and_writes_the_table(tmp_path: Path) -> 
     (("--scenarios", "nowhere"), "scenario 'nowhere'"),
     (("--seeds", "0"), "--seeds 0"),
 ])
-def test_compare_bad_input_is_one_line_and_exit_2(tmp_path: Path, args: tuple[str, ...],
-                                                  fragment: str) -> None:
-    result = cosim("compare", *args, "--out", str(tmp_path))
+def test_compare_bad_input_is_one_line_and_exit_2(
+        tmp_path: Path, args: tuple[str, ...], fragment: str,
+        cosim_in_process: Callable[..., Called]) -> None:
+    result = cosim_in_process("compare", *args, "--out", str(tmp_path))
     assert result.returncode == 2
     assert fragment in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1

@@ -7,6 +7,7 @@ import os
 import signal
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -14,6 +15,7 @@ import pytest
 from cosim.core.exceptions import CosimError
 from cosim.simulation.metrics import WALL_CLOCK_KEYS
 from cosim.sweeps.execute import make_backend
+from tests.conftest import Called
 from tests.sweeps.rows import wait_for_rows
 
 COSIM = str(Path(sys.executable).with_name("cosim"))
@@ -70,10 +72,12 @@ def one_worker(tiny_spec: Path) -> Path:
          "pass: unknown metric 'cte_mx_m'"),
     ],
 )
-def test_bad_spec_is_one_line_and_exit_code_2(spec: str, fragment: str, tmp_path: Path) -> None:
+def test_bad_spec_is_one_line_and_exit_code_2(spec: str, fragment: str, tmp_path: Path,
+                                              cosim_in_process: Callable[..., Called]) -> None:
     path = tmp_path / "bad.yaml"
     path.write_text(spec)
-    result = cosim("sweep", str(path), "--out", str(tmp_path / "out"), cwd=tmp_path)
+    result = cosim_in_process("sweep", str(path), "--out", str(tmp_path / "out"),
+                              cwd=tmp_path)
     assert result.returncode == 2, result.stderr
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1, result.stderr
@@ -164,6 +168,29 @@ def test_a_plugin_that_exits_fails_its_row_and_the_sweep_goes_on(
     assert set(by_fail) == {0.1, 1.0}
     assert "called sys.exit(0) at t = 0.100 s" in by_fail[0.1]["error"]
     assert by_fail[1.0]["error"] == "" and by_fail[1.0]["metrics"]["completed"] is True
+
+
+@pytest.mark.slow
+def test_a_run_that_kills_its_worker_is_one_failed_row_and_the_rest_finish(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``os._exit`` in a plug-in takes its worker process down (and the pool with it): the
+    run is named in its row's error, the runs beside it and after it still finish."""
+    from cosim.cli import main
+
+    spec = tmp_path / "dies.yaml"
+    spec.write_text("scenario: lane-change\ntracker: tests.user_trackers:HardExit\n"
+                    "duration_s: 0.3\nseeds: 1\n"
+                    "grid: {tracker.params.fail_at_s: [1.0, 0.1, 1.1, 1.2]}\n"
+                    "pass: {completed: true}\n")
+    code = main(["sweep", str(spec), "--out", str(tmp_path / "out"), "--workers", "2"])
+    assert code == 0, capsys.readouterr().err
+    rows = sorted((json.loads(line) for line in
+                   (tmp_path / "out" / "results.jsonl").read_text().splitlines()),
+                  key=lambda r: r["run_id"])
+    assert [r["run_id"] for r in rows] == [0, 1, 2, 3]
+    assert rows[1]["error"].startswith("WorkerDiedError: its worker process died")
+    for row in (rows[0], rows[2], rows[3]):
+        assert row["error"] == "" and row["metrics"]["completed"] is True, row
 
 
 @pytest.mark.slow

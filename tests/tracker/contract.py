@@ -35,3 +35,14 @@ def assert_reaches_speed(speed_mps: np.ndarray, target_mps: float, within_s: flo
     assert reached.size > 0
     assert reached[0] * step_s < within_s
     assert np.max(np.abs(speed_mps[reached[0]:] - target_mps)) < tolerance_mps
+
+
+def assert_tracks_the_lane_change(cte_m: np.ndarray, final_x_m: float, cte_max_m: float,
+                                  settled_cte_m: float = 0.005) -> None:
+    """The stretched double lane change on a controller's own model: the cross-track error
+    stays under ``cte_max_m``, the car goes through the whole manoeuvre (it ends near
+    x = 295 m), and it has converged to the path on the straight after it (the last second,
+    500 physics steps of 2 ms, under ``settled_cte_m``)."""
+    assert np.max(np.abs(cte_m)) < cte_max_m
+    assert final_x_m > 250.0
+    assert np.max(np.abs(cte_m[-500:])) < settled_cte_m

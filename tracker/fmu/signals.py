@@ -75,7 +75,7 @@ INPUTS: tuple[Signal, ...] = (
     *PATH_SIGNALS,
     Signal(STATE_PREFIX + "<state>", "the state's", "the estimate's mean of one of the "
            "estimator's states, e.g. est_x_m, est_yaw_rad, est_vx_mps, est_yaw_rate_radps, "
-           "est_steer_rad (ekf and ukf: the states of estimation.models.STATE_NAMES)"),
+           "est_steer_rad (ekf and ukf: the states of estimation.state.STATE_NAMES)"),
     *PREVIEW_SIGNALS,
 )
 """Every input an FMU may declare."""

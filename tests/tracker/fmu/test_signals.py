@@ -148,7 +148,7 @@ def test_the_documented_table_is_the_registry() -> None:
 
 
 def test_the_documented_state_inputs_are_the_filters_states() -> None:
-    from estimation.models import STATE_NAMES
+    from estimation.state import STATE_NAMES
 
     listed = DOCS.read_text().split("default filter (`ekf`, and `ukf`) are\n`", 1)[1]
     listed = listed.split("`.", 1)[0]

@@ -1,39 +1,6 @@
-"""Process and measurement models of the Kalman filters, built symbolically with CasADi.
+"""The filters' process model, built symbolically with CasADi (the states:
+   :mod:`estimation.state`).
 
-The EKF (:mod:`estimation.ekf`) and the UKF (:mod:`estimation.ukf`) share every equation
-here: the same CasADi functions, evaluated numerically (the EKF also uses their exact
-Jacobians, the UKF only their values at its sigma points).
-
-State (world frame ENU for the pose, vehicle frame ISO 8855 for the rates), named by
-:data:`STATE_NAMES`:
-
-===============================  ============================================================
-``x_m``, ``y_m``                 position of the centre of gravity (CoG), world frame (a point
-                                 of the body: it sways sideways when the body rolls)
-``yaw_rad``                      heading of the vehicle x axis, CCW from world x, (-pi, pi]
-``vx_mps``, ``vy_mps``           velocity of the CoG in the vehicle frame
-``yaw_rate_radps``               yaw rate r
-``ax_mps2``                      kinematic acceleration of the CoG along the vehicle x axis
-                                 (what a gravity-compensated IMU measures; ``vx' = ax + r vy``)
-``steer_rad``                    front road-wheel angle delta (mean of the two front wheels),
-                                 positive to the left, as the ``steering`` sensor reports it
-``roll_rad``                     body roll phi about the vehicle x axis (positive: left side
-                                 up, as in a left turn)
-``roll_rate_radps``              its rate p
-``lateral_accel_residual_mps2``  lateral tyre force per unit mass that the tyre model does not
-                                 explain (load transfer, camber, the tyre law's own error);
-                                 the IMU's lateral acceleration observes it
-``steer_rate_radps``             rate of ``steer_rad``: the steering actuator moves smoothly
-                                 (a lag and a rate limit behind each command), so the angle
-                                 keeps its rate between samples
-``gyro_bias_radps``              bias of the IMU's yaw-rate channel
-``ax_bias_mps2``                 bias of the IMU's longitudinal acceleration channel
-``ay_bias_mps2``                 bias of the IMU's lateral acceleration channel
-``rolling_radius_scale``         effective rolling radius of the freely rolling wheels over the
-                                 believed one (tyre deflection, wear); dimensionless, ~1
-``wheel_track_scale``            effective track of the freely rolling wheels (between their
-                                 contact patches) over the believed one; dimensionless, ~1
-===============================  ============================================================
 
 Process model: the dynamic bicycle (Rajamani, "Vehicle Dynamics and
 Control", 2nd ed., section 2.3; the equations of :mod:`tracker.models.dynamic_bicycle`, written
@@ -121,52 +88,21 @@ like ``(2 |A| dt)^k / k!``; the largest entries of ``A`` are the roll mode's ``o
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
 
-from cosim.core.records import WHEEL_NAMES
 from cosim.core.vehicle_equations import axle_slip_angles, rk4_step
 from cosim.core.vehicle_params import VehicleParams
-
-VEHICLE_STATE_NAMES: tuple[str, ...] = (
-    "x_m",
-    "y_m",
-    "yaw_rad",
-    "vx_mps",
-    "vy_mps",
-    "yaw_rate_radps",
-    "ax_mps2",
-    "steer_rad",
-    "roll_rad",
+from estimation.state import (
+    STATE_NAMES,
+    DenseFunction,
+    named_states,
+    stacked_states,
+    state_index,
 )
-"""The filters' states that describe the car's motion (named as in VehicleState)."""
-
-MODEL_STATE_NAMES: tuple[str, ...] = (
-    "roll_rate_radps",
-    "lateral_accel_residual_mps2",
-    "steer_rate_radps",
-)
-"""States of the vehicle model that VehicleState does not carry: the roll rate, the error of
-the tyre model, and the rate of the road-wheel angle."""
-
-SENSOR_STATE_NAMES: tuple[str, ...] = (
-    "gyro_bias_radps",
-    "ax_bias_mps2",
-    "ay_bias_mps2",
-    "rolling_radius_scale",
-    "wheel_track_scale",
-)
-"""States that describe the sensors: the biases of the gyro and of the longitudinal and
-lateral accelerometers, the wheels' effective / believed rolling radius and track."""
-
-STATE_NAMES: tuple[str, ...] = VEHICLE_STATE_NAMES + MODEL_STATE_NAMES + SENSOR_STATE_NAMES
-"""Names of the filters' states, in the order of their mean and covariance."""
-
-ANGLE_STATES: tuple[str, ...] = ("yaw_rad",)
-"""States that are angles on the whole circle: wrapped to (-pi, pi] after every step."""
 
 NOISE_SERIES_TERMS = 20
 """Terms of the power series of the discrete process noise (see the module docstring)."""
@@ -186,90 +122,6 @@ belief (``VehicleParams``) does not carry one [N/rad]."""
 
 DEFAULT_CORNERING_STIFFNESS_REAR_NPR = 79580.0
 """Rear-axle cornering stiffness of the Pacejka sedan (``cosim identify``) [N/rad]."""
-
-
-def wrap_angle(angle_rad: float | np.ndarray) -> float | np.ndarray:
-    """Wrap an angle (or an array of angles) to (-pi, pi]."""
-    if np.ndim(angle_rad) == 0 and -math.pi < float(angle_rad) <= math.pi:
-        return float(angle_rad)  # the common case, without array overhead
-    angle = np.asarray(angle_rad, dtype=float)
-    wrapped = np.pi - np.mod(np.pi - angle, 2.0 * np.pi)
-    # np.mod(-tiny, 2 pi) rounds to 2 pi, which would give -pi: move it to +pi.
-    wrapped = np.where(wrapped <= -np.pi, wrapped + 2.0 * np.pi, wrapped)
-    # Angles already in range are returned untouched (no rounding).
-    wrapped = np.where((angle > -np.pi) & (angle <= np.pi), angle, wrapped)
-    return float(wrapped) if np.ndim(wrapped) == 0 else wrapped
-
-
-class DenseFunction:
-    """Fast evaluation of a CasADi Function with dense numeric inputs and outputs.
-
-    Calls go through CasADi's buffer interface into arrays allocated once (about 1 us
-    instead of about 25 us for a call with DM conversions); results are returned as copies.
-    Every output of ``function`` must be dense (build it with ``ca.densify``). A matrix of
-    CasADi's shape ``(rows, columns)`` is passed and returned as a numpy array of shape
-    ``(columns, rows)`` (CasADi is column-major): for a Function mapped over points, one
-    point per numpy row.
-    """
-
-    def __init__(self, function: ca.Function) -> None:
-        self.function = function
-        for i in range(function.n_out()):
-            if not function.sparsity_out(i).is_dense():
-                raise ValueError(f"{function.name()}: output {i} must be dense")
-        self._inputs = [np.zeros(function.size_in(i)[::-1]) for i in range(function.n_in())]
-        self._outputs = [np.zeros(function.size_out(i)[::-1]) for i in range(function.n_out())]
-        self._buffer, self._evaluate = function.buffer()
-        for i, array in enumerate(self._inputs):
-            self._buffer.set_arg(i, memoryview(array))
-        for i, array in enumerate(self._outputs):
-            self._buffer.set_res(i, memoryview(array))
-
-    def __call__(self, *args: np.ndarray | float) -> tuple[np.ndarray, ...]:
-        """The outputs (each of the shape CasADi declares) for the inputs ``args``."""
-        if len(args) != len(self._inputs):
-            raise TypeError(f"{self.function.name()} takes {len(self._inputs)} inputs")
-        for array, value in zip(self._inputs, args, strict=True):
-            array.T[...] = np.reshape(value, array.T.shape)
-        self._evaluate()
-        return tuple(array.T.copy() for array in self._outputs)
-
-    def rows(self, *args: np.ndarray | float) -> tuple[np.ndarray, ...]:
-        """Like calling, but inputs and outputs in numpy's transposed layout (one point per
-        row for a mapped Function), without transposing."""
-        if len(args) != len(self._inputs):
-            raise TypeError(f"{self.function.name()} takes {len(self._inputs)} inputs")
-        for array, value in zip(self._inputs, args, strict=True):
-            array[...] = np.reshape(value, array.shape)
-        self._evaluate()
-        return tuple(array.copy() for array in self._outputs)
-
-    def vector(self, x: np.ndarray) -> np.ndarray:
-        """The first output, flattened, of a Function of one vector input (the fast path of
-        the UKF's many small calls)."""
-        self._inputs[0][...] = x
-        self._evaluate()
-        return self._outputs[0].ravel().copy()
-
-
-def state_index(name: str) -> int:
-    """Position of the state ``name`` in :data:`STATE_NAMES` (a clear error if unknown)."""
-    if name not in STATE_NAMES:
-        raise KeyError(f"unknown state {name!r}: expected one of {', '.join(STATE_NAMES)}")
-    return STATE_NAMES.index(name)
-
-
-def _named(vector: ca.SX) -> dict[str, ca.SX]:
-    """The entries of a symbolic state vector by name."""
-    return {name: vector[i] for i, name in enumerate(STATE_NAMES)}
-
-
-def _stack(values: Mapping[str, ca.SX | float]) -> ca.SX:
-    """A symbolic state vector from one expression per state name."""
-    missing = set(STATE_NAMES) - set(values)
-    if missing:
-        raise KeyError(f"missing state(s) {sorted(missing)}")
-    return ca.vertcat(*[values[name] for name in STATE_NAMES])
 
 
 TYRE_MODELS: tuple[str, ...] = ("saturating", "linear")
@@ -561,7 +413,7 @@ class ProcessModel:
         """The state-dependent part of W's diagonal: the lateral residual's PSD grows with
         the square of the tyres' lateral acceleration (a relative error of the tyre model's
         force, e.g. of its cornering stiffness, is an error proportional to the force)."""
-        s = _named(x)
+        s = named_states(x)
         force_front, force_rear = axle_forces(s, self.bicycle)
         tyre_accel = (force_front + force_rear) / self.bicycle.mass_kg
         bicycle = self.bicycle
@@ -581,12 +433,12 @@ class ProcessModel:
         return extra
 
     def _derivative(self, x: ca.SX) -> ca.SX:
-        s = _named(x)
+        s = named_states(x)
         velocity_east, velocity_north = world_velocity(s)
         r = s["yaw_rate_radps"]
         force_front, force_rear = axle_forces(s, self.bicycle)
         bicycle = self.bicycle
-        return _stack(
+        return stacked_states(
             {
                 "x_m": velocity_east,  # (D6)
                 "y_m": velocity_north,
@@ -657,210 +509,3 @@ class ProcessModel:
             return mapped.rows(points, np.full(points.shape[0], dt_s))[0]
         return np.vstack([self._mean_step_fast(p, dt_s)[0].reshape(-1) for p in points])
 
-
-@dataclass(frozen=True)
-class MeasurementModel:
-    """A sensor's measurement equation ``z = h(x) + v`` over named channels.
-
-    ``channels`` are the modelled channel names; ``ignored_channels`` may appear in the
-    sensor's measurements but are dropped (e.g. the steered front wheel speeds);
-    ``model_sigma`` is the standard deviation of the model's own error per channel, added
-    to the measurement's covariance; ``angle_channels`` have their innovations wrapped.
-    ``function`` returns ``h(x)`` and ``dh/dx``; ``value_function`` ``h(x)`` alone.
-    """
-
-    sensor: str
-    channels: tuple[str, ...]
-    model_sigma: tuple[float, ...]
-    function: DenseFunction
-    value_function: DenseFunction
-    ignored_channels: tuple[str, ...] = ()
-    angle_channels: tuple[str, ...] = ()
-    def evaluate(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``h(x)`` (one value per channel) and its Jacobian ``dh/dx``."""
-        h, jac = self.function(x)
-        return h.reshape(-1), jac
-
-    def value(self, x: np.ndarray) -> np.ndarray:
-        """``h(x)``, one value per channel."""
-        return self.value_function.vector(np.reshape(x, -1))
-
-    def select(self, names: tuple[str, ...]) -> tuple[tuple[int, ...], tuple[int, ...]]:
-        """Rows of the model and columns of the measurement for the channels in ``names``.
-
-        Raises ``ValueError`` on a channel the model neither models nor ignores.
-        """
-        model_rows: list[int] = []
-        measurement_columns: list[int] = []
-        for column, name in enumerate(names):
-            if name in self.channels:
-                model_rows.append(self.channels.index(name))
-                measurement_columns.append(column)
-            elif name not in self.ignored_channels:
-                raise ValueError(
-                    f"{self.sensor} measurement has channel {name!r}: expected some of "
-                    f"{', '.join(self.channels + self.ignored_channels)}"
-                )
-        if len(set(model_rows)) != len(model_rows):
-            raise ValueError(f"{self.sensor} measurement repeats a channel: {names}")
-        return tuple(model_rows), tuple(measurement_columns)
-
-
-def _measurement_functions(
-    sensor: str, outputs: list[Callable[[dict[str, ca.SX]], ca.SX]]
-) -> tuple[DenseFunction, DenseFunction]:
-    x = ca.SX.sym("x", len(STATE_NAMES))
-    s = _named(x)
-    h = ca.densify(ca.vertcat(*[expr(s) for expr in outputs]))
-    return (
-        DenseFunction(ca.Function(f"h_{sensor}", [x], [h, ca.densify(ca.jacobian(h, x))])),
-        DenseFunction(ca.Function(f"h_{sensor}_value", [x], [h])),
-    )
-
-
-def _model(
-    sensor: str,
-    channels: tuple[str, ...],
-    outputs: list[Callable[[dict[str, ca.SX]], ca.SX]],
-    model_sigma: tuple[float, ...] | None = None,
-    **options: tuple[str, ...],
-) -> MeasurementModel:
-    function, value_function = _measurement_functions(sensor, outputs)
-    return MeasurementModel(
-        sensor=sensor,
-        channels=channels,
-        model_sigma=model_sigma if model_sigma is not None else (0.0,) * len(channels),
-        function=function,
-        value_function=value_function,
-        **options,
-    )
-
-
-def ackermann_angles(steer_rad: ca.SX, wheelbase_m: float, track_m: float) -> tuple[ca.SX, ca.SX]:
-    """Left and right road-wheel angles for the bicycle angle ``steer_rad`` (Ackermann
-    geometry, Gillespie, "Fundamentals of Vehicle Dynamics", ch. 6, as the plant steers:
-    ``tan(delta_left) = L tan(delta) / (L - t/2 tan(delta))``, right with ``+``). The
-    steering sensor's mean of the two differs from ``delta`` by O(delta^3)."""
-    tan_delta = ca.tan(steer_rad)
-    lever = 0.5 * track_m * tan_delta
-    return (
-        ca.atan2(wheelbase_m * tan_delta, wheelbase_m - lever),
-        ca.atan2(wheelbase_m * tan_delta, wheelbase_m + lever),
-    )
-
-
-def wheel_spin(
-    s: Mapping[str, ca.SX],
-    wheel: str,
-    belief: VehicleParams,
-    bicycle: BicycleParams,
-) -> ca.SX:
-    """Spin rate of ``wheel`` (one of ``WHEEL_NAMES``) of a car rolling without longitudinal
-    slip [rad/s].
-
-    The wheel centre moves with the rigid body, ``(vx - r y_w, vy_a + r x_w)`` in the
-    vehicle frame at the wheel's position ``(x_w, y_w)`` (``vy_a``: the roll axis's lateral
-    velocity, (R1)) (``x_w = l_f`` or ``-l_r``, ``y_w = +-t/2`` with ``t`` the believed
-    track of that axle times ``wheel_track_scale``, left positive); the wheel spins at the
-    component along its own plane (steered by its Ackermann angle at the front), over the
-    believed radius times ``rolling_radius_scale``.
-    """
-    front = wheel.startswith("front")
-    left = wheel.endswith("left")
-    x_w = belief.cog_front_m if front else -belief.cog_rear_m
-    track_front, track_rear = belief.axle_tracks_m
-    track = track_front if front else track_rear
-    y_w = (0.5 if left else -0.5) * track * s["wheel_track_scale"]
-    r = s["yaw_rate_radps"]
-    forward = s["vx_mps"] - r * y_w
-    sideways = axle_lateral_velocity(s, bicycle) + r * x_w
-    if front:
-        left_angle, right_angle = ackermann_angles(s["steer_rad"], belief.wheelbase_m, track_front)
-        angle = left_angle if left else right_angle
-        along = forward * ca.cos(angle) + sideways * ca.sin(angle)
-    else:
-        along = forward
-    return along / (belief.wheel_radius_m * s["rolling_radius_scale"])
-
-
-def free_rolling_wheels(belief: VehicleParams) -> tuple[str, ...]:
-    """The wheels (of ``WHEEL_NAMES``) without drive torque, whose spin tells the speed over
-    ground: the front wheels of a rear-wheel drive, the rear ones of a front-wheel drive,
-    all four of an all-wheel drive (whose drive slip is left to the model sigma and the
-    gate). A driven wheel slips by several per cent under acceleration and its inner wheel
-    spins up in a hard turn (open differential), which no rolling-radius state follows."""
-    if belief.drive == "rwd":
-        return tuple(w for w in WHEEL_NAMES if w.startswith("front"))
-    if belief.drive == "fwd":
-        return tuple(w for w in WHEEL_NAMES if w.startswith("rear"))
-    return WHEEL_NAMES
-
-
-def build_measurement_models(
-    belief: VehicleParams,
-    wheel_model_sigma_mps: float,
-    lateral_accel_model_sigma_mps2: float,
-    steer_model_sigma_rad: float = 0.0,
-    tyre_model: str = "saturating",
-    roll: RollParams | None = None,
-) -> dict[str, MeasurementModel]:
-    """The measurement models of every sensor the filters fuse, by sensor name.
-
-    - ``gnss``: CoG position in the world frame.
-    - ``gnss_velocity`` (optional, a receiver's Doppler velocity): the CoG's velocity in the
-      world frame, ``R(yaw) (vx, vy)``; it observes the course ``yaw + vy / vx`` directly, not
-      only through the track of positions.
-    - ``imu``: yaw rate plus the gyro bias; the kinematic accelerations of the CoG in the
-      vehicle frame: ``ax`` a state plus the accelerometer's bias, ``ay = vy' + r vx``
-      (:func:`cog_lateral_accel`, (D4)) plus the lateral accelerometer's bias.
-    - ``wheel_speed``: spin of the freely rolling wheels (:func:`free_rolling_wheels`,
-      :func:`wheel_spin`); the driven wheels' channels are ignored. The difference between
-      the left and the right wheel is ``r t / R`` (yaw rate, track, radius): with the gyro
-      measuring ``r``, it would tell the filter the rolling-radius scale through the track
-      ``t``, which the belief does not know well (the contact patches move with load and
-      camber; on the MuJoCo sedan the front wheels' effective track, steering included, is
-      about 6 % wider than the bicycle's). Believed exactly, a few per cent of track error
-      became a per-cent error of the rolling radius and so of the speed, 0.3 m/s in the
-      lane change with the 0.5 m GNSS. So the effective track is a state too,
-      ``wheel_track_scale`` (the track over the believed one): the left-right difference
-      in turns estimates it, the common mode the rolling radius.
-    - ``steering``: the front road-wheel angle ``steer_rad``.
-    - ``heading`` (optional, e.g. a dual-antenna GNSS): ``yaw_rad`` directly.
-    """
-    bicycle = BicycleParams.from_vehicle(belief, tyre_model, roll)
-    wheel_sigma_radps = wheel_model_sigma_mps / belief.wheel_radius_m
-    fused = free_rolling_wheels(belief)
-    ignored = tuple(f"{w}_radps" for w in WHEEL_NAMES if w not in fused)
-    models = [
-        _model("gnss", ("x_m", "y_m"), [lambda s: s["x_m"], lambda s: s["y_m"]]),
-        _model(
-            "gnss_velocity",
-            ("v_east_mps", "v_north_mps"),
-            [lambda s: world_velocity(s)[0], lambda s: world_velocity(s)[1]],
-        ),
-        _model(
-            "imu",
-            ("yaw_rate_radps", "ax_mps2", "ay_mps2"),
-            [
-                lambda s: s["yaw_rate_radps"] + s["gyro_bias_radps"],
-                lambda s: s["ax_mps2"] + s["ax_bias_mps2"],
-                lambda s: cog_lateral_accel(s, bicycle) + s["ay_bias_mps2"],
-            ],
-            model_sigma=(0.0, 0.0, lateral_accel_model_sigma_mps2),
-        ),
-        _model(
-            "wheel_speed",
-            tuple(f"{w}_radps" for w in fused),
-            [lambda s, w=w: wheel_spin(s, w, belief, bicycle) for w in fused],
-            model_sigma=(wheel_sigma_radps,) * len(fused),
-            ignored_channels=ignored,
-        ),
-        _model(
-            "steering",
-            ("steer_rad",),
-            [lambda s: s["steer_rad"]],
-            model_sigma=(steer_model_sigma_rad,),
-        ),
-        _model("heading", ("yaw_rad",), [lambda s: s["yaw_rad"]], angle_channels=("yaw_rad",)),
-    ]
-    return {model.sensor: model for model in models}

@@ -1,0 +1,49 @@
+"""The filters' process-model parameters from their configuration and the vehicle belief:
+the process noise's power spectral densities and the body-roll mode
+(:mod:`estimation.process_model`)."""
+
+from __future__ import annotations
+
+from cosim.core.vehicle_params import VehicleParams
+from estimation.config import EstimatorConfig
+from estimation.process_model import ProcessNoise, RollParams
+
+
+def process_noise(config: EstimatorConfig) -> ProcessNoise:
+    """The configured PSDs; the lateral residual's from its stationary sigma and time
+    constant (a first-order Gauss-Markov process: ``q = 2 sigma^2 / tau``); the bias walks
+    from the sensor belief ``config.noise``."""
+    residual_psd = (
+        2.0 * config.lateral_residual_sigma_mps2**2 / config.lateral_residual_time_constant_s
+    )
+    return ProcessNoise(
+        position_psd_m2ps=config.position_psd_m2ps,
+        yaw_psd_rad2ps=config.yaw_psd_rad2ps,
+        lateral_accel_psd_m2ps3=config.lateral_accel_psd_m2ps3,
+        yaw_accel_psd_rad2ps3=config.yaw_accel_psd_rad2ps3,
+        jerk_psd_m2ps5=config.jerk_psd_m2ps5,
+        steer_psd_rad2ps=config.steer_psd_rad2ps,
+        steer_rate_psd_rad2ps3=config.steer_rate_psd_rad2ps3,
+        roll_accel_psd_rad2ps3=config.roll_accel_psd_rad2ps3,
+        lateral_residual_psd_m2ps5=residual_psd,
+        gyro_bias_psd_rad2ps3=config.noise.gyro_bias_psd_rad2ps3,
+        accel_bias_psd_m2ps5=config.noise.accel_bias_psd_m2ps5,
+        rolling_radius_scale_psd_1ps=config.rolling_radius_scale_psd_1ps,
+        wheel_track_scale_psd_1ps=config.wheel_track_scale_psd_1ps,
+        lateral_residual_relative_psd_1ps=(
+            2.0 * config.lateral_residual_relative**2 / config.lateral_residual_time_constant_s
+        ),
+        yaw_transient_psd_s3=config.yaw_transient_psd_s3,
+        roll_accel_relative_psd_s=config.roll_accel_relative_psd_s,
+    )
+
+
+def roll_params(config: EstimatorConfig, belief: VehicleParams) -> RollParams:
+    """The configured roll mode; the CoG sits the belief's ``cog_height_m`` above the roll
+    axis (taken at the ground: independent vertical suspensions)."""
+    return RollParams(
+        gradient_radpmps2=config.roll_gradient_radpmps2,
+        frequency_hz=config.roll_frequency_hz,
+        damping_ratio=config.roll_damping_ratio,
+        sway_arm_m=belief.cog_height_m if config.roll_gradient_radpmps2 > 0.0 else 0.0,
+    )

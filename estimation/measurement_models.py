@@ -1,0 +1,231 @@
+"""The sensors' measurement models ``z = h(x) + v`` of the filters, built symbolically with
+CasADi over the state of :mod:`estimation.state` (the tyre and kinematic terms from
+   :mod:`estimation.process_model`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from cosim.core.records import WHEEL_NAMES
+from cosim.core.vehicle_params import VehicleParams
+from estimation.process_model import (
+    BicycleParams,
+    RollParams,
+    axle_lateral_velocity,
+    cog_lateral_accel,
+    world_velocity,
+)
+from estimation.state import STATE_NAMES, DenseFunction, named_states
+
+
+@dataclass(frozen=True)
+class MeasurementModel:
+    """A sensor's measurement equation ``z = h(x) + v`` over named channels.
+
+    ``channels`` are the modelled channel names; ``ignored_channels`` may appear in the
+    sensor's measurements but are dropped (e.g. the steered front wheel speeds);
+    ``model_sigma`` is the standard deviation of the model's own error per channel, added
+    to the measurement's covariance; ``angle_channels`` have their innovations wrapped.
+    ``function`` returns ``h(x)`` and ``dh/dx``; ``value_function`` ``h(x)`` alone.
+    """
+
+    sensor: str
+    channels: tuple[str, ...]
+    model_sigma: tuple[float, ...]
+    function: DenseFunction
+    value_function: DenseFunction
+    ignored_channels: tuple[str, ...] = ()
+    angle_channels: tuple[str, ...] = ()
+    def evaluate(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``h(x)`` (one value per channel) and its Jacobian ``dh/dx``."""
+        h, jac = self.function(x)
+        return h.reshape(-1), jac
+
+    def value(self, x: np.ndarray) -> np.ndarray:
+        """``h(x)``, one value per channel."""
+        return self.value_function.vector(np.reshape(x, -1))
+
+    def select(self, names: tuple[str, ...]) -> tuple[tuple[int, ...], tuple[int, ...]]:
+        """Rows of the model and columns of the measurement for the channels in ``names``.
+
+        Raises ``ValueError`` on a channel the model neither models nor ignores.
+        """
+        model_rows: list[int] = []
+        measurement_columns: list[int] = []
+        for column, name in enumerate(names):
+            if name in self.channels:
+                model_rows.append(self.channels.index(name))
+                measurement_columns.append(column)
+            elif name not in self.ignored_channels:
+                raise ValueError(
+                    f"{self.sensor} measurement has channel {name!r}: expected some of "
+                    f"{', '.join(self.channels + self.ignored_channels)}"
+                )
+        if len(set(model_rows)) != len(model_rows):
+            raise ValueError(f"{self.sensor} measurement repeats a channel: {names}")
+        return tuple(model_rows), tuple(measurement_columns)
+
+
+def _measurement_functions(
+    sensor: str, outputs: list[Callable[[dict[str, ca.SX]], ca.SX]]
+) -> tuple[DenseFunction, DenseFunction]:
+    x = ca.SX.sym("x", len(STATE_NAMES))
+    s = named_states(x)
+    h = ca.densify(ca.vertcat(*[expr(s) for expr in outputs]))
+    return (
+        DenseFunction(ca.Function(f"h_{sensor}", [x], [h, ca.densify(ca.jacobian(h, x))])),
+        DenseFunction(ca.Function(f"h_{sensor}_value", [x], [h])),
+    )
+
+
+def _model(
+    sensor: str,
+    channels: tuple[str, ...],
+    outputs: list[Callable[[dict[str, ca.SX]], ca.SX]],
+    model_sigma: tuple[float, ...] | None = None,
+    **options: tuple[str, ...],
+) -> MeasurementModel:
+    function, value_function = _measurement_functions(sensor, outputs)
+    return MeasurementModel(
+        sensor=sensor,
+        channels=channels,
+        model_sigma=model_sigma if model_sigma is not None else (0.0,) * len(channels),
+        function=function,
+        value_function=value_function,
+        **options,
+    )
+
+
+def ackermann_angles(steer_rad: ca.SX, wheelbase_m: float, track_m: float) -> tuple[ca.SX, ca.SX]:
+    """Left and right road-wheel angles for the bicycle angle ``steer_rad`` (Ackermann
+    geometry, Gillespie, "Fundamentals of Vehicle Dynamics", ch. 6, as the plant steers:
+    ``tan(delta_left) = L tan(delta) / (L - t/2 tan(delta))``, right with ``+``). The
+    steering sensor's mean of the two differs from ``delta`` by O(delta^3)."""
+    tan_delta = ca.tan(steer_rad)
+    lever = 0.5 * track_m * tan_delta
+    return (
+        ca.atan2(wheelbase_m * tan_delta, wheelbase_m - lever),
+        ca.atan2(wheelbase_m * tan_delta, wheelbase_m + lever),
+    )
+
+
+def wheel_spin(
+    s: Mapping[str, ca.SX],
+    wheel: str,
+    belief: VehicleParams,
+    bicycle: BicycleParams,
+) -> ca.SX:
+    """Spin rate of ``wheel`` (one of ``WHEEL_NAMES``) of a car rolling without longitudinal
+    slip [rad/s].
+
+    The wheel centre moves with the rigid body, ``(vx - r y_w, vy_a + r x_w)`` in the
+    vehicle frame at the wheel's position ``(x_w, y_w)`` (``vy_a``: the roll axis's lateral
+    velocity, (R1)) (``x_w = l_f`` or ``-l_r``, ``y_w = +-t/2`` with ``t`` the believed
+    track of that axle times ``wheel_track_scale``, left positive); the wheel spins at the
+    component along its own plane (steered by its Ackermann angle at the front), over the
+    believed radius times ``rolling_radius_scale``.
+    """
+    front = wheel.startswith("front")
+    left = wheel.endswith("left")
+    x_w = belief.cog_front_m if front else -belief.cog_rear_m
+    track_front, track_rear = belief.axle_tracks_m
+    track = track_front if front else track_rear
+    y_w = (0.5 if left else -0.5) * track * s["wheel_track_scale"]
+    r = s["yaw_rate_radps"]
+    forward = s["vx_mps"] - r * y_w
+    sideways = axle_lateral_velocity(s, bicycle) + r * x_w
+    if front:
+        left_angle, right_angle = ackermann_angles(s["steer_rad"], belief.wheelbase_m, track_front)
+        angle = left_angle if left else right_angle
+        along = forward * ca.cos(angle) + sideways * ca.sin(angle)
+    else:
+        along = forward
+    return along / (belief.wheel_radius_m * s["rolling_radius_scale"])
+
+
+def free_rolling_wheels(belief: VehicleParams) -> tuple[str, ...]:
+    """The wheels (of ``WHEEL_NAMES``) without drive torque, whose spin tells the speed over
+    ground: the front wheels of a rear-wheel drive, the rear ones of a front-wheel drive,
+    all four of an all-wheel drive (whose drive slip is left to the model sigma and the
+    gate). A driven wheel slips by several per cent under acceleration and its inner wheel
+    spins up in a hard turn (open differential), which no rolling-radius state follows."""
+    if belief.drive == "rwd":
+        return tuple(w for w in WHEEL_NAMES if w.startswith("front"))
+    if belief.drive == "fwd":
+        return tuple(w for w in WHEEL_NAMES if w.startswith("rear"))
+    return WHEEL_NAMES
+
+
+def build_measurement_models(
+    belief: VehicleParams,
+    wheel_model_sigma_mps: float,
+    lateral_accel_model_sigma_mps2: float,
+    steer_model_sigma_rad: float = 0.0,
+    tyre_model: str = "saturating",
+    roll: RollParams | None = None,
+) -> dict[str, MeasurementModel]:
+    """The measurement models of every sensor the filters fuse, by sensor name.
+
+    - ``gnss``: CoG position in the world frame.
+    - ``gnss_velocity`` (optional, a receiver's Doppler velocity): the CoG's velocity in the
+      world frame, ``R(yaw) (vx, vy)``; it observes the course ``yaw + vy / vx`` directly, not
+      only through the track of positions.
+    - ``imu``: yaw rate plus the gyro bias; the kinematic accelerations of the CoG in the
+      vehicle frame: ``ax`` a state plus the accelerometer's bias, ``ay = vy' + r vx``
+      (:func:`cog_lateral_accel`, (D4)) plus the lateral accelerometer's bias.
+    - ``wheel_speed``: spin of the freely rolling wheels (:func:`free_rolling_wheels`,
+      :func:`wheel_spin`); the driven wheels' channels are ignored. The difference between
+      the left and the right wheel is ``r t / R`` (yaw rate, track, radius): with the gyro
+      measuring ``r``, it would tell the filter the rolling-radius scale through the track
+      ``t``, which the belief does not know well (the contact patches move with load and
+      camber; on the MuJoCo sedan the front wheels' effective track, steering included, is
+      about 6 % wider than the bicycle's). Believed exactly, a few per cent of track error
+      became a per-cent error of the rolling radius and so of the speed, 0.3 m/s in the
+      lane change with the 0.5 m GNSS. So the effective track is a state too,
+      ``wheel_track_scale`` (the track over the believed one): the left-right difference
+      in turns estimates it, the common mode the rolling radius.
+    - ``steering``: the front road-wheel angle ``steer_rad``.
+    - ``heading`` (optional, e.g. a dual-antenna GNSS): ``yaw_rad`` directly.
+    """
+    bicycle = BicycleParams.from_vehicle(belief, tyre_model, roll)
+    wheel_sigma_radps = wheel_model_sigma_mps / belief.wheel_radius_m
+    fused = free_rolling_wheels(belief)
+    ignored = tuple(f"{w}_radps" for w in WHEEL_NAMES if w not in fused)
+    models = [
+        _model("gnss", ("x_m", "y_m"), [lambda s: s["x_m"], lambda s: s["y_m"]]),
+        _model(
+            "gnss_velocity",
+            ("v_east_mps", "v_north_mps"),
+            [lambda s: world_velocity(s)[0], lambda s: world_velocity(s)[1]],
+        ),
+        _model(
+            "imu",
+            ("yaw_rate_radps", "ax_mps2", "ay_mps2"),
+            [
+                lambda s: s["yaw_rate_radps"] + s["gyro_bias_radps"],
+                lambda s: s["ax_mps2"] + s["ax_bias_mps2"],
+                lambda s: cog_lateral_accel(s, bicycle) + s["ay_bias_mps2"],
+            ],
+            model_sigma=(0.0, 0.0, lateral_accel_model_sigma_mps2),
+        ),
+        _model(
+            "wheel_speed",
+            tuple(f"{w}_radps" for w in fused),
+            [lambda s, w=w: wheel_spin(s, w, belief, bicycle) for w in fused],
+            model_sigma=(wheel_sigma_radps,) * len(fused),
+            ignored_channels=ignored,
+        ),
+        _model(
+            "steering",
+            ("steer_rad",),
+            [lambda s: s["steer_rad"]],
+            model_sigma=(steer_model_sigma_rad,),
+        ),
+        _model("heading", ("yaw_rad",), [lambda s: s["yaw_rad"]], angle_channels=("yaw_rad",)),
+    ]
+    return {model.sensor: model for model in models}
