@@ -154,7 +154,7 @@ def _verdict(ok: bool) -> str:
 def _report(members: list[EnsembleMember], group_size: int) -> None:
     """The group table, the pooled figures and each against its goal."""
     print(f"  {'group':10s} {'inside':>7s} {'below':>7s} {'above':>7s} "
-          f"{'worst 1 s above':>16s} {'mean ANEES':>11s}  (band of {group_size} runs)")
+          f"{'worst 1 s above':>16s} {'mean ANEES':>11s}  (each group against its own band)")
     insides, windows = [], []
     for group in _groups(members, group_size):
         figures = judge(group)
