@@ -1,27 +1,44 @@
 """Monte Carlo consistency of the Kalman filters in the closed loop (measures and prints).
 
     .venv/bin/python bench/estimator_consistency.py [--suites rtk gnss] [--estimators ekf ukf]
-        [--seeds 20] [--first-seed 100] [--duration 15] [--workers 2] [--set key=value ...]
+        [--tune-seeds 100-119] [--judge-seeds 2000-2099] [--on judging|tuning]
+        [--group-size 20] [--duration 15] [--workers 2] [--set key=value ...] [--save DIR]
         [--costs]
 
+Two seed sets, named on every run: the *tuning* set, the seeds the filter's noise model was
+tuned on (``--tune-seeds``; tune with ``--on tuning``), and the *judging* set
+(``--judge-seeds``, the default ``--on judging``), held out: it never overlaps the tuning set
+(the bench refuses an overlap), and its figures are the ones the README quotes. (The older
+``--seeds N`` / ``--first-seed S`` pick the judged seeds S .. S + N - 1; S defaults to the
+start of ``--judge-seeds``.)
+
 Runs the lane change once per seed with each suite and estimator, the real plant and the real
-runner, and prints for each the consistency figures of Bar-Shalom, Li, Kirubarajan (2001),
-section 5.4 (:mod:`estimation.consistency`): the ANEES over the runs at every logged time
-step after the first second with its 95 % chi-square band (N runs x 4 dof: x, y, yaw, vx),
-the fraction of steps inside (and below, above), the NIS per degree of freedom of every
-sensor (gated updates included), and the RMSEs of position, yaw and speed and the tracking
-figures over the runs. ``--costs`` adds the cost of each estimator: the sensor log of one
-run is replayed into a fresh estimator, and the median time of a prediction over one 10 ms
-step and of an update per sensor is printed.
+runner, and judges the ensemble with the consistency figures of Bar-Shalom, Li, Kirubarajan
+(2001), section 5.4 (:mod:`estimation.consistency`), in groups of ``--group-size`` runs (the
+judged 100 seeds: five groups of 20): per group the ANEES over its runs at every logged time
+step after the first second against its 95 % chi-square band (runs x 4 dof: x, y, yaw, vx),
+the fraction of steps inside (below, above) and the largest fraction above in any 1 s window
+(a swerve the filter is over-confident in); over all the runs, the mean ANEES, every
+sensor's NIS per degree of freedom after the first second (``nis_settled_<sensor>``, gated
+updates included) with its band, and the updates gated in the first second
+(``gated_first_s_<sensor>``). Each figure is then set against its goal (every group >= 90 %
+inside; no 1 s window above by more than 10 %; mean ANEES 4 +- 0.3; settled NIS per dof in
+[0.85, 1.15]; nothing gated in the first second): met or not met. The RMSEs of position, yaw
+and speed and the tracking figures follow. ``--save DIR`` writes each ensemble's NEES
+series and metrics (``<suite>-<estimator>.npz``) for a later look. ``--costs`` adds the cost
+of each estimator: the sensor log of one run is replayed into a fresh estimator, and the
+median time of a prediction over one 10 ms step and of an update per sensor is printed.
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
 import math
 import os
 import statistics
+import sys
 import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -34,6 +51,7 @@ from cosim.log.reader import iter_messages
 from cosim.simulation.runner import run
 from cosim.simulation.scenario_config import ScenarioConfig, load_config
 from cosim.sweeps.ensemble import EnsembleMember, judge, run_member
+from estimation.consistency import SETTLE_S
 from estimation.registry import make_estimator
 
 _FIGURES = ("est_pos_rmse_m", "est_yaw_rmse_rad", "est_speed_rmse_mps", "cte_max_m",
@@ -86,44 +104,174 @@ def _costs(config: ScenarioConfig, log: Path, estimator: str) -> dict[str, float
     return {key: 1e6 * statistics.median(values) for key, values in times.items()}
 
 
+
+TUNE_SEEDS = range(100, 120)
+"""The seeds the filter's process noise was tuned on (the lane change, 15 s)."""
+JUDGE_SEEDS = range(2000, 2100)
+"""Held-out seeds for judging: no tuning and no test uses them."""
+
+MIN_INSIDE = 0.9
+"""Goal: every group's ANEES inside its band at this fraction of the judged steps."""
+MAX_WINDOW_ABOVE = 0.1
+"""Goal: no 1 s window with more than this fraction of its steps above the band."""
+WINDOW_S = 1.0
+ANEES_GOAL = (3.7, 4.3)
+"""Goal: the pooled mean ANEES, 4 (the dof) +- 0.3."""
+NIS_GOAL = (0.85, 1.15)
+"""Goal: every sensor's settled NIS per dof, pooled over the runs."""
+
+
 def _rms(values: list[float]) -> float:
     return math.sqrt(float(np.mean(np.square(values))))
+
+
+def _fail(message: str) -> None:
+    """One line naming the value and what was expected; exit code 2."""
+    print(f"estimator_consistency: error: {message}", file=sys.stderr)
+    raise SystemExit(2)
+
+
+def _seed_range(option: str, text: str) -> range:
+    """``A-B`` (both included, A <= B, A >= 0) as a range."""
+    first, sep, last = text.partition("-")
+    if not (sep and first.isdigit() and last.isdigit() and int(first) <= int(last)):
+        _fail(f"{option} {text!r}: expected a seed range A-B with 0 <= A <= B, e.g. 2000-2099")
+    return range(int(first), int(last) + 1)
+
+
+def _name(seeds: range) -> str:
+    return f"{seeds.start}-{seeds.stop - 1}"
+
+
+def _groups(members: list[EnsembleMember], size: int) -> list[list[EnsembleMember]]:
+    return [members[i:i + size] for i in range(0, len(members), size)]
+
+
+def _verdict(ok: bool) -> str:
+    return "met" if ok else "NOT met"
+
+
+def _report(members: list[EnsembleMember], group_size: int) -> None:
+    """The group table, the pooled figures and each against its goal."""
+    print(f"  {'group':10s} {'inside':>7s} {'below':>7s} {'above':>7s} "
+          f"{'worst 1 s above':>16s} {'mean ANEES':>11s}  (each group against its own band)")
+    insides, windows = [], []
+    for group in _groups(members, group_size):
+        figures = judge(group)
+        worst = figures.worst_window_above(WINDOW_S)
+        insides.append(figures.fraction_inside)
+        windows.append(worst)
+        print(f"  {group[0].seed:4d}-{group[-1].seed:<5d} {100 * figures.fraction_inside:6.1f}"
+              f"% {100 * figures.fraction_below:6.1f}% {100 * figures.fraction_above:6.1f}% "
+              f"{100 * worst:15.1f}% {figures.anees_mean:11.3f}"
+              + ("" if len(group) == group_size else f"  ({len(group)} runs)"))
+    pooled = judge(members, settled_nis=True)
+    print(f"  pooled over {pooled.runs} runs: mean ANEES {pooled.anees_mean:.3f}; "
+          f"NIS per dof after {SETTLE_S:g} s:")
+    for sensor, nis in sorted(pooled.nis.items()):
+        print(f"    {sensor:12s} {nis.nis_per_dof:6.3f}  ({nis.dof} dof; band "
+              f"[{nis.band[0]:.3f}, {nis.band[1]:.3f}])")
+    sensors = sorted({s for m in members for s in m.gated_first_s})
+    gated = {s: sum(m.gated_first_s.get(s, 0) for m in members) for s in sensors}
+    runs_gated = {s: sum(m.gated_first_s.get(s, 0) > 0 for m in members) for s in sensors}
+    print(f"  gated in the first {SETTLE_S:g} s (updates, runs): " + ", ".join(
+        f"{s} {gated[s]} ({runs_gated[s]})" for s in sensors))
+    nis_values = {s: n.nis_per_dof for s, n in pooled.nis.items()}
+    worst_nis = max(nis_values, key=lambda s: abs(nis_values[s] - 1.0))
+    print("  goals:")
+    print(f"    every group >= {100 * MIN_INSIDE:g} % inside: "
+          f"{_verdict(min(insides) >= MIN_INSIDE)} (lowest {100 * min(insides):.1f} %)")
+    print(f"    no {WINDOW_S:g} s window > {100 * MAX_WINDOW_ABOVE:g} % above: "
+          f"{_verdict(max(windows) <= MAX_WINDOW_ABOVE)} (worst {100 * max(windows):.1f} %)")
+    print(f"    pooled mean ANEES in [{ANEES_GOAL[0]:g}, {ANEES_GOAL[1]:g}]: "
+          f"{_verdict(ANEES_GOAL[0] <= pooled.anees_mean <= ANEES_GOAL[1])} "
+          f"({pooled.anees_mean:.3f})")
+    print(f"    settled NIS per dof in [{NIS_GOAL[0]:g}, {NIS_GOAL[1]:g}]: "
+          f"{_verdict(all(NIS_GOAL[0] <= v <= NIS_GOAL[1] for v in nis_values.values()))} "
+          f"(farthest from 1: {worst_nis} {nis_values[worst_nis]:.3f})")
+    print(f"    nothing gated in the first {SETTLE_S:g} s: "
+          f"{_verdict(not any(gated.values()))} ({sum(gated.values())} updates)")
+
+
+def _save(path: Path, members: list[EnsembleMember]) -> None:
+    steps = min(m.t_s.size for m in members)
+    np.savez_compressed(
+        path, seeds=np.array([m.seed for m in members]), t_s=members[0].t_s[:steps],
+        nees=np.vstack([m.nees[:steps] for m in members]),
+        metrics=np.array([json.dumps(m.metrics, default=str) for m in members]))
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--suites", nargs="+", default=["rtk", "gnss"])
     parser.add_argument("--estimators", nargs="+", default=["ekf", "ukf"])
-    parser.add_argument("--seeds", type=int, default=20)
-    parser.add_argument("--first-seed", type=int, default=100,
-                        help="seeds first .. first + N - 1 (default 100: seeds no test uses)")
+    parser.add_argument("--tune-seeds", default=_name(TUNE_SEEDS),
+                        help=f"seeds A-B the noise was tuned on (default {_name(TUNE_SEEDS)})")
+    parser.add_argument("--judge-seeds", default=None,
+                        help=f"held-out seeds A-B (default {_name(JUDGE_SEEDS)}); never "
+                        "overlapping --tune-seeds")
+    parser.add_argument("--on", choices=("judging", "tuning"), default="judging",
+                        help="run the judging set (default) or the tuning set")
+    parser.add_argument("--group-size", type=int, default=20,
+                        help="runs per judged group (default 20: each group its own band)")
+    parser.add_argument("--seeds", type=int, default=None,
+                        help="judge N seeds from --first-seed (instead of --judge-seeds)")
+    parser.add_argument("--first-seed", type=int, default=None,
+                        help="first judged seed with --seeds (default: --judge-seeds' first)")
     parser.add_argument("--scenario", default="lane-change")
     parser.add_argument("--duration", type=float, default=None, help="s (default: scenario's)")
     parser.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
     parser.add_argument("--set", action="append", default=[], dest="overrides")
+    parser.add_argument("--save", type=Path, default=None, metavar="DIR",
+                        help="write each ensemble's NEES and metrics to DIR")
     parser.add_argument("--verbose", action="store_true", help="print every run")
     parser.add_argument("--costs", action="store_true", help="also time the estimators")
     args = parser.parse_args()
-    if args.seeds < 1:
-        parser.error("--seeds: expected at least 1")
-    seeds = range(args.first_seed, args.first_seed + args.seeds)
+    tune = _seed_range("--tune-seeds", args.tune_seeds)
+    judge_seeds = (JUDGE_SEEDS if args.judge_seeds is None
+                   else _seed_range("--judge-seeds", args.judge_seeds))
+    if args.seeds is not None or args.first_seed is not None:
+        if args.judge_seeds is not None:
+            _fail("--judge-seeds with --seeds/--first-seed: expected one way to name the "
+                  "judged seeds")
+        count = 20 if args.seeds is None else args.seeds
+        first = judge_seeds.start if args.first_seed is None else args.first_seed
+        if count < 1 or first < 0:
+            _fail(f"--seeds {count} --first-seed {first}: expected at least 1 seed from >= 0")
+        judge_seeds = range(first, first + count)
+    overlap = range(max(tune.start, judge_seeds.start), min(tune.stop, judge_seeds.stop))
+    if overlap:
+        _fail(f"judging seeds {_name(judge_seeds)} overlap the tuning seeds {_name(tune)} "
+              f"at {_name(overlap)}: expected a held-out range")
+    if args.group_size < 1:
+        _fail(f"--group-size {args.group_size}: expected at least 1")
+    seeds = judge_seeds if args.on == "judging" else tune
     overrides = tuple(args.overrides)
-    print(f"{args.scenario}, seeds {seeds.start}..{seeds.stop - 1}"
-          + (f", {' '.join(overrides)}" if overrides else ""))
+    role = ("judging set (held out)" if args.on == "judging"
+            else "tuning set (for tuning: not a judgement)")
+    print(f"{args.scenario}, {role}: seeds {_name(seeds)}; tuning seeds {_name(tune)}, "
+          f"judging seeds {_name(judge_seeds)}"
+          + (f"; {' '.join(overrides)}" if overrides else ""))
+    if args.save is not None:
+        args.save.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp, ProcessPoolExecutor(args.workers) as pool:
         for suite in args.suites:
             for estimator in args.estimators:
                 tasks = [(args.scenario, suite, estimator, args.duration, overrides, seed, tmp)
                          for seed in seeds]
+                start = time.perf_counter()
                 members = list(pool.map(_one_run, tasks))
-                print(f"\n{suite} / {estimator}: {len(members)} runs")
+                wall_s = time.perf_counter() - start
+                print(f"\n{suite} / {estimator}: {len(members)} runs "
+                      f"({wall_s / len(members):.1f} s of wall time per run)")
                 if args.verbose:
                     for m in members:
                         print(f"  seed {m.seed:4d} " + "  ".join(
                             f"{k} {float(m.metrics[k]):.4g}" for k in _FIGURES
                             if k in m.metrics))
-                for line in judge(members).lines():
-                    print("  " + line)
+                if args.save is not None:
+                    _save(args.save / f"{suite}-{estimator}.npz", members)
+                _report(members, args.group_size)
                 for key in _FIGURES[:3]:
                     values = [float(m.metrics[key]) for m in members]  # type: ignore[arg-type]
                     print(f"  {key:22s} RMS over runs {_rms(values):.4f}")

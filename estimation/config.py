@@ -18,6 +18,8 @@ the module docstring of :mod:`estimation.process_model` and the comments below.
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -240,3 +242,31 @@ class EstimatorConfig:
     ukf_alpha: float = setting(1.0, low=1e-4, high=1.0, doc="spread of the sigma points")
     ukf_beta: float = setting(2.0, low=0.0, high=10.0, doc="prior knowledge of the distribution")
     ukf_kappa: float = setting(0.0, low=-10.0, high=10.0, doc="secondary scaling")
+
+
+RESIDUAL_SIGMAS: tuple[str, ...] = ("lateral_residual_sigma_mps2", "lateral_residual_relative")
+"""The lateral residual's stationary sigmas (a Gauss-Markov process noise, given as sigmas)."""
+BIAS_WALKS: tuple[str, ...] = ("gyro_bias_walk_radps", "accel_bias_walk_mps2")
+"""The IMU biases' random walks (``noise.*``, given per sqrt(s): sigmas)."""
+
+
+def process_noise_fields() -> tuple[str, ...]:
+    """Every process-noise PSD of :class:`EstimatorConfig` (the fields named ``*_psd_*``)."""
+    return tuple(f.name for f in dataclasses.fields(EstimatorConfig) if "_psd_" in f.name)
+
+
+def scaled_process_noise(config: EstimatorConfig, factor: float) -> EstimatorConfig:
+    """``config`` with all its process noise times ``factor``: every PSD times ``factor``,
+    every process-noise sigma (the lateral residual's, the bias walks) times
+    ``sqrt(factor)``, so ``Q`` as a whole scales by ``factor``. A filter tuned right
+    (``factor`` 1) against the same filter mistuned (0.3, 3) is what a consistency test
+    must tell apart."""
+    if not (math.isfinite(factor) and factor > 0.0):
+        raise ValueError(f"factor = {factor!r}: expected a positive number")
+    root = math.sqrt(factor)
+    noise = dataclasses.replace(config.noise, **{
+        name: root * getattr(config.noise, name) for name in BIAS_WALKS})
+    return dataclasses.replace(
+        config, noise=noise,
+        **{name: factor * getattr(config, name) for name in process_noise_fields()},
+        **{name: root * getattr(config, name) for name in RESIDUAL_SIGMAS})

@@ -87,6 +87,21 @@ class EnsembleConsistency:
     fraction_above: float
     nis: Mapping[str, SensorNis]
 
+    def worst_window_above(self, window_s: float = 1.0) -> float:
+        """The largest fraction of steps above the band in any window ``[t, t + window_s)``
+        of the judged steps (one starting at every judged step that has a whole window after
+        it): a filter over-confident in one part of the manoeuvre only (a swerve) shows here
+        while its overall fraction above stays small."""
+        if window_s <= 0.0:
+            raise ValueError(f"window_s = {window_s!r}: expected a positive duration")
+        above = (self.anees > self.band[1]).astype(float)
+        cumulative = np.concatenate(([0.0], np.cumsum(above)))
+        starts = np.flatnonzero(self.t_s + window_s <= self.t_s[-1] + 1e-9)
+        if not starts.size:  # shorter than one window: the whole judged span
+            return float(above.mean())
+        ends = np.searchsorted(self.t_s, self.t_s[starts] + window_s - 1e-9)
+        return float(np.max((cumulative[ends] - cumulative[starts]) / (ends - starts)))
+
     @property
     def anees_mean(self) -> float:
         """The ANEES averaged over the judged steps (a summary, not the test)."""

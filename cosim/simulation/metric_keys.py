@@ -177,6 +177,13 @@ ESTIMATION = (
               _METRICS),
     MetricKey("nis_dof_<sensor>", "count", "the channels summed in `nis_<sensor>`", "",
               _METRICS),
+    MetricKey("nis_settled_<sensor>", "1", "`nis_<sensor>` over the updates at or after the "
+              "settling time (`estimation.consistency.SETTLE_S`, 1 s): the NIS per degree of "
+              "freedom once the prior has converged", "1", _METRICS),
+    MetricKey("nis_settled_dof_<sensor>", "count", "the channels summed in "
+              "`nis_settled_<sensor>`", "", _METRICS),
+    MetricKey("gated_first_s_<sensor>", "count", "the sensor's updates before the settling "
+              "time that the gate refused in whole or in part", "0", _METRICS),
     MetricKey("rejected_measurements", "count", "whole measurements the estimator refused, "
               "all causes", "0", _METRICS),
     MetricKey("rejected_gate", "count", "measurements the innovation gate refused", "0",

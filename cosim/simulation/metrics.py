@@ -11,7 +11,12 @@ against its prior, gated ones included (1 for a consistent filter, whatever the 
 ``nis_<sensor>`` (``nis_gnss``, ``nis_imu``, ``nis_wheel_speed``, ``nis_steering``, ...) is
 the same for one sensor: its summed NIS over its summed channels (``nis_dof_<sensor>``),
 the NIS per degree of freedom (Bar-Shalom, Li, Kirubarajan, "Estimation with Applications
-to Tracking and Navigation", Wiley 2001, section 5.4.2).
+to Tracking and Navigation", Wiley 2001, section 5.4.2). ``nis_settled_<sensor>`` is the same
+over the updates at or after the settling time (:data:`estimation.consistency.SETTLE_S`, the
+time the ANEES is judged from), so that the prior's convergence at start-up does not hide a
+filter that is wrong once settled; ``gated_first_s_<sensor>`` counts the sensor's updates
+before that time that the gate refused in whole or in part (a start-up that is consistent
+gates none).
 The speed error is against the reference's speed profile at the projection and the time.
 
 Comfort, from the truth at the log rate: ``lat_accel_max_mps2`` is the largest lateral
@@ -32,7 +37,8 @@ from cosim.core.records import Command, Estimate, Plan, VehicleState
 from cosim.simulation.manoeuvre_metrics import manoeuvre_metrics
 from cosim.simulation.metric_keys import METRIC_KEYS, WALL_CLOCK_KEYS
 from cosim.simulation.running_stats import RunningStats, Samples
-from estimation.update_result import UpdateResult
+from estimation.consistency import SETTLE_S
+from estimation.update_result import GATE, PARTIAL, UpdateResult
 from tracker.manoeuvre import ManoeuvreConfig
 from tracker.paths.reference_path import ReferencePath, wrap_angle
 
@@ -116,6 +122,15 @@ class MetricsAccumulator:
     """Per sensor, the summed NIS of every tested update (gated included)."""
     nis_dof: dict[str, int] = field(default_factory=dict)
     """Per sensor, the summed dimension of those updates."""
+    settle_s: float = SETTLE_S
+    """Updates at or after this time [s] make ``nis_settled_<sensor>``; gated updates
+    before it are counted in ``gated_first_s_<sensor>``."""
+    nis_settled_sum: dict[str, float] = field(default_factory=dict)
+    """Per sensor, the summed NIS of the tested updates at or after :attr:`settle_s`."""
+    nis_settled_dof: dict[str, int] = field(default_factory=dict)
+    """Per sensor, the summed dimension of those updates."""
+    gated_first_s: dict[str, int] = field(default_factory=dict)
+    """Per sensor, the updates before :attr:`settle_s` the gate refused in whole or in part."""
     estimator_counts: dict[str, dict[str, int]] = field(default_factory=dict)
     """Per sensor, the estimator's own counters (set at the end of the run)."""
     last_t_s: float = 0.0
@@ -154,14 +169,20 @@ class MetricsAccumulator:
         if np.all(np.isfinite(covariance)) and np.linalg.det(covariance) > 0.0:
             self.nees.add(float(error @ np.linalg.solve(covariance, error)))
 
-    def add_update(self, sensor: str, update: UpdateResult) -> None:
-        """One measurement's outcome: its NIS over all its channels against the prior,
-        whether the gate then fused it or not."""
+    def add_update(self, sensor: str, update: UpdateResult, t_s: float) -> None:
+        """One measurement's outcome at its time ``t_s``: its NIS over all its channels
+        against the prior, whether the gate then fused it or not."""
         nis, dim = update.joint_nis, update.joint_dim
         if dim > 0 and np.isfinite(nis):
             self.nis_per_dof.add(nis / dim)
             self.nis_sum[sensor] = self.nis_sum.get(sensor, 0.0) + nis
             self.nis_dof[sensor] = self.nis_dof.get(sensor, 0) + dim
+            if t_s >= self.settle_s:
+                self.nis_settled_sum[sensor] = self.nis_settled_sum.get(sensor, 0.0) + nis
+                self.nis_settled_dof[sensor] = self.nis_settled_dof.get(sensor, 0) + dim
+            else:
+                self.gated_first_s[sensor] = (self.gated_first_s.get(sensor, 0)
+                                              + (update.reason in (GATE, PARTIAL)))
 
     def add_plan(self, plan: Plan, step_time_s: float = float("nan")) -> None:
         self.solve_time_s.add(plan.solve_time_s)
@@ -236,6 +257,12 @@ class MetricsAccumulator:
             **{f"nis_{sensor}": self.nis_sum[sensor] / self.nis_dof[sensor]
                for sensor in sorted(self.nis_sum)},
             **{f"nis_dof_{sensor}": self.nis_dof[sensor] for sensor in sorted(self.nis_dof)},
+            **{f"nis_settled_{sensor}": self.nis_settled_sum[sensor]
+               / self.nis_settled_dof[sensor] for sensor in sorted(self.nis_settled_sum)},
+            **{f"nis_settled_dof_{sensor}": self.nis_settled_dof[sensor]
+               for sensor in sorted(self.nis_settled_dof)},
+            **{f"gated_first_s_{sensor}": self.gated_first_s[sensor]
+               for sensor in sorted(self.gated_first_s)},
             **rejection_counts(self.estimator_counts),
             "sim_duration_s": sim_duration_s,
             "wall_time_s": wall_time_s,

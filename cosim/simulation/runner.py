@@ -389,7 +389,7 @@ class _Run:
         updates = self.fuse(delivered)
         for measurement, update in zip(delivered, updates, strict=True):
             if measurement.sensor != TRUTH:  # noise-free: NIS is undefined
-                self.metrics.add_update(measurement.sensor, update)
+                self.metrics.add_update(measurement.sensor, update, measurement.t_s)
                 self.recorder.write_finite(topics.ESTIMATOR_UPDATES, t_s, {
                     "t_s": t_s, "sensor": measurement.sensor, "accepted": update.accepted,
                     "nis": update.nis, "dof": update.dim, "reason": update.reason})

@@ -3,7 +3,8 @@
 Each member is one run of the same configuration with another seed (so independent sensor
 noise, disturbances and initial estimate); its NEES series is read back from its log
 (:func:`cosim.plots.data.load_estimation`, over ``x, y, yaw, vx``) and its NIS sums come from
-its metrics (``nis_<sensor>`` times ``nis_dof_<sensor>``). :func:`judge` hands them to
+its metrics (``nis_<sensor>`` times ``nis_dof_<sensor>``, and the same after the settling
+time from ``nis_settled_<sensor>``). :func:`judge` hands them to
 :func:`estimation.consistency.ensemble_consistency` (ANEES per time step with its chi-square
 band; NIS per degree of freedom per sensor). Used by ``bench/estimator_consistency.py`` and
 by the slow consistency tests.
@@ -24,6 +25,8 @@ from cosim.simulation.scenario_config import ScenarioConfig
 from estimation.consistency import SETTLE_S, EnsembleConsistency, ensemble_consistency
 
 NIS_PREFIX = "nis_dof_"
+SETTLED_NIS_PREFIX = "nis_settled_dof_"
+GATED_PREFIX = "gated_first_s_"
 
 
 @dataclass(frozen=True)
@@ -36,6 +39,21 @@ class EnsembleMember:
     nis_sum: Mapping[str, float]
     nis_dof: Mapping[str, int]
     metrics: Mapping[str, object]
+    nis_settled_sum: Mapping[str, float] = dataclasses.field(default_factory=dict)
+    """Per sensor, the summed NIS of the updates after the settling time."""
+    nis_settled_dof: Mapping[str, int] = dataclasses.field(default_factory=dict)
+    gated_first_s: Mapping[str, int] = dataclasses.field(default_factory=dict)
+    """Per sensor, the updates the gate refused (in whole or in part) in the first second."""
+
+
+def _sums(metrics: Mapping[str, object], dof_prefix: str, nis_prefix: str
+          ) -> tuple[dict[str, float], dict[str, int]]:
+    """Per sensor, the summed NIS and summed channels from a run's metrics."""
+    dofs = {key.removeprefix(dof_prefix): int(value)  # type: ignore[call-overload]
+            for key, value in metrics.items() if key.startswith(dof_prefix)}
+    sums = {sensor: float(metrics[f"{nis_prefix}{sensor}"]) * count  # type: ignore[arg-type]
+            for sensor, count in dofs.items()}
+    return sums, dofs
 
 
 def run_member(config: ScenarioConfig, seed: int, out_dir: Path, keep_log: bool = False
@@ -50,24 +68,27 @@ def run_member(config: ScenarioConfig, seed: int, out_dir: Path, keep_log: bool 
         path.unlink()
     if errors is None or errors.nees is None:
         raise RuntimeError(f"seed {seed}: the log has no NEES (estimator without covariance)")
-    dofs = {key.removeprefix(NIS_PREFIX): int(value)  # type: ignore[call-overload]
-            for key, value in result.metrics.items() if key.startswith(NIS_PREFIX)}
-    sums = {sensor: float(result.metrics[f"nis_{sensor}"]) * count  # type: ignore[arg-type]
-            for sensor, count in dofs.items()}
-    return EnsembleMember(seed, errors.t_s, errors.nees, sums, dofs, result.metrics)
+    sums, dofs = _sums(result.metrics, NIS_PREFIX, "nis_")
+    settled_sums, settled_dofs = _sums(result.metrics, SETTLED_NIS_PREFIX, "nis_settled_")
+    gated = {key.removeprefix(GATED_PREFIX): int(value)  # type: ignore[call-overload]
+             for key, value in result.metrics.items() if key.startswith(GATED_PREFIX)}
+    return EnsembleMember(seed, errors.t_s, errors.nees, sums, dofs, result.metrics,
+                          settled_sums, settled_dofs, gated)
 
 
 def judge(members: Sequence[EnsembleMember], probability: float = 0.95,
-          settle_s: float = SETTLE_S) -> EnsembleConsistency:
-    """The consistency figures of the members (cut to the shortest run's samples)."""
+          settle_s: float = SETTLE_S, settled_nis: bool = False) -> EnsembleConsistency:
+    """The consistency figures of the members (cut to the shortest run's samples); with
+    ``settled_nis`` the NIS is that of the updates after the settling time only (the
+    runs' ``nis_settled_<sensor>``, whose settling time is :data:`SETTLE_S`)."""
     if not members:
         raise ValueError("no runs to judge")
     steps = min(m.t_s.size for m in members)
     return ensemble_consistency(
         members[0].t_s[:steps],
         np.vstack([m.nees[:steps] for m in members]),
-        [m.nis_sum for m in members],
-        [m.nis_dof for m in members],
+        [m.nis_settled_sum if settled_nis else m.nis_sum for m in members],
+        [m.nis_settled_dof if settled_nis else m.nis_dof for m in members],
         probability=probability,
         settle_s=settle_s,
     )

@@ -1,0 +1,50 @@
+"""Per-sensor NIS after settling and the gating at start-up (cosim/simulation/metrics.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cosim.simulation.metric_keys import undocumented
+from cosim.simulation.metrics import MetricsAccumulator
+from estimation.consistency import SETTLE_S
+from estimation.update_result import ACCEPTED, GATE, PARTIAL, UpdateResult
+from tracker.paths.reference_path import ReferencePath
+
+
+def _accumulator() -> MetricsAccumulator:
+    x = np.linspace(0.0, 100.0, 101)
+    return MetricsAccumulator(ReferencePath(x, np.zeros_like(x), 10.0))
+
+
+def test_settled_nis_leaves_out_the_first_second_and_counts_its_gating() -> None:
+    """Two-channel updates of NIS 8 (4 per dof, two gated) before the settling time and of
+    NIS 2 (1 per dof) after it: ``nis_<sensor>`` mixes them, ``nis_settled_<sensor>`` is 1,
+    and the two gated start-up updates are counted; a sensor gated only after settling
+    counts 0."""
+    metrics = _accumulator()
+    early = [UpdateResult(False, 8.0, 2, GATE, 8.0, 2), UpdateResult(True, 4.0, 1, PARTIAL, 8.0, 2),
+             UpdateResult(True, 8.0, 2, ACCEPTED, 8.0, 2)]
+    for k, update in enumerate(early):
+        metrics.add_update("gnss", update, 0.1 * k)
+    for k in range(9):
+        metrics.add_update("gnss", UpdateResult(True, 2.0, 2, ACCEPTED, 2.0, 2),
+                           SETTLE_S + 0.1 * k)
+    metrics.add_update("imu", UpdateResult(True, 3.0, 3, ACCEPTED, 3.0, 3), 0.5)
+    metrics.add_update("imu", UpdateResult(False, 30.0, 3, GATE, 30.0, 3), SETTLE_S)
+    result = metrics.result(1.0, True)
+    assert result["nis_gnss"] == pytest.approx((3 * 8.0 + 9 * 2.0) / 24)
+    assert result["nis_settled_gnss"] == pytest.approx(1.0)
+    assert result["nis_settled_dof_gnss"] == 18
+    assert result["gated_first_s_gnss"] == 2
+    assert result["nis_settled_imu"] == pytest.approx(10.0)
+    assert result["gated_first_s_imu"] == 0
+    assert undocumented(result) == []
+
+
+def test_a_sensor_heard_only_at_start_up_has_no_settled_nis() -> None:
+    metrics = _accumulator()
+    metrics.add_update("steering", UpdateResult(True, 1.0, 1, ACCEPTED, 1.0, 1), 0.2)
+    result = metrics.result(1.0, True)
+    assert "nis_settled_steering" not in result
+    assert result["gated_first_s_steering"] == 0
