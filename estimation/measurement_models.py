@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from cosim.core.dense_function import DenseFunction
 from cosim.core.records import WHEEL_NAMES
 from cosim.core.vehicle_params import VehicleParams
 from estimation.process_model import (
@@ -20,7 +21,7 @@ from estimation.process_model import (
     cog_lateral_accel,
     world_velocity,
 )
-from estimation.state import STATE_NAMES, DenseFunction, named_states
+from estimation.state import STATE_NAMES, named_states
 
 
 @dataclass(frozen=True)

@@ -94,11 +94,11 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from cosim.core.dense_function import DenseFunction
 from cosim.core.vehicle_equations import axle_slip_angles, rk4_step
 from cosim.core.vehicle_params import VehicleParams
 from estimation.state import (
     STATE_NAMES,
-    DenseFunction,
     named_states,
     stacked_states,
     state_index,

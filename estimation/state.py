@@ -97,57 +97,6 @@ def wrap_angle(angle_rad: float | np.ndarray) -> float | np.ndarray:
     return float(wrapped) if np.ndim(wrapped) == 0 else wrapped
 
 
-class DenseFunction:
-    """Fast evaluation of a CasADi Function with dense numeric inputs and outputs.
-
-    Calls go through CasADi's buffer interface into arrays allocated once (about 1 us
-    instead of about 25 us for a call with DM conversions); results are returned as copies.
-    Every output of ``function`` must be dense (build it with ``ca.densify``). A matrix of
-    CasADi's shape ``(rows, columns)`` is passed and returned as a numpy array of shape
-    ``(columns, rows)`` (CasADi is column-major): for a Function mapped over points, one
-    point per numpy row.
-    """
-
-    def __init__(self, function: ca.Function) -> None:
-        self.function = function
-        for i in range(function.n_out()):
-            if not function.sparsity_out(i).is_dense():
-                raise ValueError(f"{function.name()}: output {i} must be dense")
-        self._inputs = [np.zeros(function.size_in(i)[::-1]) for i in range(function.n_in())]
-        self._outputs = [np.zeros(function.size_out(i)[::-1]) for i in range(function.n_out())]
-        self._buffer, self._evaluate = function.buffer()
-        for i, array in enumerate(self._inputs):
-            self._buffer.set_arg(i, memoryview(array))
-        for i, array in enumerate(self._outputs):
-            self._buffer.set_res(i, memoryview(array))
-
-    def __call__(self, *args: np.ndarray | float) -> tuple[np.ndarray, ...]:
-        """The outputs (each of the shape CasADi declares) for the inputs ``args``."""
-        if len(args) != len(self._inputs):
-            raise TypeError(f"{self.function.name()} takes {len(self._inputs)} inputs")
-        for array, value in zip(self._inputs, args, strict=True):
-            array.T[...] = np.reshape(value, array.T.shape)
-        self._evaluate()
-        return tuple(array.T.copy() for array in self._outputs)
-
-    def rows(self, *args: np.ndarray | float) -> tuple[np.ndarray, ...]:
-        """Like calling, but inputs and outputs in numpy's transposed layout (one point per
-        row for a mapped Function), without transposing."""
-        if len(args) != len(self._inputs):
-            raise TypeError(f"{self.function.name()} takes {len(self._inputs)} inputs")
-        for array, value in zip(self._inputs, args, strict=True):
-            array[...] = np.reshape(value, array.shape)
-        self._evaluate()
-        return tuple(array.copy() for array in self._outputs)
-
-    def vector(self, x: np.ndarray) -> np.ndarray:
-        """The first output, flattened, of a Function of one vector input (the fast path of
-        the UKF's many small calls)."""
-        self._inputs[0][...] = x
-        self._evaluate()
-        return self._outputs[0].ravel().copy()
-
-
 def state_index(name: str) -> int:
     """Position of the state ``name`` in :data:`STATE_NAMES` (a clear error if unknown)."""
     if name not in STATE_NAMES:

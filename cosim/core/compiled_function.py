@@ -29,9 +29,10 @@ import json
 import os
 import shutil
 import subprocess
+import sys
 import tempfile
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import casadi as ca
@@ -166,29 +167,42 @@ def _build(compiler: str, flags: Sequence[str], source: Path, name: str) -> Path
     return library
 
 
-def compiled_library(name: str, functions: Sequence[ca.Function],
-                     flags: Sequence[str] = COMPILER_FLAGS) -> Path | None:
+Functions = Sequence[ca.Function] | Callable[[], Sequence[ca.Function]]
+"""CasADi functions, or a callable that makes them (called only when they must be built)."""
+
+
+def compiled_library(name: str, functions: Functions,
+                     flags: Sequence[str] = COMPILER_FLAGS,
+                     note: str | None = None, key: str | None = None) -> Path | None:
     """The shared library holding ``functions`` (each under its own name), compiled with
     ``flags`` or found in the cache; None when no C compiler is available or compiling
-    fails. ``name`` names the file (a C identifier).
+    fails. ``name`` names the file (a C identifier). ``note``, if given, is printed as one
+    line on stderr (``cosim: note: ...``) when the library is compiled rather than found,
+    for a build that makes the user wait.
 
     The cache entry is keyed by a hash of the generated source and the flags, and holds
     the library with its size and SHA-256, checked before it is used: a damaged entry (a
     truncated file, another library under the name) is rebuilt once, with a one-line
     :class:`CompiledCacheWarning`. When the cache cannot be written the library is compiled
     into a folder of this process's own, with a one-line warning, and the run goes on.
+
+    Generating the source costs about 0.1 s for a large NLP; a caller that can name the
+    functions more cheaply passes ``key`` (a string that determines them, e.g. a
+    serialised CasADi function they are all derived from) and ``functions`` as a callable
+    producing them: the entry is then keyed by ``key``, the flags and CasADi's version, and
+    the functions are generated only when the entry must be built.
     """
     compiler = shutil.which(os.environ.get("CC", "gcc"))
     if compiler is None:
         return None
     flags = (*flags, "-shared", "-fPIC")
     with tempfile.TemporaryDirectory() as tmp:
-        generator = ca.CodeGenerator(f"{name}.c", {"with_header": False})
-        for function in functions:
-            generator.add(function)
-        generator.generate(f"{tmp}/")
         source = Path(tmp, f"{name}.c")
-        digest = hashlib.sha256(source.read_bytes() + " ".join(flags).encode()).hexdigest()
+        if key is None:
+            _generate(name, functions, tmp)
+            digest = _source_digest(source.read_bytes(), flags)
+        else:
+            digest = _source_digest(f"{key}\ncasadi {ca.__version__}".encode(), flags)
         entry = _cache_dir() / f"{name}-{digest[:16]}"
         if entry.is_dir():
             damage = _damage(entry, name)
@@ -197,6 +211,11 @@ def compiled_library(name: str, functions: Sequence[ca.Function],
             warnings.warn(f"the compiled library {str(entry)!r} is damaged ({damage}): "
                           "rebuilding it", CompiledCacheWarning, stacklevel=2)
             _discard(entry)
+        if key is not None:
+            _generate(name, functions, tmp)
+        if note is not None:
+            print(f"cosim: note: {note} (once per machine, cached in {entry.parent})",
+                  file=sys.stderr, flush=True)
         built = _build(compiler, flags, source, name)
         if built is None:
             return None
@@ -208,6 +227,20 @@ def compiled_library(name: str, functions: Sequence[ca.Function],
                           "(XDG_CACHE_HOME names the cache)", CompiledCacheWarning,
                           stacklevel=1)  # one place: said once per process, not per library
             return _private_copy(built)
+
+
+def _generate(name: str, functions: Functions, folder: str) -> None:
+    """Write the C source of ``functions`` (or of what the callable returns) as
+    ``folder/name.c``."""
+    generator = ca.CodeGenerator(f"{name}.c", {"with_header": False})
+    for function in functions() if callable(functions) else functions:
+        generator.add(function)
+    generator.generate(f"{folder}/")
+
+
+def _source_digest(content: bytes, flags: Sequence[str]) -> str:
+    """The hash naming a cache entry: of what determines the source, and the flags."""
+    return hashlib.sha256(content + " ".join(flags).encode()).hexdigest()
 
 
 def compile_function(function: ca.Function) -> ctypes.CDLL | None:

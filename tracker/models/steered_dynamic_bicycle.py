@@ -122,31 +122,92 @@ class SteeredBicycleParams:
         )
 
 
+BELIEF_NAMES: tuple[str, ...] = bicycle.PARAM_NAMES + ("steer_time_constant_s",)
+"""The belief's numbers as the belief-parametric functions take them, in vector order
+(:func:`belief_vector`, :func:`belief_discrete_function`)."""
+
+BELIEF = MappingProxyType({name: i for i, name in enumerate(BELIEF_NAMES)})
+"""Read-only map from belief name to its index in the belief vector."""
+
+
+def belief_vector(params: SteeredBicycleParams) -> np.ndarray:
+    """The numbers of ``params`` in :data:`BELIEF_NAMES` order."""
+    return np.append(params.bicycle.as_vector(), float(params.steer_time_constant_s))
+
+
+@dataclass(frozen=True)
+class ModelNumbers:
+    """The numbers the model's equations read: floats (the belief baked into a function)
+    or CasADi symbols (the belief an input of the function, so that one function, and one
+    compiled library, serves every belief of the same *shape*).
+
+    The shape is what changes the equations themselves rather than their numbers: whether
+    the actuator lags (``tau > 0``) and the low-speed blend's speeds, which are the
+    model's design, not the car's."""
+
+    bicycle_vector: Symbolic | np.ndarray
+    """The dynamic bicycle's parameters, :data:`tracker.models.dynamic_bicycle.PARAM_NAMES`."""
+    wheelbase_m: Symbolic | float
+    cog_rear_m: Symbolic | float
+    steer_time_constant_s: Symbolic | float
+    lagged: bool
+    """``tau > 0``: the actuator is the lag (A1)-(A2); otherwise the command itself."""
+    low_speed_mps: float
+    high_speed_mps: float
+
+    @classmethod
+    def of(cls, params: SteeredBicycleParams) -> ModelNumbers:
+        """The numbers of ``params`` as floats."""
+        return cls(params.bicycle.as_vector(), params.bicycle.wheelbase_m,
+                   params.bicycle.cog_rear_m, params.steer_time_constant_s,
+                   params.steer_time_constant_s > 0.0, params.low_speed_mps,
+                   params.high_speed_mps)
+
+    @classmethod
+    def symbolic(cls, belief: Symbolic, params: SteeredBicycleParams) -> ModelNumbers:
+        """The numbers read from the belief vector ``belief`` (:data:`BELIEF_NAMES`),
+        with the shape of ``params``."""
+        vector = belief[:len(bicycle.PARAM_NAMES)]
+        front = belief[BELIEF["cog_front_m"]]
+        rear = belief[BELIEF["cog_rear_m"]]
+        return cls(vector, front + rear, rear, belief[BELIEF["steer_time_constant_s"]],
+                   params.steer_time_constant_s > 0.0, params.low_speed_mps,
+                   params.high_speed_mps)
+
+
 def road_wheel_angle(angle0_rad: Symbolic, command_rad: Symbolic, t_s: Symbolic | float,
-                     steer_time_constant_s: float) -> Symbolic:
-    """The actuator's angle ``t_s`` after ``angle0_rad`` with ``command_rad`` held, (A2)."""
-    if steer_time_constant_s <= 0.0:
+                     steer_time_constant_s: Symbolic | float,
+                     lagged: bool | None = None) -> Symbolic:
+    """The actuator's angle ``t_s`` after ``angle0_rad`` with ``command_rad`` held, (A2).
+
+    ``lagged`` says whether the actuator lags at all (default: ``tau > 0``, which a symbolic
+    ``tau`` cannot answer)."""
+    if lagged is None:
+        lagged = steer_time_constant_s > 0.0
+    if not lagged:
         return command_rad
     return command_rad + (angle0_rad - command_rad) * ca.exp(-t_s / steer_time_constant_s)
 
 
 def vehicle_dynamics(vehicle_state: Symbolic, accel_mps2: Symbolic, steer_rad: Symbolic,
-                     params: SteeredBicycleParams) -> Symbolic:
+                     params: SteeredBicycleParams | ModelNumbers) -> Symbolic:
     """Time derivative of the six vehicle states at road-wheel angle ``steer_rad``:
     (D1)-(D6) with the guarded slip angles, the pose moved by (B1)-(B4)."""
+    numbers = params if isinstance(params, ModelNumbers) else ModelNumbers.of(params)
     by_name = {"accel_mps2": accel_mps2, "steer_rad": steer_rad}
     inputs = ca.vertcat(*(by_name[name] for name in bicycle.INPUT_NAMES))
-    dynamic = bicycle.continuous_dynamics(vehicle_state, inputs, params.bicycle.as_vector(),
-                                          params.low_speed_mps)
+    dynamic = bicycle.continuous_dynamics(vehicle_state, inputs, numbers.bicycle_vector,
+                                          numbers.low_speed_mps)
     yaw = vehicle_state[bicycle.STATE["yaw_rad"]]
     vx = vehicle_state[bicycle.STATE["vx_mps"]]
     vy = vehicle_state[bicycle.STATE["vy_mps"]]
     r = vehicle_state[bicycle.STATE["yaw_rate_radps"]]
-    wheelbase = params.bicycle.wheelbase_m
-    weight = ca.fmin(ca.fmax((vx - params.low_speed_mps)
-                             / (params.high_speed_mps - params.low_speed_mps), 0.0), 1.0)  # (B1)
+    wheelbase = numbers.wheelbase_m
+    weight = ca.fmin(ca.fmax((vx - numbers.low_speed_mps)
+                             / (numbers.high_speed_mps - numbers.low_speed_mps), 0.0),
+                     1.0)  # (B1)
     curvature = ca.tan(steer_rad) / wheelbase
-    vy_pose = weight * vy + (1.0 - weight) * vx * curvature * params.bicycle.cog_rear_m  # (B2)
+    vy_pose = weight * vy + (1.0 - weight) * vx * curvature * numbers.cog_rear_m  # (B2)
     r_pose = weight * r + (1.0 - weight) * vx * curvature  # (B3)
     derivative = {
         "x_m": vx * ca.cos(yaw) - vy_pose * ca.sin(yaw),  # (B4)
@@ -180,22 +241,22 @@ def _vehicle_part(state: Symbolic) -> Symbolic:
 
 
 def _advance(state: Symbolic, inputs: Symbolic, duration_s: Symbolic | float, substeps: int,
-             params: SteeredBicycleParams) -> Symbolic:
+             numbers: ModelNumbers) -> Symbolic:
     """``substeps`` RK4 steps over ``duration_s`` with the inputs held; the actuator by (A2)."""
     accel = inputs[INPUT["accel_mps2"]]
     command = inputs[INPUT["steer_rad"]]
     angle0 = state[STATE["road_wheel_angle_rad"]]
-    tau = params.steer_time_constant_s
+    tau, lagged = numbers.steer_time_constant_s, numbers.lagged
     h = duration_s / substeps
 
     def f(vehicle_state: Symbolic, t_s: Symbolic | float) -> Symbolic:
-        steer = road_wheel_angle(angle0, command, t_s, tau)
-        return vehicle_dynamics(vehicle_state, accel, steer, params)
+        steer = road_wheel_angle(angle0, command, t_s, tau, lagged)
+        return vehicle_dynamics(vehicle_state, accel, steer, numbers)
 
     vehicle = _vehicle_part(state)
     for i in range(substeps):
         vehicle = rk4_step_in_time(f, vehicle, i * h, h)
-    angle = road_wheel_angle(angle0, command, duration_s, tau)
+    angle = road_wheel_angle(angle0, command, duration_s, tau, lagged)
     return ca.vertcat(vehicle, angle)
 
 
@@ -214,17 +275,40 @@ def rk4_substeps(params: SteeredBicycleParams, dt_s: float,
     return max(1, math.ceil(dt_s * largest / RK4_STEP_LIMIT))
 
 
+def slip_angles_of(state: Symbolic, numbers: ModelNumbers) -> Symbolic:
+    """The axle slip angles (D1)-(D2) ``[front_slip_rad, rear_slip_rad]`` of ``state`` at
+    the road-wheel angle the actuator has reached, guarded at low speed."""
+    by_name = {"vy_mps": state[STATE["vy_mps"]], "yaw_rate_radps": state[STATE["yaw_rate_radps"]]}
+    lateral = ca.vertcat(*(by_name[name] for name in bicycle.LATERAL_STATE_NAMES))
+    alpha_f, alpha_r = bicycle.slip_angles(lateral, state[STATE["road_wheel_angle_rad"]],
+                                           state[STATE["vx_mps"]], numbers.bicycle_vector,
+                                           numbers.low_speed_mps)
+    return ca.vertcat(alpha_f, alpha_r)
+
+
 def slip_angle_function(params: SteeredBicycleParams) -> ca.Function:
     """``h(state) -> [front_slip_rad, rear_slip_rad]``: the axle slip angles (D1)-(D2) at
     the road-wheel angle the actuator has reached, guarded at low speed."""
     state = ca.SX.sym("state", len(STATE_NAMES))
-    by_name = {"vy_mps": state[STATE["vy_mps"]], "yaw_rate_radps": state[STATE["yaw_rate_radps"]]}
-    lateral = ca.vertcat(*(by_name[name] for name in bicycle.LATERAL_STATE_NAMES))
-    alpha_f, alpha_r = bicycle.slip_angles(lateral, state[STATE["road_wheel_angle_rad"]],
-                                           state[STATE["vx_mps"]], params.bicycle.as_vector(),
-                                           params.low_speed_mps)
-    return ca.Function("steered_dynamic_bicycle_slip", [state], [ca.vertcat(alpha_f, alpha_r)],
+    return ca.Function("steered_dynamic_bicycle_slip", [state],
+                       [slip_angles_of(state, ModelNumbers.of(params))],
                        ["state"], ["slip_rad"])
+
+
+def linear_range_of(bicycle_vector: Symbolic | np.ndarray,
+                    friction: Symbolic | float) -> tuple[Symbolic, Symbolic]:
+    """:func:`linear_range_slip_rad` from the bicycle's parameter vector and the friction,
+    floats or symbols."""
+    def p(name: str) -> Symbolic:
+        return bicycle_vector[bicycle.PARAM[name]]
+
+    weight_n = p("mass_kg") * bicycle.GRAVITY_MPS2
+    wheelbase = p("cog_front_m") + p("cog_rear_m")
+    front = friction * weight_n * p("cog_rear_m") / (wheelbase
+                                                     * p("cornering_stiffness_front_npr"))
+    rear = friction * weight_n * p("cog_front_m") / (wheelbase
+                                                     * p("cornering_stiffness_rear_npr"))
+    return front, rear
 
 
 def linear_range_slip_rad(params: SteeredBicycleParams, friction: float) -> tuple[float, float]:
@@ -233,11 +317,8 @@ def linear_range_slip_rad(params: SteeredBicycleParams, friction: float) -> tupl
     ``mu m g l_f / (L C_r)`` [rad]: beyond them the model's forces do not exist."""
     if not (math.isfinite(friction) and friction > 0.0):
         raise ConfigError(f"friction = {friction!r}: expected a positive number")
-    b = params.bicycle
-    weight_n = b.mass_kg * bicycle.GRAVITY_MPS2
-    front = friction * weight_n * b.cog_rear_m / (b.wheelbase_m * b.cornering_stiffness_front_npr)
-    rear = friction * weight_n * b.cog_front_m / (b.wheelbase_m * b.cornering_stiffness_rear_npr)
-    return front, rear
+    front, rear = linear_range_of(params.bicycle.as_vector(), friction)
+    return float(front), float(rear)
 
 
 def continuous_function(params: SteeredBicycleParams) -> ca.Function:
@@ -260,8 +341,28 @@ def discrete_function(params: SteeredBicycleParams, dt_s: float,
     state = ca.SX.sym("state", len(STATE_NAMES))
     inputs = ca.SX.sym("inputs", len(INPUT_NAMES))
     return ca.Function("steered_dynamic_bicycle_rk4", [state, inputs],
-                       [_advance(state, inputs, dt_s, substeps, params)],
+                       [_advance(state, inputs, dt_s, substeps, ModelNumbers.of(params))],
                        ["state", "inputs"], ["next_state"])
+
+
+def belief_discrete_function(params: SteeredBicycleParams, dt_s: float,
+                             substeps: int | None = None) -> ca.Function:
+    """``F(state, inputs, belief) -> next_state``: :func:`discrete_function` with the belief
+    an input (:data:`BELIEF_NAMES`, :func:`belief_vector`) rather than numbers in the code;
+    ``params`` gives the shape (:class:`ModelNumbers`) and the default substeps. At
+    ``belief = belief_vector(params)`` it computes what ``discrete_function(params, dt_s)``
+    does, operation for operation."""
+    if substeps is None:
+        substeps = rk4_substeps(params, dt_s)
+    if not (isinstance(substeps, int) and substeps >= 1):
+        raise ConfigError(f"substeps = {substeps!r}: expected an integer >= 1")
+    state = ca.SX.sym("state", len(STATE_NAMES))
+    inputs = ca.SX.sym("inputs", len(INPUT_NAMES))
+    belief = ca.SX.sym("belief", len(BELIEF_NAMES))
+    numbers = ModelNumbers.symbolic(belief, params)
+    return ca.Function("steered_dynamic_bicycle_rk4_belief", [state, inputs, belief],
+                       [_advance(state, inputs, dt_s, substeps, numbers)],
+                       ["state", "inputs", "belief"], ["next_state"])
 
 
 def predict_function(params: SteeredBicycleParams, substeps: int = 4) -> ca.Function:
@@ -275,5 +376,5 @@ def predict_function(params: SteeredBicycleParams, substeps: int = 4) -> ca.Func
     inputs = ca.SX.sym("inputs", len(INPUT_NAMES))
     duration = ca.SX.sym("duration_s")
     return ca.Function("steered_dynamic_bicycle_predict", [state, inputs, duration],
-                       [_advance(state, inputs, duration, substeps, params)],
+                       [_advance(state, inputs, duration, substeps, ModelNumbers.of(params))],
                        ["state", "inputs", "duration_s"], ["predicted_state"])

@@ -34,6 +34,7 @@ from __future__ import annotations
 import math
 
 import casadi as ca
+import numpy as np
 
 from cosim.core.exceptions import ConfigError
 from cosim.core.vehicle_params import VehicleParams
@@ -42,6 +43,8 @@ from tracker.models.steered_dynamic_bicycle import INPUT, STATE, STATE_NAMES, St
 
 AIR_DENSITY_KGPM3 = 1.225
 """ISA sea-level air density [kg/m^3] (as the low-level layer's belief)."""
+
+Symbolic = ca.SX | ca.MX | ca.DM
 
 LIMIT_NAMES: tuple[str, ...] = ("front_friction_usage_sq", "rear_friction_usage_sq")
 """The outputs of :func:`friction_usage_function`: ``u_f`` and ``u_r`` of (T4)."""
@@ -55,6 +58,67 @@ def _drive_shares(drive: str) -> tuple[float, float]:
     return shares[drive]
 
 
+USAGE_BELIEF_NAMES: tuple[str, ...] = (
+    "cog_height_m", "drag_area_m2", "rolling_resistance", "front_drive_share",
+    "rear_drive_share", "tyre_friction")
+"""The numbers (T1)-(T4) read besides the bicycle's, in vector order
+(:func:`usage_belief_vector`, :func:`friction_usage`)."""
+
+
+def usage_belief_vector(vehicle: VehicleParams, friction: float) -> np.ndarray:
+    """The numbers of :data:`USAGE_BELIEF_NAMES` for the belief ``vehicle`` and the friction
+    ``friction``."""
+    if not (math.isfinite(friction) and friction > 0.0):
+        raise ConfigError(f"friction = {friction!r}: expected a positive number")
+    front_share, rear_share = _drive_shares(vehicle.drive)
+    return np.array([vehicle.cog_height_m, vehicle.drag_area_m2, vehicle.rolling_resistance,
+                     front_share, rear_share, friction], dtype=float)
+
+
+def friction_usage(state: Symbolic, inputs: Symbolic, bicycle_vector: Symbolic | np.ndarray,
+                   usage_belief: Symbolic | np.ndarray, low_speed_mps: float) -> Symbolic:
+    """``[u_f, u_r]`` of (T1)-(T4) at ``state`` with ``inputs``: the bicycle's numbers
+    (:data:`tracker.models.dynamic_bicycle.PARAM_NAMES`) and the others
+    (:data:`USAGE_BELIEF_NAMES`) as floats or symbols; the slip angles guarded below
+    ``low_speed_mps`` as the model's."""
+    def b(name: str) -> Symbolic:
+        return bicycle_vector[bicycle.PARAM[name]]
+
+    def v(name: str) -> Symbolic:
+        return usage_belief[USAGE_BELIEF_NAMES.index(name)]
+
+    g = bicycle.GRAVITY_MPS2
+    accel = inputs[INPUT["accel_mps2"]]
+    vx = state[STATE["vx_mps"]]
+    mass, height = b("mass_kg"), v("cog_height_m")
+    cog_front, cog_rear = b("cog_front_m"), b("cog_rear_m")
+    wheelbase = cog_front + cog_rear
+
+    resistance = (0.5 * AIR_DENSITY_KGPM3 * v("drag_area_m2") * vx * ca.fabs(vx)
+                  + v("rolling_resistance") * mass * g)
+    force_x = mass * accel + resistance  # (T1)
+    load_front = mass * (g * cog_rear - accel * height) / wheelbase  # (T2)
+    load_rear = mass * (g * cog_front + accel * height) / wheelbase
+    drive = ca.fmax(force_x, 0.0)
+    brake = ca.fmin(force_x, 0.0)
+    weight = mass * g
+    force_x_front = v("front_drive_share") * drive + brake * load_front / weight  # (T3)
+    force_x_rear = v("rear_drive_share") * drive + brake * load_rear / weight
+
+    lateral = ca.vertcat(state[STATE["vy_mps"]], state[STATE["yaw_rate_radps"]])
+    alpha_f, alpha_r = bicycle.slip_angles(lateral, state[STATE["road_wheel_angle_rad"]], vx,
+                                           bicycle_vector, low_speed_mps)
+    force_y_front = b("cornering_stiffness_front_npr") * alpha_f
+    force_y_rear = b("cornering_stiffness_rear_npr") * alpha_r
+    # A load cannot fall below a tenth of the static one in the formula (a plan braking
+    # or accelerating beyond any road's grip must not divide by zero).
+    friction = v("tyre_friction")
+    grip_front = friction * ca.fmax(load_front, 0.1 * weight * cog_rear / wheelbase)
+    grip_rear = friction * ca.fmax(load_rear, 0.1 * weight * cog_front / wheelbase)
+    return ca.vertcat((force_x_front**2 + force_y_front**2) / grip_front**2,  # (T4)
+                      (force_x_rear**2 + force_y_rear**2) / grip_rear**2)
+
+
 def friction_usage_function(vehicle: VehicleParams, params: SteeredBicycleParams,
                             friction: float, low_speed_mps: float | None = None
                             ) -> ca.Function:
@@ -62,40 +126,11 @@ def friction_usage_function(vehicle: VehicleParams, params: SteeredBicycleParams
     CoG height, drag, rolling resistance, driven axles) with the axle stiffnesses of
     ``params`` and the friction ``friction``; the slip angles guarded at low speed as the
     model's (default: ``params.low_speed_mps``)."""
-    if not (math.isfinite(friction) and friction > 0.0):
-        raise ConfigError(f"friction = {friction!r}: expected a positive number")
     guard = params.low_speed_mps if low_speed_mps is None else low_speed_mps
-    b = params.bicycle
-    g = bicycle.GRAVITY_MPS2
+    usage_belief = usage_belief_vector(vehicle, friction)
     state = ca.SX.sym("state", len(STATE_NAMES))
     inputs = ca.SX.sym("inputs", len(INPUT))
-    accel = inputs[INPUT["accel_mps2"]]
-    vx = state[STATE["vx_mps"]]
-    mass, height, wheelbase = b.mass_kg, vehicle.cog_height_m, b.wheelbase_m
-
-    resistance = (0.5 * AIR_DENSITY_KGPM3 * vehicle.drag_area_m2 * vx * ca.fabs(vx)
-                  + vehicle.rolling_resistance * mass * g)
-    force_x = mass * accel + resistance  # (T1)
-    load_front = mass * (g * b.cog_rear_m - accel * height) / wheelbase  # (T2)
-    load_rear = mass * (g * b.cog_front_m + accel * height) / wheelbase
-    drive = ca.fmax(force_x, 0.0)
-    brake = ca.fmin(force_x, 0.0)
-    front_share, rear_share = _drive_shares(vehicle.drive)
-    weight = mass * g
-    force_x_front = front_share * drive + brake * load_front / weight  # (T3)
-    force_x_rear = rear_share * drive + brake * load_rear / weight
-
-    lateral = ca.vertcat(state[STATE["vy_mps"]], state[STATE["yaw_rate_radps"]])
-    alpha_f, alpha_r = bicycle.slip_angles(lateral, state[STATE["road_wheel_angle_rad"]], vx,
-                                           b.as_vector(), guard)
-    force_y_front = b.cornering_stiffness_front_npr * alpha_f
-    force_y_rear = b.cornering_stiffness_rear_npr * alpha_r
-    # A load cannot fall below a tenth of the static one in the formula (a plan braking
-    # or accelerating beyond any road's grip must not divide by zero).
-    grip_front = friction * ca.fmax(load_front, 0.1 * weight * b.cog_rear_m / wheelbase)
-    grip_rear = friction * ca.fmax(load_rear, 0.1 * weight * b.cog_front_m / wheelbase)
-    usage = ca.vertcat((force_x_front**2 + force_y_front**2) / grip_front**2,  # (T4)
-                       (force_x_rear**2 + force_y_rear**2) / grip_rear**2)
+    usage = friction_usage(state, inputs, params.bicycle.as_vector(), usage_belief, guard)
     return ca.Function("tyre_friction_usage", [state, inputs], [usage],
                        ["state", "inputs"], ["usage_sq"])
 

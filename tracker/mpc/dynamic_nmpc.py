@@ -23,23 +23,80 @@ slack variables. The measurements behind each choice: README, "Why the defaults"
 
 from __future__ import annotations
 
+import casadi as ca
+import numpy as np
+
 from cosim.core.exceptions import ConfigError
 from tracker.config import TrackerConfig
+from tracker.models import dynamic_bicycle as bicycle
 from tracker.models.steered_dynamic_bicycle import (
+    BELIEF_NAMES,
     INPUT_NAMES,
     STATE_NAMES,
     VEHICLE_STATE_NAMES,
+    ModelNumbers,
     SteeredBicycleParams,
+    belief_discrete_function,
+    belief_vector,
     discrete_function,
+    linear_range_of,
     linear_range_slip_rad,
     predict_function,
     slip_angle_function,
+    slip_angles_of,
 )
-from tracker.models.tyre_limits import LIMIT_NAMES, friction_usage_function, usage_bounds
+from tracker.models.tyre_limits import (
+    LIMIT_NAMES,
+    USAGE_BELIEF_NAMES,
+    friction_usage,
+    friction_usage_function,
+    usage_belief_vector,
+    usage_bounds,
+)
 from tracker.mpc.nmpc import Nmpc, NmpcModel
 
 TRACKER_NAME = "dynamic-nmpc"
 """``tracker.name`` of this tracker."""
+
+NLP_BELIEF_NAMES: tuple[str, ...] = BELIEF_NAMES + USAGE_BELIEF_NAMES + ("usage_max",)
+"""The belief as the NLP takes it, one parameter each: the steered bicycle's numbers
+(:data:`tracker.models.steered_dynamic_bicycle.BELIEF_NAMES`), those of the friction
+ellipse (:data:`tracker.models.tyre_limits.USAGE_BELIEF_NAMES`, the friction among them,
+which also bounds the slip angles) and ``grip.usage_max``."""
+
+
+def _belief_functions(config: TrackerConfig, params: SteeredBicycleParams,
+                      tyre_limits: bool) -> dict[str, object]:
+    """The model's NLP functions with the belief :data:`NLP_BELIEF_NAMES` as an input, and
+    its numbers for ``config``: one NLP for every belief of the same shape (whether the
+    actuator lags, whether the friction ellipse is on, the RK4 substeps)."""
+    n_steered, n_bicycle = len(BELIEF_NAMES), len(bicycle.PARAM_NAMES)
+    n_usage = len(USAGE_BELIEF_NAMES)
+    numbers = np.concatenate((belief_vector(params),
+                              usage_belief_vector(config.model, config.model.tyre_friction),
+                              [config.grip.usage_max]))
+    state = ca.SX.sym("state", len(STATE_NAMES))
+    inputs = ca.SX.sym("inputs", len(INPUT_NAMES))
+    belief = ca.SX.sym("belief", len(NLP_BELIEF_NAMES))
+    steered, usage = belief[:n_steered], belief[n_steered:n_steered + n_usage]
+    friction = usage[USAGE_BELIEF_NAMES.index("tyre_friction")]
+    usage_max = belief[NLP_BELIEF_NAMES.index("usage_max")]
+    step = belief_discrete_function(params, config.dt_s)
+    slip = slip_angles_of(state, ModelNumbers.symbolic(steered, params))
+    slip_bounds = ca.vertcat(*linear_range_of(steered[:n_bicycle], friction))
+    functions: dict[str, object] = {
+        "belief": tuple(float(v) for v in numbers),
+        "belief_step": ca.Function("dynamic_nmpc_step", [state, inputs, belief],
+                                   [step(state, inputs, steered)]),
+        "belief_limits": ca.Function("dynamic_nmpc_slip", [state, belief],
+                                     [slip, slip_bounds]),
+    }
+    if tyre_limits:
+        g = friction_usage(state, inputs, steered[:n_bicycle], usage, params.low_speed_mps)
+        functions["belief_stage_limits"] = ca.Function(
+            "dynamic_nmpc_usage", [state, inputs, belief],
+            [g, ca.vertcat(usage_max**2, usage_max**2)])
+    return functions
 
 
 def dynamic_model(config: TrackerConfig) -> NmpcModel:
@@ -77,6 +134,7 @@ def dynamic_model(config: TrackerConfig) -> NmpcModel:
         limit_names=("front_slip_rad", "rear_slip_rad"),
         limit_bounds=linear_range_slip_rad(params, config.model.tyre_friction),
         **tyre_limits,
+        **_belief_functions(config, params, bool(tyre_limits)),
     )
 
 

@@ -63,6 +63,7 @@ from types import MappingProxyType
 
 import numpy as np
 
+from cosim.core.dense_function import DenseFunction, densified
 from cosim.core.exceptions import ConfigError
 from tracker.config import TrackerConfig
 from tracker.mpc.base import Solved, Start
@@ -102,6 +103,7 @@ class Nmpc(EstimatedStartMpc):
         self.state_names: tuple[str, ...] = model.state_names
         self.input_names: tuple[str, ...] = model.input_names
         self._state = MappingProxyType({name: i for i, name in enumerate(model.state_names)})
+        self._step = DenseFunction(densified(model.step)).first  # a stage, numerically
         self._problem = NmpcProblem(config, model)
         self._params = self._problem.params
         self._nlp = self._problem.build()
@@ -119,10 +121,12 @@ class Nmpc(EstimatedStartMpc):
 
     def _solve(self, t_s: float, start: Start, reference: ReferencePath) -> Solved:
         state0 = start.state
-        guess = self._warm_start(t_s, state0, self.model.step, self._state["yaw_rad"])
+        guess = self._warm_start(t_s, state0, self._step, self._state["yaw_rad"])
         blocks, speed_reduced = self._reference_blocks(reference, state0, guess.states, t_s)
         blocks["state0"] = state0
         blocks["input_prev"] = self._previous_input
+        blocks["belief"] = self._problem.belief_values
+        blocks["weights"] = self._problem.weight_values
         params = self._params.pack(blocks)
         nlp = self._nlp
         w0 = nlp.pack(guess.states, guess.inputs, self._previous_input)
@@ -136,7 +140,7 @@ class Nmpc(EstimatedStartMpc):
         states = np.empty((inputs.shape[0] + 1, len(self.state_names)))
         states[0] = start.state
         for k, u in enumerate(inputs):
-            states[k + 1] = np.asarray(self.model.step(states[k], u), dtype=float).ravel()
+            states[k + 1] = self._step(states[k], u)
         return states
 
     def _reference_blocks(

@@ -59,6 +59,18 @@ class NmpcModel:
     """Names of ``g``'s outputs, in order."""
     stage_limit_bounds: tuple[float, ...] = ()
     """``g_max`` for each of ``g``'s outputs: the soft bound ``|g| <= g_max``."""
+    belief: tuple[float, ...] = ()
+    """The belief's numbers as the NLP takes them, a parameter of every solve (so the NLP,
+    and its compiled code, is the same for every belief of the same shape); empty for a
+    model whose functions carry their numbers. With a belief, ``belief_step`` replaces
+    ``step`` in the NLP and ``belief_limits``/``belief_stage_limits`` replace the limits
+    and their bounds; at ``belief`` each computes what the plain function does."""
+    belief_step: ca.Function | None = None
+    """``F(state, inputs, belief) -> next_state``."""
+    belief_limits: ca.Function | None = None
+    """``(state, belief) -> (h, h_max)``: the limits and their bounds."""
+    belief_stage_limits: ca.Function | None = None
+    """``(state, inputs, belief) -> (g, g_max)``: the stage limits and their bounds."""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "internal_rest_inputs",
@@ -109,3 +121,50 @@ class NmpcModel:
                     or function.size1_in(1) != n_u or function.size1_out(0) != n_x):
                 raise ConfigError(f"model {self.name}: {function.name()} does not match "
                                   f"{n_x} states and {n_u} inputs")
+        self._check_belief()
+
+    def _check_belief(self) -> None:
+        n_b = len(self.belief)
+        given = {"belief_step": self.belief_step, "belief_limits": self.belief_limits,
+                 "belief_stage_limits": self.belief_stage_limits}
+        if not n_b:
+            if any(function is not None for function in given.values()):
+                raise ConfigError(f"model {self.name}: belief functions need a belief")
+            return
+        if self.belief_step is None:
+            raise ConfigError(f"model {self.name}: a belief needs belief_step")
+        for label, function, plain in (("belief_limits", self.belief_limits, self.limits),
+                                       ("belief_stage_limits", self.belief_stage_limits,
+                                        self.stage_limits)):
+            if (function is None) != (plain is None):
+                raise ConfigError(f"model {self.name}: {label} must be given exactly when "
+                                  "the plain limits are")
+        for label, function in given.items():
+            if function is not None and function.size1_in(function.n_in() - 1) != n_b:
+                raise ConfigError(f"model {self.name}: {label} takes a belief of "
+                                  f"{function.size1_in(function.n_in() - 1)} numbers, "
+                                  f"expected {n_b}")
+
+    def nlp_step(self, state: ca.SX, inputs: ca.SX, belief: ca.SX) -> ca.SX:
+        """The NLP's step from ``state``: ``belief_step`` with the belief parameter, else
+        ``step``."""
+        if self.belief_step is not None:
+            return self.belief_step(state, inputs, belief)
+        return self.step(state, inputs)
+
+    def nlp_limits(self, state: ca.SX, belief: ca.SX) -> tuple[ca.SX, ca.SX] | None:
+        """``(h, h_max)`` at ``state`` as the NLP takes them, or None without limits."""
+        if self.belief_limits is not None:
+            return self.belief_limits(state, belief)
+        if self.limits is None:
+            return None
+        return self.limits(state), ca.DM(list(self.limit_bounds))
+
+    def nlp_stage_limits(self, state: ca.SX, inputs: ca.SX,
+                         belief: ca.SX) -> tuple[ca.SX, ca.SX] | None:
+        """``(g, g_max)`` of a stage as the NLP takes them, or None without stage limits."""
+        if self.belief_stage_limits is not None:
+            return self.belief_stage_limits(state, inputs, belief)
+        if self.stage_limits is None:
+            return None
+        return self.stage_limits(state, inputs), ca.DM(list(self.stage_limit_bounds))

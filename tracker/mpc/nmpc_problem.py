@@ -40,22 +40,27 @@ README, "Why the defaults", NMPC solvers; ``bench/solve_time.py`` times them on 
 
 from __future__ import annotations
 
-import math
+import json
 import warnings
 from collections.abc import Mapping
-from types import MappingProxyType
+from dataclasses import fields
+from types import MappingProxyType, SimpleNamespace
 
 import casadi as ca
 import numpy as np
 
 from cosim.core.compiled_function import CompiledCacheWarning, compiled_library
 from cosim.core.exceptions import ConfigError
-from tracker.config import TrackerConfig
+from tracker.config import TrackerConfig, TrackerWeights
 from tracker.mpc.fallback import INPUT, INPUT_NAMES
 from tracker.mpc.nlp import Nlp, RealTimeIteration, StagedProblem
 from tracker.mpc.nmpc_model import NmpcModel
 from tracker.mpc.tracking_cost import input_terms, tracking_terms, weighted_squares
 from tracker.mpc.vector_layout import VectorLayout
+
+WEIGHT_NAMES: tuple[str, ...] = tuple(field.name for field in fields(TrackerWeights))
+"""``tracker.weights`` as the NLP's ``weights`` parameters take them, in vector order: every
+weight is a parameter, so one NLP (and one compiled library) serves every weighting."""
 
 _REFERENCE_BLOCKS: tuple[str, ...] = (
     "ref_x_m", "ref_y_m", "ref_yaw_rad", "ref_speed_mps", "ref_steer_rad")
@@ -86,8 +91,15 @@ class NmpcProblem:
                 ("ref_yaw_rad", n),
                 ("ref_speed_mps", n),
                 ("ref_steer_rad", n),
+                ("belief", len(model.belief)),
+                ("weights", len(WEIGHT_NAMES)),
             )
         )
+        self.belief_values = np.array(model.belief, dtype=float)
+        """The ``belief`` block of every solve's parameters (the model's numbers)."""
+        self.weight_values = np.array([float(getattr(config.weights, name))
+                                       for name in WEIGHT_NAMES])
+        """The ``weights`` block (``tracker.weights``, :data:`WEIGHT_NAMES` order)."""
 
     def build(self) -> Nlp:
         """The NLP with the solver ``tracker.solver`` (IPOPT, fatrop or the real-time
@@ -117,20 +129,20 @@ class NmpcProblem:
         them (``|excess|^2`` for a vector); the Gauss-Newton Hessian of the real-time
         iteration uses the errors.
         """
-        w = self.config.weights
+        w = SimpleNamespace(**dict(zip(WEIGHT_NAMES, ca.vertsplit(par["weights"]),
+                                       strict=True)))
         inputs = input_terms(u, previous, self.config.dt_s, w, par["ref_steer_rad"][k])
         tracking = tracking_terms(x, self._state, par["ref_x_m"][k], par["ref_y_m"][k],
                                   par["ref_yaw_rad"][k], par["ref_speed_mps"][k], w)
         excess = []
-        if self.model.limits is not None:
-            h = self.model.limits(x)
-            excess.append((w.limit_excess,
-                           ca.fmax(ca.fabs(h) - ca.DM(list(self.model.limit_bounds)), 0.0)))
-        if self.model.stage_limits is not None:
-            g = self.model.stage_limits(x_start, u)
-            excess.append((w.tyre_excess,
-                           ca.fmax(ca.fabs(g) - ca.DM(list(self.model.stage_limit_bounds)),
-                                   0.0)))
+        limits = self.model.nlp_limits(x, par["belief"])
+        if limits is not None:
+            h, h_max = limits
+            excess.append((w.limit_excess, ca.fmax(ca.fabs(h) - h_max, 0.0)))
+        stage_limits = self.model.nlp_stage_limits(x_start, u, par["belief"])
+        if stage_limits is not None:
+            g, g_max = stage_limits
+            excess.append((w.tyre_excess, ca.fmax(ca.fabs(g) - g_max, 0.0)))
         return inputs, tracking, excess
 
     def input_bounds(self) -> tuple[np.ndarray, np.ndarray]:
@@ -173,7 +185,8 @@ class NmpcProblem:
         previous = par["input_prev"]
         for k in range(n):
             u = inputs[:, k]
-            dynamics.append(states[:, k + 1] - self.model.step(states[:, k], u))
+            dynamics.append(states[:, k + 1]
+                            - self.model.nlp_step(states[:, k], u, par["belief"]))
             steer_rate.append(u[INPUT["steer_rad"]] - previous[INPUT["steer_rad"]])
             input_terms, tracking_terms, excess = self.stage_terms(
                 u, previous, states[:, k + 1], par, k, states[:, k])
@@ -244,17 +257,20 @@ class NmpcProblem:
         z_next = ca.SX.sym("z_next", n_x + n_u)
         ref = ca.SX.sym("ref", len(_REFERENCE_BLOCKS))
         point = {name: ref[i:i + 1] for i, name in enumerate(_REFERENCE_BLOCKS)}
+        belief = ca.SX.sym("belief", len(self.model.belief))
+        weights = ca.SX.sym("weights", len(WEIGHT_NAMES))
+        point.update(belief=belief, weights=weights)
         input_terms, tracking_terms, excess = self.stage_terms(
             u, z[n_x:], z_next[:n_x], point, 0, z[:n_x])
         cost = dt * weighted_squares(input_terms) + dt * weighted_squares(tracking_terms)
-        residuals = [math.sqrt(dt * weight) * error
+        residuals = [ca.sqrt(dt * weight) * error
                      for weight, error in input_terms + tracking_terms]
         for weight, vector in excess:
             cost += dt * weight * ca.sumsqr(vector)
-            residuals.append(math.sqrt(dt * weight) * vector)
-        dynamics = z_next - ca.vertcat(self.model.step(z[:n_x], u), u)
+            residuals.append(ca.sqrt(dt * weight) * vector)
+        dynamics = z_next - ca.vertcat(self.model.nlp_step(z[:n_x], u, belief), u)
         steer_rate = u[INPUT["steer_rad"]] - z[n_x + INPUT["steer_rad"]]
-        return ca.Function("stage", [z, u, z_next, ref],
+        return ca.Function("stage", [z, u, z_next, ref, belief, weights],
                            [cost, dynamics, steer_rate, ca.vertcat(*residuals)])
 
     def staged_problem(self, symbol: type = ca.SX) -> StagedProblem:
@@ -288,7 +304,8 @@ class NmpcProblem:
         z = ca.horzcat(stages[:n_z, :], x[stage_size * n:])
         references = ca.horzcat(*(par[name] for name in _REFERENCE_BLOCKS)).T
         costs, dynamics, steer_rates, residuals = self.stage_function().map(n)(
-            z[:, :n], stages[n_z:, :], z[:, 1:], references)
+            z[:, :n], stages[n_z:, :], z[:, 1:], references,
+            ca.repmat(par["belief"], 1, n), ca.repmat(par["weights"], 1, n))
         rate_step = cfg.max_steer_rate_radps * dt
 
         rows, lbg, ubg = [], [], []
@@ -349,11 +366,26 @@ class NmpcProblem:
         if cfg.compiled:
             problem = self.staged_problem(ca.MX)
             options.update(problem.structure)
-            oracle = ca.nlpsol(name, "fatrop", dict(problem.nlp), options)
-            # The NLP itself ("nlp": x, p -> f, g) and what the solver derived from it.
-            functions = [oracle.oracle(), *map(oracle.get_function, oracle.get_function())]
-            library = compiled_library(f"nmpc_{name}", functions, ("-O1",))
-            if library is not None:
+
+            def functions() -> list[ca.Function]:
+                """The NLP itself ("nlp": x, p -> f, g) and what fatrop derives from it."""
+                oracle = ca.nlpsol(name, "fatrop", dict(problem.nlp), options)
+                return [oracle.oracle(), *map(oracle.get_function, oracle.get_function())]
+
+            # The NLP's graph and the options determine every derived function; hashing
+            # them (about 1 ms) instead of the generated C (0.1 s) finds the cached library.
+            nlp = problem.nlp
+            key = json.dumps(options, sort_keys=True) + ca.Function(
+                "nlp", [nlp["x"], nlp["p"]], [nlp["f"], nlp["g"]]).serialize()
+            library = compiled_library(
+                f"nmpc_{name}", functions, ("-O1",), key=key,
+                note=f"compiling {self.model.name.replace('_', '-')}'s NLP to C (about 10 s)")
+            if library is None:
+                warnings.warn("no working C compiler (gcc, or $CC): the NMPC's NLP runs in "
+                              "CasADi's virtual machine, about 2x slower "
+                              "(tracker.compiled=false says so quietly)",
+                              CompiledCacheWarning, stacklevel=2)
+            else:
                 try:
                     solver = ca.nlpsol(name, "fatrop", str(library), options)
                 except RuntimeError as error:  # checked, so only a changing file gets here

@@ -21,6 +21,7 @@ from types import MappingProxyType
 import casadi as ca
 import numpy as np
 
+from cosim.core.dense_function import DenseFunction, densified
 from cosim.core.exceptions import ConfigError
 from cosim.core.records import Estimate
 from tracker.mpc.base import MpcTracker, Start
@@ -48,7 +49,7 @@ class StartingState:
         self._index = MappingProxyType({name: i for i, name in enumerate(state_names)})
         self._estimated = estimated_names
         self._rest_inputs = internal_rest_inputs
-        self._predict_function = predict
+        self._predict_function = DenseFunction(densified(predict)).first
         self._issued = issued
         self.reset()
 
@@ -60,8 +61,7 @@ class StartingState:
         """``state`` at ``start_s`` moved to ``end_s`` through the inputs the car applies
         (the delay line), one held input per piece."""
         for duration_s, inputs in self._issued.segments(start_s, end_s):
-            state = np.asarray(self._predict_function(state, inputs, duration_s),
-                               dtype=float).ravel()
+            state = self._predict_function(state, inputs, duration_s)
         return state
 
     def _internal_states(self, t_s: float) -> dict[str, float]:

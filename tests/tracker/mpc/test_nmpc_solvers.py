@@ -13,11 +13,13 @@ actuator): each tracker drives its own model, on a perfect estimate.
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 
+from cosim.core.compiled_function import CompiledCacheWarning
 from cosim.core.config_fields import from_dict
 from cosim.core.exceptions import ConfigError
 from cosim.core.records import Command, Estimate
@@ -329,7 +331,7 @@ class _CompiledBeside:
     compiled NLP (``tracker.compiled``) is fed the same estimates. Records both plans."""
 
     def __init__(self, config: TrackerConfig) -> None:
-        self.driver = _tracker(config)
+        self.driver = _tracker(dataclasses.replace(config, compiled=False))
         self.compiled = _tracker(dataclasses.replace(config, compiled=True))
         self.plans: dict[str, list[Any]] = {"vm": [], "compiled": []}
 
@@ -356,12 +358,52 @@ def test_the_compiled_nlp_gives_the_virtual_machines_plans() -> None:
         [p.iterations for p in both.plans["vm"]]
 
 
-def test_without_a_c_compiler_the_virtual_machine_solves(
+def test_without_a_c_compiler_the_virtual_machine_solves_with_one_warning(
         monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("CC", "no-such-compiler")
     config = _config("dynamic-nmpc", "fatrop")
-    compiled = _tracker(dataclasses.replace(config, compiled=True))
+    assert config.compiled  # the default
+    with pytest.warns(CompiledCacheWarning, match="no working C compiler") as caught:
+        compiled = _tracker(config)
+    assert len(caught) == 1
     estimate = _estimate("dynamic-nmpc", 0.0, 0.3, 0.02, 15.0)
     command, plan = compiled.step(0.0, estimate, LANE_CHANGE)
     assert plan.success
-    assert command == _tracker(config).step(0.0, estimate, LANE_CHANGE)[0]
+    quiet = dataclasses.replace(config, compiled=False)
+    assert command == _tracker(quiet).step(0.0, estimate, LANE_CHANGE)[0]
+
+
+@pytest.mark.slow
+def test_one_compiled_nlp_serves_every_belief_and_weighting(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capfd: pytest.CaptureFixture[str]) -> None:
+    # Every number of the model and every weight is a parameter of the compiled NLP: built
+    # once (in a fresh cache, with one note), it serves a car 30 % heavier with half the
+    # rear cornering stiffness and three times the lateral-error weight, and solves that
+    # NLP as CasADi's virtual machine does, not the default one.
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    default = _config("dynamic-nmpc", "fatrop")
+    model = default.model
+    other = dataclasses.replace(
+        default,
+        model=dataclasses.replace(
+            model, mass_kg=1.3 * model.mass_kg,
+            cornering_stiffness_rear_npr=0.5 * model.cornering_stiffness_rear_npr),
+        weights=dataclasses.replace(default.weights, cte=3.0 * default.weights.cte))
+    _tracker(default)
+    assert capfd.readouterr().err.count("cosim: note: compiling") == 1
+    compiled = _tracker(other)
+    assert capfd.readouterr().err == ""
+    assert len(list((tmp_path / "cosim").iterdir())) == 1
+    estimate = _estimate("dynamic-nmpc", 0.0, 0.3, 0.02, 15.0)
+    plan = compiled.step(0.0, estimate, LANE_CHANGE)[1]
+
+    def vm_plan(config: TrackerConfig) -> Any:
+        return _tracker(dataclasses.replace(config, compiled=False)).step(
+            0.0, estimate, LANE_CHANGE)[1]
+
+    assert max(_largest_differences([plan], [vm_plan(other)]).values()) < 1e-9
+    # Each of the changed numbers moved the plan: none was left at its default.
+    for partly in (dataclasses.replace(other, model=model),
+                   dataclasses.replace(other, weights=default.weights)):
+        assert max(_largest_differences([plan], [vm_plan(partly)]).values()) > 1e-4
