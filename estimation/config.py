@@ -238,6 +238,15 @@ class EstimatorConfig:
         doc="after a sensor's updates fail the gate for this long, fuse them ungated",
     )
 
+    compiled: bool = setting(
+        True,
+        doc="ekf: evaluate the process model's sub-step and the measurement models as C "
+        "compiled with gcc (one library, built once per machine with a note and cached "
+        "under ~/.cache/cosim; the belief's numbers are its parameters, so one build serves "
+        "every belief) instead of CasADi's virtual machine: the same estimates, the filter "
+        "about 2x faster. Without a C compiler: the virtual machine, with a warning",
+    )
+
     # Unscented transform (ukf only): Van der Merwe's scaled sigma points.
     ukf_alpha: float = setting(1.0, low=1e-4, high=1.0, doc="spread of the sigma points")
     ukf_beta: float = setting(2.0, low=0.0, high=10.0, doc="prior knowledge of the distribution")

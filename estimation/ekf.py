@@ -19,6 +19,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from cosim.core.dense_function import DenseFunction
 from estimation.fusion import KalmanFusion
 from estimation.innovation import Selection, TrialUpdate, residual_function
 from estimation.measurement_models import MeasurementModel
@@ -55,6 +56,12 @@ class Ekf(KalmanFusion):
 
     def _set_covariance(self, covariance: np.ndarray) -> None:
         self._covariance = covariance
+
+    def _hot_functions(self) -> tuple[DenseFunction, ...]:
+        """The sub-step of the process model and every measurement model's ``h`` with its
+        Jacobian: the EKF's whole evaluation of its models."""
+        return (*self._process.compiled_functions(),
+                *(model.function for model in self._models.values()))
 
     def _predict_substep(self, dt_s: float) -> None:
         """One RK4 sub-step of the process model for the mean; ``F P F' + Q``."""

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -32,6 +33,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import chdtri
 
+from cosim.core.compiled_function import CompiledCacheWarning, load_library
+from cosim.core.dense_function import DenseFunction
 from cosim.core.exceptions import ConfigError
 from cosim.core.initial_state import InitialState
 from cosim.core.records import Estimate, Measurement
@@ -133,6 +136,8 @@ class KalmanFusion(ABC):
             tyre_model=config.tyre_model,
             roll=roll,
         )
+        if config.compiled:
+            _use_compiled(self.kind, self._hot_functions())
         self._angle_indices = tuple(state_index(name) for name in ANGLE_STATES)
         self._noise_variances = config.noise.channel_variances()
         mean, covariance = initial_belief(config, initial, rng)
@@ -235,6 +240,11 @@ class KalmanFusion(ABC):
             probability = self._config.gate_probability
             self._gate_thresholds[dim] = float(chdtri(dim, 1.0 - probability))
         return self._gate_thresholds[dim]
+
+    def _hot_functions(self) -> tuple[DenseFunction, ...]:
+        """The model functions this filter evaluates at every step, compiled to C with
+        ``estimator.compiled`` (none by default)."""
+        return ()
 
     # ----------------------------------------------------------------------------- predict
 
@@ -640,3 +650,22 @@ class KalmanFusion(ABC):
 
     def _is_finite(self) -> bool:
         return bool(np.isfinite(self._x).all() and np.isfinite(self._p).all())
+
+
+def _use_compiled(kind: str, functions: tuple[DenseFunction, ...]) -> None:
+    """Evaluate ``functions`` as C: one library for all of them, compiled on first use
+    (with a one-line note) and cached; with a one-line warning, CasADi's virtual machine
+    when no C compiler works. Their numbers are inputs, so the library serves every
+    belief: it is built once per machine."""
+    if not functions:
+        return
+    library = load_library(f"cosim_{kind.lower()}",
+                           [function.function for function in functions],
+                           note=f"compiling the {kind}'s models to C (about 10 s)")
+    if library is None:
+        warnings.warn(f"no working C compiler (gcc, or $CC): the {kind}'s models run in "
+                      "CasADi's virtual machine, about 2x slower (estimator.compiled=false "
+                      "says so quietly)", CompiledCacheWarning, stacklevel=3)
+        return
+    for function in functions:
+        function.use_compiled(library)

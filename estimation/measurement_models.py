@@ -13,6 +13,7 @@ import numpy as np
 
 from cosim.core.dense_function import DenseFunction
 from cosim.core.records import WHEEL_NAMES
+from cosim.core.symbolic_record import SymbolicRecord, symbolic_twin
 from cosim.core.vehicle_params import VehicleParams
 from estimation.process_model import (
     BicycleParams,
@@ -72,15 +73,50 @@ class MeasurementModel:
         return tuple(model_rows), tuple(measurement_columns)
 
 
+@dataclass(frozen=True)
+class WheelGeometry:
+    """Where the wheels are and how large, as the measurement models believe it (SI)."""
+
+    cog_front_m: float
+    cog_rear_m: float
+    track_front_m: float
+    track_rear_m: float
+    wheel_radius_m: float
+
+    @classmethod
+    def from_vehicle(cls, belief: VehicleParams) -> WheelGeometry:
+        """The geometry of ``belief``, each axle's own track (``axle_tracks_m``)."""
+        track_front, track_rear = belief.axle_tracks_m
+        return cls(belief.cog_front_m, belief.cog_rear_m, float(track_front),
+                   float(track_rear), belief.wheel_radius_m)
+
+    @property
+    def wheelbase_m(self) -> float:
+        """``l_f + l_r``."""
+        return self.cog_front_m + self.cog_rear_m
+
+
+@dataclass(frozen=True)
+class _Belief:
+    """Every number of the measurement models, as one record (their ``belief`` input)."""
+
+    bicycle: BicycleParams
+    geometry: WheelGeometry
+
+
 def _measurement_functions(
-    sensor: str, outputs: list[Callable[[dict[str, ca.SX]], ca.SX]]
+    sensor: str, outputs: list[Callable[[dict[str, ca.SX]], ca.SX]],
+    belief: SymbolicRecord[_Belief],
 ) -> tuple[DenseFunction, DenseFunction]:
     x = ca.SX.sym("x", len(STATE_NAMES))
     s = named_states(x)
     h = ca.densify(ca.vertcat(*[expr(s) for expr in outputs]))
+    inputs = [x, belief.vector]
     return (
-        DenseFunction(ca.Function(f"h_{sensor}", [x], [h, ca.densify(ca.jacobian(h, x))])),
-        DenseFunction(ca.Function(f"h_{sensor}_value", [x], [h])),
+        DenseFunction(ca.Function(f"h_{sensor}", inputs, [h, ca.densify(ca.jacobian(h, x))]),
+                      parameters=belief.values),
+        DenseFunction(ca.Function(f"h_{sensor}_value", inputs, [h]),
+                      parameters=belief.values),
     )
 
 
@@ -88,10 +124,11 @@ def _model(
     sensor: str,
     channels: tuple[str, ...],
     outputs: list[Callable[[dict[str, ca.SX]], ca.SX]],
+    belief: SymbolicRecord[_Belief],
     model_sigma: tuple[float, ...] | None = None,
     **options: tuple[str, ...],
 ) -> MeasurementModel:
-    function, value_function = _measurement_functions(sensor, outputs)
+    function, value_function = _measurement_functions(sensor, outputs, belief)
     return MeasurementModel(
         sensor=sensor,
         channels=channels,
@@ -118,7 +155,7 @@ def ackermann_angles(steer_rad: ca.SX, wheelbase_m: float, track_m: float) -> tu
 def wheel_spin(
     s: Mapping[str, ca.SX],
     wheel: str,
-    belief: VehicleParams,
+    belief: WheelGeometry,
     bicycle: BicycleParams,
 ) -> ca.SX:
     """Spin rate of ``wheel`` (one of ``WHEEL_NAMES``) of a car rolling without longitudinal
@@ -134,7 +171,7 @@ def wheel_spin(
     front = wheel.startswith("front")
     left = wheel.endswith("left")
     x_w = belief.cog_front_m if front else -belief.cog_rear_m
-    track_front, track_rear = belief.axle_tracks_m
+    track_front, track_rear = belief.track_front_m, belief.track_rear_m
     track = track_front if front else track_rear
     y_w = (0.5 if left else -0.5) * track * s["wheel_track_scale"]
     r = s["yaw_rate_radps"]
@@ -192,17 +229,26 @@ def build_measurement_models(
       in turns estimates it, the common mode the rolling radius.
     - ``steering``: the front road-wheel angle ``steer_rad``.
     - ``heading`` (optional, e.g. a dual-antenna GNSS): ``yaw_rad`` directly.
+
+    Every number of the belief (the bicycle's, the wheels' geometry) is an input of the
+    models' functions, set once, not a constant: one function, and one compiled library,
+    serves every belief (each ``h`` with its Jacobian, :attr:`MeasurementModel.function`,
+    is what the EKF compiles).
     """
-    bicycle = BicycleParams.from_vehicle(belief, tyre_model, roll)
+    numbers = symbolic_twin(_Belief(BicycleParams.from_vehicle(belief, tyre_model, roll),
+                                    WheelGeometry.from_vehicle(belief)))
+    bicycle, geometry = numbers.twin.bicycle, numbers.twin.geometry
+    common = {"belief": numbers}
     wheel_sigma_radps = wheel_model_sigma_mps / belief.wheel_radius_m
     fused = free_rolling_wheels(belief)
     ignored = tuple(f"{w}_radps" for w in WHEEL_NAMES if w not in fused)
     models = [
-        _model("gnss", ("x_m", "y_m"), [lambda s: s["x_m"], lambda s: s["y_m"]]),
+        _model("gnss", ("x_m", "y_m"), [lambda s: s["x_m"], lambda s: s["y_m"]], **common),
         _model(
             "gnss_velocity",
             ("v_east_mps", "v_north_mps"),
             [lambda s: world_velocity(s)[0], lambda s: world_velocity(s)[1]],
+            **common,
         ),
         _model(
             "imu",
@@ -212,12 +258,14 @@ def build_measurement_models(
                 lambda s: s["ax_mps2"] + s["ax_bias_mps2"],
                 lambda s: cog_lateral_accel(s, bicycle) + s["ay_bias_mps2"],
             ],
+            **common,
             model_sigma=(0.0, 0.0, lateral_accel_model_sigma_mps2),
         ),
         _model(
             "wheel_speed",
             tuple(f"{w}_radps" for w in fused),
-            [lambda s, w=w: wheel_spin(s, w, belief, bicycle) for w in fused],
+            [lambda s, w=w: wheel_spin(s, w, geometry, bicycle) for w in fused],
+            **common,
             model_sigma=(wheel_sigma_radps,) * len(fused),
             ignored_channels=ignored,
         ),
@@ -225,8 +273,10 @@ def build_measurement_models(
             "steering",
             ("steer_rad",),
             [lambda s: s["steer_rad"]],
+            **common,
             model_sigma=(steer_model_sigma_rad,),
         ),
-        _model("heading", ("yaw_rad",), [lambda s: s["yaw_rad"]], angle_channels=("yaw_rad",)),
+        _model("heading", ("yaw_rad",), [lambda s: s["yaw_rad"]], **common,
+               angle_channels=("yaw_rad",)),
     ]
     return {model.sensor: model for model in models}

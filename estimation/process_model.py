@@ -90,11 +90,13 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import casadi as ca
 import numpy as np
 
 from cosim.core.dense_function import DenseFunction
+from cosim.core.symbolic_record import symbolic_twin
 from cosim.core.vehicle_equations import axle_slip_angles, rk4_step
 from cosim.core.vehicle_params import VehicleParams
 from estimation.state import (
@@ -324,6 +326,11 @@ class ProcessNoise:
 
     def diagonal(self) -> np.ndarray:
         """The PSD matrix W (diagonal), one entry per state of :data:`STATE_NAMES`."""
+        return np.diag(self.psd_entries())
+
+    def psd_entries(self) -> list[Any]:
+        """W's diagonal as a list in :data:`STATE_NAMES` order (numbers, or the symbols of
+        a :func:`cosim.core.symbolic_record.symbolic_twin`)."""
         psd = {
             "x_m": self.position_psd_m2ps,
             "y_m": self.position_psd_m2ps,
@@ -343,14 +350,26 @@ class ProcessNoise:
             "rolling_radius_scale": self.rolling_radius_scale_psd_1ps,
             "wheel_track_scale": self.wheel_track_scale_psd_1ps,
         }
-        return np.diag([psd[name] for name in STATE_NAMES])
+        return [psd[name] for name in STATE_NAMES]
+
+
+@dataclass(frozen=True)
+class _Belief:
+    """Every number of a process model, as one record (the model's ``belief`` input)."""
+
+    noise: ProcessNoise
+    bicycle: BicycleParams
+    residual_time_constant_s: float
 
 
 class ProcessModel:
     """The dynamic-bicycle process model with its CasADi-built discretisation.
 
     The CasADi functions are built once, here; :meth:`step`, :meth:`noise` and
-    :meth:`propagate` only evaluate them.
+    :meth:`propagate` only evaluate them. Every number of the noise, the bicycle and the
+    residual's time constant is an input of the functions (:attr:`belief_names`), not a
+    constant, so their structure, and the C the EKF's sub-step is compiled to
+    (:meth:`compiled_functions`), is the same for every belief.
     """
 
     def __init__(
@@ -373,15 +392,28 @@ class ProcessModel:
         self.noise = noise
         self.bicycle = bicycle
         self.residual_time_constant_s = residual_time_constant_s
+        # Every number of the belief is an input of the functions (``belief``), set once
+        # from these values: one function, and one compiled library, for every belief.
+        numbers = symbolic_twin(_Belief(noise, bicycle, float(residual_time_constant_s)))
+        self.belief_names: tuple[str, ...] = numbers.names
+        """The numbers of the ``belief`` input of the model's functions, in order."""
+        self.belief_values: np.ndarray = numbers.values
+        """Their values: this model's noise, bicycle and residual time constant."""
+        twin, belief = numbers.twin, numbers.vector
         n = len(STATE_NAMES)
         x = ca.SX.sym("x", n)
         dt = ca.SX.sym("dt_s")
 
-        x_next = rk4_step(self._derivative, x, dt)
+        def derivative(state: ca.SX) -> ca.SX:
+            return _derivative(state, twin.bicycle, twin.residual_time_constant_s)
+
+        x_next = rk4_step(derivative, x, dt)
         transition = ca.jacobian(x_next, x)
 
-        a = ca.jacobian(self._derivative(x), x)
-        term = ca.SX(ca.DM(noise.diagonal())) + ca.diag(self._force_noise(x))
+        a = ca.jacobian(derivative(x), x)
+        psd = (ca.diag(ca.vertcat(*twin.noise.psd_entries()))
+               + ca.diag(_force_noise(x, twin.noise, twin.bicycle)))
+        term = psd
         q = ca.SX.zeros(n, n)
         factor = dt
         for k in range(NOISE_SERIES_TERMS):
@@ -391,78 +423,32 @@ class ProcessModel:
         q = 0.5 * (q + q.T)
 
         self.derivative_function = ca.Function(
-            "bicycle_derivative", [x], [self._derivative(x), ca.densify(a)]
+            "bicycle_derivative", [x, belief], [derivative(x), ca.densify(a)]
         )
         self.step_function = ca.Function(
-            "bicycle_step", [x, dt], [x_next, ca.densify(transition), ca.densify(q)]
+            "bicycle_step", [x, dt, belief], [x_next, ca.densify(transition), ca.densify(q)]
         )
-        mean_step = ca.Function("bicycle_mean_step", [x, dt], [x_next])
-        noise_function = ca.Function("bicycle_noise", [x, dt], [ca.densify(q)])
+        """One sub-step, ``(x, dt_s, belief) -> (x_next, F, Q)``: the EKF's prediction."""
+        mean_step = ca.Function("bicycle_mean_step", [x, dt, belief], [x_next])
+        noise_function = ca.Function("bicycle_noise", [x, dt, belief], [ca.densify(q)])
+        values = self.belief_values
         self._psd_fast = DenseFunction(
-            ca.Function("bicycle_psd", [x], [ca.densify(ca.SX(ca.DM(noise.diagonal()))
-                                                        + ca.diag(self._force_noise(x)))]))
-        self._derivative_fast = DenseFunction(self.derivative_function)
-        self._step_fast = DenseFunction(self.step_function)
-        self._noise_fast = DenseFunction(noise_function)
-        self._mean_step_fast = DenseFunction(mean_step)
+            ca.Function("bicycle_psd", [x, belief], [ca.densify(psd)]), parameters=values)
+        self._derivative_fast = DenseFunction(self.derivative_function, parameters=values)
+        self._step_fast = DenseFunction(self.step_function, parameters=values)
+        self._noise_fast = DenseFunction(noise_function, parameters=values)
+        self._mean_step_fast = DenseFunction(mean_step, parameters=values)
         self._mapped_step: DenseFunction | None = None
         if sigma_point_count:
-            self._mapped_step = DenseFunction(mean_step.map(sigma_point_count, "serial"))
+            # The belief is one input shared by every point (not repeated).
+            self._mapped_step = DenseFunction(
+                mean_step.map("bicycle_mean_steps", "serial", sigma_point_count, [2], []),
+                parameters=values)
 
-    def _force_noise(self, x: ca.SX) -> ca.SX:
-        """The state-dependent part of W's diagonal: the lateral residual's PSD grows with
-        the square of the tyres' lateral acceleration (a relative error of the tyre model's
-        force, e.g. of its cornering stiffness, is an error proportional to the force)."""
-        s = named_states(x)
-        force_front, force_rear = axle_forces(s, self.bicycle)
-        tyre_accel = (force_front + force_rear) / self.bicycle.mass_kg
-        bicycle = self.bicycle
-        yaw_accel = (
-            bicycle.cog_front_m * force_front - bicycle.cog_rear_m * force_rear
-        ) / bicycle.yaw_inertia_kgm2
-        extra = ca.SX.zeros(len(STATE_NAMES))
-        extra[state_index("lateral_accel_residual_mps2")] = (
-            self.noise.lateral_residual_relative_psd_1ps * tyre_accel**2
-        )
-        extra[state_index("yaw_rad")] = self.noise.yaw_transient_psd_s3 * yaw_accel**2
-        roll = bicycle.roll
-        commanded_roll_accel = roll.angular_frequency_radps**2 * roll.gradient_radpmps2 * tyre_accel
-        extra[state_index("roll_rate_radps")] = (
-            self.noise.roll_accel_relative_psd_s * commanded_roll_accel**2
-        )
-        return extra
-
-    def _derivative(self, x: ca.SX) -> ca.SX:
-        s = named_states(x)
-        velocity_east, velocity_north = world_velocity(s)
-        r = s["yaw_rate_radps"]
-        force_front, force_rear = axle_forces(s, self.bicycle)
-        bicycle = self.bicycle
-        return stacked_states(
-            {
-                "x_m": velocity_east,  # (D6)
-                "y_m": velocity_north,
-                "yaw_rad": r,
-                "vx_mps": s["ax_mps2"] + r * s["vy_mps"],
-                "vy_mps": cog_lateral_accel(s, bicycle) - r * s["vx_mps"],  # (D4)
-                "yaw_rate_radps": (
-                    bicycle.cog_front_m * force_front - bicycle.cog_rear_m * force_rear
-                ) / bicycle.yaw_inertia_kgm2,  # (D5)
-                "ax_mps2": 0.0,
-                "steer_rad": s["steer_rate_radps"],
-                "steer_rate_radps": 0.0,
-                "roll_rad": s["roll_rate_radps"],
-                "roll_rate_radps": roll_accel(s, bicycle),  # (R2)
-                "lateral_accel_residual_mps2": (
-                    -s["lateral_accel_residual_mps2"] / self.residual_time_constant_s
-                ),
-                "gyro_bias_radps": 0.0,
-                "ax_bias_mps2": 0.0,
-                "ay_bias_mps2": 0.0,
-                "rolling_radius_scale": 0.0,
-                "wheel_track_scale": 0.0,
-            }
-        )
+    def compiled_functions(self) -> tuple[DenseFunction, ...]:
+        """The evaluators worth compiling to C (the EKF's sub-step), for
+        :meth:`cosim.core.dense_function.DenseFunction.use_compiled`."""
+        return (self._step_fast,)
 
     def derivative(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The noise-free time derivative of the state and its Jacobian ``A`` at ``x``."""
@@ -509,3 +495,59 @@ class ProcessModel:
             return mapped.rows(points, np.full(points.shape[0], dt_s))[0]
         return np.vstack([self._mean_step_fast(p, dt_s)[0].reshape(-1) for p in points])
 
+
+def _force_noise(x: ca.SX, noise: ProcessNoise, bicycle: BicycleParams) -> ca.SX:
+    """The state-dependent part of W's diagonal: the lateral residual's PSD grows with
+    the square of the tyres' lateral acceleration (a relative error of the tyre model's
+    force, e.g. of its cornering stiffness, is an error proportional to the force)."""
+    s = named_states(x)
+    force_front, force_rear = axle_forces(s, bicycle)
+    tyre_accel = (force_front + force_rear) / bicycle.mass_kg
+    yaw_accel = (
+        bicycle.cog_front_m * force_front - bicycle.cog_rear_m * force_rear
+    ) / bicycle.yaw_inertia_kgm2
+    extra = ca.SX.zeros(len(STATE_NAMES))
+    extra[state_index("lateral_accel_residual_mps2")] = (
+        noise.lateral_residual_relative_psd_1ps * tyre_accel**2
+    )
+    extra[state_index("yaw_rad")] = noise.yaw_transient_psd_s3 * yaw_accel**2
+    roll = bicycle.roll
+    commanded_roll_accel = roll.angular_frequency_radps**2 * roll.gradient_radpmps2 * tyre_accel
+    extra[state_index("roll_rate_radps")] = (
+        noise.roll_accel_relative_psd_s * commanded_roll_accel**2
+    )
+    return extra
+
+
+def _derivative(x: ca.SX, bicycle: BicycleParams,
+                residual_time_constant_s: ca.SX) -> ca.SX:
+    """The time derivative of the state without noise, (D1)-(D6), (R1)-(R2)."""
+    s = named_states(x)
+    velocity_east, velocity_north = world_velocity(s)
+    r = s["yaw_rate_radps"]
+    force_front, force_rear = axle_forces(s, bicycle)
+    return stacked_states(
+        {
+            "x_m": velocity_east,  # (D6)
+            "y_m": velocity_north,
+            "yaw_rad": r,
+            "vx_mps": s["ax_mps2"] + r * s["vy_mps"],
+            "vy_mps": cog_lateral_accel(s, bicycle) - r * s["vx_mps"],  # (D4)
+            "yaw_rate_radps": (
+                bicycle.cog_front_m * force_front - bicycle.cog_rear_m * force_rear
+            ) / bicycle.yaw_inertia_kgm2,  # (D5)
+            "ax_mps2": 0.0,
+            "steer_rad": s["steer_rate_radps"],
+            "steer_rate_radps": 0.0,
+            "roll_rad": s["roll_rate_radps"],
+            "roll_rate_radps": roll_accel(s, bicycle),  # (R2)
+            "lateral_accel_residual_mps2": (
+                -s["lateral_accel_residual_mps2"] / residual_time_constant_s
+            ),
+            "gyro_bias_radps": 0.0,
+            "ax_bias_mps2": 0.0,
+            "ay_bias_mps2": 0.0,
+            "rolling_radius_scale": 0.0,
+            "wheel_track_scale": 0.0,
+        }
+    )

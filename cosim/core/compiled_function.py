@@ -245,15 +245,28 @@ def _source_digest(content: bytes, flags: Sequence[str]) -> str:
 
 def compile_function(function: ca.Function) -> ctypes.CDLL | None:
     """The shared library of ``function`` (compiled or from the cache), or None when no C
-    compiler is available or compiling fails."""
-    library = compiled_library(function.name(), [function])
+    compiler is available or compiling fails (:func:`load_library` of one function)."""
+    return load_library(function.name(), [function])
+
+
+def load_library(name: str, functions: Sequence[ca.Function],
+                 note: str | None = None) -> ctypes.CDLL | None:
+    """The shared library ``name`` holding ``functions``, compiled (with ``note``, see
+    :func:`compiled_library`) or from the cache, and loaded; None when no C compiler is
+    available, compiling fails or the library cannot be loaded (with a warning).
+
+    The cache entry is found by a hash of the serialised functions (about a millisecond),
+    so their C is generated only to build it."""
+    key = "\n".join(function.serialize() for function in functions)
+    library = compiled_library(name, functions, note=note, key=key)
     if library is None:
         return None
     try:
         loaded = ctypes.CDLL(str(library))
-        getattr(loaded, function.name())
+        for function in functions:
+            getattr(loaded, function.name())
     except (OSError, AttributeError) as error:  # checked, so only a changing file gets here
         warnings.warn(f"cannot load the compiled library {str(library)!r} ({error}): using "
-                      "the plain implementation", CompiledCacheWarning, stacklevel=2)
+                      "the plain implementation", CompiledCacheWarning, stacklevel=3)
         return None
     return loaded

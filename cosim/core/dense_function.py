@@ -10,6 +10,8 @@ virtual machine: the same operations in the same order, so the same numbers.
 
 from __future__ import annotations
 
+import ctypes
+
 import casadi as ca
 import numpy as np
 
@@ -27,7 +29,11 @@ class DenseFunction:
     point per numpy row.
     """
 
-    def __init__(self, function: ca.Function, compiled: bool = False) -> None:
+    def __init__(self, function: ca.Function, compiled: bool = False,
+                 parameters: np.ndarray | None = None) -> None:
+        """``parameters``, if given, is the value of ``function``'s last input, set once
+        here: calls then pass the other inputs only (a belief's numbers, say, that the
+        function takes as an input so that one function serves every belief)."""
         self.function = function
         for i in range(function.n_out()):
             if not function.sparsity_out(i).is_dense():
@@ -39,20 +45,29 @@ class DenseFunction:
             self._buffer.set_arg(i, memoryview(array))
         for i, array in enumerate(self._outputs):
             self._buffer.set_res(i, memoryview(array))
+        self._arguments = self._inputs
+        if parameters is not None:  # the last input, set once
+            self._inputs[-1].T[...] = np.reshape(parameters, self._inputs[-1].T.shape)
+            self._arguments = self._inputs[:-1]
         self.compiled = False
         """Whether the evaluation is compiled C (asked for, and a C compiler worked)."""
         if compiled:
             library = compile_function(function)
             if library is not None:
-                self._evaluate = CompiledFunction(library, function, self._inputs,
-                                                  self._outputs)
-                self.compiled = True
+                self.use_compiled(library)
+
+    def use_compiled(self, library: ctypes.CDLL) -> None:
+        """Evaluate with the C of this function in ``library`` (compiled from it, e.g. by
+        :func:`cosim.core.compiled_function.load_library` with other functions), bound to
+        the same buffers."""
+        self._evaluate = CompiledFunction(library, self.function, self._inputs, self._outputs)
+        self.compiled = True
 
     def __call__(self, *args: np.ndarray | float) -> tuple[np.ndarray, ...]:
         """The outputs (each of the shape CasADi declares) for the inputs ``args``."""
-        if len(args) != len(self._inputs):
-            raise TypeError(f"{self.function.name()} takes {len(self._inputs)} inputs")
-        for array, value in zip(self._inputs, args, strict=True):
+        if len(args) != len(self._arguments):
+            raise TypeError(f"{self.function.name()} takes {len(self._arguments)} inputs")
+        for array, value in zip(self._arguments, args, strict=True):
             array.T[...] = np.reshape(value, array.T.shape)
         self._evaluate()
         return tuple(array.T.copy() for array in self._outputs)
@@ -60,9 +75,9 @@ class DenseFunction:
     def rows(self, *args: np.ndarray | float) -> tuple[np.ndarray, ...]:
         """Like calling, but inputs and outputs in numpy's transposed layout (one point per
         row for a mapped Function), without transposing."""
-        if len(args) != len(self._inputs):
-            raise TypeError(f"{self.function.name()} takes {len(self._inputs)} inputs")
-        for array, value in zip(self._inputs, args, strict=True):
+        if len(args) != len(self._arguments):
+            raise TypeError(f"{self.function.name()} takes {len(self._arguments)} inputs")
+        for array, value in zip(self._arguments, args, strict=True):
             array[...] = np.reshape(value, array.shape)
         self._evaluate()
         return tuple(array.copy() for array in self._outputs)
@@ -70,7 +85,7 @@ class DenseFunction:
     def first(self, *args: np.ndarray | float) -> np.ndarray:
         """The first output, flattened (a column vector's entries), for the inputs
         ``args``."""
-        for array, value in zip(self._inputs, args, strict=True):
+        for array, value in zip(self._arguments, args, strict=True):
             array.T[...] = np.reshape(value, array.T.shape)
         self._evaluate()
         return self._outputs[0].ravel().copy()

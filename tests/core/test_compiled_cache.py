@@ -56,9 +56,25 @@ def test_an_entry_is_a_library_with_its_size_and_hash(cache: Path) -> None:
     manifest = json.loads((entry / MANIFEST).read_text())
     assert manifest["size"] == (entry / "cache_probe.so").stat().st_size
     stamp = (entry / "cache_probe.so").stat().st_mtime_ns
-    assert compiled_library("cache_probe", [function]) == entry / "cache_probe.so"
+    assert compiled_library("cache_probe", [function], key=function.serialize()) == entry / "cache_probe.so"
     assert (entry / "cache_probe.so").stat().st_mtime_ns == stamp  # found, not rebuilt
     assert not [p for p in cache.iterdir() if p.name.startswith(".")]  # no temporaries
+
+
+def test_a_keyed_entry_is_found_without_generating_its_source(cache: Path) -> None:
+    # With a key, the functions are made (and their C generated) only to build the entry.
+    function, made = _function(), []
+
+    def functions() -> list[ca.Function]:
+        made.append(1)
+        return [function]
+
+    first = compiled_library("cache_probe", functions, key="probe v1")
+    assert first is not None and made == [1]
+    assert compiled_library("cache_probe", functions, key="probe v1") == first
+    assert made == [1]
+    other = compiled_library("cache_probe", functions, key="probe v2")  # another key: built
+    assert other is not None and other != first and made == [1, 1]
 
 
 @pytest.mark.parametrize("damage", ["truncated", "another library", "garbage", "no manifest"])
@@ -66,7 +82,7 @@ def test_a_damaged_entry_is_rebuilt_once_with_a_warning(cache: Path, damage: str
     function = _function()
     # Made, not loaded: damaging a library this process has mapped would end the test
     # itself with SIGBUS (the very failure the check keeps other runs from).
-    assert compiled_library("cache_probe", [function]) is not None
+    assert compiled_library("cache_probe", [function], key=function.serialize()) is not None
     (entry,) = cache.iterdir()
     library = entry / "cache_probe.so"
     if damage == "truncated":

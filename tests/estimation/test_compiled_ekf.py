@@ -1,0 +1,71 @@
+"""The EKF's models as compiled C (``estimator.compiled``): the same estimates as CasADi's
+virtual machine, one library for every belief, and the virtual machine, with one warning,
+when no C compiler works."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cosim.core.compiled_function import CompiledCacheWarning
+from estimation.config import EstimatorConfig
+from tests.estimation.drive import Run, SensorSetup, lane_change, run_filter
+
+SETUP = SensorSetup(gnss_sigma_m=0.5)
+PROFILE = lane_change()
+
+
+def _drive(config: EstimatorConfig) -> Run:
+    return run_filter(PROFILE, setup=SETUP, config=config, seed=3)
+
+
+def _largest_relative_difference(a: Run, b: Run) -> float:
+    scale = np.maximum(np.abs(b.means), 1e-3)
+    means = float(np.max(np.abs(a.means - b.means) / scale))
+    covariances = float(np.max(np.abs(a.covariances - b.covariances)
+                               / np.maximum(np.abs(b.covariances), 1e-12)))
+    return max(means, covariances)
+
+
+def _other_belief(config: EstimatorConfig) -> EstimatorConfig:
+    """Process noise three times the default's and a slower lateral residual."""
+    return dataclasses.replace(
+        config, yaw_accel_psd_rad2ps3=3.0 * config.yaw_accel_psd_rad2ps3,
+        lateral_residual_time_constant_s=2.0 * config.lateral_residual_time_constant_s)
+
+
+@pytest.mark.slow  # builds the library in an empty cache (about 10 s)
+def test_one_compiled_library_serves_every_belief_with_the_vms_estimates(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capfd: pytest.CaptureFixture[str]) -> None:
+    # The whole lane change (IMU at 100 Hz, wheels, steering, 0.5 m GNSS): the compiled
+    # models give the virtual machine's means and covariances to round-off, for the
+    # default belief and for another one, from one library built once (with one note).
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    default = EstimatorConfig(name="ekf")
+    assert default.compiled
+    compiled = _drive(default)
+    assert capfd.readouterr().err.count("cosim: note: compiling the EKF's models") == 1
+    other = _other_belief(default)
+    compiled_other = _drive(other)
+    assert "note" not in capfd.readouterr().err
+    assert [p.name.split("-")[0] for p in (tmp_path / "cosim").iterdir()] == ["cosim_ekf"]
+    vm = _drive(dataclasses.replace(default, compiled=False))
+    vm_other = _drive(dataclasses.replace(other, compiled=False))
+    assert _largest_relative_difference(compiled, vm) < 1e-9
+    assert _largest_relative_difference(compiled_other, vm_other) < 1e-9
+    # The other belief reached the compiled code: its estimates are not the default's.
+    assert _largest_relative_difference(compiled_other, compiled) > 1e-3
+
+
+def test_without_a_c_compiler_the_vm_estimates_with_one_warning(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("CC", "no-such-compiler")
+    with pytest.warns(CompiledCacheWarning, match="the EKF's models run in CasADi") as caught:
+        run = _drive(EstimatorConfig(name="ekf"))
+    assert len(caught) == 1
+    quiet = _drive(EstimatorConfig(name="ekf", compiled=False))
+    assert np.array_equal(run.means, quiet.means)
