@@ -9,7 +9,7 @@ not across machines or moments; note the load, ``os.getloadavg``, printed at the
 
 1. **Parts of the default lane change** (every default: tracker, estimator, full logging),
    per run, median over ``--repeats`` runs in this process: physics with tyres
-   (``plant.advance`` and ``plant.state``), sensors (``sensor.sample`` and fault
+   (``plant.advance``/``advance_steps`` and ``plant.state``), sensors (``sensor.sample`` and fault
    injection), filter (``estimator.predict``/``update``/``estimate``), tracker step (the
    whole ``tracker.step``), logging (building messages and Foxglove scenes, encoding and
    MCAP writes), metrics (accumulating and the final figures), and the runner's own
@@ -49,7 +49,7 @@ PARTS = ("physics", "sensors", "filter", "tracker", "logging", "metrics")
 """The parts timed inside the loop; the runner's own bookkeeping is the rest."""
 
 TIMED_BUILDERS: dict[str, tuple[str, tuple[str, ...]]] = {
-    "MujocoPlant": ("physics", ("advance", "state", "apply", "add_yaw_rate")),
+    "MujocoPlant": ("physics", ("advance", "advance_steps", "state", "apply", "add_yaw_rate")),
     "make_estimator": ("filter", ("predict", "update", "update_many", "estimate")),
     "make_tracker": ("tracker", ("step",)),
     "McapRecorder": ("logging", ("write", "write_finite", "close")),

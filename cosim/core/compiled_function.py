@@ -156,11 +156,14 @@ def _private_copy(built: Path) -> Path:
     return Path(shutil.copy2(built, folder / built.name))
 
 
-def _build(compiler: str, flags: Sequence[str], source: Path, name: str) -> Path | None:
-    """Compile ``source`` into a library beside it; None when the compiler fails."""
+def _build(compiler: str, flags: Sequence[str], source: Path, name: str,
+           extra_sources: Sequence[Path] = (), link_flags: Sequence[str] = ()) -> Path | None:
+    """Compile ``source`` (and ``extra_sources``) into a library beside it; None when the
+    compiler fails."""
     library = source.with_name(f"{name}.so")
     try:
-        subprocess.run([compiler, *flags, "-o", str(library), str(source), "-lm"],
+        subprocess.run([compiler, *flags, "-o", str(library), str(source),
+                        *map(str, extra_sources), "-lm", *link_flags],
                        check=True, capture_output=True)
     except (OSError, subprocess.CalledProcessError):
         return None
@@ -173,7 +176,9 @@ Functions = Sequence[ca.Function] | Callable[[], Sequence[ca.Function]]
 
 def compiled_library(name: str, functions: Functions,
                      flags: Sequence[str] = COMPILER_FLAGS,
-                     note: str | None = None, key: str | None = None) -> Path | None:
+                     note: str | None = None, key: str | None = None,
+                     extra_sources: Sequence[Path] = (),
+                     link_flags: Sequence[str] = ()) -> Path | None:
     """The shared library holding ``functions`` (each under its own name), compiled with
     ``flags`` or found in the cache; None when no C compiler is available or compiling
     fails. ``name`` names the file (a C identifier). ``note``, if given, is printed as one
@@ -191,6 +196,10 @@ def compiled_library(name: str, functions: Functions,
     serialised CasADi function they are all derived from) and ``functions`` as a callable
     producing them: the entry is then keyed by ``key``, the flags and CasADi's version, and
     the functions are generated only when the entry must be built.
+
+    ``extra_sources`` (C files of one's own, e.g. calling the generated functions) are
+    compiled into the same library and ``link_flags`` passed last; both are part of the
+    entry's hash.
     """
     compiler = shutil.which(os.environ.get("CC", "gcc"))
     if compiler is None:
@@ -198,11 +207,14 @@ def compiled_library(name: str, functions: Functions,
     flags = (*flags, "-shared", "-fPIC")
     with tempfile.TemporaryDirectory() as tmp:
         source = Path(tmp, f"{name}.c")
+        own = b"".join(Path(extra).read_bytes() for extra in extra_sources)
+        hashed_flags = (*flags, *link_flags)
         if key is None:
             _generate(name, functions, tmp)
-            digest = _source_digest(source.read_bytes(), flags)
+            digest = _source_digest(source.read_bytes() + own, hashed_flags)
         else:
-            digest = _source_digest(f"{key}\ncasadi {ca.__version__}".encode(), flags)
+            digest = _source_digest(f"{key}\ncasadi {ca.__version__}".encode() + own,
+                                    hashed_flags)
         entry = _cache_dir() / f"{name}-{digest[:16]}"
         if entry.is_dir():
             damage = _damage(entry, name)
@@ -216,7 +228,7 @@ def compiled_library(name: str, functions: Functions,
         if note is not None:
             print(f"cosim: note: {note} (once per machine, cached in {entry.parent})",
                   file=sys.stderr, flush=True)
-        built = _build(compiler, flags, source, name)
+        built = _build(compiler, flags, source, name, extra_sources, link_flags)
         if built is None:
             return None
         try:

@@ -3,7 +3,9 @@
 The model is built once with PyMJCF (:mod:`cosim.plant.sedan_model`) and compiled from its XML
 (``mjcf_xml``, the model actually simulated, for the log); every joint, body and actuator
 address is looked up by name at construction. Per physics step, :meth:`MujocoPlant.advance`
-runs the actuator models in plain Python and then exactly one MuJoCo step:
+runs the actuator models and then exactly one MuJoCo step (in C for the default plant,
+:mod:`cosim.plant.compiled_steps`, several steps a call with :meth:`MujocoPlant.advance_steps`;
+the Python below is its reference, bit for bit, and runs with traffic or slip control):
 
 - steering actuator (:mod:`cosim.plant.steering`): first-order lag
   (``steer_time_constant_s``, exact discretisation) with a rate limit
@@ -54,7 +56,9 @@ from cosim.core.initial_state import InitialState
 from cosim.core.records import WHEEL_NAMES, ActuatorCommand, VehicleState
 from cosim.core.rotations import euler_zyx, quaternion_zyx
 from cosim.core.vehicle_params import PlantConfig
-from cosim.plant.low_level import resistance_force_n
+from cosim.plant.compiled_steps import STATE as STEPS
+from cosim.plant.compiled_steps import CompiledSteps, load_steps_library
+from cosim.plant.low_level import resistance_constants, resistance_force_n
 from cosim.plant.sedan_model import FRONT_WHEELS, driven_wheels, sedan_xml_and_assets
 from cosim.plant.slip_control import SlipLimiter
 from cosim.plant.steering import SteeringActuator
@@ -118,8 +122,49 @@ class MujocoPlant:
             self._tyres.bind(self._data)
         if traffic is not None:
             traffic.bind(self._model)
+        self._steps: CompiledSteps | None = self._compiled_steps()
+        """The physics steps in one C call (:mod:`cosim.plant.compiled_steps`); None: the
+        Python step (traffic, slip control, no C compiler, the plain tyre reference)."""
         self._settle()
         self.reset()
+
+    def _compiled_steps(self) -> CompiledSteps | None:
+        tyres = self._tyres
+        if (tyres is None or tyres.compiled is None or self.traffic is not None
+                or self._slip_limiter is not None):
+            return None
+        library, function = tyres.compiled
+        loaded = load_steps_library(function)
+        if loaded is None:
+            return None
+        cfg, steering = self.config, self._steering
+        constants = {
+            "dt_s": self.physics_dt_s, **steering.constants(),
+            "max_drive_power_w": cfg.max_drive_power_w,
+            "min_power_spin_radps": MIN_POWER_SPIN_RADPS,
+            "brake_spin_scale2": BRAKE_SPIN_SCALE_RADPS**2,
+            **{f"brake_share{i}": share
+               for i, (_, share) in enumerate(self._brake_share_by_dof)},
+            **resistance_constants(cfg),
+            "max_velocity_norm2": MAX_VELOCITY_NORM2,
+            "max_position_norm2": MAX_POSITION_NORM2,
+        }
+        m = self._model
+        chassis = self._id(mujoco.mjtObj.mjOBJ_BODY, "chassis")
+        padded = (*self._driven_dof, 0, 0, 0, 0)
+        acts = (*self._drive_act, 0, 0, 0, 0)
+        indices = {
+            "servo_left": steering.servos[0], "servo_right": steering.servos[1],
+            "n_driven": self._n_driven,
+            **{f"driven_dof{i}": padded[i] for i in range(4)},
+            **{f"drive_act{i}": acts[i] for i in range(4)},
+            **{f"spin_dof{i}": dof for i, (dof, _) in enumerate(self._brake_share_by_dof)},
+            "linvel_dof": self._linvel_slice.start, "chassis_body": chassis,
+            **{f"wheel_body{i}": body for i, body in enumerate(tyres.wheel_bodies)},
+            **{f"tyre_geom{i}": geom for i, geom in enumerate(tyres.tyre_geoms)},
+        }
+        return CompiledSteps(loaded, function, m, self._data, constants, indices,
+                             tyres.buffers())
 
     # ----------------------------------------------------------------- construction
 
@@ -262,6 +307,12 @@ class MujocoPlant:
             self._slip_limiter.reset()
         self._steering.reset()
         self._prev_linvel = self._linvel_view.tolist()
+        if self._steps is not None:
+            state = self._steps.state
+            state[:] = 0.0
+            state[[STEPS["prev_vx_mps"], STEPS["prev_vy_mps"], STEPS["prev_vz_mps"]]] = \
+                self._prev_linvel
+            state[STEPS["load0_n"]:STEPS["load0_n"] + 4] = self._static_load_n
         self._last_command: ActuatorCommand | None = None
         if self.traffic is not None:
             self.traffic.place(d, 0.0)
@@ -289,9 +340,35 @@ class MujocoPlant:
         self._brake_cmd_nm = min(actuator.brake_torque_nm, cfg.max_brake_torque_nm)
         self._steering.command_rad = actuator.steer_rad
         self._last_command = actuator
+        if self._steps is not None:
+            state = self._steps.state
+            state[STEPS["command_rad"]] = actuator.steer_rad
+            state[STEPS["drive_cmd_nm"]] = self._drive_cmd_nm
+            state[STEPS["brake_cmd_nm"]] = self._brake_cmd_nm
 
     def advance(self) -> None:
         """Run the actuator models and exactly one MuJoCo step of ``physics_dt_s``."""
+        self.advance_steps(1)
+
+    def advance_steps(self, n: int) -> None:
+        """:meth:`advance` ``n`` times: in one C call (:mod:`cosim.plant.compiled_steps`)
+        where the plant has one, the same operations in the same order."""
+        steps = self._steps
+        if steps is None:
+            for _ in range(n):
+                self._advance_in_python()
+            return
+        if not steps.advance(n):
+            self._check(self._data.time)  # raises: the C step's checks failed
+            raise PhysicsDivergenceError(
+                f"physics diverged at t = {self._data.time:.4f} s (physics_dt_s = "
+                f"{self.physics_dt_s})")
+        state = steps.state
+        self._prev_linvel = [state[STEPS["prev_vx_mps"]], state[STEPS["prev_vy_mps"]],
+                             state[STEPS["prev_vz_mps"]]]
+
+    def _advance_in_python(self) -> None:
+        """One step of the actuators and MuJoCo in Python (the reference of the C step)."""
         d, dt = self._data, self.physics_dt_s
         qvel = self._qvel_view.tolist()
         self._steering.step(d.ctrl)
@@ -329,7 +406,7 @@ class MujocoPlant:
     def _resist(self, qvel: list[float]) -> None:
         """Drag and rolling resistance against the horizontal velocity of the chassis."""
         vx, vy, _ = qvel[self._linvel_slice]
-        speed = math.hypot(vx, vy)
+        speed = math.sqrt(vx * vx + vy * vy)  # as the C step has it (not math.hypot's rounding)
         force = self._chassis_force
         if speed > 1e-9:
             scale = resistance_force_n(self.config, speed) / speed

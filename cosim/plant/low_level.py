@@ -47,6 +47,17 @@ MIN_POWER_SPEED_MPS = 0.5
 standstill; the torque limit governs there) [m/s]."""
 
 
+def resistance_constants(params: VehicleParams) -> dict[str, float]:
+    """The products of :func:`resistance_force_n` that do not depend on the speed, as it
+    forms them: drag ``(1/2 rho) C_d A`` times ``v|v|``, rolling ``(C_rr m) g`` times
+    ``tanh(v / v_0)`` (for the compiled physics step, :mod:`cosim.plant.compiled_steps`)."""
+    return {
+        "drag_coefficient": 0.5 * AIR_DENSITY_KGPM3 * params.drag_area_m2,
+        "rolling_force_n": params.rolling_resistance * params.mass_kg * GRAVITY_MPS2,
+        "rolling_speed_scale_mps": ROLLING_SPEED_SCALE_MPS,
+    }
+
+
 def resistance_force_n(params: VehicleParams, speed_mps: float) -> float:
     """Aerodynamic drag plus rolling resistance opposing forward motion at ``speed_mps`` [N].
 

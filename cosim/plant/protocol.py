@@ -35,6 +35,10 @@ class Plant(Protocol):
         """Advance the physics by one step of ``physics_dt_s``; a diverging simulation
         raises :class:`~cosim.core.exceptions.PhysicsDivergenceError`."""
 
+    def advance_steps(self, n: int) -> None:
+        """:meth:`advance` ``n`` times (the runner calls it between the steps at which
+        something is due; a plant may do them in one call)."""
+
     def state(self) -> VehicleState:
         """The true state now."""
 

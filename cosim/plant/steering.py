@@ -33,6 +33,8 @@ class SteeringActuator:
         self._config = config
         self._dt_s = physics_dt_s
         self._servos = servos
+        self.servos = servos
+        """The left and right steering servos' actuator indices."""
         tau = config.steer_time_constant_s
         self._decay = math.exp(-physics_dt_s / tau) if tau > 0.0 else 0.0
         self._step_max = config.max_steer_rate_radps * physics_dt_s
@@ -43,6 +45,14 @@ class SteeringActuator:
         steer_joint = int(model.actuator_trnid[left_servo, 0])
         self._inertia_over_kp = float(model.dof_M0[int(model.jnt_dofadr[steer_joint])]) / kp
         self.reset()
+
+    def constants(self) -> dict[str, float]:
+        """The numbers :meth:`step` uses (for the compiled physics step,
+        :mod:`cosim.plant.compiled_steps`)."""
+        return {"decay": self._decay, "step_max_rad": self._step_max,
+                "max_steer_rad": self._config.max_steer_rad,
+                "wheelbase_m": self._config.wheelbase_m, "front_track_m": self._front_track_m,
+                "kv_over_kp": self._kv_over_kp, "inertia_over_kp": self._inertia_over_kp}
 
     def reset(self) -> None:
         """Straight ahead, at rest, no command."""

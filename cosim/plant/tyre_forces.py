@@ -122,6 +122,28 @@ class MagicFormulaTyres:
              self._state_buffer],
             [self._wrench_buffer, self._forces_buffer, self._new_state_buffer])
 
+    @property
+    def compiled(self) -> tuple[ctypes.CDLL, ca.Function] | None:
+        """The compiled four-tyre function and its library (None: the plain reference)."""
+        return self._compiled
+
+    @property
+    def wheel_bodies(self) -> tuple[int, ...]:
+        """Each wheel's body, ``WHEEL_NAMES`` order."""
+        return self._wheel_body
+
+    @property
+    def tyre_geoms(self) -> tuple[int, ...]:
+        """Each wheel's tyre geom, ``WHEEL_NAMES`` order."""
+        by_wheel = {index: geom for geom, index in self._wheel_of_geom.items()}
+        return tuple(by_wheel[index] for index in range(self._n_wheels))
+
+    def buffers(self) -> tuple[np.ndarray, ...]:
+        """The compiled function's own buffers: contacts, patch state, wrenches, forces and
+        new patch state (what :mod:`cosim.plant.compiled_steps` fills and reads in place)."""
+        return (self._contact_buffer, self._state_buffer, self._wrench_buffer,
+                self._forces_buffer, self._new_state_buffer)
+
     def reset(self, loads_n: tuple[float, ...]) -> None:
         """Undeflected tyres carrying ``loads_n``; no contact seen yet."""
         self._loads_n = list(loads_n)

@@ -11,7 +11,12 @@ Clock at the physics step (``sim.physics_dt_s``). At each step k, at time t = k 
    torques (with the controller's belief about the car) and the plant applies them;
 5. the plant advances one physics step.
 
-Every period is a whole number of physics steps (checked when the config is loaded). A run
+Every period is a whole number of physics steps (checked when the config is loaded), so
+most steps have nothing of 1-4 due: the loop jumps from one step where something is due
+to the next (:meth:`_Run.steps_to_next_due`) and the plant advances the steps between in
+one call (:meth:`cosim.plant.car.MujocoPlant.advance_steps`, compiled C for the default
+plant): the same steps in the same order, so the same numbers as one step at a time
+(``tests/plant/test_compiled_steps.py``). A run
 that aborts (diverging physics, an interrupt, an exception) still finishes its MCAP file,
 with ``completed: false`` in its metrics.
 """
@@ -241,6 +246,8 @@ class _Run:
             steps_per_period(s.period_s, self.clock.dt_s, f"sensors.{s.name}.period_s")
             for s in self.sensors
         ]
+        self._periods = (self.clock.log_steps, self.clock.control_steps, *self.sensor_steps)
+        """Every period at which the loop has work, in physics steps."""
         self.rngs = {s.name: component_rng(config.seed, f"sensors.{s.name}")
                      for s in self.sensors}
         self.biased_sensors = [s for s in self.sensors if isinstance(s, BiasedSensor)]
@@ -482,18 +489,44 @@ class _Run:
         self.plant.advance()
         self._truth = None
 
-    def loop(self, stop: _StopRequest, progress: Callable[[float], None] | None) -> None:
+    def steps_to_next_due(self, k: int) -> int:
+        """Physics steps from step ``k`` to the next step at which anything is due: a log
+        entry, a sensor, the controller, a command leaving the delay line, a disturbance,
+        the run's end (1 with traffic, whose cars and range sensor follow every step)."""
+        if self.traffic is not None:
+            return 1
         clock = self.clock
-        for k in range(clock.n_steps + 1):
+        due = clock.n_steps
+        for period in self._periods:
+            due = min(due, (k // period + 1) * period)
+        if self.delay_line:
+            due = min(due, self.delay_line[0][0])
+        if self.yaw_rate_changes:
+            due = min(due, self.yaw_rate_changes[0].step)
+        return max(due - k, 1)
+
+    def loop(self, stop: _StopRequest, progress: Callable[[float], None] | None) -> None:
+        """Step ``k`` is observed, controlled and acted on where something is due; between
+        such steps the plant advances in one call (:meth:`MujocoPlant.advance_steps`: in
+        compiled code), with nothing else to do there: the same steps, the same answers."""
+        clock = self.clock
+        k = 0
+        while True:
             if not self.observe(k):
                 return
+            t_s = k * clock.dt_s
             if k % clock.control_steps == 0:
-                self.control(k, k * clock.dt_s)
-            self.act(k)
+                self.control(k, t_s)
+            self.actuate(k, t_s)
+            self.disturb(k, t_s)
+            n = self.steps_to_next_due(k)
+            self.plant.advance_steps(n)
+            self._truth = None
             if stop.signal_name:
                 raise KeyboardInterrupt
-            if progress is not None and k % 500 == 0:
-                progress(k / clock.n_steps)
+            if progress is not None and (k + n) // 500 != k // 500:
+                progress((k + n) // 500 * 500 / clock.n_steps)
+            k += n
 
 
 def run(

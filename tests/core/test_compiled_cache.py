@@ -56,7 +56,8 @@ def test_an_entry_is_a_library_with_its_size_and_hash(cache: Path) -> None:
     manifest = json.loads((entry / MANIFEST).read_text())
     assert manifest["size"] == (entry / "cache_probe.so").stat().st_size
     stamp = (entry / "cache_probe.so").stat().st_mtime_ns
-    assert compiled_library("cache_probe", [function], key=function.serialize()) == entry / "cache_probe.so"
+    found = compiled_library("cache_probe", [function], key=function.serialize())
+    assert found == entry / "cache_probe.so"
     assert (entry / "cache_probe.so").stat().st_mtime_ns == stamp  # found, not rebuilt
     assert not [p for p in cache.iterdir() if p.name.startswith(".")]  # no temporaries
 

@@ -1,0 +1,134 @@
+"""The plant's physics steps as one compiled C call (``plant_step.c``).
+
+:meth:`cosim.plant.car.MujocoPlant.advance` runs, per 2 ms physics step, the steering
+actuator, the drive and brakes, the chassis's resistance, ``mj_step1``, the four tyres,
+``mj_step2`` and its checks in Python around two MuJoCo calls: about 60 us a step of which
+MuJoCo's own work is 8. ``plant_step.c`` does the same, expression by expression, in C
+against MuJoCo's C API and the tyres' CasADi-generated C (:mod:`cosim.plant.tyre_patches`),
+compiled together into one library (once per machine and tyre configuration, cached as
+:mod:`cosim.core.compiled_function` caches every library) and called through ctypes on
+MuJoCo's own ``mjModel``/``mjData`` and numpy buffers: :meth:`CompiledSteps.advance` steps
+the plant ``n`` times between the instants something is due (sensor, control, log), the
+state that outlives a step kept in one numpy array (:data:`STATE_FIELDS`).
+
+Used for the default plant (Magic Formula tyres); traffic (its mocap cars are placed
+after every step) and slip control keep the Python step. MuJoCo's library is the one the
+``mujoco`` package ships and has loaded already.
+"""
+
+from __future__ import annotations
+
+import ctypes
+from collections.abc import Sequence
+from pathlib import Path
+
+import casadi as ca
+import mujoco
+import numpy as np
+
+from cosim.core.compiled_function import compiled_library
+
+SOURCE = Path(__file__).with_name("plant_step.c")
+
+STATE_FIELDS: tuple[str, ...] = (
+    "command_rad", "angle_rad", "wheel_left_rad", "wheel_right_rad", "rate_left_radps",
+    "rate_right_radps", "drive_cmd_nm", "brake_cmd_nm", "prev_vx_mps", "prev_vy_mps",
+    "prev_vz_mps", "load0_n", "load1_n", "load2_n", "load3_n")
+"""The state ``plant_step.c`` carries from step to step (its ``PS_*`` indices), in order."""
+STATE = {name: i for i, name in enumerate(STATE_FIELDS)}
+
+CONSTANT_FIELDS: tuple[str, ...] = (
+    "dt_s", "decay", "step_max_rad", "max_steer_rad", "wheelbase_m", "front_track_m",
+    "kv_over_kp", "inertia_over_kp", "max_drive_power_w", "min_power_spin_radps",
+    "brake_spin_scale2", "brake_share0", "brake_share1", "brake_share2", "brake_share3",
+    "drag_coefficient", "rolling_force_n", "rolling_speed_scale_mps", "max_velocity_norm2",
+    "max_position_norm2")
+"""The numbers of ``plant_step.c`` (its ``PC_*`` indices), in order."""
+
+INDEX_FIELDS: tuple[str, ...] = (
+    "servo_left", "servo_right", "n_driven", "driven_dof0", "driven_dof1", "driven_dof2",
+    "driven_dof3", "drive_act0", "drive_act1", "drive_act2", "drive_act3", "spin_dof0",
+    "spin_dof1", "spin_dof2", "spin_dof3", "linvel_dof", "chassis_body", "wheel_body0",
+    "wheel_body1", "wheel_body2", "wheel_body3", "tyre_geom0", "tyre_geom1", "tyre_geom2",
+    "tyre_geom3")
+"""The model addresses of ``plant_step.c`` (its ``PI_*`` indices), in order."""
+
+
+def _mujoco_library() -> Path | None:
+    """MuJoCo's shared library in the ``mujoco`` package, with its headers beside it."""
+    folder = Path(mujoco.__file__).parent
+    libraries = sorted(folder.glob("libmujoco.so*"))
+    if not libraries or not (folder / "include" / "mujoco" / "mujoco.h").is_file():
+        return None
+    return libraries[-1]
+
+
+def load_steps_library(tyres: ca.Function) -> ctypes.CDLL | None:
+    """The library of ``plant_step.c`` and the tyre function ``tyres``, compiled (on first
+    use, with a note) or from the cache; None when there is no compiler, no MuJoCo headers
+    (a ``mujoco`` build without them) or the library does not load."""
+    library = _mujoco_library()
+    if library is None:
+        return None
+    folder = library.parent
+    flags = ("-O2", "-ffp-contract=off", f"-DPATCHES={tyres.name()}",
+             f"-I{folder / 'include'}")
+    link = (f"-L{folder}", f"-l:{library.name}", f"-Wl,-rpath,{folder}")
+    built = compiled_library(
+        "cosim_plant_steps", [tyres], flags, key=tyres.serialize() + mujoco.__version__,
+        extra_sources=(SOURCE,), link_flags=link,
+        note="compiling the plant's physics step to C (about 5 s)")
+    if built is None:
+        return None
+    try:
+        loaded = ctypes.CDLL(str(built))
+        sizes = (ctypes.c_int * 3)()
+        loaded.cosim_plant_sizes(sizes)
+    except (OSError, AttributeError):
+        return None
+    if tuple(sizes) != (len(STATE_FIELDS), len(CONSTANT_FIELDS), len(INDEX_FIELDS)):
+        return None
+    return loaded
+
+
+class CompiledSteps:
+    """``n`` physics steps of one plant in one C call, on its model and data."""
+
+    def __init__(self, library: ctypes.CDLL, tyres: ca.Function, model: mujoco.MjModel,
+                 data: mujoco.MjData, constants: dict[str, float], indices: dict[str, int],
+                 buffers: Sequence[np.ndarray]) -> None:
+        self.state = np.zeros(len(STATE_FIELDS))
+        """The state between steps (:data:`STATE_FIELDS`); written by the plant too."""
+        self._constants = np.array([constants[name] for name in CONSTANT_FIELDS], dtype=float)
+        self._indices = np.array([indices[name] for name in INDEX_FIELDS], dtype=np.intc)
+        self._buffers = tuple(buffers)
+        for buffer in self._buffers:
+            if buffer.dtype != np.float64 or not buffer.flags.c_contiguous:
+                raise ValueError("the tyre buffers must be C-contiguous float64 arrays")
+        self._iw = np.zeros(max(tyres.sz_iw(), 1), dtype=np.longlong)
+        self._w = np.zeros(max(tyres.sz_w(), 1))
+        self._model, self._data = model, data  # kept alive while their addresses are used
+        entry = library.cosim_plant_advance
+        entry.restype = ctypes.c_int
+        pointer = ctypes.c_void_p
+        self._entry = entry
+        self._library = library
+        self._fixed = (
+            pointer(model._address), pointer(data._address))
+        self._arrays = (
+            self.state.ctypes.data_as(pointer), self._constants.ctypes.data_as(pointer),
+            self._indices.ctypes.data_as(pointer),
+            *(buffer.ctypes.data_as(pointer) for buffer in self._buffers),
+            self._iw.ctypes.data_as(pointer), self._w.ctypes.data_as(pointer))
+
+    def advance(self, n: int) -> bool:
+        """``n`` physics steps; False when one ended with a MuJoCo warning or a
+        non-finite or absurd state (the steps stop there: the caller raises). Raises
+        RuntimeError when the C step cannot go on (more tyre contacts than it holds, or
+        the tyre function failed)."""
+        done = self._entry(*self._fixed, ctypes.c_int(n), *self._arrays)
+        if done == -1:
+            raise RuntimeError("the compiled physics step failed (more tyre contacts than "
+                               "it holds, or the tyre function reported an error)")
+        return done == n
+
