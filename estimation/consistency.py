@@ -28,7 +28,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import chi2
+from scipy.special import gammaincinv
 
 NEES_DOF = 4
 """Degrees of freedom of the runs' NEES: x, y, yaw, vx
@@ -57,7 +57,14 @@ def chi_square_band(
         raise ValueError(f"probability = {probability!r}: expected a number in (0, 1)")
     divisor = float(dof if scale is None else scale)
     tail = 0.5 * (1.0 - probability)
-    return float(chi2.ppf(tail, dof)) / divisor, float(chi2.ppf(1.0 - tail, dof)) / divisor
+    return chi_square_quantile(tail, dof) / divisor, chi_square_quantile(1.0 - tail, dof) / divisor
+
+
+def chi_square_quantile(probability: float, dof: int) -> float:
+    """The ``probability`` quantile of a chi-square(``dof``) variable: ``2 P^-1(dof/2, p)``
+    with ``P`` the regularised lower incomplete gamma function (what ``scipy.stats.chi2.ppf``
+    computes, without importing ``scipy.stats``: a quarter of a second at every start)."""
+    return 2.0 * float(gammaincinv(dof / 2.0, probability))
 
 
 @dataclass(frozen=True)

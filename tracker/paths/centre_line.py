@@ -23,7 +23,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.interpolate import splev, splprep
 
 MAD_TO_SIGMA = 1.4826
 """Standard deviation over median absolute deviation of a normal distribution."""
@@ -68,6 +67,8 @@ def smooth_centre_line(x_m: np.ndarray, y_m: np.ndarray, closed: bool,
     """A smoothing spline through ``x_m, y_m`` (in driving order; a closed circuit's last
     point does not repeat its first), sampled every ``step_m`` of arc length from the
     first point on (the first sample is the fit at the first point)."""
+    from scipy.interpolate import splev, splprep  # here: heavy, and for track files only
+
     x = np.asarray(x_m, dtype=float)
     y = np.asarray(y_m, dtype=float)
     noise = estimate_noise_m(x, y, closed)

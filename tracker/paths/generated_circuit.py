@@ -35,7 +35,6 @@ import zlib
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import lsq_linear
 
 from cosim.core.exceptions import ConfigError
 from tracker.paths.track_csv import TrackData
@@ -152,6 +151,8 @@ def _close(rng: np.random.Generator, features: list[_Feature],
     weight = 1e3
     a = np.vstack((weight * directions_m, np.eye(count)))
     b = np.concatenate((-weight * position, wanted))
+    from scipy.optimize import lsq_linear  # here: heavy, and for generated circuits only
+
     solution = lsq_linear(a, b, bounds=(STRAIGHT_MIN_M, np.inf))
     lengths = solution.x
     if np.linalg.norm(directions_m @ lengths + position) > 0.05:

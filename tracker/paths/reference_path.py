@@ -1,9 +1,10 @@
 """A reference path parametrised by arc length, with projection of points onto it.
 
-The path is a cubic spline x(s), y(s) through densely sampled points (scipy). Projection
+The path is a cubic spline x(s), y(s) through densely sampled points
+(:mod:`tracker.paths.cubic_spline`). Projection
 finds the arc length of the nearest point: a coarse search over a dense table (all of it, or
 a window around a known arc length), then Newton steps on the spline. The Newton steps
-evaluate the spline's cubic pieces from scipy's coefficients in plain floats (Horner), a
+evaluate the spline's cubic pieces from its coefficients in plain floats (Horner), a
 microsecond each instead of the tens a vectorised scipy call costs on one point; the
 runner projects the car 100 times per simulated second. The signed lateral error is
 positive when the point lies left of the path (ISO 8855 / ENU convention).
@@ -22,9 +23,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 from cosim.core.exceptions import ConfigError
+from tracker.paths.cubic_spline import CubicSpline
 from tracker.paths.speed_profile import ConstantSpeed, SpeedProfile
 
 
@@ -81,8 +82,8 @@ class ReferencePath:
             raise ConfigError("reference path: expected distinct consecutive points")
         s = np.concatenate(([0.0], np.cumsum(seg)))
         boundary = "periodic" if closed else "not-a-knot"
-        self._x = CubicSpline(s, x_m, bc_type=boundary)
-        self._y = CubicSpline(s, y_m, bc_type=boundary)
+        self._x = CubicSpline(s, x_m, boundary)
+        self._y = CubicSpline(s, y_m, boundary)
         self.closed = closed
         self.length_m = float(s[-1])
         self.speed_profile: SpeedProfile = (
@@ -95,7 +96,7 @@ class ReferencePath:
         self._table_y = self._y(self._table_s)
         self._knots_m: list[float] = s.tolist()
         # Per piece i, the coefficients (a, b, c, d) of x(s) = a h^3 + b h^2 + c h + d,
-        # h = s - s_i, for x and y: scipy's PPoly layout, highest power first.
+        # h = s - s_i, for x and y, highest power first.
         self._coefficients = np.vstack((self._x.c, self._y.c)).T.copy()
         self._knots = s
         self._pieces: list[tuple[float, ...]] = self._coefficients.tolist()

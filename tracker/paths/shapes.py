@@ -12,7 +12,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.integrate import cumulative_trapezoid
 
 STEP_M = 0.5
 """Spacing of the points handed to the spline [m]."""
@@ -27,11 +26,17 @@ class Shape:
     closed: bool
 
 
+def cumulative_trapezoid(y: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """The running integral of ``y`` over ``x`` by the trapezoid rule, from 0 at the
+    first point: ``I_k = sum_{j<k} (x_{j+1} - x_j) (y_j + y_{j+1}) / 2``."""
+    return np.concatenate(([0.0], np.cumsum(np.diff(x) * (y[1:] + y[:-1]) / 2.0)))
+
+
 def from_curvature(s_m: np.ndarray, curvature_1pm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Integrate ``yaw' = kappa``, ``x' = cos yaw``, ``y' = sin yaw`` from the origin."""
-    yaw = cumulative_trapezoid(curvature_1pm, s_m, initial=0.0)
-    return (cumulative_trapezoid(np.cos(yaw), s_m, initial=0.0),
-            cumulative_trapezoid(np.sin(yaw), s_m, initial=0.0))
+    yaw = cumulative_trapezoid(curvature_1pm, s_m)
+    return (cumulative_trapezoid(np.cos(yaw), s_m),
+            cumulative_trapezoid(np.sin(yaw), s_m))
 
 
 def _ramp(s_m: np.ndarray, start_m: float, length_m: float) -> np.ndarray:
@@ -70,9 +75,9 @@ def figure_eight(radius_m: float, transition_m: float = 10.0) -> Shape:
              - k * _ramp(s, joins[1] - half, transition_m)
              - k * _ramp(s, joins[2] - half, transition_m)
              + k * _ramp(s, joins[3] - half, transition_m))
-    yaw = np.pi / 4.0 + cumulative_trapezoid(kappa, s, initial=0.0)
-    x = cumulative_trapezoid(np.cos(yaw), s, initial=0.0)
-    y = cumulative_trapezoid(np.sin(yaw), s, initial=0.0)
+    yaw = np.pi / 4.0 + cumulative_trapezoid(kappa, s)
+    x = cumulative_trapezoid(np.cos(yaw), s)
+    y = cumulative_trapezoid(np.sin(yaw), s)
     # Close the loop: the end should come back to the start.
     end_x = x[-1] + np.cos(yaw[-1]) * (length - s[-1])
     end_y = y[-1] + np.sin(yaw[-1]) * (length - s[-1])

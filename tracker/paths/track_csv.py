@@ -28,7 +28,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from cosim.core.exceptions import ConfigError
 from cosim.core.yaml_io import shown
@@ -253,6 +252,8 @@ def first_self_intersection(x_m: np.ndarray, y_m: np.ndarray,
     length = np.hypot(*(q - p).T)
     reach = 4.0 * float(np.median(length))
     long = np.flatnonzero(length > reach)
+    from scipy.spatial import cKDTree  # here: heavy, and for track files only
+
     pairs = cKDTree((p + q) / 2.0).query_pairs(reach, output_type="ndarray")
     if long.size:
         every = np.arange(segments)
