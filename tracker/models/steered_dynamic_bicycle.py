@@ -334,15 +334,21 @@ def discrete_function(params: SteeredBicycleParams, dt_s: float,
                       substeps: int | None = None) -> ca.Function:
     """``F(state, inputs) -> next_state`` over ``dt_s`` (default substeps:
     :func:`rk4_substeps`)."""
-    if substeps is None:
-        substeps = rk4_substeps(params, dt_s)
-    if not (isinstance(substeps, int) and substeps >= 1):
-        raise ConfigError(f"substeps = {substeps!r}: expected an integer >= 1")
+    substeps = _substeps(params, dt_s, substeps)
     state = ca.SX.sym("state", len(STATE_NAMES))
     inputs = ca.SX.sym("inputs", len(INPUT_NAMES))
     return ca.Function("steered_dynamic_bicycle_rk4", [state, inputs],
                        [_advance(state, inputs, dt_s, substeps, ModelNumbers.of(params))],
                        ["state", "inputs"], ["next_state"])
+
+
+def _substeps(params: SteeredBicycleParams, dt_s: float, substeps: int | None) -> int:
+    """``substeps``, checked, or :func:`rk4_substeps` when None."""
+    if substeps is None:
+        substeps = rk4_substeps(params, dt_s)
+    if not (isinstance(substeps, int) and substeps >= 1):
+        raise ConfigError(f"substeps = {substeps!r}: expected an integer >= 1")
+    return substeps
 
 
 def belief_discrete_function(params: SteeredBicycleParams, dt_s: float,
@@ -352,10 +358,7 @@ def belief_discrete_function(params: SteeredBicycleParams, dt_s: float,
     ``params`` gives the shape (:class:`ModelNumbers`) and the default substeps. At
     ``belief = belief_vector(params)`` it computes what ``discrete_function(params, dt_s)``
     does, operation for operation."""
-    if substeps is None:
-        substeps = rk4_substeps(params, dt_s)
-    if not (isinstance(substeps, int) and substeps >= 1):
-        raise ConfigError(f"substeps = {substeps!r}: expected an integer >= 1")
+    substeps = _substeps(params, dt_s, substeps)
     state = ca.SX.sym("state", len(STATE_NAMES))
     inputs = ca.SX.sym("inputs", len(INPUT_NAMES))
     belief = ca.SX.sym("belief", len(BELIEF_NAMES))
