@@ -47,10 +47,12 @@ to their scripted poses after each step; their body boxes collide with the ego's
 from __future__ import annotations
 
 import math
+import warnings
 
 import mujoco
 import numpy as np
 
+from cosim.core.compiled_function import CompiledCacheWarning
 from cosim.core.exceptions import PhysicsDivergenceError
 from cosim.core.initial_state import InitialState
 from cosim.core.records import WHEEL_NAMES, ActuatorCommand, VehicleState
@@ -120,6 +122,10 @@ class MujocoPlant:
         )
         if self._tyres is not None:
             self._tyres.bind(self._data)
+            if one_call_tyres and self._tyres.compiled is None:
+                warnings.warn("no working C compiler (gcc, or $CC): the plant's tyres and "
+                              "physics step run in Python, about 3x slower",
+                              CompiledCacheWarning, stacklevel=2)
         if traffic is not None:
             traffic.bind(self._model)
         self._steps: CompiledSteps | None = self._compiled_steps()

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import cosim
+from cosim.core.compiled_function import CompiledCacheWarning
 from cosim.core.initial_state import InitialState
 from cosim.core.records import ActuatorCommand
 from cosim.core.vehicle_params import PlantConfig
@@ -80,3 +81,15 @@ def test_a_run_jumping_between_due_steps_is_the_per_step_run(
     timing = ("wall_time_s", "realtime_factor")
     assert {k: v for k, v in jumped.items() if "_ms_" not in k and k not in timing} == \
         {k: v for k, v in stepped.items() if "_ms_" not in k and k not in timing}
+
+
+def test_without_a_c_compiler_the_python_step_runs_with_one_warning(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("CC", "no-such-compiler")
+    with pytest.warns(CompiledCacheWarning, match="the plant's tyres and physics step run "
+                      "in Python") as caught:
+        plant = MujocoPlant(PlantConfig(), DT_S, InitialState(speed_mps=15.0))
+    assert len(caught) == 1 and plant._steps is None
+    plant.apply(_command(0))
+    plant.advance_steps(50)
+    assert plant.state().vx_mps > 14.0
