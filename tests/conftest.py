@@ -19,6 +19,21 @@ def run_scenario(tmp_dir: Path, name: str, *overrides: str, seed: int = 0,
     return run(config, tmp_dir / f"{name}-{seed}.mcap")
 
 
+@pytest.fixture(scope="session", autouse=True)
+def compiled_libraries() -> None:
+    """The default run's compiled libraries (NLP, filter, tyres, physics step) built before
+    any test, so that on a machine with an empty cache (CI) no test's output depends on
+    whether it happened to be the first to build one (a build prints a one-line note)."""
+    from cosim.plant.car import MujocoPlant
+    from estimation.registry import make_estimator
+    from tracker.registry import make_tracker
+
+    config = load_config("lane-change")
+    MujocoPlant(config.plant, config.sim.physics_dt_s, config.initial)
+    make_estimator(config.estimator, config.initial, config.tracker.model)
+    make_tracker(config.tracker, config.manoeuvre, config.sim.control_period_s)
+
+
 @pytest.fixture(scope="session")
 def short_run(tmp_path_factory: pytest.TempPathFactory) -> RunResult:
     """Two seconds of the lane change, seed 0."""
