@@ -32,7 +32,6 @@ class SteeringActuator:
                  servos: tuple[int, int]) -> None:
         self._config = config
         self._dt_s = physics_dt_s
-        self._servos = servos
         self.servos = servos
         """The left and right steering servos' actuator indices."""
         tau = config.steer_time_constant_s
@@ -75,10 +74,10 @@ class SteeringActuator:
             self._wheel_rad, self._wheel_rate_radps)
         rate_left, rate_right = (left - prev_left) / dt, (right - prev_right) / dt
         kv_kp, i_kp = self._kv_over_kp, self._inertia_over_kp
-        ctrl[self._servos[0]] = (
+        ctrl[self.servos[0]] = (
             left + kv_kp * rate_left + i_kp * (rate_left - prev_rate_left) / dt
         )
-        ctrl[self._servos[1]] = (
+        ctrl[self.servos[1]] = (
             right + kv_kp * rate_right + i_kp * (rate_right - prev_rate_right) / dt
         )
         self._wheel_rad = (left, right)
