@@ -187,7 +187,7 @@ class TrackerConfig:
         True,
         doc="solver fatrop: evaluate the NLP's functions as C compiled with gcc -O1 "
         "instead of CasADi's virtual machine; the same plans, the solve about 2x faster. "
-        "The belief and the weights are parameters, so one build (about 10 s, with a note) "
+        "The belief and the weights are parameters, so one build (about 20 s, with a note) "
         "serves every belief and weighting of a model, horizon and stage length; cached "
         "per machine under ~/.cache/cosim. Without a C compiler: the virtual machine, with "
         "a warning",

@@ -28,10 +28,10 @@ and solves; the solver's own verdict decides success, see :meth:`tracker.mpc.nlp
   failed QP (:class:`~tracker.mpc.nlp.RealTimeIteration`), so the iteration is written out here.
 
 With ``tracker.compiled`` (fatrop only) the NLP's functions are C instead of CasADi's
-virtual machine: :meth:`NmpcProblem.staged_problem` in MX maps one stage function over the
-horizon, so the generated code holds each derivative once (a tenth of the C of the inlined
-SX NLP, compiled in a fraction of its time); the library is cached per machine, keyed by
-the code (model, belief, weights, horizon). The same NLP and iterates
+virtual machine: the inlined SX NLP of :meth:`NmpcProblem.staged_problem` and the
+derivatives fatrop asks for, generated once per machine and cached, keyed by the NLP's
+graph (model, horizon, solver options); the belief and the weights are parameters, so one
+library serves them all. The same NLP and iterates
 (``tests/tracker/mpc/test_nmpc_solvers.py``), solved faster (``bench/where_time_goes.py``).
 
 Solve times and accuracy of each solver, as measured when ``fatrop`` became the default:
@@ -273,7 +273,7 @@ class NmpcProblem:
         return ca.Function("stage", [z, u, z_next, ref, belief, weights],
                            [cost, dynamics, steer_rate, ca.vertcat(*residuals)])
 
-    def staged_problem(self, symbol: type = ca.SX) -> StagedProblem:
+    def staged_problem(self) -> StagedProblem:
         """The same NLP posed stage by stage, for the structure-exploiting solvers.
 
         Stage ``k`` holds ``z_k = [x_k, c_k]`` and ``u_k`` (``z_N`` alone), where
@@ -287,19 +287,19 @@ class NmpcProblem:
         The cost is the same sum of stage terms as IPOPT's (:meth:`stage_terms`), so
         the optimum is the same; only the variables' order and two extra states per stage
         differ, which :class:`Nlp` hides from the rest of the tracker. Every stage is
-        :meth:`stage_function` mapped over the horizon: with ``symbol = ca.SX`` the
-        expressions are inlined (CasADi's virtual machine evaluates them fastest); with
-        ``ca.MX`` they stay calls of one function, whose derivatives CasADi then
-        generates once, not once per stage (C code a tenth the size, for compiling).
+        :meth:`stage_function` mapped over the horizon and inlined (SX): CasADi's virtual
+        machine and the generated C both evaluate the flat expressions fastest (in C the
+        Lagrangian's Hessian and the constraints' Jacobian take half the time of a mapped
+        MX stage function's, whose C is a tenth the size and compiles in half the time).
         """
         cfg = self.config
         n, dt, n_x = self._n, cfg.dt_s, self._n_x
         n_u = len(INPUT_NAMES)
         n_z = n_x + n_u
         stage_size = n_z + n_u
-        p = symbol.sym("p", self.params.size)
+        p = ca.SX.sym("p", self.params.size)
         par = self.params.split(p)
-        x = symbol.sym("w", stage_size * n + n_z)
+        x = ca.SX.sym("w", stage_size * n + n_z)
         stages = ca.reshape(x[:stage_size * n], stage_size, n)
         z = ca.horzcat(stages[:n_z, :], x[stage_size * n:])
         references = ca.horzcat(*(par[name] for name in _REFERENCE_BLOCKS)).T
@@ -345,8 +345,8 @@ class NmpcProblem:
         recursion over the stages instead of a general sparse factorisation.
 
         With ``tracker.compiled`` the NLP's functions (cost, constraints, their
-        derivatives, the Lagrangian's Hessian) are generated as C from the mapped stage
-        function, compiled once per machine (:func:`cosim.core.compiled_function.compiled_library`,
+        derivatives, the Lagrangian's Hessian) are generated as C from the inlined NLP,
+        compiled once per machine (:func:`cosim.core.compiled_function.compiled_library`,
         ``-O1``: as fast as ``-O2`` here, half the compile time) and loaded by fatrop in
         place of CasADi's virtual machine; the same NLP, so the same iterates.
         """
@@ -363,9 +363,9 @@ class NmpcProblem:
                        "tol": cfg.tolerance, "mu_init": 1e-3},
         }
         name = self.model.name.replace("-", "_")
+        problem = self.staged_problem()
+        options.update(problem.structure)
         if cfg.compiled:
-            problem = self.staged_problem(ca.MX)
-            options.update(problem.structure)
 
             def functions() -> list[ca.Function]:
                 """The NLP itself ("nlp": x, p -> f, g) and what fatrop derives from it."""
@@ -379,7 +379,7 @@ class NmpcProblem:
                 "nlp", [nlp["x"], nlp["p"]], [nlp["f"], nlp["g"]]).serialize()
             library = compiled_library(
                 f"nmpc_{name}", functions, ("-O1",), key=key,
-                note=f"compiling {self.model.name.replace('_', '-')}'s NLP to C (about 10 s)")
+                note=f"compiling {self.model.name.replace('_', '-')}'s NLP to C (about 20 s)")
             if library is None:
                 warnings.warn("no working C compiler (gcc, or $CC): the NMPC's NLP runs in "
                               "CasADi's virtual machine, about 2x slower "
@@ -395,8 +395,6 @@ class NmpcProblem:
                                   stacklevel=2)
                 else:
                     return problem.with_solver(cfg.solver, solver)
-        problem = self.staged_problem()
-        options.update(problem.structure)
         solver = ca.nlpsol(name, "fatrop", dict(problem.nlp), options)
         return problem.with_solver(cfg.solver, solver)
 
