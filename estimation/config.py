@@ -240,7 +240,8 @@ class EstimatorConfig:
 
     compiled: bool = setting(
         True,
-        doc="ekf: evaluate the process model's sub-step and the measurement models as C "
+        doc="ekf: evaluate the process model's sub-step, the measurement models and the joint "
+        "update of an instant's measurements as C "
         "compiled with gcc (one library, built once per machine with a note and cached "
         "under ~/.cache/cosim; the belief's numbers are its parameters, so one build serves "
         "every belief) instead of CasADi's virtual machine: the same estimates, the filter "

@@ -15,13 +15,15 @@ whether a measurement is fused (time, gating, rejection, counters) from
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 
 import numpy as np
 
 from cosim.core.dense_function import DenseFunction
-from estimation.fusion import KalmanFusion
+from estimation.fusion import KalmanFusion, _Checked
 from estimation.innovation import Selection, TrialUpdate, residual_function
+from estimation.joint_update import JointPosterior, JointUpdate
 from estimation.measurement_models import MeasurementModel
 
 
@@ -58,10 +60,30 @@ class Ekf(KalmanFusion):
         self._covariance = covariance
 
     def _hot_functions(self) -> tuple[DenseFunction, ...]:
-        """The sub-step of the process model and every measurement model's ``h`` with its
-        Jacobian: the EKF's whole evaluation of its models."""
+        """The sub-step of the process model, every measurement model's ``h`` with its
+        Jacobian, and the joint update of an instant's measurements: the EKF's whole
+        evaluation of its models."""
         return (*self._process.compiled_functions(),
-                *(model.function for model in self._models.values()))
+                *(model.function for model in self._models.values()),
+                self._joint_function.function)
+
+    @functools.cached_property
+    def _joint_function(self) -> JointUpdate:
+        """The joint update over every channel of the models (:mod:`estimation.joint_update`)."""
+        beliefs = [model.function.parameters for model in self._models.values()]
+        belief = beliefs[0]
+        if belief is None or any(b is None or not np.array_equal(b, belief) for b in beliefs):
+            raise ValueError("the measurement models must share one belief")
+        return JointUpdate(self._models, belief)
+
+    def _joint_update(self, checked: list[_Checked]) -> JointPosterior | None:
+        """As compiled C (:mod:`estimation.joint_update`) when the models are compiled;
+        otherwise in numpy (:meth:`_joint_trial_update`), which is then faster than the one
+        function in CasADi's virtual machine."""
+        joint = self._joint_function
+        if not joint.function.compiled:
+            return super()._joint_update(checked)
+        return joint(self._mean, self._covariance, [(c.model, c.selection, c.z) for c in checked])
 
     def _predict_substep(self, dt_s: float) -> None:
         """One RK4 sub-step of the process model for the mean; ``F P F' + Q``."""

@@ -45,6 +45,7 @@ from estimation.config import EstimatorConfig
 from estimation.errors import EstimatorError
 from estimation.initial import initial_belief
 from estimation.innovation import Innovation, Selection, TrialUpdate, residual_function
+from estimation.joint_update import JointPosterior
 from estimation.measurement_models import MeasurementModel, build_measurement_models
 from estimation.process_model import (
     MAX_STEP_S,
@@ -370,6 +371,28 @@ class KalmanFusion(ABC):
                 or len({c.t_s for c in checked}) != 1):
             return [self.update(m) for m in measurements]
         self.predict(checked[0].t_s)
+        joint = self._joint_update(checked)
+        if joint is None:
+            return [self.update(m) for m in measurements]
+        for c, value in zip(checked, joint.nis, strict=True):
+            # Above the gate, gated or not: one by one (a gate, or a surprise's room).
+            if not math.isfinite(value) or (
+                    self._config.gate and value > self.gate_threshold(len(c.selection.model_rows))):
+                return [self.update(m) for m in measurements]
+        if not self._commit(joint.mean, joint.covariance):
+            return [self.update(m) for m in measurements]
+        results = []
+        for c, value in zip(checked, joint.nis, strict=True):
+            dim = len(c.selection.model_rows)
+            self._forget_gate_failures(c.model, c.selection, tuple(range(dim)))
+            self._counts.setdefault(c.model.sensor, SensorCounts()).accepted += 1
+            results.append(UpdateResult(True, value, dim, ACCEPTED, value, dim))
+        return results
+
+    def _joint_update(self, checked: list[_Checked]) -> JointPosterior | None:
+        """Every measurement of ``checked`` in one update against the current belief, and
+        each one's NIS (its block of the joint innovation); None when the filter has no
+        joint update or it failed (a singular innovation covariance)."""
         blocks = [(c.model, c.selection, c.z, np.diag(c.selection.model_variance))
                   for c in checked]
         try:
@@ -377,7 +400,7 @@ class KalmanFusion(ABC):
         except np.linalg.LinAlgError:
             trial = None
         if trial is None:
-            return [self.update(m) for m in measurements]
+            return None
         s_matrix = 0.5 * (trial.innovation_covariance + trial.innovation_covariance.T)
         innovation = trial.innovation.reshape(-1)
         nis: list[float] = []
@@ -390,21 +413,8 @@ class KalmanFusion(ABC):
                                                                   innovation[block]))
             except np.linalg.LinAlgError:
                 value = math.nan
-            dim = block.stop - block.start
-            # Above the gate, gated or not: one by one (a gate, or a surprise's room).
-            if not math.isfinite(value) or (self._config.gate
-                                              and value > self.gate_threshold(dim)):
-                return [self.update(m) for m in measurements]
             nis.append(value)
-        if not self._apply(Innovation((), math.nan, trial)):
-            return [self.update(m) for m in measurements]
-        results = []
-        for c, value in zip(checked, nis, strict=True):
-            dim = len(c.selection.model_rows)
-            self._forget_gate_failures(c.model, c.selection, tuple(range(dim)))
-            self._counts.setdefault(c.model.sensor, SensorCounts()).accepted += 1
-            results.append(UpdateResult(True, value, dim, ACCEPTED, value, dim))
-        return results
+        return JointPosterior(trial.mean, trial.covariance, tuple(nis))
 
     def _joint_trial_update(
         self, blocks: list[tuple[MeasurementModel, Selection, np.ndarray, np.ndarray]],
@@ -510,10 +520,15 @@ class KalmanFusion(ABC):
         return Innovation(rows, nis, trial)
 
     def _apply(self, innovation: Innovation) -> bool:
-        """Commit a trial update; refuse (return False, belief unchanged) if it is
-        non-finite or its covariance not positive definite."""
-        mean = np.asarray(innovation.trial.mean, dtype=float).reshape(-1)
-        covariance = np.asarray(innovation.trial.covariance, dtype=float)
+        """Commit a trial update (:meth:`_commit`)."""
+        return self._commit(innovation.trial.mean, innovation.trial.covariance)
+
+    def _commit(self, mean: np.ndarray, covariance: np.ndarray) -> bool:
+        """Make ``mean`` and ``covariance`` (symmetrised) the belief; refuse (return False,
+        belief unchanged) if they are non-finite or the covariance is not positive
+        definite."""
+        mean = np.asarray(mean, dtype=float).reshape(-1)
+        covariance = np.asarray(covariance, dtype=float)
         covariance = 0.5 * (covariance + covariance.T)
         if not (np.isfinite(mean).all() and np.isfinite(covariance).all()):
             return False
@@ -661,7 +676,7 @@ def _use_compiled(kind: str, functions: tuple[DenseFunction, ...]) -> None:
         return
     library = load_library(f"cosim_{kind.lower()}",
                            [function.function for function in functions],
-                           note=f"compiling the {kind}'s models to C (about 10 s)")
+                           note=f"compiling the {kind}'s models to C (about 20 s)")
     if library is None:
         warnings.warn(f"no working C compiler (gcc, or $CC): the {kind}'s models run in "
                       "CasADi's virtual machine, about 2x slower (estimator.compiled=false "

@@ -45,6 +45,9 @@ class DenseFunction:
         for i, array in enumerate(self._outputs):
             self._buffer.set_res(i, memoryview(array))
         self._arguments = self._inputs
+        self.parameters = None if parameters is None else \
+            np.array(parameters, dtype=float).reshape(-1)
+        """The value of the last input set once here, flattened; None if not given."""
         if parameters is not None:  # the last input, set once
             self._inputs[-1].T[...] = np.reshape(parameters, self._inputs[-1].T.shape)
             self._arguments = self._inputs[:-1]

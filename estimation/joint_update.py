@@ -1,0 +1,175 @@
+"""The EKF's update with every measurement of one instant, as one CasADi function.
+
+At an instant when several sensors report (the IMU, wheel speeds and steering every 10 ms,
+the GNSS every 50), the EKF fuses them in one update: the measurements stacked, their
+noise block-diagonal, every model linearised at the prior mean (for a linearised model the
+same posterior as fusing them one after another: Bar-Shalom, Li, Kirubarajan, "Estimation
+with Applications to Tracking and Navigation", Wiley 2001, section 3.3.2). This module
+poses that update once, symbolically, over the channels of *every* measurement model the
+filter has, stacked in a fixed order; a ``mask`` input says which channels an instant
+carries. With ``m`` the mask (1 for a channel present, 0 otherwise), ``h``/``H`` the
+stacked models and their Jacobians at the prior mean ``x`` with covariance ``P``,
+``z`` the measurements and ``r`` their variances:
+
+    y = m .* wrap(z - h(x))           H_m = diag(m) H           R_m = diag(m .* r + 1 - m)
+    S = H_m P H_m' + R_m              K = P H_m' S^-1
+    x+ = x + K y                      P+ = (I - K H_m) P (I - K H_m)' + K R_m K'   (Joseph)
+    NIS_j = y_j' S_jj^-1 y_j          for each model's block j (of the symmetrised S)
+
+An absent channel's row of ``H_m`` and entry of ``y`` are exactly zero and its noise is 1,
+so it adds nothing to ``K``, ``x+`` or ``P+`` (the same numbers as the update without it,
+to rounding), and its block of ``S`` is the identity, so it adds nothing to the NIS.
+``P+`` is symmetric by construction: both products of the Joseph form are computed on and
+above the diagonal and mirrored (the numpy path symmetrises the full products instead; the
+two agree to rounding). The angle channels' innovations are wrapped to (-pi, pi] as
+:func:`estimation.state.wrap_angle` does.
+
+One function serves every combination of sensors and channels, and its numbers (the
+belief) are an input: it is compiled to C once per machine with the filter's other models
+(:func:`estimation.fusion._use_compiled`). Without a compiler it is not used: evaluated
+by CasADi's virtual machine it costs more than the same algebra in numpy.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from cosim.core.dense_function import DenseFunction
+from estimation.innovation import Selection
+from estimation.measurement_models import MeasurementModel
+from estimation.state import STATE_NAMES
+
+
+@dataclass(frozen=True)
+class JointPosterior:
+    """What one joint update gives: the posterior, and each measurement's NIS against
+    the prior (in the order the measurements were given)."""
+
+    mean: np.ndarray
+    covariance: np.ndarray
+    nis: tuple[float, ...]
+
+
+def _wrapped(angle: ca.SX) -> ca.SX:
+    """:func:`estimation.state.wrap_angle` symbolically: an angle in (-pi, pi] untouched,
+    otherwise ``pi - mod(pi - angle, 2 pi)`` (numpy's ``mod``, the sign of the divisor),
+    with -pi moved to +pi."""
+    two_pi = 2.0 * math.pi
+    shifted = math.pi - angle
+    wrapped = math.pi - (shifted - two_pi * ca.floor(shifted / two_pi))
+    wrapped = ca.if_else(wrapped <= -math.pi, wrapped + two_pi, wrapped)
+    return ca.if_else(ca.logic_and(angle > -math.pi, angle <= math.pi), angle, wrapped)
+
+
+def _symmetric_product(left: ca.SX, right: ca.SX) -> ca.SX:
+    """``left @ right.T`` for a product known to be symmetric: the upper triangle
+    computed, the lower one its mirror (half the arithmetic; exactly symmetric)."""
+    n = left.shape[0]
+    entries = [[None] * n for _ in range(n)]
+    for i in range(n):
+        for j in range(i, n):
+            entries[i][j] = entries[j][i] = ca.dot(left[i, :], right[j, :])
+    return ca.blockcat(entries)
+
+
+class JointUpdate:
+    """The joint update over every channel of ``models`` (module docstring), built once.
+
+    :meth:`__call__` places each measurement's channels at their rows of the stack and
+    evaluates the function; :attr:`function` is the evaluator to compile.
+    """
+
+    def __init__(self, models: Mapping[str, MeasurementModel], belief: np.ndarray) -> None:
+        self._offsets: dict[str, int] = {}
+        offset = 0
+        for sensor, model in models.items():
+            self._offsets[sensor] = offset
+            offset += len(model.channels)
+        size = offset
+        n = len(STATE_NAMES)
+        x = ca.SX.sym("x", n)
+        p = ca.SX.sym("P", n, n)
+        z = ca.SX.sym("z", size)
+        r = ca.SX.sym("r", size)
+        mask = ca.SX.sym("mask", size)
+        numbers = ca.SX.sym("belief", belief.size)
+        values, jacobians, blocks = [], [], []
+        for sensor, model in models.items():
+            h, jacobian = model.function.function(x, numbers)
+            values.append(h)
+            jacobians.append(jacobian)
+            start = self._offsets[sensor]
+            blocks.append(range(start, start + len(model.channels)))
+        angle_rows = {self._offsets[sensor] + model.channels.index(channel)
+                      for sensor, model in models.items() for channel in model.angle_channels}
+        residual = z - ca.vertcat(*values)
+        innovation = ca.vertcat(*[
+            _wrapped(residual[i]) if i in angle_rows else residual[i] for i in range(size)])
+        innovation = mask * innovation
+        observed = ca.diag(mask) @ ca.vertcat(*jacobians)
+        noise = ca.diag(mask * r + (1.0 - mask))
+        pht = p @ observed.T
+        s_matrix = observed @ pht + noise
+        gain = ca.solve(s_matrix, pht.T).T
+        i_kh = ca.SX.eye(n) - gain @ observed
+        covariance = _symmetric_product(i_kh @ p, i_kh) + _symmetric_product(
+            gain * ca.repmat((mask * r + (1.0 - mask)).T, n, 1), gain)
+        symmetric_s = 0.5 * (s_matrix + s_matrix.T)
+        nis = []
+        for rows in blocks:
+            index = list(rows)
+            y_block = innovation[index]
+            nis.append(ca.dot(y_block, ca.solve(symmetric_s[index, index], y_block)))
+        self.function = DenseFunction(ca.Function(
+            "ekf_joint_update", [x, p, z, r, mask, numbers],
+            [x + gain @ innovation, ca.densify(covariance), ca.vertcat(*nis)]),
+            parameters=belief)
+        """``(x, P, z, r, mask) -> (x+, P+, NIS per model)``, the belief set once."""
+        self._order = tuple(models)
+        self._stack_rows: dict[tuple[str, tuple[int, ...]], tuple[int, np.ndarray]] = {}
+        self._z = np.zeros(size)
+        self._r = np.ones(size)
+        self._mask = np.zeros(size)
+
+    def _rows(self, sensor: str, model_rows: tuple[int, ...]) -> tuple[int, np.ndarray]:
+        """The block of ``sensor`` and the rows of the stack its channels ``model_rows``
+        occupy (found once per selection)."""
+        key = (sensor, model_rows)
+        found = self._stack_rows.get(key)
+        if found is None:
+            offset = self._offsets[sensor]
+            found = (self._order.index(sensor),
+                     np.array([offset + row for row in model_rows], dtype=int))
+            self._stack_rows[key] = found
+        return found
+
+    def __call__(self, mean: np.ndarray, covariance: np.ndarray,
+                 blocks: Sequence[tuple[MeasurementModel, Selection, np.ndarray]],
+                 ) -> JointPosterior | None:
+        """The joint update of ``blocks`` (model, selected channels, their values), one
+        block per model; None when two blocks share a model or the result is not finite
+        (a singular ``S``: the caller then fuses them one by one, which tells why)."""
+        z, r, mask = self._z, self._r, self._mask
+        z.fill(0.0)
+        r.fill(1.0)
+        mask.fill(0.0)
+        seen: list[int] = []
+        for model, selection, values in blocks:
+            block, rows = self._rows(model.sensor, selection.model_rows)
+            if block in seen:
+                return None
+            seen.append(block)
+            z[rows] = values
+            r[rows] = selection.model_variance
+            mask[rows] = 1.0
+        posterior, posterior_covariance, nis = self.function(mean, covariance, z, r, mask)
+        nis = nis.reshape(-1)
+        if not (np.isfinite(posterior).all() and np.isfinite(nis[seen]).all()):
+            return None
+        return JointPosterior(posterior.reshape(-1), posterior_covariance,
+                              tuple(float(nis[i]) for i in seen))

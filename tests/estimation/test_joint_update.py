@@ -1,0 +1,139 @@
+"""The EKF's joint update of an instant's measurements as one compiled function
+(:mod:`estimation.joint_update`): the posterior and the NIS of the numpy joint update for
+every combination of sensors and channels, and the same runs through ``update_many``."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cosim.core.records import Measurement
+from cosim.simulation.scenario_config import load_config
+from estimation.ekf import Ekf
+from estimation.fusion import KalmanFusion, _Checked
+from estimation.registry import make_estimator
+from tests.conftest import run_scenario
+
+T_S = 0.5
+"""Where the filter is predicted to before the update: the covariance has correlations."""
+
+
+def _filter(**settings: object) -> Ekf:
+    config = load_config("lane-change")
+    estimator_config = dataclasses.replace(config.estimator, **settings)
+    filter_ = make_estimator(estimator_config, config.initial, config.tracker.model,
+                             rng=np.random.default_rng(4))
+    assert isinstance(filter_, Ekf)
+    filter_.predict(T_S)
+    return filter_
+
+
+def _measurement(filter_: Ekf, sensor: str, names: tuple[str, ...],
+                 offsets: tuple[float, ...]) -> Measurement:
+    """A measurement of ``names`` at the predicted mean plus ``offsets``."""
+    model = filter_._models[sensor]
+    h, _ = model.evaluate(filter_._x)
+    values = np.array([h[model.channels.index(name)] for name in names]) + offsets
+    return Measurement(sensor, T_S, names, values, np.eye(len(names)))
+
+
+def _checked(filter_: Ekf, measurements: list[Measurement]) -> list[_Checked]:
+    checked = [filter_._check(m) for m in measurements]
+    assert all(isinstance(c, _Checked) for c in checked)
+    return checked  # type: ignore[return-value]
+
+
+def _both(filter_: Ekf, measurements: list[Measurement]) -> tuple[object, object]:
+    checked = _checked(filter_, measurements)
+    compiled = filter_._joint_update(checked)
+    numpy_path = KalmanFusion._joint_update(filter_, checked)
+    return compiled, numpy_path
+
+
+def _relative(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.max(np.abs(a - b)) / np.max(np.abs(b)))
+
+
+def _cases(filter_: Ekf) -> dict[str, list[Measurement]]:
+    wheels = filter_._models["wheel_speed"].channels
+    return {
+        "imu, wheels, steering": [
+            _measurement(filter_, "imu", ("yaw_rate_radps", "ax_mps2", "ay_mps2"),
+                         (0.02, -0.3, 0.4)),
+            _measurement(filter_, "wheel_speed", wheels, (0.5,) * len(wheels)),
+            _measurement(filter_, "steering", ("steer_rad",), (0.01,)),
+        ],
+        "and the GNSS, channels in another order": [
+            _measurement(filter_, "gnss", ("y_m", "x_m"), (-0.7, 1.2)),
+            _measurement(filter_, "imu", ("ay_mps2", "yaw_rate_radps", "ax_mps2"),
+                         (0.4, 0.02, -0.3)),
+            _measurement(filter_, "steering", ("steer_rad",), (-0.02,)),
+        ],
+        "some channels only": [
+            _measurement(filter_, "imu", ("yaw_rate_radps",), (0.05,)),
+            _measurement(filter_, "wheel_speed", wheels[:1], (0.3,)),
+            _measurement(filter_, "gnss_velocity", ("v_north_mps",), (0.2,)),
+        ],
+        "a heading across +-pi": [
+            _measurement(filter_, "heading", ("yaw_rad",), (2.0 * math.pi - 0.05,)),
+            _measurement(filter_, "gnss", ("x_m", "y_m"), (0.3, 0.1)),
+        ],
+    }
+
+
+def test_the_compiled_joint_update_is_the_numpy_one_for_every_combination() -> None:
+    filter_ = _filter()
+    assert filter_._joint_function.function.compiled
+    for name, measurements in _cases(filter_).items():
+        compiled, numpy_path = _both(filter_, measurements)
+        assert compiled is not None and numpy_path is not None, name
+        assert _relative(compiled.mean, numpy_path.mean) < 1e-9, name
+        assert _relative(compiled.covariance, numpy_path.covariance) < 1e-9, name
+        assert np.array_equal(compiled.covariance, compiled.covariance.T), name
+        assert np.allclose(compiled.nis, numpy_path.nis, rtol=1e-9, atol=0.0), name
+        # Each measurement changed the belief: no channel was dropped by the mask.
+        for m in measurements:
+            alone = _both(filter_, [m])[1]
+            assert abs(alone.nis[0] - compiled.nis[measurements.index(m)]) < 1e-9 * max(
+                1.0, alone.nis[0]), name
+
+
+def test_the_angle_channel_is_wrapped_and_a_repeated_sensor_is_left_to_the_caller() -> None:
+    filter_ = _filter()
+    cases = _cases(filter_)
+    heading = cases["a heading across +-pi"]
+    compiled = filter_._joint_update(_checked(filter_, heading[:1]))
+    # 2 pi - 0.05 off is 0.05 off: a small innovation, not a jump of almost a turn.
+    yaw = filter_.state_names.index("yaw_rad")
+    noise = filter_._check(heading[0]).selection.model_variance[0]
+    assert compiled.nis[0] == pytest.approx(0.05 ** 2 / (filter_._p[yaw, yaw] + noise),
+                                            rel=1e-9)
+    twice = [cases["imu, wheels, steering"][0], cases["some channels only"][0]]
+    assert filter_._joint_update(_checked(filter_, twice)) is None
+
+
+def test_runs_through_update_many_are_those_of_the_numpy_update(tmp_path: Path) -> None:
+    # Four seconds of the lane change (IMU, wheels and steering every 10 ms, the GNSS
+    # every 50): the compiled joint update against the numpy one, every metric.
+    (tmp_path / "compiled").mkdir()
+    (tmp_path / "numpy").mkdir()
+    compiled = run_scenario(tmp_path / "compiled", "lane-change", duration_s=4.0, seed=6)
+    numpy_path = run_scenario(tmp_path / "numpy", "lane-change", "estimator.compiled=false",
+                              duration_s=4.0, seed=6)
+    compared = 0
+    for key, value in numpy_path.metrics.items():
+        if "ms" in key or "time" in key or "realtime" in key or not isinstance(value, float):
+            continue
+        other = compiled.metrics[key]
+        if math.isnan(value):
+            assert math.isnan(other), key
+            continue
+        assert other == pytest.approx(value, rel=1e-9, abs=1e-12), key
+        compared += 1
+    assert compared > 15
+    assert compiled.metrics["nees_mean"] != numpy_path.metrics["nees_mean"] or \
+        compiled.metrics["nis_mean"] != numpy_path.metrics["nis_mean"]
