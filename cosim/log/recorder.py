@@ -5,14 +5,22 @@ messages, with the same output: compact separators, shortest round-trip floats),
 scalars and arrays included; NaN and infinity, which JSON cannot represent, become null.
 
 Log time is integer nanoseconds of simulated time since the run's start. The file is
-written through a stream that flushes every record the MCAP writer emits, and the writer
-emits a chunk at a time, so a killed process loses at most the chunk being filled (about
-``chunk_size_bytes`` of data, a second or so of a run).
+written by :class:`cosim.log.mcap_writer.McapWriter` (cosim's own MCAP writer, after the
+MCAP specification at https://mcap.dev/spec, whose Python work per message is a fraction
+of that of the ``mcap`` package's Writer the recorder used before; ``bench/log_writer.py``
+measures both) through a stream that flushes every write, and the writer writes a finished chunk
+and its message indexes in one write, so a killed process loses at most the chunk being
+filled (about ``chunk_size_bytes`` of data, a second or so of a run).
+
+Chunks are zstd-compressed at level 1 (``mcap_writer.DEFAULT_ZSTD_LEVEL``), chosen from the
+figures of ``bench/log_writer.py``: on a default run's chunks it takes well under the time
+of zstd's default level 3 and gives a file no larger; the negative "fast" levels save
+little more time for a far larger file.
 
 The chunk size also sets the recorder's memory growth: MCAP's summary section indexes every
-chunk, so the writer keeps one chunk index per chunk until the file is finished (about
-1.5 kB each in Python); larger chunks, fewer indexes (``bench/long_run.py`` measures the
-growth over an hour-long run).
+chunk, so the writer keeps one Chunk Index record per chunk until the file is finished
+(about 80 bytes plus 10 per channel in the chunk, in a small object; ``bench/long_run.py``
+measures the growth over an hour-long run); larger chunks, fewer indexes.
 
 The file is written under a temporary name and renamed to its final name by
 :meth:`McapRecorder.publish` (see :mod:`cosim.log.safe_file`): a run refused before it
@@ -27,11 +35,11 @@ from pathlib import Path
 from typing import IO, Any, Protocol
 
 import orjson
-from mcap.writer import CompressionType, Writer
 
 from cosim import __version__
 from cosim.core.exceptions import ConfigError
 from cosim.log import topics
+from cosim.log.mcap_writer import DEFAULT_ZSTD_LEVEL, McapWriter
 from cosim.log.safe_file import PendingFile
 
 
@@ -121,12 +129,13 @@ class McapRecorder:
             raise ConfigError(
                 f"--out {str(self.path)!r}: cannot write ({error.strerror})"
             ) from None
-        self._writer = Writer(
+        self._writer = McapWriter(
             _FlushingStream(self._pending.file),
             chunk_size=chunk_size_bytes,
-            compression=CompressionType.ZSTD,
+            compression_level=DEFAULT_ZSTD_LEVEL,
+            profile="",
+            library=f"cosim {__version__}",
         )
-        self._writer.start(profile="", library=f"cosim {__version__}")
         self._channels: dict[str, int] = {}
         self._sequence: dict[str, int] = {}
         self._closed = False
@@ -157,12 +166,8 @@ class McapRecorder:
         if schema is None:
             schema = topics.schema_of(topic)
         data = json.dumps(schema).encode()
-        schema_id = self._writer.register_schema(
-            name=schema["title"], encoding="jsonschema", data=data
-        )
-        self._channels[topic] = self._writer.register_channel(
-            topic=topic, message_encoding="json", schema_id=schema_id
-        )
+        schema_id = self._writer.add_schema(schema["title"], "jsonschema", data)
+        self._channels[topic] = self._writer.add_channel(topic, "json", schema_id)
         self._sequence[topic] = 0
         if self.mirror is not None:
             self.mirror.register(topic, schema["title"], data)
@@ -173,10 +178,7 @@ class McapRecorder:
         log_time = self.epoch_ns + seconds_to_ns(t_s)
         sequence = self._sequence[topic]
         data = encode_message(message)
-        self._writer.add_message(
-            channel_id=channel_id, log_time=log_time, data=data,
-            publish_time=log_time, sequence=sequence,
-        )
+        self._writer.add_message(channel_id, log_time, log_time, sequence, data)
         self._sequence[topic] = sequence + 1
         if self.mirror is not None:
             self.mirror.write(topic, log_time, data)
@@ -186,13 +188,11 @@ class McapRecorder:
         self.write(topic, t_s, message)
 
     def add_metadata(self, name: str, values: dict[str, str]) -> None:
-        self._writer.add_metadata(name=name, data=values)
+        self._writer.add_metadata(name, values)
 
     def add_attachment(self, name: str, media_type: str, data: bytes, t_s: float = 0.0) -> None:
         t_ns = self.epoch_ns + seconds_to_ns(t_s)
-        self._writer.add_attachment(
-            create_time=t_ns, log_time=t_ns, name=name, media_type=media_type, data=data
-        )
+        self._writer.add_attachment(name, media_type, data, log_time=t_ns, create_time=t_ns)
 
     def close(self) -> None:
         """Write the summary, publish and close the file (idempotent)."""
