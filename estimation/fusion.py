@@ -31,7 +31,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.special import chdtri
 
 from cosim.core.compiled_function import CompiledCacheWarning, load_library
 from cosim.core.dense_function import DenseFunction
@@ -42,6 +41,7 @@ from cosim.core.sensor_names import FUSED_SENSORS, GNSS
 from cosim.core.vehicle_params import VehicleParams
 from estimation.belief_models import process_noise, roll_params
 from estimation.config import EstimatorConfig
+from estimation.consistency import chi_square_quantile
 from estimation.errors import EstimatorError
 from estimation.initial import initial_belief
 from estimation.innovation import Innovation, Selection, TrialUpdate, residual_function
@@ -236,10 +236,8 @@ class KalmanFusion(ABC):
         if dim < 1:
             raise ValueError(f"dim = {dim}: expected at least one channel")
         if dim not in self._gate_thresholds:
-            # The chi-square quantile (scipy.stats.chi2.ppf computes it the same way,
-            # through scipy.special, which does not import all of scipy.stats).
-            probability = self._config.gate_probability
-            self._gate_thresholds[dim] = float(chdtri(dim, 1.0 - probability))
+            self._gate_thresholds[dim] = chi_square_quantile(self._config.gate_probability,
+                                                             dim)
         return self._gate_thresholds[dim]
 
     def _hot_functions(self) -> tuple[DenseFunction, ...]:

@@ -148,6 +148,17 @@ def test_the_package_exposes_the_api_lazily() -> None:
     assert done.stdout.strip() == "[]"
 
 
+def test_a_default_run_imports_nothing_heavy_for_one_function(tmp_path: Path) -> None:
+    # scipy (a fifth of a second of every start), its statistics, the plots and filterpy
+    # (scipy.stats through it) have no place in a default run.
+    probe = ("import sys, cosim; cosim.run(cosim.load_config('lane-change', duration_s=0.2), "
+             f"{str(tmp_path / 'run.mcap')!r}); heavy = ('scipy', 'matplotlib', 'filterpy'); "
+             "print(sorted(m for m in sys.modules if m.split('.')[0] in heavy))")
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
+                          check=True, env={**os.environ, "MUJOCO_GL": "disable"})
+    assert done.stdout.strip().splitlines()[-1] == "[]"
+
+
 def ten_line_tracker() -> str:
     """The ```python block under "Your controller in ten lines" in docs/api.md."""
     text = (ROOT / "docs" / "api.md").read_text()

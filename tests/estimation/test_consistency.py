@@ -25,7 +25,12 @@ from cosim.simulation.scenario_config import ScenarioConfig, load_config
 from cosim.sweeps.ensemble import EnsembleMember, judge, run_member
 from cosim.sweeps.replay import replay
 from estimation.config import scaled_process_noise
-from estimation.consistency import chi_square_band, ensemble_consistency, nees_band
+from estimation.consistency import (
+    chi_square_band,
+    chi_square_quantile,
+    ensemble_consistency,
+    nees_band,
+)
 
 
 def test_band_of_one_run_is_the_chi_square_interval() -> None:
@@ -34,6 +39,19 @@ def test_band_of_one_run_is_the_chi_square_interval() -> None:
     low, high = nees_band(4, 1)
     assert low == pytest.approx(0.4844, abs=1e-4)
     assert high == pytest.approx(11.143, abs=1e-3)
+
+
+@pytest.mark.parametrize("dof", [1, 2, 3, 4, 7, 13, 50, 101, 1000, 4503])
+def test_the_quantile_is_scipys_in_both_tails(dof: int) -> None:
+    from scipy.special import gammaincinv  # the reference; the runs never import scipy
+
+    for probability in (1e-9, 1e-4, 0.005, 0.025, 0.3, 0.5, 0.7, 0.975, 0.99, 1 - 1e-9):
+        expected = 2.0 * float(gammaincinv(dof / 2.0, probability))
+        assert chi_square_quantile(probability, dof) == pytest.approx(expected, rel=1e-12)
+    with pytest.raises(ValueError, match="dof = 0"):
+        chi_square_quantile(0.5, 0)
+    with pytest.raises(ValueError, match="probability = 1.0"):
+        chi_square_quantile(1.0, dof)
 
 
 def test_band_narrows_around_the_dof_with_more_runs() -> None:

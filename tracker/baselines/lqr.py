@@ -32,7 +32,6 @@ rule for 1 m, 1 rad and 0.3 rad.
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg import expm, solve_discrete_are
 
 from tracker.baselines.common import BaselineTracker, LateralLaw, Pose, bicycle
 from tracker.baselines.config import LqrConfig
@@ -64,6 +63,7 @@ def path_error_matrices(params: DynamicBicycleParams,
 
 def discretise(a: np.ndarray, b: np.ndarray, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
     """Zero-order hold: ``expm([[A, B], [0, 0]] dt)``."""
+    from scipy.linalg import expm  # here: heavy, and for the LQR baseline only
     n, k = a.shape[0], b.shape[1]
     block = np.zeros((n + k, n + k))
     block[:n, :n], block[:n, n:] = a, b
@@ -73,6 +73,7 @@ def discretise(a: np.ndarray, b: np.ndarray, dt_s: float) -> tuple[np.ndarray, n
 
 def lqr_gain(a_d: np.ndarray, b_d: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarray:
     """``K = (R + B'PB)^-1 B'PA`` with ``P`` from the discrete algebraic Riccati equation."""
+    from scipy.linalg import solve_discrete_are  # here: heavy, and for the LQR baseline only
     p = solve_discrete_are(a_d, b_d, q, r)
     return np.linalg.solve(r + b_d.T @ p @ b_d, b_d.T @ p @ a_d)
 

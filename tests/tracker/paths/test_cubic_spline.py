@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.interpolate import CubicSpline as ScipySpline
 
-from tracker.paths.cubic_spline import CubicSpline
+from tracker.paths.cubic_spline import CubicSpline, solve_tridiagonal
 
 
 @pytest.mark.parametrize("boundary", ["not-a-knot", "periodic"])
@@ -31,3 +31,16 @@ def test_bad_knots_are_refused() -> None:
         CubicSpline(np.array([0.0, 1.0, 1.0, 2.0]), np.zeros(4), "not-a-knot")
     with pytest.raises(ValueError, match="last value must equal its first"):
         CubicSpline(np.arange(5.0), np.arange(5.0), "periodic")
+
+
+@pytest.mark.parametrize("size", [1, 2, 3, 8, 300])
+def test_the_tridiagonal_solve_is_numpys_dense_one_also_where_it_must_pivot(size: int) -> None:
+    rng = np.random.default_rng(size)
+    lower, upper = rng.normal(size=size - 1), rng.normal(size=size - 1)
+    diagonal = rng.normal(size=size)
+    diagonal[0] = 1e-14 * (size > 1) + (size == 1)  # without a row swap: ruinous growth
+    rhs = rng.normal(size=size)
+    dense = np.diag(diagonal) + np.diag(lower, -1) + np.diag(upper, 1)
+    expected = np.linalg.solve(dense, rhs)
+    solved = solve_tridiagonal(lower, diagonal, upper, rhs)
+    assert np.max(np.abs(solved - expected)) <= 1e-10 * np.max(np.abs(expected))
