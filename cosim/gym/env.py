@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -37,7 +36,7 @@ import gymnasium
 import numpy as np
 
 from cosim.core.records import Command, Estimate, Plan
-from cosim.log.recorder import McapRecorder
+from cosim.log.recorder import McapRecorder, NoLog
 from cosim.simulation.runner import RunState, finish_run
 from cosim.simulation.scenario_config import ScenarioConfig, load_config
 from tracker.paths.reference_path import ReferencePath
@@ -84,19 +83,6 @@ class _ActionTracker:
                     solve_time_s=0.0, iterations=0, status="agent", success=True,
                     fallback=False)
         return command, plan
-
-
-class _NoLog:
-    """A recorder that keeps nothing (an episode without ``log_dir``)."""
-
-    def register(self, topic: str, schema: Mapping[str, Any] | None = None) -> None: ...
-    def write(self, topic: str, t_s: float, message: dict[str, Any]) -> None: ...
-    def write_finite(self, topic: str, t_s: float, message: dict[str, Any]) -> None: ...
-    def add_metadata(self, name: str, values: dict[str, str]) -> None: ...
-    def add_attachment(self, name: str, media_type: str, data: bytes,
-                       t_s: float = 0.0) -> None: ...
-    def publish(self) -> None: ...
-    def close(self) -> None: ...
 
 
 class CosimEnv(gymnasium.Env[np.ndarray, np.ndarray]):
@@ -169,7 +155,7 @@ class CosimEnv(gymnasium.Env[np.ndarray, np.ndarray]):
             path = self.log_dir / f"{config.name}-seed{run_seed}-episode{self._episode}.mcap"
             self._recorder = McapRecorder(path, epoch_ns=config.sim.epoch_ns)
         else:
-            self._recorder = _NoLog()
+            self._recorder = NoLog()
         self._state = RunState(config, self._recorder, _ActionTracker())
         self._state.write_header()
         self._recorder.publish()

@@ -86,8 +86,11 @@ class MessageMirror(Protocol):
 
 
 class Recorder(Protocol):
-    """What the run writes its log through (:class:`McapRecorder`; the Gymnasium
-    environment's episodes without a log pass one that keeps nothing)."""
+    """What the run writes its log through (:class:`McapRecorder`; :class:`NoLog` for a
+    run without a log: a sweep's that keeps none, a Gymnasium episode without ``log_dir``)."""
+
+    keeps: bool
+    """Whether anything written is kept: when not, the run builds no messages at all."""
 
     def register(self, topic: str, schema: Mapping[str, Any] | None = None) -> None:
         """Declare a topic (by default with the schema :mod:`cosim.log.topics` gives it)."""
@@ -111,8 +114,25 @@ CHUNK_SIZE_BYTES = 1024 * 1024
 """Uncompressed bytes per MCAP chunk: about a second of the default lane change."""
 
 
+class NoLog:
+    """A recorder that keeps nothing (:class:`Recorder`)."""
+
+    keeps = False
+
+    def register(self, topic: str, schema: Mapping[str, Any] | None = None) -> None: ...
+    def write(self, topic: str, t_s: float, message: dict[str, Any]) -> None: ...
+    def write_finite(self, topic: str, t_s: float, message: dict[str, Any]) -> None: ...
+    def add_metadata(self, name: str, values: dict[str, str]) -> None: ...
+    def add_attachment(self, name: str, media_type: str, data: bytes,
+                       t_s: float = 0.0) -> None: ...
+    def publish(self) -> None: ...
+    def close(self) -> None: ...
+
+
 class McapRecorder:
     """Writes a run to an MCAP file. Use as a context manager; it always finishes the file."""
+
+    keeps = True
 
     def __init__(self, path: Path, chunk_size_bytes: int = CHUNK_SIZE_BYTES,
                  epoch_ns: int = 0, mirror: MessageMirror | None = None) -> None:

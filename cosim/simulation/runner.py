@@ -47,7 +47,7 @@ from cosim.core.exceptions import PhysicsDivergenceError, TrackerFault
 from cosim.core.records import Command, Estimate, Measurement, Plan, VehicleState
 from cosim.core.sensor_names import GNSS, RADAR, TRUTH
 from cosim.log import foxglove, topics
-from cosim.log.recorder import McapRecorder, MessageMirror, Recorder
+from cosim.log.recorder import McapRecorder, MessageMirror, NoLog, Recorder
 from cosim.plant import disturbances
 from cosim.plant.car import MujocoPlant
 from cosim.plant.low_level import AccelToTorque
@@ -75,7 +75,8 @@ class RunResult:
     """What a run produced: its log, its metrics (every key declared in
     :mod:`cosim.simulation.metric_keys`), whether it ran to the end, and why not."""
 
-    log_path: Path
+    log_path: Path | None
+    """The MCAP log; None for a run without one (:func:`run_unlogged`)."""
     metrics: dict[str, float | int | bool | str]
     completed: bool
     abort_reason: str
@@ -290,6 +291,8 @@ class _Run:
     def write_header(self) -> None:
         """Channels, the run's metadata, the simulated MJCF, the path and the static scene."""
         recorder, config = self.recorder, self.config
+        if not recorder.keeps:
+            return
         _register_topics(recorder, [s.name for s in self.sensors],
                          bool(config.disturbances))
         if self.traffic is not None:
@@ -335,17 +338,22 @@ class _Run:
         return self.estimator.estimate()
 
     def log(self, k: int, t_s: float) -> None:
+        """The log's and the metrics' look at step ``k``: the truth, the estimate (observed,
+        not changed), events; the messages only when the recorder keeps them."""
         estimate = self.observed_estimate(t_s)
-        truth_message = self.truth.to_message()
-        for sensor in self.biased_sensors:
-            truth_message.update(sensor.true_biases())
-        self.recorder.write_finite(topics.VEHICLE_TRUTH, t_s, truth_message)
-        self.recorder.write_finite(topics.VEHICLE_ESTIMATE, t_s, estimate.to_message())
-        self.recorder.write(topics.TF, t_s, foxglove.frame_transform(self.truth))
-        if k % self.clock.scene_steps == 0:
-            self.recorder.write(topics.SCENE_CAR, t_s,
-                                foxglove.car_scene(self.truth, self.config.plant))
-            self.recorder.write(topics.SCENE_ESTIMATE, t_s, foxglove.estimate_scene(estimate))
+        keeps = self.recorder.keeps
+        if keeps:
+            truth_message = self.truth.to_message()
+            for sensor in self.biased_sensors:
+                truth_message.update(sensor.true_biases())
+            self.recorder.write_finite(topics.VEHICLE_TRUTH, t_s, truth_message)
+            self.recorder.write_finite(topics.VEHICLE_ESTIMATE, t_s, estimate.to_message())
+            self.recorder.write(topics.TF, t_s, foxglove.frame_transform(self.truth))
+            if k % self.clock.scene_steps == 0:
+                self.recorder.write(topics.SCENE_CAR, t_s,
+                                    foxglove.car_scene(self.truth, self.config.plant))
+                self.recorder.write(topics.SCENE_ESTIMATE, t_s,
+                                    foxglove.estimate_scene(estimate))
         metrics = self.metrics
         metrics.add_truth(self.truth)
         metrics.add_estimate(estimate, self.truth)
@@ -358,13 +366,14 @@ class _Run:
                     and self.stopped_by is None:
                 self.stopped_by = event
         self.course_monitor.add_truth(self.truth, metrics.cte_m.last, metrics.last_path_s_m)
-        self.recorder.write_finite(topics.CONTROL_ERRORS, t_s, {
-            "t_s": t_s, "cte_m": metrics.cte_m.last,
-            "heading_err_rad": metrics.heading_err_rad.last,
-            "speed_err_mps": metrics.speed_err_mps.last, "speed_mps": self.truth.speed_mps,
-            "ref_speed_mps": metrics.last_ref_speed_mps,
-        })
-        if t_s >= self.next_live_metrics_s - 1e-9:
+        if keeps:
+            self.recorder.write_finite(topics.CONTROL_ERRORS, t_s, {
+                "t_s": t_s, "cte_m": metrics.cte_m.last,
+                "heading_err_rad": metrics.heading_err_rad.last,
+                "speed_err_mps": metrics.speed_err_mps.last, "speed_mps": self.truth.speed_mps,
+                "ref_speed_mps": metrics.last_ref_speed_mps,
+            })
+        if keeps and t_s >= self.next_live_metrics_s - 1e-9:
             self.recorder.write_finite(topics.METRICS_LIVE, t_s, metrics.live(t_s))
             self.next_live_metrics_s += LIVE_METRICS_PERIOD_S
         if self.traffic is not None:
@@ -384,19 +393,23 @@ class _Run:
                 sensor.sample(self.truth, self.rngs[sensor.name]))
             if measurement is None:  # a dropout: nothing is delivered
                 continue
+            delivered.append(measurement)
+            if not self.recorder.keeps:
+                continue
             self.recorder.write_finite(topics.sensor_topic(sensor.name), t_s,
                                        measurement.to_message())
             if sensor.name == GNSS and np.all(np.isfinite(measurement.values)):
                 self.recorder.write(topics.GNSS_FIX, t_s, foxglove.location_fix(
                     measurement["x_m"], measurement["y_m"], t_s,
                     self.config.sensors.gnss.sigma_m, self.config.geo))
-            delivered.append(measurement)
         if not delivered:
             return
         updates = self.fuse(delivered)
         for measurement, update in zip(delivered, updates, strict=True):
             if measurement.sensor != TRUTH:  # noise-free: NIS is undefined
                 self.metrics.add_update(measurement.sensor, update, measurement.t_s)
+                if not self.recorder.keeps:
+                    continue
                 self.recorder.write_finite(topics.ESTIMATOR_UPDATES, t_s, {
                     "t_s": t_s, "sensor": measurement.sensor, "accepted": update.accepted,
                     "nis": update.nis, "dof": update.dim, "reason": update.reason})
@@ -408,8 +421,9 @@ class _Run:
         start_s = time.perf_counter()
         command, plan = self.tracker.step(t_s, estimate, self.reference)
         step_time_s = time.perf_counter() - start_s
-        self.recorder.write_finite(topics.CONTROL_PLAN, t_s, plan.to_message())
-        self.write_plan_scene(t_s, plan)
+        if self.recorder.keeps:
+            self.recorder.write_finite(topics.CONTROL_PLAN, t_s, plan.to_message())
+            self.write_plan_scene(t_s, plan)
         self.metrics.add_plan(plan, step_time_s)
         self.delay_line.append((k + self.clock.delay_steps, command))
         if self.traffic is not None:
@@ -454,6 +468,8 @@ class _Run:
             actuator = self.low_level.convert(command, speed_mps)
             self.plant.apply(actuator)
             self.metrics.add_command(command)
+            if not self.recorder.keeps:
+                continue
             self.recorder.write(topics.CONTROL_COMMAND, t_s, {
                 "t_s": t_s, "accel_mps2": command.accel_mps2, "steer_rad": command.steer_rad,
                 "drive_torque_nm": actuator.drive_torque_nm,
@@ -545,12 +561,31 @@ def run(
     reason; an ordinary exception is raised on once the log is finished.
     """
     wall_start = time.perf_counter()
+    with McapRecorder(out_path, epoch_ns=config.sim.epoch_ns, mirror=mirror) as recorder:
+        metrics, completed, abort_reason = _run_with(config, recorder, progress, wall_start)
+    return RunResult(Path(out_path), metrics, completed, abort_reason)
+
+
+def run_unlogged(config: ScenarioConfig,
+                 progress: Callable[[float], None] | None = None) -> RunResult:
+    """:func:`run` without a log (``log_path`` None): the same simulation and metrics, bit
+    for bit, with no messages built, encoded or written (a sweep that keeps no logs: they
+    would be deleted unread)."""
+    wall_start = time.perf_counter()
+    metrics, completed, abort_reason = _run_with(config, NoLog(), progress, wall_start)
+    return RunResult(None, metrics, completed, abort_reason)
+
+
+def _run_with(
+    config: ScenarioConfig, recorder: Recorder, progress: Callable[[float], None] | None,
+    wall_start: float,
+) -> tuple[dict[str, float | int | bool | str], bool, str]:
+    """The run of :func:`run` through ``recorder``: its metrics, whether it completed and
+    why not."""
     completed, abort_reason, abort = False, "", ""
     # One BLAS thread: the matrices here are small, and an idle BLAS thread spinning on
     # the other core makes MPC solve times jitter (README, "Why the defaults").
-    with threadpool_limits(limits=1, user_api="blas"), McapRecorder(
-            out_path, epoch_ns=config.sim.epoch_ns, mirror=mirror) as recorder, \
-            contextlib.ExitStack() as release:
+    with threadpool_limits(limits=1, user_api="blas"), contextlib.ExitStack() as release:
         state = _Run(config, recorder)
         if isinstance(state.tracker, Closable):  # released however the run ends
             release.callback(state.tracker.close)
@@ -584,7 +619,7 @@ def run(
         if progress is not None:
             progress(1.0)
         metrics = _finish(recorder, state, wall_start, completed, abort_reason, abort)
-    return RunResult(Path(out_path), metrics, completed, abort_reason)
+    return metrics, completed, abort_reason
 
 
 def _finish(recorder: Recorder, state: _Run, wall_start: float, completed: bool,

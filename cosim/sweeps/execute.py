@@ -34,7 +34,6 @@ import multiprocessing
 import os
 import signal
 import sys
-import tempfile
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -75,14 +74,13 @@ def _now() -> str:
 def _run_task(task: RunTask, row: dict[str, Any]) -> None:
     """Run ``task`` and fill ``row``'s metrics and error (:func:`execute_task`)."""
     from cosim.simulation.outcome import SEVERITY
-    from cosim.simulation.runner import run
+    from cosim.simulation.runner import run, run_unlogged
     from cosim.simulation.scenario_config import load_config
 
     config = load_config(task.scenario, None, list(task.overrides), task.seed,
                          task.duration_s, task.tracker, task.estimator)
-    if task.log_path is None:
-        with tempfile.TemporaryDirectory(prefix="cosim-sweep-") as tmp:
-            result = run(config, Path(tmp) / "run.mcap")
+    if task.log_path is None:  # no log kept: none written (the same metrics, bit for bit)
+        result = run_unlogged(config)
     else:
         Path(task.log_path).parent.mkdir(parents=True, exist_ok=True)
         result = run(config, Path(task.log_path))

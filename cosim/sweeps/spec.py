@@ -202,7 +202,8 @@ class RunTask:
     estimator: str | None
     duration_s: float | None
     log_path: str | None
-    """Where the run's MCAP log goes; ``None``: a temporary file, deleted after the run."""
+    """Where the run's MCAP log goes; ``None``: no log at all
+    (:func:`cosim.simulation.runner.run_unlogged`, the same metrics bit for bit)."""
 
 
 @dataclass(frozen=True)

@@ -12,7 +12,8 @@ from mcap.reader import make_reader
 
 from cosim.log.reader import iter_messages, read_summary
 from cosim.simulation.metrics import METRIC_KEYS, WALL_CLOCK_KEYS
-from cosim.simulation.runner import RunResult
+from cosim.simulation.runner import RunResult, run_unlogged
+from cosim.simulation.scenario_config import load_config
 from tests.conftest import run_scenario
 
 DESIGN_TOPICS = {
@@ -54,6 +55,19 @@ def test_one_seed_gives_one_result(short_run: RunResult, tmp_path: Path) -> None
         assert first[topic] == second[topic], topic
     # Plans and metrics differ only in wall-clock timing fields.
     assert _strip_wall_clock(first) == _strip_wall_clock(second)
+
+
+def test_a_run_without_a_log_has_the_logged_runs_metrics_bit_for_bit(
+        short_run: RunResult) -> None:
+    # What a sweep that keeps no logs runs: no message is built, and nothing it simulates,
+    # estimates or measures changes (logging observes the loop).
+    unlogged = run_unlogged(load_config("lane-change", duration_s=2.0))
+    assert unlogged.log_path is None and unlogged.completed
+    compared = {k for k in short_run.metrics if k not in WALL_CLOCK_KEYS and "_ms_" not in k}
+    assert len(compared) > 40
+    for key in sorted(compared):
+        logged, other = short_run.metrics[key], unlogged.metrics[key]
+        assert logged == other or (logged != logged and other != other), key
 
 
 def test_another_seed_gives_other_noise(short_run: RunResult, tmp_path: Path) -> None:
