@@ -97,9 +97,9 @@ def test_a_signal_to_compare_alone_stops_its_runs_and_writes_the_league(
     rows_file = out / "rows.jsonl"
     env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "disable")}
     args = [COSIM, "compare", "--trackers", "pid,lqr,stanley", "--scenarios", "circle",
-            "--duration", "40", "--workers", "1", "--out", str(out)]
-    # 40 s a run: long enough (a few seconds of wall time) that the signal lands in the
-    # second run, not after the third.
+            "--duration", "120", "--workers", "1", "--out", str(out)]
+    # 120 s a run: long enough (several seconds of wall time, also on a loaded machine)
+    # that the signal lands in the second run, not after the third.
     process = subprocess.Popen(args, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                text=True, start_new_session=True)  # no group-wide signal
     try:
