@@ -69,6 +69,20 @@ from estimation.update_result import (
 
 
 @dataclass(frozen=True)
+class _Lookahead:
+    """A prediction :meth:`KalmanFusion.estimate_at` made for an observer and undid: from
+    the belief ``before`` (the very arrays, at ``t0_s``) to ``mean``/``covariance`` at
+    ``t_s``. The log looks at the instants the sensors report, just before the filter
+    itself predicts to them from the same belief: that prediction is this one."""
+
+    before: tuple[np.ndarray, np.ndarray]
+    t0_s: float
+    t_s: float
+    mean: np.ndarray
+    covariance: np.ndarray
+
+
+@dataclass(frozen=True)
 class _Checked:
     """A measurement :meth:`KalmanFusion.update` can fuse: its model, the channels, their
     values and the time stamp."""
@@ -150,6 +164,7 @@ class KalmanFusion(ABC):
         self._gate_thresholds: dict[int, float] = {}
         self._gate_failing_since_s: dict[tuple[str, tuple[str, ...]], float] = {}
         self._selections: dict[tuple[str, tuple[str, ...]], Selection] = {}
+        self._lookahead: _Lookahead | None = None
 
     # ------------------------------------------------------------------- filter-specific
 
@@ -219,13 +234,17 @@ class KalmanFusion(ABC):
         often, anyone looks.
         """
         mean, covariance, t0_s = self._x.copy(), self._p.copy(), self._t_s
+        predicted = None
         try:
             self.predict(t_s)
+            predicted = self._x, self._p, self._t_s
             return self.estimate()
         finally:
             self._set_mean(mean)
             self._set_covariance(covariance)
             self._t_s = t0_s
+            self._lookahead = None if predicted is None else _Lookahead(
+                (self._x, self._p), t0_s, predicted[2], predicted[0], predicted[1])
 
     def counts(self) -> dict[str, dict[str, int]]:
         """Per sensor: accepted, rejected (by cause), ignored and gate-released updates."""
@@ -248,9 +267,21 @@ class KalmanFusion(ABC):
     # ----------------------------------------------------------------------------- predict
 
     def predict(self, t_s: float) -> None:
-        """Propagate the belief to ``t_s`` (no-op at the current time; never backwards)."""
+        """Propagate the belief to ``t_s`` (no-op at the current time; never backwards).
+
+        A prediction an observer made from this very belief to ``t_s`` (:meth:`estimate_at`)
+        is taken as it was: the same arithmetic, done once.
+        """
         interval_s = forward_interval_s(self._t_s, float(t_s), "filter")
         if interval_s == 0.0:
+            return
+        lookahead, self._lookahead = self._lookahead, None
+        if (lookahead is not None and lookahead.t_s == float(t_s)
+                and lookahead.t0_s == self._t_s and lookahead.before[0] is self._x
+                and lookahead.before[1] is self._p):
+            self._set_mean(lookahead.mean)
+            self._set_covariance(lookahead.covariance)
+            self._t_s = lookahead.t_s
             return
         substeps = max(1, math.ceil(interval_s / self._config.max_step_s - 1e-9))
         dt_s = interval_s / substeps

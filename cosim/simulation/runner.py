@@ -339,8 +339,13 @@ class _Run:
 
     def log(self, k: int, t_s: float) -> None:
         """The log's and the metrics' look at step ``k``: the truth, the estimate (observed,
-        not changed), events; the messages only when the recorder keeps them."""
-        estimate = self.observed_estimate(t_s)
+        not changed), events; the messages only when the recorder keeps them.
+
+        The estimate is predicted to the truth's own time stamp (the plant's clock, which
+        the sensors stamp their measurements with too: ``t_s`` to a few 1e-18 s), so it is
+        compared with the truth at the same instant, and the filter, predicting to the
+        sensors' instant next, takes that prediction as made."""
+        estimate = self.observed_estimate(self.truth.t_s)
         keeps = self.recorder.keeps
         if keeps:
             truth_message = self.truth.to_message()
