@@ -134,6 +134,8 @@ class MetricsAccumulator:
     estimator_counts: dict[str, dict[str, int]] = field(default_factory=dict)
     """Per sensor, the estimator's own counters (set at the end of the run)."""
     last_t_s: float = 0.0
+    _nees_grid: tuple[tuple[str, ...], tuple[np.ndarray, ...]] = ((), ())
+    """The estimates' state names and the index grid of their NEES block (found once)."""
     last_path_s_m: float | None = None
     """Arc length of the last projection of the truth onto the reference path."""
 
@@ -165,7 +167,11 @@ class MetricsAccumulator:
         self.pos_err_m.add(float(np.hypot(error[0], error[1])))
         self.yaw_err_rad.add(float(error[2]))
         self.speed_est_err_mps.add(float(error[3]))
-        covariance = estimate.sub_covariance(NEES_STATES)
+        names, grid = self._nees_grid
+        if names != estimate.names:  # the first estimate (an estimator keeps its names)
+            index = [estimate.names.index(name) for name in NEES_STATES]
+            names, grid = self._nees_grid = estimate.names, np.ix_(index, index)
+        covariance = estimate.covariance[grid]  # estimate.sub_covariance(NEES_STATES)
         if np.all(np.isfinite(covariance)) and np.linalg.det(covariance) > 0.0:
             self.nees.add(float(error @ np.linalg.solve(covariance, error)))
 
