@@ -386,7 +386,7 @@ class KalmanFusion(ABC):
         """Fuse measurements taken at the same instant; one result per measurement.
 
         When every one of them is fusable and passes its own gate against the prior, the
-        filter fuses them in one update (:meth:`_joint_trial_update`: for a linearised
+        filter fuses them in one update (:meth:`_joint_update`: for a linearised
         model the same posterior as one after another, Bar-Shalom, Li, Kirubarajan 2001,
         section 3.3.2, at a third of the cost for the IMU, wheel speeds and steering every
         10 ms); each measurement's NIS is its own block of the joint innovation against the

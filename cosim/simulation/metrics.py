@@ -134,7 +134,8 @@ class MetricsAccumulator:
     estimator_counts: dict[str, dict[str, int]] = field(default_factory=dict)
     """Per sensor, the estimator's own counters (set at the end of the run)."""
     last_t_s: float = 0.0
-    _nees_grid: tuple[tuple[str, ...], tuple[np.ndarray, ...]] = ((), ())
+    _nees_grid: tuple[tuple[str, ...], tuple[np.ndarray, ...]] = field(
+        default=((), ()), init=False, repr=False)
     """The estimates' state names and the index grid of their NEES block (found once)."""
     last_path_s_m: float | None = None
     """Arc length of the last projection of the truth onto the reference path."""
