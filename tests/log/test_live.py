@@ -54,12 +54,19 @@ class Received:
     """Messages per topic that arrived while the run's process was still going."""
 
 
-async def _connect(port: int, deadline_s: float) -> Any:
+async def _connect(port: int, deadline_s: float,
+                   process: subprocess.Popen[bytes] | None = None) -> Any:
+    """Connect, trying again while the server is not up yet; a run's process that has
+    ended fails the test at once, with how it ended."""
     while True:
         try:
             return await websockets.connect(f"ws://127.0.0.1:{port}",
                                             subprotocols=SUBPROTOCOLS, max_size=None)
         except OSError:
+            if process is not None and process.poll() is not None:
+                _, err = process.communicate()
+                pytest.fail(f"the run ended (exit code {process.returncode}) before a client "
+                            f"could connect; its stderr:\n{err.decode()[-2000:]}")
             if time.monotonic() > deadline_s:
                 raise
             await asyncio.sleep(0.05)
@@ -67,13 +74,15 @@ async def _connect(port: int, deadline_s: float) -> Any:
 
 async def listen(port: int, topics: tuple[str, ...], enough: int,
                  process: subprocess.Popen[bytes] | None = None,
-                 timeout_s: float = 60.0) -> Received:
+                 timeout_s: float = 240.0) -> Received:
     """Subscribe to ``topics`` and collect messages until each has ``enough`` of them
-    (or the server closes), decoding each with its channel's advertised schema."""
+    (or the server closes), decoding each with its channel's advertised schema.
+    ``timeout_s`` covers the run's start, which on a fresh machine compiles the MPC and
+    the filter (a minute or more on a loaded machine)."""
     received = Received()
     deadline_s = time.monotonic() + timeout_s
     subscriptions: dict[int, str] = {}
-    async with await _connect(port, deadline_s) as client:
+    async with await _connect(port, deadline_s, process) as client:
         assert client.subprotocol in SUBPROTOCOLS
         while time.monotonic() < deadline_s:
             try:
@@ -267,9 +276,9 @@ def test_clients_that_come_twice_or_leave_do_not_disturb_the_run(tmp_path: Path)
     port = free_port()
     log = tmp_path / "run.mcap"
     process = subprocess.Popen(
-        # 8 s of wall clock: time for two clients on a loaded machine (a shorter run could
+        # 15 s of wall clock: time for two clients on a loaded machine (a shorter run could
         # end before the second one connects, and the test would say nothing about it)
-        cosim("run", "lane-change", "--duration", "16", "--live", "--port", str(port),
+        cosim("run", "lane-change", "--duration", "30", "--live", "--port", str(port),
               "--pace", "2", "--out", str(log)),
         env={**os.environ, "MUJOCO_GL": "disable"}, stdout=subprocess.PIPE,
         stderr=subprocess.PIPE)
