@@ -166,12 +166,14 @@ class TrackerConfig:
     solver: str = setting(
         "fatrop",
         choices=("ipopt", "fatrop", "sqp-rti"),
-        doc="NLP solver of kinematic-nmpc and dynamic-nmpc (measured table in tracker.mpc.nmpc): "
-        "fatrop (default: interior point over the stages; IPOPT's optimum 2-3x faster), "
-        "ipopt (interior point, general sparse; the reference), sqp-rti (real-time iteration: "
-        "rti_iterations Gauss-Newton SQP steps per control step from the shifted plan, "
-        "one QP each; same max CTE on the lane change 6-10x faster: kinematic N=20 "
-        "0.5-0.6 ms median against 2.4-3.5 ms with ipopt)",
+        doc="NLP solver of kinematic-nmpc and dynamic-nmpc (measured table in README, 'The "
+        "NMPC solvers'): fatrop (default: interior point over the stages, converged to "
+        "tolerance every step; IPOPT's optimum 2-3x faster), ipopt (interior point, "
+        "general sparse; the reference), sqp-rti (real-time iteration: rti_iterations "
+        "Gauss-Newton SQP steps per control step from the shifted plan, one QP each; the "
+        "solve 3-5x faster than fatrop's and the same max CTE on the lane change, but at "
+        "the grip limit it lags: with friction 0.6 known to the tracker 3 of 5 seeds spin "
+        "at 2 steps a control step, none with fatrop)",
     )
     rti_qp_solver: str = setting(
         "hpipm",
@@ -181,22 +183,30 @@ class TrackerConfig:
         "fast on the kinematic model, 8x slower on the dynamic one)",
     )
     rti_iterations: int = setting(
-        1, low=1, high=100, doc="SQP iterations per step of solver sqp-rti (exactly this many)"
+        1, low=1, high=100,
+        doc="SQP iterations per step of solver sqp-rti from the shifted plan (exactly this "
+        "many; from a cold guess, at the first step or after a reset, it iterates to "
+        "tolerance, at most max_iterations). 2 keeps every plan along the lane change "
+        "within 1e-4 of IPOPT's optimum (1: 1.8e-4 m/s in the speed at the horizon's end)",
     )
     compiled: bool = setting(
         True,
-        doc="solver fatrop: evaluate the NLP's functions as C compiled with gcc -O1 "
-        "instead of CasADi's virtual machine; the same plans, the solve about 2x faster. "
-        "The belief and the weights are parameters, so one build (about 20 s, with a note) "
-        "serves every belief and weighting of a model, horizon and stage length; cached "
-        "per machine under ~/.cache/cosim. Without a C compiler: the virtual machine, with "
-        "a warning",
+        doc="solvers sqp-rti (with hpipm) and fatrop: evaluate as C compiled with gcc -O1 "
+        "instead of CasADi's virtual machine (sqp-rti: the whole step, hpipm's call "
+        "included); the same plans, the solve 2-4x faster. The belief and the weights "
+        "are parameters, so one build (10-20 s, with a note) serves every belief and "
+        "weighting of a model, horizon and stage length; cached per machine under "
+        "~/.cache/cosim. Without a C compiler: the virtual machine, with a warning. "
+        "ipopt and sqp-rti with qrqp or osqp always run in the virtual machine",
     )
     max_iterations: int = setting(
-        100, low=1, high=10000, doc="iteration limit of solvers ipopt and fatrop"
+        100, low=1, high=10000,
+        doc="iteration limit of solvers ipopt and fatrop, and of sqp-rti from a cold guess"
     )
     tolerance: float = setting(
-        1e-6, low=1e-12, high=1.0, doc="convergence tolerance of solvers ipopt and fatrop"
+        1e-6, low=1e-12, high=1.0,
+        doc="convergence tolerance of solvers ipopt and fatrop; sqp-rti from a cold guess "
+        "stops once no entry of a step exceeds it"
     )
     latency_compensation: bool = setting(
         True,

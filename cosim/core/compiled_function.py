@@ -80,8 +80,14 @@ class CompiledFunction:
         self._name = function.name()
 
     def __call__(self) -> None:
-        if self._entry(self._arg, self._res, self._iw, self._w, 0):
+        if self.status_of_call():
             raise RuntimeError(f"{self._name}: the compiled function reported an error")
+
+    def status_of_call(self) -> int:
+        """Evaluate, and return the function's status (0: success) instead of raising:
+        for a function whose failure is a result (one holding a QP solver reports an
+        unsolved QP this way)."""
+        return int(self._entry(self._arg, self._res, self._iw, self._w, 0))
 
 
 class CompiledCacheWarning(UserWarning):
@@ -178,7 +184,8 @@ def compiled_library(name: str, functions: Functions,
                      flags: Sequence[str] = COMPILER_FLAGS,
                      note: str | None = None, key: str | None = None,
                      extra_sources: Sequence[Path] = (),
-                     link_flags: Sequence[str] = ()) -> Path | None:
+                     link_flags: Sequence[str] = (),
+                     edit_source: Callable[[str], str] | None = None) -> Path | None:
     """The shared library holding ``functions`` (each under its own name), compiled with
     ``flags`` or found in the cache; None when no C compiler is available or compiling
     fails. ``name`` names the file (a C identifier). ``note``, if given, is printed as one
@@ -199,7 +206,8 @@ def compiled_library(name: str, functions: Functions,
 
     ``extra_sources`` (C files of one's own, e.g. calling the generated functions) are
     compiled into the same library and ``link_flags`` passed last; both are part of the
-    entry's hash.
+    entry's hash. ``edit_source`` rewrites the generated C before it is compiled (to work
+    around a fault of CasADi's code generator); with ``key``, the key must name the edit.
     """
     compiler = shutil.which(os.environ.get("CC", "gcc"))
     if compiler is None:
@@ -210,7 +218,7 @@ def compiled_library(name: str, functions: Functions,
         own = b"".join(Path(extra).read_bytes() for extra in extra_sources)
         hashed_flags = (*flags, *link_flags)
         if key is None:
-            _generate(name, functions, tmp)
+            _generate(name, functions, tmp, edit_source)
             digest = _source_digest(source.read_bytes() + own, hashed_flags)
         else:
             digest = _source_digest(f"{key}\ncasadi {ca.__version__}".encode() + own,
@@ -224,7 +232,7 @@ def compiled_library(name: str, functions: Functions,
                           "rebuilding it", CompiledCacheWarning, stacklevel=2)
             _discard(entry)
         if key is not None:
-            _generate(name, functions, tmp)
+            _generate(name, functions, tmp, edit_source)
         if note is not None:
             print(f"cosim: note: {note} (once per machine, cached in {entry.parent})",
                   file=sys.stderr, flush=True)
@@ -241,13 +249,17 @@ def compiled_library(name: str, functions: Functions,
             return _private_copy(built)
 
 
-def _generate(name: str, functions: Functions, folder: str) -> None:
+def _generate(name: str, functions: Functions, folder: str,
+              edit_source: Callable[[str], str] | None = None) -> None:
     """Write the C source of ``functions`` (or of what the callable returns) as
-    ``folder/name.c``."""
+    ``folder/name.c``, rewritten by ``edit_source`` if given."""
     generator = ca.CodeGenerator(f"{name}.c", {"with_header": False})
     for function in functions() if callable(functions) else functions:
         generator.add(function)
     generator.generate(f"{folder}/")
+    if edit_source is not None:
+        source = Path(folder, f"{name}.c")
+        source.write_text(edit_source(source.read_text()))
 
 
 def _source_digest(content: bytes, flags: Sequence[str]) -> str:

@@ -16,9 +16,13 @@ import math
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import casadi as ca
 import numpy as np
+
+if TYPE_CHECKING:
+    from tracker.mpc.compiled_rti import CompiledRtiStep
 
 
 @dataclass(frozen=True)
@@ -58,6 +62,10 @@ class RealTimeIteration:
     ``min 1/2 dw' H dw + grad f' dw`` s.t. ``lbx <= w + dw <= ubx`` and
     ``lbg <= g + J_g dw <= ubg``; ``cost(w, p)`` is the NLP's cost at the result.
 
+    ``compiled``, when given, is the whole step (these three functions and the QP solver)
+    as C (:mod:`tracker.mpc.compiled_rti`): the same iterates, without CasADi's virtual
+    machine or a conversion between numpy and CasADi matrices.
+
     CasADi's ``sqpmethod`` (``max_iter = 1``) does the same, but in CasADi 3.8 it carries
     on silently when a QP fails (``Maximum_Iterations_Exceeded`` either way) unless the QP
     raises, which dumps the whole QP to stdout; here every QP's status is checked.
@@ -67,32 +75,63 @@ class RealTimeIteration:
     qp: ca.Function
     cost: ca.Function
     iterations: int
+    """Steps per control step from a warm start (``tracker.rti_iterations``)."""
+    cold_iterations: int
+    """Most steps from a cold guess (``tracker.max_iterations``)."""
+    cold_tolerance: float
+    """From a cold guess, the steps stop once the largest entry of a step is at most this
+    (``tracker.tolerance``)."""
+    compiled: CompiledRtiStep | None = None
 
-    def solve(self, w: np.ndarray, params: np.ndarray, nlp: Nlp) -> Solution:
-        """``iterations`` full steps from ``w`` within ``nlp``'s bounds; the first QP that
-        fails ends it unsuccessfully (hpipm's status: 1 iteration limit, 2 step too small,
-        3 NaN, 4 inconsistent equalities; qrqp and osqp report words)."""
+    def solve(self, w: np.ndarray, params: np.ndarray, nlp: Nlp,
+              cold: bool = False) -> Solution:
+        """Full steps from ``w`` within ``nlp``'s bounds: ``iterations`` of them from a
+        warm start; from a ``cold`` guess (no previous plan to shift) until a step is
+        below ``cold_tolerance``, at most ``cold_iterations``: the iteration then starts
+        the run at the NLP's solution, as a real-time iteration is meant to start (Diehl
+        et al. 2002), instead of converging to it over the first second of the run. The
+        first QP that fails ends it unsuccessfully (hpipm's status: 1 iteration limit, 2
+        step too small, 3 NaN, 4 inconsistent equalities; qrqp and osqp report words; the
+        compiled step says ``no solution``)."""
         start = time.perf_counter()
-        for iteration in range(1, self.iterations + 1):
-            hessian, gradient, g, jacobian = self.qp_data(w, params)
-            g = np.asarray(g, dtype=float).ravel()
-            step = self.qp(h=hessian, g=gradient, a=jacobian, lbx=nlp.lbx - w,
-                           ubx=nlp.ubx - w, lba=nlp.lbg - g, uba=nlp.ubg - g)
-            stats = self.qp.stats()
-            dw = np.asarray(step["x"], dtype=float).ravel()
-            status = None
-            if not stats.get("success", False):
-                status = f"QP_Failed ({stats.get('return_status', 'unknown')})"
-            elif not step_feasible(w + dw, g + np.asarray(ca.mtimes(jacobian, dw)).ravel(),
-                                    nlp):
-                status = "QP_Failed (step violates the bounds)"
-            if status is not None:
+        limit = self.cold_iterations if cold else self.iterations
+        cost: float | None = None
+        for iteration in range(1, limit + 1):
+            w_next, cost, status = self._step(w, params, nlp)
+            if status:
                 return Solution(w, math.nan, status, iteration, False,
-                                 time.perf_counter() - start)
-            w = w + dw
-        cost = float(self.cost(w, params))
-        return Solution(w, cost, "RTI_Completed", self.iterations, True,
-                         time.perf_counter() - start)
+                                time.perf_counter() - start)
+            converged = cold and float(np.max(np.abs(w_next - w))) <= self.cold_tolerance
+            w = w_next
+            if converged:
+                break
+        if cost is None:
+            cost = float(self.cost(w, params))
+        return Solution(w, cost, "RTI_Completed", iteration, True, time.perf_counter() - start)
+
+    def _step(self, w: np.ndarray, params: np.ndarray, nlp: Nlp
+              ) -> tuple[np.ndarray, float | None, str]:
+        """One full step: the next iterate, the cost there (when it comes for free) and
+        the reason the step failed ("" when it did not)."""
+        if self.compiled is not None:
+            stepped = self.compiled(w, params)
+            if stepped is None:
+                return w, None, "QP_Failed (hpipm: no solution)"
+            w_next, g_linear, cost = stepped
+            if not step_feasible(w_next, g_linear, nlp):
+                return w, None, "QP_Failed (step violates the bounds)"
+            return w_next, cost, ""
+        hessian, gradient, g, jacobian = self.qp_data(w, params)
+        g = np.asarray(g, dtype=float).ravel()
+        step = self.qp(h=hessian, g=gradient, a=jacobian, lbx=nlp.lbx - w,
+                       ubx=nlp.ubx - w, lba=nlp.lbg - g, uba=nlp.ubg - g)
+        stats = self.qp.stats()
+        dw = np.asarray(step["x"], dtype=float).ravel()
+        if not stats.get("success", False):
+            return w, None, f"QP_Failed ({stats.get('return_status', 'unknown')})"
+        if not step_feasible(w + dw, g + np.asarray(ca.mtimes(jacobian, dw)).ravel(), nlp):
+            return w, None, "QP_Failed (step violates the bounds)"
+        return w + dw, None, ""
 
 
 @dataclass(frozen=True)
@@ -127,8 +166,9 @@ class Nlp:
             w[self.carried_index] = np.vstack((input_prev, inputs))
         return w
 
-    def solve(self, w0: np.ndarray, params: np.ndarray) -> Solution:
-        """Solve from the guess ``w0``; CasADi errors raise ``RuntimeError``.
+    def solve(self, w0: np.ndarray, params: np.ndarray, cold: bool = False) -> Solution:
+        """Solve from the guess ``w0`` (``cold``: not a previous plan shifted, which the
+        real-time iteration takes to convergence); CasADi errors raise ``RuntimeError``.
 
         Success is each solver's own verdict: IPOPT's and fatrop's ``success`` (converged
         to ``tracker.tolerance``), the real-time iteration's every QP solved. The status
@@ -138,7 +178,7 @@ class Nlp:
         ``QP_Failed (<the QP solver's status>)``.
         """
         if isinstance(self.solver, RealTimeIteration):
-            return self.solver.solve(w0, params, self)
+            return self.solver.solve(w0, params, self, cold)
         start = time.perf_counter()
         solution = self.solver.call({"x0": w0, "p": params, **self._bounds})
         solve_time_s = time.perf_counter() - start

@@ -121,6 +121,7 @@ class Nmpc(EstimatedStartMpc):
 
     def _solve(self, t_s: float, start: Start, reference: ReferencePath) -> Solved:
         state0 = start.state
+        cold = self._warm is None  # no plan to shift: the guess is the last input held
         guess = self._warm_start(t_s, state0, self._step, self._state["yaw_rad"])
         blocks, speed_reduced = self._reference_blocks(reference, state0, guess.states, t_s)
         blocks["state0"] = state0
@@ -130,7 +131,7 @@ class Nmpc(EstimatedStartMpc):
         params = self._params.pack(blocks)
         nlp = self._nlp
         w0 = nlp.pack(guess.states, guess.inputs, self._previous_input)
-        solution = nlp.solve(w0, params)
+        solution = nlp.solve(w0, params, cold)
         w = solution.w
         return Solved(w[nlp.state_index], w[nlp.input_index], solution.cost, solution.status,
                       solution.iterations, solution.success, solution.solve_time_s,

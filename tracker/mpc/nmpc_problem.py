@@ -23,27 +23,32 @@ and solves; the solver's own verdict decides success, see :meth:`tracker.mpc.nlp
   steps per control step on the staged NLP, warm-started from the shifted plan, each one
   QP (``rti_qp_solver``: hpipm, a stage-wise Riccati interior point, by default). Not
   converged within a step but converged along the run, since the warm start carries the
-  iterate on.
+  iterate on; from a cold guess (the first step, after a reset) it iterates to
+  ``tolerance``, so the run starts at the optimum.
   CasADi's ``sqpmethod`` with ``max_iter = 1`` would do the same, but it ignores a
   failed QP (:class:`~tracker.mpc.nlp.RealTimeIteration`), so the iteration is written out here.
 
-With ``tracker.compiled`` (fatrop only) the NLP's functions are C instead of CasADi's
-virtual machine: the inlined SX NLP of :meth:`NmpcProblem.staged_problem` and the
-derivatives fatrop asks for, generated once per machine and cached, keyed by the NLP's
-graph (model, horizon, solver options); the belief and the weights are parameters, so one
-library serves them all. The same NLP and iterates
+With ``tracker.compiled`` the solver's work is C instead of CasADi's virtual machine,
+generated once per machine and cached, keyed by the NLP's graph (model, horizon, solver
+options); the belief and the weights are parameters, so one library serves them all:
+for fatrop the inlined SX NLP of :meth:`NmpcProblem.staged_problem` and the derivatives
+fatrop asks for; for sqp-rti with hpipm the whole step, the QP's data, hpipm's call and
+the cost (:mod:`tracker.mpc.compiled_rti`). The same NLP and iterates
 (``tests/tracker/mpc/test_nmpc_solvers.py``), solved faster (``bench/where_time_goes.py``).
 
-Solve times and accuracy of each solver, as measured when ``fatrop`` became the default:
-README, "Why the defaults", NMPC solvers; ``bench/solve_time.py`` times them on this machine.
+Solve times and accuracy of each solver, and why the real-time iteration is not the
+default: README, "Why the defaults", NMPC solvers; ``bench/solve_time.py`` times them on
+this machine.
 """
 
 from __future__ import annotations
 
+import ctypes
 import json
 import warnings
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import fields
+from pathlib import Path
 from types import MappingProxyType, SimpleNamespace
 
 import casadi as ca
@@ -52,6 +57,13 @@ import numpy as np
 from cosim.core.compiled_function import CompiledCacheWarning, compiled_library
 from cosim.core.exceptions import ConfigError
 from tracker.config import TrackerConfig, TrackerWeights
+from tracker.mpc.compiled_rti import (
+    HPIPM_OPTIONS_EDIT,
+    CompiledRtiStep,
+    complete_hpipm_options,
+    hpipm_build_flags,
+    rti_step_function,
+)
 from tracker.mpc.fallback import INPUT, INPUT_NAMES
 from tracker.mpc.nlp import Nlp, RealTimeIteration, StagedProblem
 from tracker.mpc.nmpc_model import NmpcModel
@@ -61,6 +73,9 @@ from tracker.mpc.vector_layout import VectorLayout
 WEIGHT_NAMES: tuple[str, ...] = tuple(field.name for field in fields(TrackerWeights))
 """``tracker.weights`` as the NLP's ``weights`` parameters take them, in vector order: every
 weight is a parameter, so one NLP (and one compiled library) serves every weighting."""
+
+COMPILE_FLAGS = ("-O1",)
+"""Optimisation of the compiled NLPs: as fast as ``-O2`` here, half the compile time."""
 
 _REFERENCE_BLOCKS: tuple[str, ...] = (
     "ref_x_m", "ref_y_m", "ref_yaw_rad", "ref_speed_mps", "ref_steer_rad")
@@ -377,15 +392,8 @@ class NmpcProblem:
             nlp = problem.nlp
             key = json.dumps(options, sort_keys=True) + ca.Function(
                 "nlp", [nlp["x"], nlp["p"]], [nlp["f"], nlp["g"]]).serialize()
-            library = compiled_library(
-                f"nmpc_{name}", functions, ("-O1",), key=key,
-                note=f"compiling {self.model.name.replace('_', '-')}'s NLP to C (about 20 s)")
-            if library is None:
-                warnings.warn("no working C compiler (gcc, or $CC): the NMPC's NLP runs in "
-                              "CasADi's virtual machine, about 2x slower "
-                              "(tracker.compiled=false says so quietly)",
-                              CompiledCacheWarning, stacklevel=2)
-            else:
+            library = self._compiled_library(f"nmpc_{name}", functions, key, "NLP", 20)
+            if library is not None:
                 try:
                     solver = ca.nlpsol(name, "fatrop", str(library), options)
                 except RuntimeError as error:  # checked, so only a changing file gets here
@@ -440,6 +448,61 @@ class NmpcProblem:
             "rti_qp", cfg.rti_qp_solver,
             {"h": hessian.sparsity(), "a": constraint_jacobian.sparsity()}, options,
         )
-        rti = RealTimeIteration(qp_data, qp, ca.Function("rti_cost", [w, p], [cost]),
-                                 cfg.rti_iterations)
+        cost_function = ca.Function("rti_cost", [w, p], [cost])
+        compiled = None
+        if cfg.compiled and cfg.rti_qp_solver == "hpipm":
+            compiled = self._compiled_rti(problem, qp_data, qp, cost_function, options)
+        rti = RealTimeIteration(qp_data, qp, cost_function, cfg.rti_iterations,
+                                cfg.max_iterations, cfg.tolerance, compiled)
         return problem.with_solver(cfg.solver, rti)
+
+    def _compiled_rti(self, problem: StagedProblem, qp_data: ca.Function, qp: ca.Function,
+                      cost: ca.Function, options: Mapping[str, object]
+                      ) -> CompiledRtiStep | None:
+        """The real-time iteration's step as C (:mod:`tracker.mpc.compiled_rti`), or None
+        (with a warning) when it cannot be built or loaded."""
+        step = rti_step_function(qp_data, qp, cost)
+        # qp_data and cost determine the QP's structure; the options, hpipm's settings.
+        key = (json.dumps(options, sort_keys=True) + HPIPM_OPTIONS_EDIT
+               + qp_data.serialize() + cost.serialize())
+        include, link = hpipm_build_flags()
+        name = f"rti_{self.model.name.replace('-', '_')}"
+        try:
+            library = self._compiled_library(name, lambda: [step], key,
+                                             "real-time iteration", 10,
+                                             (*COMPILE_FLAGS, *include), link,
+                                             complete_hpipm_options)
+        except ValueError as error:  # another CasADi's generated code
+            warnings.warn(f"cannot compile the real-time iteration ({error}): using "
+                          "CasADi's virtual machine", CompiledCacheWarning, stacklevel=3)
+            return None
+        if library is None:
+            return None
+        layout = problem.layout
+        try:
+            return CompiledRtiStep(ctypes.CDLL(str(library)), step, layout["lbx"],
+                                   layout["ubx"], layout["lbg"], layout["ubg"])
+        except (OSError, AttributeError) as error:  # checked, so only a changing file
+            warnings.warn(f"cannot load the compiled real-time iteration {str(library)!r} "
+                          f"({error}): using CasADi's virtual machine", CompiledCacheWarning,
+                          stacklevel=3)
+            return None
+
+    def _compiled_library(self, name: str, functions: Callable[[], list[ca.Function]],
+                          key: str, what: str, build_s: int,
+                          flags: tuple[str, ...] = COMPILE_FLAGS,
+                          link_flags: tuple[str, ...] = (),
+                          edit_source: Callable[[str], str] | None = None) -> Path | None:
+        """The library of ``functions`` compiled once per machine
+        (:func:`cosim.core.compiled_function.compiled_library`, with a note saying it takes
+        about ``build_s``), or None with a warning when no C compiler works."""
+        library = compiled_library(
+            name, functions, flags, key=key, link_flags=link_flags, edit_source=edit_source,
+            note=f"compiling {self.model.name.replace('_', '-')}'s {what} to C "
+                 f"(about {build_s} s)")
+        if library is None:
+            warnings.warn(f"no working C compiler (gcc, or $CC): the NMPC's {what} runs in "
+                          "CasADi's virtual machine, 2-4x slower "
+                          "(tracker.compiled=false says so quietly)",
+                          CompiledCacheWarning, stacklevel=3)
+        return library
