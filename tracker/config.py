@@ -185,9 +185,11 @@ class TrackerConfig:
     rti_iterations: int = setting(
         1, low=1, high=100,
         doc="SQP iterations per step of solver sqp-rti from the shifted plan (exactly this "
-        "many; from a cold guess, at the first step or after a reset, it iterates to "
-        "tolerance, at most max_iterations). 2 keeps every plan along the lane change "
-        "within 1e-4 of IPOPT's optimum (1: 1.8e-4 m/s in the speed at the horizon's end)",
+        "many; from a cold guess, at the first step, after a reset or a non-finite plan, "
+        "it iterates to tolerance, at most max_iterations, else the solve fails). 2 keeps "
+        "every state and the steering of every plan along the lane change within 1e-4 of "
+        "IPOPT's optimum, the acceleration within 3e-4 m/s^2 (1: 1.8e-4 m/s in the speed "
+        "at the horizon's end)",
     )
     compiled: bool = setting(
         True,

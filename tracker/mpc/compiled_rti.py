@@ -23,6 +23,8 @@ horizon and stage length.
 from __future__ import annotations
 
 import ctypes
+import hashlib
+import inspect
 import re
 from pathlib import Path
 
@@ -48,10 +50,6 @@ def hpipm_build_flags() -> tuple[tuple[str, ...], tuple[str, ...]]:
 _HPIPM_PROBLEM = "  struct casadi_hpipm_prob p;\n"
 _HPIPM_MODE = re.compile(r"^  p\.hpipm_options\.mode = (\d+);$", re.MULTILINE)
 
-HPIPM_OPTIONS_EDIT = "hpipm options from d_ocp_qp_ipm_arg_set_default, v1"
-"""Names :func:`complete_hpipm_options` in a cache key (change it when the edit changes)."""
-
-
 def complete_hpipm_options(source: str) -> str:
     """The generated C with hpipm's options complete.
 
@@ -72,6 +70,12 @@ def complete_hpipm_options(source: str) -> str:
                 f"  d_ocp_qp_ipm_arg_set_default((enum hpipm_mode) {mode.group(1)}, "
                 "&p.hpipm_options);\n")
     return source.replace(_HPIPM_PROBLEM, complete)
+
+
+def hpipm_options_edit_digest() -> str:
+    """A hash of :func:`complete_hpipm_options`'s own source, for a cache key: a changed
+    edit builds a new library."""
+    return hashlib.sha256(inspect.getsource(complete_hpipm_options).encode()).hexdigest()
 
 
 def rti_step_function(qp_data: ca.Function, qp: ca.Function, cost: ca.Function) -> ca.Function:

@@ -89,22 +89,29 @@ class RealTimeIteration:
         warm start; from a ``cold`` guess (no previous plan to shift) until a step is
         below ``cold_tolerance``, at most ``cold_iterations``: the iteration then starts
         the run at the NLP's solution, as a real-time iteration is meant to start (Diehl
-        et al. 2002), instead of converging to it over the first second of the run. The
-        first QP that fails ends it unsuccessfully (hpipm's status: 1 iteration limit, 2
+        et al. 2002), instead of converging to it over the first second of the run; a
+        cold start not converged within ``cold_iterations`` fails
+        (``RTI_Not_Converged``), as fatrop and IPOPT fail at their limit. The first QP
+        that fails ends it unsuccessfully (hpipm's status: 1 iteration limit, 2
         step too small, 3 NaN, 4 inconsistent equalities; qrqp and osqp report words; the
         compiled step says ``no solution``)."""
         start = time.perf_counter()
         limit = self.cold_iterations if cold else self.iterations
         cost: float | None = None
+        converged = not cold
         for iteration in range(1, limit + 1):
             w_next, cost, status = self._step(w, params, nlp)
             if status:
                 return Solution(w, math.nan, status, iteration, False,
                                 time.perf_counter() - start)
-            converged = cold and float(np.max(np.abs(w_next - w))) <= self.cold_tolerance
+            if cold:
+                converged = float(np.max(np.abs(w_next - w))) <= self.cold_tolerance
             w = w_next
-            if converged:
+            if converged and cold:
                 break
+        if not converged:
+            return Solution(w, math.nan, "RTI_Not_Converged", limit, False,
+                            time.perf_counter() - start)
         if cost is None:
             cost = float(self.cost(w, params))
         return Solution(w, cost, "RTI_Completed", iteration, True, time.perf_counter() - start)

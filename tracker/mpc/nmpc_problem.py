@@ -23,8 +23,8 @@ and solves; the solver's own verdict decides success, see :meth:`tracker.mpc.nlp
   steps per control step on the staged NLP, warm-started from the shifted plan, each one
   QP (``rti_qp_solver``: hpipm, a stage-wise Riccati interior point, by default). Not
   converged within a step but converged along the run, since the warm start carries the
-  iterate on; from a cold guess (the first step, after a reset) it iterates to
-  ``tolerance``, so the run starts at the optimum.
+  iterate on; from a cold guess (the first step, after a reset or a non-finite plan) it
+  iterates to ``tolerance``, so the run starts at the optimum.
   CasADi's ``sqpmethod`` with ``max_iter = 1`` would do the same, but it ignores a
   failed QP (:class:`~tracker.mpc.nlp.RealTimeIteration`), so the iteration is written out here.
 
@@ -58,10 +58,10 @@ from cosim.core.compiled_function import CompiledCacheWarning, compiled_library
 from cosim.core.exceptions import ConfigError
 from tracker.config import TrackerConfig, TrackerWeights
 from tracker.mpc.compiled_rti import (
-    HPIPM_OPTIONS_EDIT,
     CompiledRtiStep,
     complete_hpipm_options,
     hpipm_build_flags,
+    hpipm_options_edit_digest,
     rti_step_function,
 )
 from tracker.mpc.fallback import INPUT, INPUT_NAMES
@@ -409,7 +409,8 @@ class NmpcProblem:
     def build_sqp_rti(self) -> Nlp:
         """The stage-wise NLP (:meth:`staged_problem`) for a real-time iteration.
 
-        Exactly ``rti_iterations`` full Gauss-Newton SQP steps (no line search) from the
+        Exactly ``rti_iterations`` full Gauss-Newton SQP steps (no line search; from a
+        cold guess, until converged: :meth:`RealTimeIteration.solve`) from the
         warm start, the previous plan shifted (:class:`RealTimeIteration`). Each step
         solves one QP with the model linearised along the current iterate and the
         Hessian ``2 J_r' J_r`` of the cost's residuals: positive semi-definite, block
@@ -462,9 +463,9 @@ class NmpcProblem:
         """The real-time iteration's step as C (:mod:`tracker.mpc.compiled_rti`), or None
         (with a warning) when it cannot be built or loaded."""
         step = rti_step_function(qp_data, qp, cost)
-        # qp_data and cost determine the QP's structure; the options, hpipm's settings.
-        key = (json.dumps(options, sort_keys=True) + HPIPM_OPTIONS_EDIT
-               + qp_data.serialize() + cost.serialize())
+        # The step's graph (QP data, cost, the hpipm call with its options, the outputs)
+        # and the edit made to its generated source determine the library.
+        key = step.serialize() + hpipm_options_edit_digest()
         include, link = hpipm_build_flags()
         name = f"rti_{self.model.name.replace('-', '_')}"
         try:
@@ -501,8 +502,8 @@ class NmpcProblem:
             note=f"compiling {self.model.name.replace('_', '-')}'s {what} to C "
                  f"(about {build_s} s)")
         if library is None:
-            warnings.warn(f"no working C compiler (gcc, or $CC): the NMPC's {what} runs in "
-                          "CasADi's virtual machine, 2-4x slower "
+            warnings.warn(f"no working C compiler (gcc, or $CC), or it could not build the "
+                          f"NMPC's {what}: it runs in CasADi's virtual machine, 2-4x slower "
                           "(tracker.compiled=false says so quietly)",
                           CompiledCacheWarning, stacklevel=3)
         return library
