@@ -42,6 +42,10 @@ QP_FEASIBILITY_TOL = 1e-3
 may leave (in the variables' and constraints' own units)."""
 
 
+OUT_OF_BOUNDS = "QP_Failed (step violates the bounds)"
+"""The status of a real-time iteration whose QP's step fails :func:`step_feasible`."""
+
+
 def step_feasible(w: np.ndarray, g_linear: np.ndarray, nlp: Nlp) -> bool:
     """Whether a QP's result honours the bounds and the linearised constraints: qrqp has
     reported success on an infeasible QP (with the friction ellipse's Hessian, an initial
@@ -104,10 +108,10 @@ class RealTimeIteration:
             if status:
                 return Solution(w, math.nan, status, iteration, False,
                                 time.perf_counter() - start)
-            if cold:
-                converged = float(np.max(np.abs(w_next - w))) <= self.cold_tolerance
+            step_size = float(np.max(np.abs(w_next - w)))
             w = w_next
-            if converged and cold:
+            if cold and step_size <= self.cold_tolerance:
+                converged = True
                 break
         if not converged:
             return Solution(w, math.nan, "RTI_Not_Converged", limit, False,
@@ -126,7 +130,7 @@ class RealTimeIteration:
                 return w, None, "QP_Failed (hpipm: no solution)"
             w_next, g_linear, cost = stepped
             if not step_feasible(w_next, g_linear, nlp):
-                return w, None, "QP_Failed (step violates the bounds)"
+                return w, None, OUT_OF_BOUNDS
             return w_next, cost, ""
         hessian, gradient, g, jacobian = self.qp_data(w, params)
         g = np.asarray(g, dtype=float).ravel()
@@ -137,7 +141,7 @@ class RealTimeIteration:
         if not stats.get("success", False):
             return w, None, f"QP_Failed ({stats.get('return_status', 'unknown')})"
         if not step_feasible(w + dw, g + np.asarray(ca.mtimes(jacobian, dw)).ravel(), nlp):
-            return w, None, "QP_Failed (step violates the bounds)"
+            return w, None, OUT_OF_BOUNDS
         return w + dw, None, ""
 
 

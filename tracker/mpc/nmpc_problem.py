@@ -496,7 +496,8 @@ class NmpcProblem:
                           edit_source: Callable[[str], str] | None = None) -> Path | None:
         """The library of ``functions`` compiled once per machine
         (:func:`cosim.core.compiled_function.compiled_library`, with a note saying it takes
-        about ``build_s``), or None with a warning when no C compiler works."""
+        about ``build_s``), or None with a warning when no C compiler works or it cannot
+        build them."""
         library = compiled_library(
             name, functions, flags, key=key, link_flags=link_flags, edit_source=edit_source,
             note=f"compiling {self.model.name.replace('_', '-')}'s {what} to C "
