@@ -128,8 +128,6 @@ class KalmanFusion(ABC):
         t0_s: float = 0.0,
         rng: np.random.Generator | None = None,
     ) -> None:
-        if not math.isfinite(t0_s):
-            raise ValueError(f"t0_s = {t0_s!r}: expected a finite time")
         if not 0.0 < config.max_step_s <= MAX_STEP_S:
             raise ConfigError(
                 f"estimator.max_step_s = {config.max_step_s!r}: expected a number in "
@@ -155,15 +153,25 @@ class KalmanFusion(ABC):
             _use_compiled(self.kind, self._hot_functions())
         self._angle_indices = tuple(state_index(name) for name in ANGLE_STATES)
         self._noise_variances = config.noise.channel_variances()
-        mean, covariance = initial_belief(config, initial, rng)
+        self._gate_thresholds: dict[int, float] = {}
+        self._selections: dict[tuple[str, tuple[str, ...]], Selection] = {}
+        self.restart(initial, t0_s=t0_s, rng=rng)
+
+    def restart(self, initial: InitialState, *, t0_s: float = 0.0,
+                rng: np.random.Generator | None = None) -> None:
+        """Start again from the initial belief drawn around ``initial`` with ``rng`` at
+        ``t0_s``: every count, gate timer and prediction forgotten, the models (and their
+        compiled C) kept. A restarted filter runs bit for bit as a newly built one
+        (:class:`estimation.protocol.Restartable`); the gate thresholds and channel
+        selections it keeps depend on the configuration only."""
+        if not math.isfinite(t0_s):
+            raise ValueError(f"t0_s = {t0_s!r}: expected a finite time")
+        mean, covariance = initial_belief(self._config, initial, rng)
         self._setup_filter(mean, covariance)
         self._t_s = float(t0_s)
-        self._awaiting_first_fix = config.initial == "first-fix"
-
+        self._awaiting_first_fix = self._config.initial == "first-fix"
         self._counts: dict[str, SensorCounts] = {}
-        self._gate_thresholds: dict[int, float] = {}
         self._gate_failing_since_s: dict[tuple[str, tuple[str, ...]], float] = {}
-        self._selections: dict[tuple[str, tuple[str, ...]], Selection] = {}
         self._lookahead: _Lookahead | None = None
 
     # ------------------------------------------------------------------- filter-specific

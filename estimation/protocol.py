@@ -11,6 +11,9 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Protocol, runtime_checkable
 
+import numpy as np
+
+from cosim.core.initial_state import InitialState
 from cosim.core.records import Estimate, Measurement
 from estimation.update_result import UpdateResult
 
@@ -67,3 +70,15 @@ class ObservableEstimator(Protocol):
 
     def estimate_at(self, t_s: float) -> Estimate:
         """The belief predicted to ``t_s``; the estimator itself stays as it was."""
+
+
+@runtime_checkable
+class Restartable(Protocol):
+    """An estimator that can start a new run from a new initial belief, keeping what it
+    built from its configuration and belief (the built-in filters keep their compiled
+    models): the same run, bit for bit, as a newly built one with these arguments."""
+
+    def restart(self, initial: InitialState, *, t0_s: float = 0.0,
+                rng: np.random.Generator | None = None) -> None:
+        """Forget every measurement and prediction; draw the initial belief around
+        ``initial`` with ``rng`` at ``t0_s``, as the constructor does."""

@@ -324,6 +324,13 @@ class MujocoPlant:
             self.traffic.place(d, 0.0)
             mujoco.mj_forward(m, d)
 
+    def restart(self, initial: InitialState) -> None:
+        """:meth:`reset` to a new ``initial`` state: the next run of the same car, without
+        building it again (its model, tyres and compiled step are those of ``config``; the
+        static equilibrium found at construction does not depend on the initial state)."""
+        self.initial = initial
+        self.reset()
+
     def add_yaw_rate(self, delta_radps: float) -> None:
         """Raise the chassis's yaw rate by ``delta_radps`` at once (a yaw disturbance).
 

@@ -49,7 +49,6 @@ from cosim.core.sensor_names import GNSS, RADAR, TRUTH
 from cosim.log import foxglove, topics
 from cosim.log.recorder import McapRecorder, MessageMirror, NoLog, Recorder
 from cosim.plant import disturbances
-from cosim.plant.car import MujocoPlant
 from cosim.plant.low_level import AccelToTorque
 from cosim.plant.protocol import Plant
 from cosim.sensing.faults import FaultInjector
@@ -62,12 +61,11 @@ from cosim.simulation.metrics import MetricsAccumulator
 from cosim.simulation.outcome import TERMINAL, Event, OutcomeMonitor
 from cosim.simulation.scenario_config import ScenarioConfig, steps_per_period
 from cosim.simulation.traffic_loop import CollisionError, TrafficLoop, build_traffic
+from cosim.simulation.workshop import Workshop
 from estimation.protocol import CountsUpdates, Estimator, JointUpdater, ObservableEstimator
-from estimation.registry import make_estimator
 from estimation.update_result import UpdateResult
 from tracker.paths.reference_path import ReferencePath
 from tracker.protocol import Closable, Tracker
-from tracker.registry import make_tracker
 
 
 @dataclass(frozen=True)
@@ -215,7 +213,10 @@ class _Run:
     """The components of one run and the phases of one physics step."""
 
     def __init__(self, config: ScenarioConfig, recorder: Recorder,
-                 tracker: Tracker | None = None) -> None:
+                 tracker: Tracker | None = None, workshop: Workshop | None = None) -> None:
+        """``tracker``, if given, is the run's tracker; ``workshop`` keeps parts of earlier
+        runs for this one (:mod:`cosim.simulation.workshop`; a new one: all built afresh)."""
+        workshop = workshop if workshop is not None else Workshop()
         self.clock = _Clock.from_config(config)
         self.recorder = recorder
         self.course = scenario_course(config)
@@ -225,13 +226,13 @@ class _Run:
         """The run's configuration, the start speed resolved (what the log records)."""
         self.course_monitor = CourseMonitor(self.course, config.plant)
         traffic = build_traffic(config)
-        self.plant: Plant = MujocoPlant(config.plant, self.clock.dt_s, config.initial,
-                                        traffic=traffic)
-        self.estimator: Estimator = make_estimator(
+        self.plant: Plant = workshop.plant(config.plant, self.clock.dt_s, config.initial,
+                                           traffic)
+        self.estimator: Estimator = workshop.estimator(
             config.estimator, config.initial, config.tracker.model,
-            rng=component_rng(config.seed, "estimator.initial"))
+            component_rng(config.seed, "estimator.initial"))
         self.tracker: Tracker = tracker if tracker is not None else \
-            make_tracker(config.tracker, config.manoeuvre, config.sim.control_period_s)
+            workshop.tracker(config.tracker, config.manoeuvre, config.sim.control_period_s)
         """The run's tracker; the Gymnasium environment passes one that replays its actions."""
         self.fuse: Callable[[list[Measurement]], list[UpdateResult]] = (
             self.estimator.update_many if isinstance(self.estimator, JointUpdater)
@@ -559,9 +560,11 @@ def run(
     out_path: Path,
     progress: Callable[[float], None] | None = None,
     mirror: MessageMirror | None = None,
+    workshop: Workshop | None = None,
 ) -> RunResult:
     """Run one scenario to ``out_path``; ``progress`` is called with the fraction done;
-    ``mirror`` sees every message as it is written (``cosim run --live``).
+    ``mirror`` sees every message as it is written (``cosim run --live``); ``workshop``
+    holds parts earlier runs built, for this one to reuse (:mod:`cosim.simulation.workshop`).
 
     SIGINT and SIGTERM stop the run between two physics steps; the log is finished with
     ``completed: false`` and the result says ``interrupted``. A ``SystemExit`` (or another
@@ -571,23 +574,26 @@ def run(
     """
     wall_start = time.perf_counter()
     with McapRecorder(out_path, epoch_ns=config.sim.epoch_ns, mirror=mirror) as recorder:
-        metrics, completed, abort_reason = _run_with(config, recorder, progress, wall_start)
+        metrics, completed, abort_reason = _run_with(config, recorder, progress, wall_start,
+                                                     workshop)
     return RunResult(Path(out_path), metrics, completed, abort_reason)
 
 
 def run_unlogged(config: ScenarioConfig,
-                 progress: Callable[[float], None] | None = None) -> RunResult:
+                 progress: Callable[[float], None] | None = None,
+                 workshop: Workshop | None = None) -> RunResult:
     """:func:`run` without a log (``log_path`` None): the same simulation and metrics, bit
     for bit, with no messages built, encoded or written (a sweep that keeps no logs: they
     would be deleted unread)."""
     wall_start = time.perf_counter()
-    metrics, completed, abort_reason = _run_with(config, NoLog(), progress, wall_start)
+    metrics, completed, abort_reason = _run_with(config, NoLog(), progress, wall_start,
+                                                 workshop)
     return RunResult(None, metrics, completed, abort_reason)
 
 
 def _run_with(
     config: ScenarioConfig, recorder: Recorder, progress: Callable[[float], None] | None,
-    wall_start: float,
+    wall_start: float, workshop: Workshop | None,
 ) -> tuple[dict[str, float | int | bool | str], bool, str]:
     """The run of :func:`run` through ``recorder``: its metrics, whether it completed and
     why not."""
@@ -595,7 +601,7 @@ def _run_with(
     # One BLAS thread: the matrices here are small, and an idle BLAS thread spinning on
     # the other core makes MPC solve times jitter (README, "Why the defaults").
     with threadpool_limits(limits=1, user_api="blas"), contextlib.ExitStack() as release:
-        state = _Run(config, recorder)
+        state = _Run(config, recorder, workshop=workshop)
         if isinstance(state.tracker, Closable):  # released however the run ends
             release.callback(state.tracker.close)
         state.write_header()
