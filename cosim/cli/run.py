@@ -177,7 +177,11 @@ def _claim_out(args: argparse.Namespace, scenario: str) -> Iterator[Path]:
 
 
 def _exit_code(result: Any, conditions: list[Any]) -> int:
-    """0 for a completed ``ok`` run with no ``--fail-if`` holding, else 3 with one line why."""
+    """0 for a completed ``ok`` run with no ``--fail-if`` holding, else 3 with one line why.
+
+    A run whose outcome is not ``ok`` fails every ``--fail-if`` too, whatever its metrics
+    say: a run that stopped early has metrics of the part before the stop (a spun car's
+    ``cte_max_m`` can look like a good run's); a second line says so."""
     outcome = str(result.metrics.get("outcome", "ok"))
     when = result.metrics.get(f"{outcome}_t_s")
     if isinstance(when, float):  # an event: it is on /events
@@ -185,10 +189,13 @@ def _exit_code(result: Any, conditions: list[Any]) -> int:
             "; the run stopped there (--set outcome.keep_going=true runs on)"
         print(f"cosim: run ended badly: outcome {outcome} at t = {when:.2f} s{stopped} "
               f"(see /events in {result.log_path})", file=sys.stderr)
+        _fails_every_condition(conditions, f"outcome {outcome} at t = {when:.2f} s",
+                               result.completed)
         return EXIT_BAD_OUTCOME
     if not result.completed:
         print(f"cosim: run aborted ({outcome}): {result.abort_reason}; "
               f"log: {result.log_path}", file=sys.stderr)
+        _fails_every_condition(conditions, f"outcome {outcome}", result.completed)
         return EXIT_BAD_OUTCOME
     held = [c for c in conditions if c.holds(result.metrics)]
     if held:
@@ -207,3 +214,13 @@ def shown_metrics(metrics: dict[str, Any], open_loop: bool) -> dict[str, Any]:
     if open_loop:
         shown = {k: v for k, v in shown.items() if k not in PATH_TRACKING_METRICS}
     return shown
+
+
+def _fails_every_condition(conditions: list[Any], outcome: str, completed: bool) -> None:
+    """Say that the ``--fail-if`` conditions fail on a bad outcome, and why not judged."""
+    if not conditions:
+        return
+    partial = "" if completed else "; its metrics cover the run up to the stop only (partial)"
+    texts = ", ".join(repr(c.text) for c in conditions)
+    print(f"cosim: --fail-if {texts}: the run fails on its {outcome} whatever the "
+          f"metrics say{partial}", file=sys.stderr)

@@ -1,4 +1,11 @@
-"""``cosim sweep``: one scenario over a grid or a random sample of parameters and seeds."""
+"""``cosim sweep``: one scenario over a grid or a random sample of parameters and seeds.
+
+Exit codes, for a CI job to gate on: 0 when every run of the sweep passes its criteria; 3
+when a run fails them (a run whose outcome is not ``ok`` fails every criterion, an error
+too); ``--exit-zero`` gives 0 for a sweep that ran to its end whatever its runs did (for
+those who only want the tables). 2 for bad input, 1 when its files cannot be written, 130
+on an interrupt (the finished rows are kept for ``--resume``).
+"""
 
 from __future__ import annotations
 
@@ -7,7 +14,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from cosim.cli.common import EXIT_INTERRUPT, EXIT_IO, Handler, refuse_live
+from cosim.cli.common import EXIT_BAD_OUTCOME, EXIT_INTERRUPT, EXIT_IO, Handler, refuse_live
 from cosim.core.exceptions import CosimError
 
 
@@ -30,6 +37,9 @@ def add_parsers(commands: Any) -> dict[str, Handler]:
                        help="start the sweep afresh in a --out DIR that has files")
     sweep.add_argument("--yes", action="store_true",
                        help="run a sweep of more than 10 000 runs (refused otherwise)")
+    sweep.add_argument("--exit-zero", action="store_true",
+                       help="exit 0 when the sweep finishes even if runs fail their criteria "
+                            "(default: exit 3 when any run fails)")
     return {"sweep": command}
 
 
@@ -64,4 +74,9 @@ def command(args: argparse.Namespace) -> int:
           + (f" ({outcome.errors} with an error)" if outcome.errors else ""))
     for path in outcome.files:
         print(f"  {path}")
+    failed = outcome.finished - outcome.passed
+    if failed and not args.exit_zero:
+        print(f"cosim: {failed} of {outcome.finished} runs fail the sweep's criteria "
+              f"(see {out / 'summary.md'}); exit code 3 (--exit-zero: 0)", file=sys.stderr)
+        return EXIT_BAD_OUTCOME
     return 0

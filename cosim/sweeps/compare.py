@@ -6,21 +6,23 @@ machinery (:func:`cosim.sweeps.execute.execute_task` on a
 noise and seed as a ``cosim run`` of it; rows are sorted by run id, so the worker count never
 shows. The league table has one row per (scenario, tracker): the mean over seeds of each
 metric in :data:`LEAGUE_METRICS` (the worst over seeds for maxima), and ``failures``: runs
-that did not complete plus control steps that needed a fallback.
+that did not complete plus control steps that needed a fallback. A run that stopped early
+(a spin, leaving the road) has metrics of the part before the stop: they are left out of
+the row's figures, and the tracker's name says how many runs stopped and how.
 
-Every closed-loop tracker is meant for every scenario of the library (:data:`DEFAULT_SCENARIOS`);
-``open-loop`` drives the open-loop manoeuvres only and is not compared. A run that loses the
-car (a spin) still completes and shows as a large CTE, a gate hit or a track exit; only a run
-that did not complete counts as a failure. Measured on the sedan (seed 0, a loaded 2-core
-machine): on the ISO 3888-1 lane change at 60 km/h the MPCs but ``kinematic-nmpc`` pass every
-gate, while every baseline hits at least one (``pid`` and ``lqr`` spin once the steering-rate
-bound saturates them); ``dynamic-mpc`` passes up to 68 km/h and hits gates at 72 km/h
+Every closed-loop tracker is meant for every scenario of the library
+(:data:`DEFAULT_SCENARIOS`); ``open-loop`` drives the open-loop manoeuvres only and is not
+compared. A run that loses the car (a spin) stops there (:mod:`cosim.simulation.outcome`)
+and counts as a failure. Measured on the sedan (seed 0, a loaded 2-core machine): on the ISO
+3888-1 lane change at 60 km/h the MPCs but ``kinematic-nmpc`` pass every gate, while every
+baseline hits at least one (``pid`` and ``lqr`` spin once the steering-rate bound saturates
+them); ``dynamic-mpc`` passes up to 68 km/h and hits gates at 72 km/h
 (``bench/iso_entry_speed.py``). On the ring circuit ``lqr`` edges out the MPCs (seed 0,
 quiet machine: RMS CTE 0.059 m against 0.077 m for ``dynamic-nmpc``, the best MPC): their
 steering-rate weight (``tracker.weights.steer_rate = 3``, tuned for the lane change's
 comfort) makes them lag the circuit's long changes of curvature, which the LQR, without a
-rate penalty, follows. With ``tracker.weights.steer_rate=0.3`` ``dynamic-nmpc`` gives
-0.053 m, with ``tracker.weights.cte=100`` 0.051 m, both ahead of the LQR.
+rate penalty, follows. With ``tracker.weights.steer_rate=0.3`` ``dynamic-nmpc`` gives 0.053
+m, with ``tracker.weights.cte=100`` 0.051 m, both ahead of the LQR.
 
 Outputs in ``--out DIR``: ``league.md`` and ``league.csv`` (the table), ``league.png``
 (``cte_rms_m`` per scenario and tracker), ``rows.json`` (every run's metrics),
@@ -43,7 +45,7 @@ from pathlib import Path
 from typing import Any
 
 from cosim.core.exceptions import ConfigError
-from cosim.sweeps.results import read_row_log, refuse_non_empty
+from cosim.sweeps.results import bad_outcome, is_partial, read_row_log, refuse_non_empty
 from cosim.sweeps.spec import RunTask
 from tracker.config import is_plugin_name
 from tracker.fmu.config import is_fmu_name
@@ -95,7 +97,10 @@ class LeagueRow:
     errors: tuple[str, ...]
     incomplete: int = 0
     """Runs that did not reach their end (an error, or ``completed`` false): their metrics
-    cover part of the scenario, so the row ranks below every row whose runs all finished."""
+    cover part of the scenario, so they are left out of ``values`` and the row ranks below
+    every row whose runs all finished."""
+    stops: tuple[str, ...] = ()
+    """How its runs that stopped early stopped (``spun``, ``off road`` ...)."""
 
 
 def parse_names(text: str | None, default: Sequence[str], known: Sequence[str] | None,
@@ -147,15 +152,20 @@ def league(rows: Sequence[dict[str, Any]]) -> list[LeagueRow]:
         groups.setdefault((params["scenario"], params["tracker"]), []).append(row)
     table = []
     for (scenario, tracker), group in groups.items():
-        values = {key: _combine([r["metrics"].get(key) for r in group], how)
+        # A run that stopped early (a spin ...) has metrics of the part before the stop:
+        # no measure of the tracker, so its numbers stay out; the row says it stopped.
+        whole = [r for r in group if not is_partial(r["metrics"])]
+        values = {key: _combine([r["metrics"].get(key) for r in whole], how)
                   for key, _, how in LEAGUE_METRICS}
         failures = sum(1 for r in group if r["error"]) + sum(
             int(r["metrics"].get("solver_failures") or 0) for r in group)
         errors = tuple(sorted({r["error"] for r in group if r["error"]}))
         incomplete = sum(1 for r in group
                          if r["error"] or r["metrics"].get("completed") is False)
+        stops = tuple(sorted({bad_outcome(r["metrics"]).split(" at ")[0] for r in group
+                              if not r["error"] and is_partial(r["metrics"])}))
         table.append(LeagueRow(scenario, tracker, len(group), values, failures, errors,
-                               incomplete))
+                               incomplete, stops))
     return table
 
 
@@ -294,10 +304,12 @@ def _bar_colour(row: LeagueRow) -> str:
 
 
 def shown_name(row: LeagueRow) -> str:
-    """The tracker's label: with how many of its runs did not finish, if any."""
+    """The tracker's label: with how many of its runs did not finish and how they stopped,
+    if any (its figures are of the other runs)."""
     if not row.incomplete:
         return row.tracker
-    return f"{row.tracker} ({row.incomplete}/{row.seeds} unfinished)"
+    how = f": {', '.join(row.stops)}" if row.stops else ""
+    return f"{row.tracker} ({row.incomplete}/{row.seeds} unfinished{how})"
 
 
 def json_rows(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:

@@ -199,10 +199,7 @@ def run_sweep(spec_path: str | Path, out_dir: str | Path | None = None,
             append_row(handle, row)
             rows[row["run_id"]] = row
             ran += 1
-            why = failures(row, spec)
-            outcome = row.get("metrics", {}).get("outcome")
-            if why and isinstance(outcome, str) and outcome not in ("ok", "error"):
-                why = [f"outcome {outcome}", *why]  # a collision, a spin: say it first
+            why = failures(row, spec)  # a collision, a spin: named first
             progress.update(row, "pass" if not why else "FAIL " + why[0])
             if on_row is not None:
                 on_row(row)

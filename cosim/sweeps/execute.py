@@ -35,11 +35,11 @@ import datetime
 import math
 import multiprocessing
 import os
+import queue as queue_module
 import signal
 import sys
 import threading
 import time
-import queue as queue_module
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from multiprocessing.managers import SyncManager

@@ -5,6 +5,9 @@
   With an upper-bound pass criterion on that metric, the colour scale is centred on the
   bound (green below, red above, logarithmic, because a failed lane change is metres where a
   good one is centimetres), failing cells say FAIL, and cells whose run errored are grey.
+  A cell where a run stopped early (a spin, a rollover ...) is hatched and says how, with
+  no value: the metric of a stopped run covers the run up to the stop, so a colour would
+  show a partial measurement as a whole one.
   Axes carry the dotted keys with units; the nominal value is marked on each axis.
 * A **metric-vs-parameter** plot for each varied parameter: every run as a point (pass and
   fail drawn differently), the worst over seeds per grid value as a line, the bound dashed.
@@ -81,6 +84,7 @@ def heat_map(spec: SweepSpec, flat: Sequence[dict[str, Any]], path: Path) -> Pat
     metric, unit = spec.metric, unit_of(spec.metric)
     bound = _bound(spec)
     data = np.array(cells.value, dtype=float)
+    data[np.array(cells.stopped, dtype=bool)] = np.nan  # failures, drawn as such
     finite = data[np.isfinite(data)]
     width_in = max(5.0, 1.6 + 1.25 * len(cells.x.values))
     figure = _figure(width_in, 1.9 + 0.8 * len(cells.y.values))
@@ -117,6 +121,10 @@ def heat_map(spec: SweepSpec, flat: Sequence[dict[str, Any]], path: Path) -> Pat
             value = cells.value[j][i]
             if cells.runs[j][i] == 0:
                 text, weight = "not run", "normal"
+            elif cells.stopped[j][i]:  # a failure, not a value: no colour of the scale
+                text = "\n".join(textwrap.wrap(cells.stopped[j][i], 14)) + "\nFAIL"
+                weight = "bold"
+                axes.add_patch(_stopped_cell(i, j))
             elif cells.errors[j][i] and not math.isfinite(value):
                 text = f"error\n({cells.errors[j][i]} of {cells.runs[j][i]} runs)"
                 weight = "bold"
@@ -125,7 +133,7 @@ def heat_map(spec: SweepSpec, flat: Sequence[dict[str, Any]], path: Path) -> Pat
                 text, weight = f"{value:.3g}\n{verdict}", ("normal" if cells.passed[j][i]
                                                             else "bold")
             colour = "black"
-            if math.isfinite(shown[j, i]):
+            if math.isfinite(shown[j, i]) and not cells.stopped[j][i]:
                 rgba = cmap_obj(norm(shown[j, i]) if norm is not None else
                                 (shown[j, i] - finite.min()) / (np.ptp(finite) or 1.0))
                 colour = "white" if 0.299 * rgba[0] + 0.587 * rgba[1] + 0.114 * rgba[2] < 0.5 \
@@ -153,6 +161,14 @@ def _colormap(name: str) -> Any:
     from matplotlib import colormaps
 
     return colormaps[name]
+
+
+def _stopped_cell(i: int, j: int) -> Any:
+    """A cell whose runs stopped early (a spin ...): hatched, outside the colour scale."""
+    from matplotlib.patches import Rectangle
+
+    return Rectangle((i - 0.5, j - 0.5), 1.0, 1.0, facecolor="0.55", edgecolor="black",
+                     hatch="//", linewidth=0.0, zorder=1.5)
 
 
 def _cell_frame(i: int, j: int) -> Any:
@@ -192,6 +208,28 @@ EVENT_MARKERS = {"collision": "X", "spun": "v", "rolled_over": "s", "off_road": 
 """How a run that ended in an event is drawn (its outcome names it in the legend)."""
 
 
+def _shade_events(axes: Any, flat: Sequence[dict[str, Any]], parameter: Parameter,
+                  events: Sequence[str], ended_in_event: Any) -> None:
+    """Shade the parameter values where some run ended in an event, each from half-way to
+    its neighbours: only those values, so a value where every run passed is never shaded."""
+    values = sorted(float(v) for v in parameter.values)
+    hit = {float(v) for v in parameter.values
+           if any(ended_in_event(r) for r in flat if r[parameter.path] == v)}
+    kinds = " / ".join(k.replace("_", " ") for k in events)
+    labelled = False
+    for k, value in enumerate(values):
+        if value not in hit:
+            continue
+        half_left = 0.5 * (value - values[k - 1]) if k > 0 else None
+        half_right = 0.5 * (values[k + 1] - value) if k + 1 < len(values) else None
+        half = (half_left or half_right or 0.02 * (abs(value) or 1.0))  # ends mirror
+        left = value - (half_left if half_left is not None else half)
+        right = value + (half_right if half_right is not None else half)
+        axes.axvspan(left, right, color="tab:red", alpha=0.08,
+                     label=None if labelled else f"values with an event ({kinds})")
+        labelled = True
+
+
 def _metric_plot(spec: SweepSpec, flat: Sequence[dict[str, Any]], parameter: Parameter,
                  path: Path, metric: str | None = None) -> None:
     metric = metric or spec.metric
@@ -220,28 +258,27 @@ def _metric_plot(spec: SweepSpec, flat: Sequence[dict[str, Any]], parameter: Par
         axes.plot(*zip(*bad, strict=True), "x", color="tab:red", markersize=8,
                   label="run: fail")
     events = sorted({str(r["outcome"]) for r in flat if ended_in_event(r)})
+    edge = 0.04 if smaller_is_worse else 0.96  # a stopped run sits at the bad edge
     for kind in events:
-        points = [(position(r[parameter.path]), as_number(r[metric])) for r in flat
-                  if ended_in_event(r) and r["outcome"] == kind]
-        axes.plot(*zip(*points, strict=True), EVENT_MARKERS[kind], color="black",
-                  markersize=8, label=f"run: {kind.replace('_', ' ')}")
+        ended = [r for r in flat if ended_in_event(r) and r["outcome"] == kind]
+        whole = [(position(r[parameter.path]), as_number(r[metric])) for r in ended
+                 if not r.get("partial")]
+        stopped = [position(r[parameter.path]) for r in ended if r.get("partial")]
+        name = kind.replace("_", " ")
+        if whole:
+            axes.plot(*zip(*whole, strict=True), EVENT_MARKERS[kind], color="black",
+                      markersize=8, label=f"run: {name} (fails)")
+        if stopped:  # a failure, not a value: its metric covers the run up to the stop
+            axes.plot(stopped, [edge] * len(stopped), EVENT_MARKERS[kind], color="tab:red",
+                      markersize=9, clip_on=False, transform=axes.get_xaxis_transform(),
+                      label=f"run: {name}, stopped (fails; no value)")
     if events and numeric and parameter.values:
-        # Where the outcome turns: the first value with an event, the last without.
-        hit = [v for v in parameter.values if any(
-            ended_in_event(r) for r in flat if r[parameter.path] == v)]
-        clear = [v for v in parameter.values if v not in hit]
-        first = min(float(v) for v in hit)
-        below = [float(v) for v in clear if float(v) < first]
-        edge = 0.5 * (first + max(below)) if below else first
-        kinds = " / ".join(k.replace("_", " ") for k in events)
-        axes.axvspan(edge, max(float(v) for v in parameter.values) + 1e-9, color="tab:red",
-                     alpha=0.08, label=f"{kinds} from {first:g}"
-                     + (f" (none at {max(below):g})" if below else ""))
+        _shade_events(axes, flat, parameter, events, ended_in_event)
     if parameter.values:
         xs, ys = [], []
         for value in parameter.values:
             members = [as_number(r[metric]) for r in flat if r[parameter.path] == value
-                       and not r["error"]]
+                       and not r["error"] and not r.get("partial")]
             if members:
                 xs.append(position(value))
                 ys.append(min(members) if smaller_is_worse else max(members))

@@ -150,16 +150,48 @@ def append_row(handle: IO[str], row: dict[str, Any]) -> None:
     os.fsync(handle.fileno())
 
 
+def bad_outcome(metrics: dict[str, Any]) -> str:
+    """How a run's outcome falls short, in words (``"spun at 3.07 s"``), or ``""`` for an
+    ``ok`` run (or a row without metrics: an error says why instead).
+
+    A run whose outcome is not ``ok`` fails every criterion: a spin, a rollover, leaving the
+    road, a collision or reaching the end of the path is not tracking, whatever the metrics
+    of the part before it say. The time is the event's (``<outcome>_t_s``)."""
+    outcome = metrics.get("outcome")
+    if not isinstance(outcome, str) or outcome == "ok":
+        return ""
+    when = metrics.get(f"{outcome}_t_s")
+    shown = outcome.replace("_", " ")
+    if isinstance(when, (int, float)) and not isinstance(when, bool) and math.isfinite(when):
+        return f"{shown} at {when:.2f} s"
+    return shown
+
+
+def is_partial(metrics: dict[str, Any]) -> bool:
+    """Whether a run's metrics cover only part of it: it stopped before its end (a spin, an
+    abort), so ``cte_max_m`` and the rest describe the time up to the stop, not the run."""
+    return metrics.get("completed") is False
+
+
 def failures(row: dict[str, Any], spec: SweepSpec) -> list[str]:
-    """Why a row fails: its error, or each criterion it misses (empty: it passes)."""
+    """Why a row fails: its error; its outcome when that is not ``ok`` (first: the run is a
+    failure whatever its metrics, :func:`bad_outcome`); each criterion it misses. Empty: it
+    passes."""
     if row.get("error"):
         return [str(row["error"])]
-    return [f for c in spec.criteria if (f := c.failure(row.get("metrics", {}))) is not None]
+    metrics = row.get("metrics", {})
+    outcome = bad_outcome(metrics)
+    missed = [f for c in spec.criteria if (f := c.failure(metrics)) is not None]
+    if outcome:
+        partial = " (metrics up to the stop)" if is_partial(metrics) else ""
+        return [f"outcome {outcome}{partial}", *missed]
+    return missed
 
 
 def flat_row(row: dict[str, Any], spec: SweepSpec, metric_keys: Sequence[str]
              ) -> dict[str, Any]:
-    """One table row: run id, point, seed, varied values, pass, why not, error, metrics."""
+    """One table row: run id, point, seed, varied values, pass, why not, error, outcome,
+    whether its metrics are partial (the run stopped early) and how it stopped, metrics."""
     why = failures(row, spec)
     flat: dict[str, Any] = {"run_id": row["run_id"], "point": row["point"], "seed": row["seed"]}
     flat.update({p.path: row["params"].get(p.path) for p in spec.parameters})
@@ -168,6 +200,9 @@ def flat_row(row: dict[str, Any], spec: SweepSpec, metric_keys: Sequence[str]
     flat["error"] = row.get("error", "")
     metrics = row.get("metrics", {})
     flat["outcome"] = metrics.get("outcome", "")
+    # A run that stopped early: its metrics cover the time up to the stop (how and when).
+    flat["partial"] = is_partial(metrics) and not row.get("error")
+    flat["stopped"] = bad_outcome(metrics) if flat["partial"] else ""
     flat.update({key: _finite_or_none(metrics.get(key)) for key in metric_keys})
     flat.update({key: row.get(key, "") for key in ("log", "started_at", "finished_at")})
     return flat
@@ -254,8 +289,10 @@ def worst(values: Iterable[float], low_is_bad: bool = False) -> float:
 @dataclass(frozen=True)
 class GridCells:
     """A two-parameter grid reduced over seeds: ``value[j][i]`` is the worst metric at
-    ``(x_values[i], y_values[j])``; ``passed`` true if every seed passed; ``errors`` the
-    number of runs that ended in an error; ``runs`` the runs finished in the cell."""
+    ``(x_values[i], y_values[j])`` over the runs that went to their end; ``passed`` true if
+    every seed passed; ``errors`` the number of runs that ended in an error; ``runs`` the runs
+    finished in the cell; ``stopped`` how its runs that stopped early stopped (``""``: none
+    did), a failure whatever ``value`` says (:func:`stopped_text`)."""
 
     x: Parameter
     y: Parameter
@@ -263,6 +300,7 @@ class GridCells:
     passed: list[list[bool]]
     errors: list[list[int]]
     runs: list[list[int]]
+    stopped: list[list[str]]
 
 
 def grid_cells(spec: SweepSpec, flat: Sequence[dict[str, Any]]) -> GridCells | None:
@@ -270,22 +308,38 @@ def grid_cells(spec: SweepSpec, flat: Sequence[dict[str, Any]]) -> GridCells | N
     if spec.mode != "grid" or len(spec.parameters) != 2:
         return None
     x, y = spec.parameters
-    value, passed, errors, runs = [], [], [], []
+    value, passed, errors, runs, stopped = [], [], [], [], []
     for yv in y.values:
-        row_value, row_passed, row_errors, row_runs = [], [], [], []
+        row_value, row_passed, row_errors, row_runs, row_stopped = [], [], [], [], []
         for xv in x.values:
             members = [r for r in flat if r[x.path] == xv and r[y.path] == yv]
-            row_value.append(worst((as_number(r[spec.metric]) for r in members),
+            whole = [r for r in members if not r.get("partial")]
+            row_value.append(worst((as_number(r[spec.metric]) for r in whole),
                                    low_is_bad(spec, spec.metric))
-                             if members else math.nan)
+                             if whole else math.nan)
             row_passed.append(bool(members) and all(r["pass"] for r in members))
             row_errors.append(sum(bool(r["error"]) for r in members))
             row_runs.append(len(members))
+            row_stopped.append(stopped_text(members))
         value.append(row_value)
         passed.append(row_passed)
         errors.append(row_errors)
         runs.append(row_runs)
-    return GridCells(x, y, value, passed, errors, runs)
+        stopped.append(row_stopped)
+    return GridCells(x, y, value, passed, errors, runs, stopped)
+
+
+def stopped_text(members: Sequence[dict[str, Any]]) -> str:
+    """How the runs among ``members`` that stopped early stopped: ``"spun at 3.07 s"`` for
+    one, ``"spun: 2 of 5 runs"`` for several (the most frequent way first); ``""`` if
+    none did."""
+    stops = [r for r in members if r.get("partial")]
+    if not stops:
+        return ""
+    if len(stops) == 1:
+        return str(stops[0]["stopped"])
+    kinds = collections.Counter(str(r["outcome"]).replace("_", " ") for r in stops)
+    return ", ".join(kinds) + f": {len(stops)} of {len(members)} runs"
 
 
 def _cell(value: Any) -> str:
@@ -384,19 +438,33 @@ def _worst_cases(spec: SweepSpec, flat: Sequence[dict[str, Any]]) -> list[str]:
     metric, unit = spec.metric, unit_of(spec.metric)
     lines: list[str] = []
     sign = 1.0 if low_is_bad(spec, metric) else -1.0  # the worst first
-    key = [(sign * as_number(r[metric]) if not math.isnan(as_number(r[metric])) else -math.inf)
-           for r in flat]
+    # Errors and runs that stopped early first: their metric is no measure of the run.
+    key = [(-math.inf if r["error"] or r.get("partial") or math.isnan(as_number(r[metric]))
+            else sign * as_number(r[metric])) for r in flat]
     order = sorted(range(len(flat)), key=lambda i: (key[i], flat[i]["run_id"]))
     lines += [f"## Worst cases by `{metric}`", ""]
+    if any(r.get("partial") for r in flat):
+        lines += ["A value marked *partial* is of a run that stopped early: it covers the run "
+                  "up to the stop, and the run fails whatever it says.", ""]
     lines += _table(
         ["run", *[f"`{p.path}`" for p in spec.parameters], "seed", f"{metric} [{unit}]",
          "outcome", "result", "why"],
         [[flat[i]["run_id"], *[flat[i][p.path] for p in spec.parameters], flat[i]["seed"],
-          as_number(flat[i][metric]), flat[i]["outcome"] or "-", flat[i]["pass"],
-          flat[i]["failed"] or flat[i]["error"]] for i in order[:WORST_CASES]])
+          _metric_cell(flat[i], metric), flat[i]["stopped"] or flat[i]["outcome"] or "-",
+          flat[i]["pass"], flat[i]["failed"] or flat[i]["error"]]
+         for i in order[:WORST_CASES]])
     lines.append("")
 
     return lines
+
+
+def _metric_cell(row: dict[str, Any], metric: str) -> str | float:
+    """A row's metric for a table: the number, marked *partial* where the run stopped
+    early."""
+    value = as_number(row[metric])
+    if row.get("partial"):
+        return f"{_cell(value)} *partial*"
+    return value
 
 
 def _grid_section(spec: SweepSpec, flat: Sequence[dict[str, Any]]) -> list[str]:
@@ -407,13 +475,15 @@ def _grid_section(spec: SweepSpec, flat: Sequence[dict[str, Any]]) -> list[str]:
     if cells is not None:
         lines += [f"## Worst `{metric}` per grid point (over the seeds)", "",
                   f"Rows: `{cells.y.path}`; columns: `{cells.x.path}`; FAIL marks a point "
-                  "where any seed fails.", ""]
+                  "where any seed fails; a point where a run stopped early (a spin ...) "
+                  "says how instead of a value.", ""]
         header = [f"{axis_label(cells.y.path)} \\ {axis_label(cells.x.path)}",
                   *[_cell(v) for v in cells.x.values]]
         body = []
         for j, yv in enumerate(cells.y.values):
             body.append([yv, *[
                 "not run" if not cells.runs[j][i] else "error" if cells.errors[j][i] else
+                f"{cells.stopped[j][i]} FAIL" if cells.stopped[j][i] else
                 f"{_cell(cells.value[j][i])}" + ("" if cells.passed[j][i] else " FAIL")
                 for i in range(len(cells.x.values))]])
         lines += [*_table(header, body), ""]
@@ -434,16 +504,20 @@ def _per_parameter(spec: SweepSpec, flat: Sequence[dict[str, Any]]) -> list[str]
             rows = []
             for label, members in _groups(flat, spec, index):
                 values = [as_number(r[metric]) for r in members]
-                finite = [v for v in values if not math.isnan(v)]
+                whole = [as_number(r[metric]) for r in members if not r.get("partial")]
+                finite = [v for v in whole if not math.isnan(v)]
                 good = sum(r["pass"] for r in members)
                 errored = sum(bool(r["error"]) for r in members)
+                stops = stopped_text(members)
                 rows.append([label, len(members),
                              f"{good}/{len(members)}" if members else "-",
                              statistics.fmean(finite) if finite else math.nan,
                              f"error ({errored} run(s))" if errored else
+                             f"stopped: {stops}" if stops else
                              worst(values, low_is_bad(spec, metric)) if members
                              else math.nan])
             lines += _table([axis_label(parameter.path), "runs", "pass",
-                             f"mean {metric} (finished runs)", f"worst {metric}"], rows)
+                             f"mean {metric} (runs that went to their end)",
+                             f"worst {metric}"], rows)
             lines.append("")
     return lines
