@@ -218,8 +218,8 @@ class TrackerConfig:
         0.0,
         low=0.0,
         high=2.0,
-        doc="the command transport delay the tracker believes in; a scenario that does not "
-        "set it gets plant.actuator_delay_s. A model without the steering actuator adds "
+        doc="the command transport delay the tracker believes in (the nominal car's: 0; "
+        "`plant` tells it plant.actuator_delay_s). A model without the steering actuator adds "
         "model.steer_time_constant_s to the prediction itself",
     )
     fallback_time_s: float = setting(

@@ -25,6 +25,7 @@ def add_parsers(commands: Any) -> dict[str, Handler]:
 def command(args: argparse.Namespace) -> int:
     from cosim.log.export import csv_command, log_warnings
     from cosim.log.reader import read_summary
+    from cosim.simulation.beliefs import mismatch_table, told
     from cosim.simulation.changes import config_changes
 
     path = Path(args.file)
@@ -49,6 +50,8 @@ def command(args: argparse.Namespace) -> int:
         "versions": summary.versions,
         "config": summary.config,
         "changes": config_changes(summary.config) if summary.config else [],
+        "mismatch": [row.as_dict() for row in mismatch_table(summary.config or {})],
+        "beliefs_from_plant": told(summary.config or {}),
         "metrics": summary.metrics or {},
         "warnings": log_warnings(summary),
     }
@@ -77,6 +80,7 @@ def _print_topic(path: Path, summary: Any, topic: str, head: int | None) -> int:
 
 
 def _print_summary(path: Path, summary: Any, document: dict[str, Any]) -> None:
+    from cosim.simulation.beliefs import mismatch_line
     from cosim.simulation.changes import base_scenario, changes_text
 
     print(f"{path}  {summary.duration_s:.3f} s  {summary.message_count} messages"
@@ -94,6 +98,7 @@ def _print_summary(path: Path, summary: Any, document: dict[str, Any]) -> None:
               f"{config.get('estimator', {}).get('name')}")
         print(f"changed from {base_scenario(config)}: "
               f"{changes_text(document['changes'], at_most=12)}")
+        print(mismatch_line(config))
     if summary.versions:
         print("versions " + "  ".join(f"{k} {v}" for k, v in summary.versions.items()))
     for warning in document["warnings"]:

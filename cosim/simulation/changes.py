@@ -11,10 +11,12 @@ scenario file whose name is not a built-in's, the built-in whose own YAML it agr
 most (key by key); the comparison is between resolved configurations (every default
 filled in), so a change is listed whether it was written as a ``--set``, in a file, or by
 choosing a component. The seed, the name and the description are not changes (the seed is
-shown beside them). Keys that follow another change are left out: the belief about the
-actuator delay (``tracker.latency_s``) that follows ``plant.actuator_delay_s``, the
-steering bound that follows the tracker (``tracker.max_steer_rad``, each tracker's default),
-and the sensor figures and filter beliefs a ``sensors.suite`` preset brings.
+shown beside them). Keys that follow another change are left out: the steering bound that
+follows the tracker (``tracker.max_steer_rad``, each tracker's default) and the sensor
+figures and filter beliefs a ``sensors.suite`` preset brings. A belief told the plant's
+value (:mod:`cosim.simulation.beliefs`) shows as that request, ``tracker.latency_s=plant``,
+not as the number it took: two runs that differ in what the controller was told never look
+alike.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from typing import Any
 from cosim.core.config_fields import to_dict
 from cosim.core.exceptions import CosimError
 from cosim.core.yaml_io import loads as yaml_loads
+from cosim.simulation.beliefs import PLANT, TOLD_KEY, told
 from cosim.simulation.scenario_config import builtin_scenarios, load_config
 from tracker.config import default_steer_bound_rad
 
@@ -50,16 +53,14 @@ def flat_config(config: Any, prefix: str = "") -> dict[str, Any]:
 
 def config_differences(configs: Sequence[Mapping[str, Any]]) -> list[str]:
     """The dotted keys whose values differ between configurations, in the order of the
-    first one (a key only some of them have counts as different); ``description`` and a
-    ``tracker.latency_s`` that follows ``plant.actuator_delay_s`` are left out."""
+    first one (a key only some of them have counts as different); ``description`` is left
+    out."""
     flats = [flat_config(config) for config in configs]
     keys = list(dict.fromkeys(key for flat in flats for key in flat))
     missing = object()
     differing = [key for key in keys
                  if key != "description"
                  and len({repr(flat.get(key, missing)) for flat in flats}) > 1]
-    if "plant.actuator_delay_s" in differing and "tracker.latency_s" in differing:
-        differing.remove("tracker.latency_s")
     if ("tracker.name" in differing and "tracker.max_steer_rad" in differing
             and all(_default_steer_bound(config) for config in configs)):
         differing.remove("tracker.max_steer_rad")  # each tracker's own default
@@ -121,8 +122,16 @@ def config_changes(config: Mapping[str, Any]) -> list[str]:
     except CosimError:  # a log from another version whose keys this one lacks
         return []
     flat = flat_config(config)
+    requests = told(config)
     for key in config_differences([base, config]):
         if key.split(".")[0].split("[")[0] in NOT_CHANGES:
+            continue
+        if key.startswith(f"{TOLD_KEY}."):  # a told belief: the request, not its number
+            belief = key.removeprefix(f"{TOLD_KEY}.")
+            if belief in requests:
+                changes.append(f"{belief}={PLANT}")
+            continue
+        if key in requests:
             continue
         if key in flat:  # a key the log lacks is one its cosim did not have yet
             changes.append(f"{key}={shown_value(flat.get(key))}")

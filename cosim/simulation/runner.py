@@ -55,6 +55,7 @@ from cosim.sensing.faults import FaultInjector
 from cosim.sensing.protocol import BiasedSensor, Sensor
 from cosim.sensing.sensors import TruthSensor, make_sensors
 from cosim.simulation.belief_check import BeliefMismatchWarning, belief_mismatches
+from cosim.simulation.beliefs import mismatch_table, told
 from cosim.simulation.course import Course, build_course
 from cosim.simulation.course_metrics import CourseMonitor
 from cosim.simulation.metrics import MetricsAccumulator
@@ -313,6 +314,11 @@ class _Run:
             "config_json": json.dumps(config_dict),
             "versions": json.dumps(versions),
             **{f"version_{k}": v for k, v in versions.items()},
+        })
+        # The truth beside the belief, resolved (cosim.simulation.beliefs), for any reader.
+        recorder.add_metadata("mismatch", {
+            "table_json": json.dumps([row.as_dict() for row in mismatch_table(config_dict)]),
+            "beliefs_from_plant_json": json.dumps(told(config_dict)),
         })
         recorder.add_attachment("sedan.xml", "application/xml", self.plant.mjcf_xml.encode())
         samples = self.reference.sample(np.arange(0.0, self.reference.length_m, 1.0))

@@ -40,6 +40,7 @@ from cosim.plant.disturbances import DisturbanceConfig
 from cosim.plant.sedan_sampler import sampled_sedan
 from cosim.sensing.faults import FaultConfig
 from cosim.sensing.sensors import SensorsConfig, suite_preset
+from cosim.simulation.beliefs import take_plant_requests, tell
 from cosim.simulation.outcome import OutcomeConfig
 from cosim.simulation.path_config import PathConfig
 from cosim.simulation.traffic_checks import check_traffic
@@ -127,6 +128,11 @@ class ScenarioConfig:
     traffic: dict[str, Any] = mapping(
         doc="other cars by name (cosim.plant.traffic), e.g. traffic.lead.speed_mps; each "
         "validated as a TrafficCarConfig when the config is loaded")
+    beliefs_from_plant: dict[str, Any] = mapping(
+        doc="the beliefs the controller was told from the plant, belief key -> plant key: "
+        "written by the loader for each belief set to `plant` (e.g. tracker.latency_s=plant), "
+        "kept in the log, honoured when a shown or logged configuration is loaded again "
+        "(cosim.simulation.beliefs)")
 
 
 def builtin_scenarios() -> dict[str, str]:
@@ -222,9 +228,9 @@ def load_config(
         # The suite presets figures; what the user set explicitly wins.
         data["sensors"] = _merge(suite_preset(sensors["suite"]), sensors)
         _believe_suite(data, sensors["suite"])
-    _believe_actuator_delay(data)
+    requests = take_plant_requests(data)  # `plant` beliefs: the controller is told
     _refuse_moved_keys(data)
-    config = from_dict(ScenarioConfig, data)
+    config = tell(from_dict(ScenarioConfig, data), requests)
     for line in unread_key_warnings(data, config.tracker.name, config.plant.tyre_model,
                                     config.initial.speed_from_profile,
                                     to_dict(ScenarioConfig())):
@@ -303,22 +309,6 @@ def check_required_sensors(config: ScenarioConfig) -> None:
                 f"sensors.{name}.enabled = false: estimator.name = {config.estimator.name} "
                 f"needs the {name} sensor (enable it or choose another estimator)"
             )
-
-
-def _believe_actuator_delay(data: dict[str, Any]) -> None:
-    """A tracker that is not told its latency believes in the plant's actuator delay.
-
-    The delay line is part of the testbed, not of the car, so the controller knows it
-    (issue 5: "forward-predict over the known actuator delay"); ``tracker.latency_s`` set
-    explicitly wins, which is how a study makes the belief wrong on purpose.
-    """
-    plant, tracker = data.get("plant"), data.get("tracker")
-    if not isinstance(plant, dict) or "actuator_delay_s" not in plant:
-        return
-    if tracker is None:
-        data["tracker"] = tracker = {}
-    if isinstance(tracker, dict) and "latency_s" not in tracker:
-        tracker["latency_s"] = plant["actuator_delay_s"]
 
 
 def steps_per_period(period_s: float, physics_dt_s: float, key: str,

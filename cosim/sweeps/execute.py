@@ -81,12 +81,15 @@ def _now() -> str:
 
 def _run_task(task: RunTask, row: dict[str, Any], workshop: Workshop | None) -> None:
     """Run ``task`` and fill ``row``'s metrics and error (:func:`execute_task`)."""
+    from cosim.core.config_fields import to_dict
+    from cosim.simulation.beliefs import mismatch_table
     from cosim.simulation.outcome import SEVERITY
     from cosim.simulation.runner import run, run_unlogged
     from cosim.simulation.scenario_config import load_config
 
     config = load_config(task.scenario, None, list(task.overrides), task.seed,
                          task.duration_s, task.tracker, task.estimator)
+    row["mismatch"] = [r.text() for r in mismatch_table(to_dict(config))]
     if task.log_path is None:  # no log kept: none written (the same metrics, bit for bit)
         result = run_unlogged(config, workshop=workshop)
     else:

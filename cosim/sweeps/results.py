@@ -200,6 +200,7 @@ def flat_row(row: dict[str, Any], spec: SweepSpec, metric_keys: Sequence[str]
     flat["error"] = row.get("error", "")
     metrics = row.get("metrics", {})
     flat["outcome"] = metrics.get("outcome", "")
+    flat["mismatch"] = "; ".join(row.get("mismatch", []))
     # A run that stopped early: its metrics cover the time up to the stop (how and when).
     flat["partial"] = is_partial(metrics) and not row.get("error")
     flat["stopped"] = bad_outcome(metrics) if flat["partial"] else ""
@@ -407,6 +408,13 @@ def summary_markdown(spec: SweepSpec, flat: Sequence[dict[str, Any]], n_runs: in
               f"`{p.counterpart}` = {_cell(p.counterpart_value)} (held)" if p.counterpart
               else ""] for p in spec.parameters])
         lines.append("")
+    lines += ["## The belief against the plant", "",
+              "Where the controller's model (and the filter's noise belief) differs from the "
+              "plant before any varied value (`cosim.simulation.beliefs`): "
+              + ("; ".join(spec.base_mismatch) if spec.base_mismatch else
+                 "nowhere: every belief is the plant's value")
+              + ". A varied key's other side is in the table above; each run's own table is "
+              "in the `mismatch` column of `results.csv`.", ""]
     criteria = ", ".join(c.describe() for c in spec.criteria) or "the run completes"
     share = f"{100.0 * passed / len(flat):.1f} %" if flat else "n/a"
     lines += ["## Pass rate", "",

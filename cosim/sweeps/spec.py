@@ -58,6 +58,7 @@ import yaml
 from cosim.core.exceptions import ConfigError
 from cosim.core.key_aliases import canonical_key
 from cosim.core.yaml_io import read_yaml_file, shown
+from cosim.simulation.beliefs import counterpart, mismatch_table
 from cosim.simulation.fail_if import FLAG, NUMBER, WORD, known_metrics, metric_kind
 from cosim.simulation.metric_keys import METRIC_KEYS, metric_key
 from tracker.config import is_plugin_name
@@ -120,8 +121,9 @@ class Parameter:
     """One varied quantity: a dotted config path, its nominal value and its values or range.
 
     ``counterpart`` is the other side of a mismatch: for ``plant.X`` the tracker's belief
-    ``tracker.model.X``, for ``tracker.model.X`` the plant's ``plant.X`` (``None`` when the
-    key has no counterpart); ``counterpart_value`` is its value in the sweep's base config.
+    ``tracker.model.X``, for ``tracker.model.X`` the plant's ``plant.X``, for
+    ``plant.actuator_delay_s`` ``tracker.latency_s`` (``None`` when the key has no
+    counterpart); ``counterpart_value`` is its value in the sweep's base config.
     """
 
     path: str
@@ -236,6 +238,10 @@ class SweepSpec:
     """The estimator the runs use (``estimator``, else the scenario's), for titles."""
     also_plotted: tuple[str, ...] = ()
     """Further metrics plotted against each parameter (``metric:`` given as a list)."""
+    base_mismatch: tuple[str, ...] = ()
+    """The base configuration's mismatch table, a line a row
+    (:func:`cosim.simulation.beliefs.mismatch_table`): plant against belief before any
+    varied value (derived from the rest: not part of the hash)."""
 
     @property
     def metrics(self) -> tuple[str, ...]:
@@ -285,6 +291,7 @@ class SweepSpec:
         """The spec as plain data (what ``sweep.json`` stores and the hash covers)."""
         data = dataclasses.asdict(self)
         data.pop("scenario_text")
+        data.pop("base_mismatch")
         for criterion in data["criteria"]:  # plain JSON, and the hash of specs before it
             for key in ("bound", "lower"):
                 if isinstance(criterion[key], float) and math.isinf(criterion[key]):
@@ -533,6 +540,7 @@ def load_spec(path: str | Path) -> SweepSpec:
         also_plotted=tuple(also_plotted),
         ray_address=ray_address, scenario_text=scenario_text,
         tracker_name=base.tracker.name, estimator_name=base.estimator.name,
+        base_mismatch=tuple(row.text() for row in mismatch_table(to_dict(base))),
     )
 
 
@@ -578,9 +586,7 @@ def _parameter(reader: _SpecReader, mode: str, key: Any, value: Any, leaves: dic
 
 
 def _counterpart(key: str) -> str | None:
-    """The other side of a plant/belief pair: plant.X <-> tracker.model.X."""
-    if key.startswith("plant."):
-        return "tracker.model." + key.removeprefix("plant.")
-    if key.startswith("tracker.model."):
-        return "plant." + key.removeprefix("tracker.model.")
-    return None
+    """The other side of a plant/belief pair (:func:`cosim.simulation.beliefs.counterpart`):
+    ``plant.X`` <-> ``tracker.model.X``, ``plant.actuator_delay_s`` <->
+    ``tracker.latency_s``, a sensor's noise <-> the filter's belief about it."""
+    return counterpart(key)

@@ -36,8 +36,13 @@ def test_a_nominal_run_changes_nothing_and_overrides_are_named() -> None:
 def test_what_follows_another_change_is_not_listed() -> None:
     # The filter's beliefs and sensor figures a suite brings are the suite's.
     assert changes("sensors.suite=gnss") == ["sensors.suite=gnss"]
-    # The belief about the actuator delay follows the delay.
+    # A belief told the plant's value shows as the request, not as its number, so two
+    # runs that differ in what the controller was told never look alike.
     assert changes("plant.actuator_delay_s=0.1") == ["plant.actuator_delay_s=0.1"]
+    assert changes("plant.actuator_delay_s=0.1", "tracker.latency_s=plant") == [
+        "plant.actuator_delay_s=0.1", "tracker.latency_s=plant"]
+    assert changes("plant.actuator_delay_s=0.1", "tracker.latency_s=0.1") == [
+        "plant.actuator_delay_s=0.1", "tracker.latency_s=0.1"]
     # A belief set on purpose against its suite is a change.
     assert "estimator.noise.gnss_sigma_m=0.3" in changes(
         "sensors.suite=gnss", "estimator.noise.gnss_sigma_m=0.3")

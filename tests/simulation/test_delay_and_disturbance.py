@@ -17,9 +17,15 @@ from tests.conftest import run_scenario
 from tracker.paths.reference_path import ReferencePath
 
 
-def test_the_tracker_believes_the_plant_delay_unless_told_otherwise() -> None:
+def test_the_tracker_is_told_the_plant_delay_only_when_asked() -> None:
+    """No belief follows the plant silently: the delay is the plant's side alone unless
+    the belief says ``plant`` (then it takes the plant's resolved value, recorded)."""
     delayed = load_config("lane-change", overrides=["plant.actuator_delay_s=0.1"])
-    assert delayed.tracker.latency_s == pytest.approx(0.1)
+    assert delayed.tracker.latency_s == 0.0 and delayed.beliefs_from_plant == {}
+    told = load_config("lane-change", overrides=["plant.actuator_delay_s=0.1",
+                                                 "tracker.latency_s=plant"])
+    assert told.tracker.latency_s == pytest.approx(0.1)
+    assert told.beliefs_from_plant == {"tracker.latency_s": "plant.actuator_delay_s"}
     wrong = load_config("lane-change", overrides=["plant.actuator_delay_s=0.1",
                                                   "tracker.latency_s=0.05"])
     assert wrong.tracker.latency_s == pytest.approx(0.05)
@@ -32,8 +38,10 @@ def test_latency_compensation_keeps_a_100ms_delay_harmless(
 ) -> None:
     """Issue 5: with compensation at most 1.5x the no-delay max CTE; without, worse."""
     nominal = lane_change_run.metrics["cte_max_m"]
-    compensated = run_scenario(tmp_path, "lane-change", "plant.actuator_delay_s=0.1")
+    compensated = run_scenario(tmp_path, "lane-change", "plant.actuator_delay_s=0.1",
+                               "tracker.latency_s=plant")
     uncompensated = run_scenario(tmp_path, "lane-change", "plant.actuator_delay_s=0.1",
+                                 "tracker.latency_s=plant",
                                  "tracker.latency_compensation=false", seed=0)
     assert compensated.metrics["completed"] is True
     assert compensated.metrics["solver_failures"] == 0
