@@ -36,7 +36,7 @@ __all__ = ["RunResult", "ScenarioConfig", "SweepOutcome", "load_config", "run", 
 def load_config(
     scenario: str | Path,
     *,
-    config_file: str | Path | None = None,
+    config_file: str | Path | Sequence[str | Path] | None = None,
     overrides: Sequence[str] = (),
     seed: int | None = None,
     duration_s: float | None = None,
@@ -46,7 +46,8 @@ def load_config(
     """The validated configuration of a run, resolved as ``cosim run`` resolves it.
 
     ``scenario`` is a built-in name (``cosim scenarios``) or a YAML file; ``config_file`` a
-    YAML merged over it; then ``seed``, ``duration_s`` (``sim.duration_s``), ``tracker``
+    YAML merged over it, or a list of them merged in order (a later file wins a key both
+    set); then ``seed``, ``duration_s`` (``sim.duration_s``), ``tracker``
     (``tracker.name``), ``estimator`` (``estimator.name``) and the ``overrides``, each
     ``"key.path=value"`` as ``--set`` takes it (the value is read as YAML). Raises
     :class:`cosim.core.exceptions.ConfigError` naming the bad key or value and what was expected.
@@ -55,8 +56,11 @@ def load_config(
         raise ConfigError(f"duration_s = {duration_s}: expected a number of seconds >= 0")
     if isinstance(overrides, str):  # one string would be read character by character
         raise ConfigError(f"overrides = {overrides!r}: expected a list of 'key.path=value'")
-    return _load_config(str(scenario), None if config_file is None else str(config_file),
-                        list(overrides), seed, duration_s, tracker, estimator)
+    files = None if config_file is None else \
+        [str(config_file)] if isinstance(config_file, (str, Path)) else \
+        [str(path) for path in config_file]
+    return _load_config(str(scenario), files, list(overrides), seed, duration_s, tracker,
+                        estimator)
 
 
 def run(

@@ -34,7 +34,9 @@ def add_parsers(commands: Any) -> dict[str, Handler]:
     show = actions.add_parser(
         "show", help="the configuration a run would use, as YAML (a valid scenario file)")
     show.add_argument("scenario", help="built-in scenario name (see `cosim scenarios`) or YAML")
-    show.add_argument("--config", metavar="FILE.yaml", help="YAML merged over the scenario")
+    show.add_argument("--config", metavar="FILE.yaml", action="append",
+                      help="YAML merged over the scenario; repeat to merge several in order "
+                           "(a later file wins a key both set)")
     show.add_argument("--tracker", metavar="NAME", help="tracker.name")
     show.add_argument("--estimator", metavar="NAME", help="estimator.name")
     show.add_argument("--seed", type=int, metavar="N", help="the run's seed")
@@ -92,6 +94,20 @@ def keys_table(prefix: str = "") -> list[tuple[str, str, str, str, str]]:
     return rows
 
 
+def _print_sources(config_file: list[str] | None) -> None:
+    """A comment line per ``--config`` file naming the keys it set (a key two files set is
+    under the later one, whose value is used)."""
+    if not config_file:
+        return
+    from cosim.simulation.scenario_config import config_sources
+
+    by_file: dict[str, list[str]] = {path: [] for path in config_file}
+    for key, path in config_sources(config_file).items():
+        by_file[path].append(key)
+    for path, keys in by_file.items():
+        print(f"# set by --config {path}: {', '.join(keys) if keys else 'nothing it alone sets'}")
+
+
 def command(args: argparse.Namespace) -> int:
     """``cosim config show|keys``."""
     if args.config_command == "show":
@@ -99,6 +115,7 @@ def command(args: argparse.Namespace) -> int:
 
         config = load_config(args.scenario, args.config, args.overrides, args.seed,
                              args.duration, args.tracker, args.estimator)
+        _print_sources(args.config)
         if args.all:
             print(resolved_yaml(config), end="")
             return 0

@@ -16,8 +16,9 @@ IDENTIFY_SCENARIO = "lane-change"
 def add_parsers(commands: Any) -> dict[str, Handler]:
     identify = commands.add_parser(
         "identify", help="identify the plant's bicycle-model parameters and actuator lags")
-    identify.add_argument("--config", metavar="FILE.yaml",
-                          help="YAML merged over the lane-change scenario")
+    identify.add_argument("--config", metavar="FILE.yaml", action="append",
+                          help="YAML merged over the lane-change scenario; repeat to merge "
+                               "several in order")
     identify.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                           dest="overrides", help="override a config key, e.g. plant.mass_kg=2000")
     identify.add_argument("--json", action="store_true", help="print one JSON object")

@@ -30,7 +30,9 @@ PATH_TRACKING_METRICS = ("cte_max_m", "cte_rms_m", "heading_err_max_rad",
 def add_parsers(commands: Any) -> dict[str, Handler]:
     run = commands.add_parser("run", help="run a scenario and log it to MCAP")
     run.add_argument("scenario", help="built-in scenario name (see `cosim scenarios`) or YAML")
-    run.add_argument("--config", metavar="FILE.yaml", help="YAML merged over the scenario")
+    run.add_argument("--config", metavar="FILE.yaml", action="append",
+                     help="YAML merged over the scenario; repeat to merge several in order "
+                          "(a later file wins a key both set)")
     run.add_argument("--tracker", metavar="NAME",
                      help="path tracker: dynamic-nmpc (default), kinematic-nmpc, ltv-mpc, "
                      "dynamic-mpc, open-loop ... (`cosim trackers`), an installed plug-in, "
@@ -147,7 +149,7 @@ def _claim_out(args: argparse.Namespace, scenario: str) -> Iterator[Path]:
     ``-2``, ``-3`` ... when a run started in the same second holds that."""
     from cosim.log.output_claim import OutputTakenError, claim_output
 
-    inputs = (args.config, args.scenario, args.video)
+    inputs = (*(args.config or ()), args.scenario, args.video)
     if args.out is not None:
         with claim_output(Path(args.out), "--out", args.force, inputs) as out:
             yield out

@@ -48,13 +48,14 @@ def _value_part(raw: str) -> str:
 
 def override_tag(overrides: Sequence[str] = (), tracker: str | None = None,
                  estimator: str | None = None, seed: int | None = None,
-                 duration_s: float | None = None, config_file: str | None = None) -> str:
+                 duration_s: float | None = None,
+                 config_file: str | Sequence[str] | None = None) -> str:
     """A short, file-system-safe tag of the command-line changes to a scenario ("" for
     none), in the order: ``--config``, ``--tracker``, ``--estimator``, ``--set`` (as
     given), ``--seed``, ``--duration``."""
     parts: list[str] = []
-    if config_file:
-        parts.append(_safe(config_file.replace("\\", "/").rsplit("/", 1)[-1].rsplit(".", 1)[0]))
+    for name in [config_file] if isinstance(config_file, str) else (config_file or ()):
+        parts.append(_safe(name.replace("\\", "/").rsplit("/", 1)[-1].rsplit(".", 1)[0]))
     if tracker and tracker.startswith("fmu:"):  # a file: its name, not its folders
         tracker = "fmu-" + tracker.replace("\\", "/").rsplit("/", 1)[-1].removesuffix(".fmu")
     parts += [_safe(name) for name in (tracker, estimator) if name]

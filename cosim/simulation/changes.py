@@ -22,6 +22,7 @@ alike.
 from __future__ import annotations
 
 import importlib.resources
+import warnings
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -29,7 +30,7 @@ from cosim.core.config_fields import to_dict
 from cosim.core.exceptions import CosimError
 from cosim.core.yaml_io import loads as yaml_loads
 from cosim.simulation.beliefs import PLANT, TOLD_KEY, told
-from cosim.simulation.scenario_config import builtin_scenarios, load_config
+from cosim.simulation.scenario_config import ConfigMergeNote, builtin_scenarios, load_config
 from tracker.config import default_steer_bound_rad
 
 NOT_CHANGES = ("name", "description", "seed")
@@ -147,16 +148,18 @@ def changes_text(changes: Sequence[str], at_most: int = 4) -> str:
     return shown + (f", +{more} more" if more > 0 else "")
 
 
-def file_changes(scenario: str, config_file: str | None = None) -> list[str]:
+def file_changes(scenario: str, config_file: str | Sequence[str] | None = None) -> list[str]:
     """What files change (for a log's name): a scenario file's changes from its base
-    scenario, and what a ``--config`` file changes in the scenario; ``[]`` for a built-in
+    scenario, and what the ``--config`` files change in the scenario; ``[]`` for a built-in
     scenario without a ``--config``."""
     changes: list[str] = []
     if scenario not in builtin_scenarios():
         changes += config_changes(to_dict(load_config(scenario)))
-    if config_file is not None:
-        alone, merged = to_dict(load_config(scenario)), to_dict(load_config(scenario,
-                                                                            config_file))
+    if config_file:
+        with warnings.catch_warnings():  # the run's own load says it, once
+            warnings.simplefilter("ignore", ConfigMergeNote)
+            alone = to_dict(load_config(scenario))
+            merged = to_dict(load_config(scenario, config_file))
         flat = flat_config(merged)
         changes += [f"{key}={shown_value(flat.get(key))}"
                     for key in config_differences([alone, merged])

@@ -1,9 +1,10 @@
 """The whole configuration of a run, and how it is loaded from YAML and overrides.
 
 A scenario is a YAML file (built-in ones live in ``cosim/scenarios/``). Loading merges, in
-order: the dataclass defaults, the scenario file, an optional ``--config`` file, the
-command-line options (``--seed``, ``--duration``, ``--tracker``, ``--estimator``) and the
-``--set key.path=value`` overrides; then every key and value is validated.
+order: the dataclass defaults, the scenario file, the ``--config`` files (key by key, in the
+order given: a car file and a belief file make one configuration), the command-line options
+(``--seed``, ``--duration``, ``--tracker``, ``--estimator``) and the ``--set key.path=value``
+overrides; then every key and value is validated.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ import datetime
 import importlib.resources
 import math
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -172,6 +174,55 @@ def _scenario_data(scenario: str) -> dict[str, Any]:
     )
 
 
+class ConfigMergeNote(UserWarning):
+    """Two ``--config`` files set one key: the later one's value is used."""
+
+
+def config_files(config_file: str | Sequence[str] | None) -> list[str]:
+    """``--config`` as a list of files, in the order given (None: none)."""
+    if config_file is None:
+        return []
+    return [config_file] if isinstance(config_file, str) else list(config_file)
+
+
+def _config_file_data(path: str) -> dict[str, Any]:
+    return rename_old_keys(_read_yaml(Path(path), "--config"), "--config")
+
+
+def _leaf_keys(data: Any, prefix: str = "") -> list[str]:
+    """The dotted keys of a nested mapping's leaves (a list is one leaf)."""
+    if not isinstance(data, dict):
+        return [prefix]
+    keys: list[str] = []
+    for key, value in data.items():
+        keys += _leaf_keys(value, f"{prefix}.{key}" if prefix else str(key))
+    return keys
+
+
+def config_sources(config_file: str | Sequence[str] | None) -> dict[str, str]:
+    """Which ``--config`` file set each dotted key (the last that set it), for
+    ``cosim config show``."""
+    sources: dict[str, str] = {}
+    for path in config_files(config_file):
+        for key in _leaf_keys(_config_file_data(path)):
+            sources[key] = path
+    return sources
+
+
+def _note_keys_set_twice(files: Sequence[str]) -> None:
+    """One note naming the keys more than one ``--config`` file sets, and which file won."""
+    setters: dict[str, list[str]] = {}
+    for path in files:
+        for key in _leaf_keys(_config_file_data(path)):
+            setters.setdefault(key, []).append(path)
+    twice = {key: paths for key, paths in setters.items() if len(paths) > 1}
+    if twice:
+        shown_keys = "; ".join(f"{key} by {' and '.join(paths)} ({paths[-1]} wins)"
+                               for key, paths in twice.items())
+        warnings.warn(f"--config: {len(twice)} key(s) set by more than one file, the later "
+                      f"file's value used: {shown_keys}", ConfigMergeNote, stacklevel=3)
+
+
 def _merge(base: dict[str, Any], top: dict[str, Any]) -> dict[str, Any]:
     merged = copy.deepcopy(base)
     for key, value in top.items():
@@ -198,18 +249,24 @@ def parse_override(text: str) -> tuple[str, Any]:
 
 def load_config(
     scenario: str,
-    config_file: str | None = None,
+    config_file: str | Sequence[str] | None = None,
     overrides: list[str] | tuple[str, ...] = (),
     seed: int | None = None,
     duration_s: float | None = None,
     tracker: str | None = None,
     estimator: str | None = None,
 ) -> ScenarioConfig:
-    """Resolve a scenario name or path plus overrides into a validated configuration."""
+    """Resolve a scenario name or path plus overrides into a validated configuration.
+
+    ``config_file`` is one ``--config`` file or several, merged over the scenario in order,
+    key by key (a later file wins a key both set, as a later ``--set`` does); a key set by
+    two files is said in one :class:`ConfigMergeNote`."""
     data = rename_old_keys(_scenario_data(scenario), f"scenario {scenario}")
-    if config_file is not None:
-        data = _merge(data, rename_old_keys(_read_yaml(Path(config_file), "--config"),
-                                            "--config"))
+    files = config_files(config_file)
+    for path in files:
+        data = _merge(data, _config_file_data(path))
+    if len(files) > 1:
+        _note_keys_set_twice(files)
     if seed is not None:
         data["seed"] = seed
     if duration_s is not None:
