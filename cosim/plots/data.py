@@ -20,7 +20,13 @@ import numpy as np
 from cosim.core.exceptions import CosimError, LogReadError
 from cosim.log import topics
 from cosim.log.reader import iter_topics, read_summary
-from cosim.simulation.changes import config_changes, config_differences, flat_config, shown_value
+from cosim.simulation.changes import (
+    config_changes,
+    config_differences,
+    flat_config,
+    mismatch_first,
+    shown_difference,
+)
 from cosim.simulation.metrics import NEES_STATES
 from tracker.paths.reference_path import ReferencePath, wrap_angle
 
@@ -367,8 +373,8 @@ def _nis(messages: list[tuple[int, dict[str, Any]]]) -> dict[str, SensorNis] | N
     ) for sensor, items in sorted(by_sensor.items())}
 
 
-MAX_LABEL_DIFFERENCES = 3
-"""A run's label names at most this many configuration differences (then "+n more")."""
+LABEL_DIFFERENCES_A_LINE = 3
+"""A run's label names every configuration difference, this many a line."""
 
 
 def load_estimation(path: Path | str) -> EstimationErrors | None:
@@ -393,17 +399,18 @@ def distinct_labels(runs: list[RunLog]) -> list[RunLog]:
     if len(runs) < 2:
         return runs
     # The scenario and the tracker are in every label already.
-    differing = [key for key in config_differences([run.config for run in runs])
-                 if key not in ("name", "tracker.name")]
+    # Every difference, never "+n more" (the one hidden could be the cause), the two sides
+    # of a model mismatch first.
+    differing = mismatch_first([key for key in config_differences([run.config for run in runs])
+                                if key not in ("name", "tracker.name")])
     if differing:
-        shown, more = differing[:MAX_LABEL_DIFFERENCES], len(differing) - MAX_LABEL_DIFFERENCES
         labelled = []
         for run in runs:
             flat = flat_config(run.config)
-            parts = [f"{key}={shown_value(flat.get(key))}" for key in shown]
-            if more > 0:
-                parts.append(f"+{more} more")
-            labelled.append(replace(run, label=f"{run.label}: {', '.join(parts)}"))
+            parts = [shown_difference(key, flat) for key in differing]
+            lines = [", ".join(parts[i:i + LABEL_DIFFERENCES_A_LINE])
+                     for i in range(0, len(parts), LABEL_DIFFERENCES_A_LINE)]
+            labelled.append(replace(run, label=f"{run.label}: " + ",\n  ".join(lines)))
         if len({run.label for run in labelled}) == len(labelled):
             return labelled
         alike = [sum(other.label == run.label for other in labelled) > 1 for run in labelled]

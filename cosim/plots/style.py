@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from cosim.plots.data import RunLog
+from cosim.simulation.beliefs import mismatch_short
 from cosim.simulation.changes import changes_text
 
 DPI = 130
@@ -68,6 +69,8 @@ def suptitle(figure: Any, what: str, runs: Sequence[RunLog]) -> None:
         text = run.label + (f", seed {seed}" if seed is not None else "")
         if len(runs) == 1 and run.changes:  # runs of several logs name their differences
             text += f" — {changes_text(run.changes)}"
+        if len(runs) == 1 and mismatch_short(run.config):  # the truth beside the belief
+            text += f"\n{mismatch_short(run.config)}"
         parts.append(text + (f" ({'; '.join(marks)})" if marks else ""))
     common = [c for c in runs[0].changes if all(c in run.changes for run in runs[1:])] \
         if len(runs) > 1 else []
@@ -75,7 +78,8 @@ def suptitle(figure: Any, what: str, runs: Sequence[RunLog]) -> None:
     # As many characters a line as the figure is wide (about 9 per inch at this size).
     columns = max(40, int(figure.get_figwidth() * 9)) if hasattr(figure, "get_figwidth") \
         else 10_000
-    runs_text = textwrap.fill("  vs  ".join(parts), columns, break_long_words=False)
+    runs_text = "\n".join(textwrap.fill(line, columns, break_long_words=False)
+                          for line in "  vs  ".join(parts).split("\n"))
     figure.suptitle(f"{what}\n{runs_text}{shared}", fontsize=FONT_SIZE + 3)
 
 

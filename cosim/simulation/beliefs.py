@@ -216,3 +216,13 @@ def mismatch_line(config: Mapping[str, Any]) -> str:
     if requests:
         text += "; told the plant's value: " + ", ".join(requests)
     return text
+
+
+def mismatch_short(config: Mapping[str, Any]) -> str:
+    """The mismatch table for a figure's title: ``plant vs belief: mass_kg 2000 vs 1575``
+    (``""`` when every belief is the plant's value)."""
+    rows = mismatch_table(config)
+    if not rows:
+        return ""
+    return "plant vs belief: " + ", ".join(
+        f"{r.quantity} {_shown(r.plant)} vs {_shown(r.belief)}" for r in rows)

@@ -29,7 +29,7 @@ from typing import Any
 from cosim.core.config_fields import to_dict
 from cosim.core.exceptions import CosimError
 from cosim.core.yaml_io import loads as yaml_loads
-from cosim.simulation.beliefs import PLANT, TOLD_KEY, told
+from cosim.simulation.beliefs import PLANT, TOLD_KEY, counterpart, told
 from cosim.simulation.scenario_config import ConfigMergeNote, builtin_scenarios, load_config
 from tracker.config import default_steer_bound_rad
 
@@ -66,6 +66,30 @@ def config_differences(configs: Sequence[Mapping[str, Any]]) -> list[str]:
             and all(_default_steer_bound(config) for config in configs)):
         differing.remove("tracker.max_steer_rad")  # each tracker's own default
     return differing
+
+
+def shown_difference(key: str, flat: Mapping[str, Any]) -> str:
+    """``key=value`` of one differing key in a flat configuration; a belief told the
+    plant's value (``beliefs_from_plant.<belief>``) shows as ``<belief>=plant``, or the
+    belief's own value in a configuration that did not ask."""
+    if key.startswith(f"{TOLD_KEY}."):
+        belief = key.removeprefix(f"{TOLD_KEY}.")
+        value = shown_value(flat.get(belief))
+        return f"{belief}={PLANT} ({value})" if key in flat else f"{belief}={value}"
+    return f"{key}={shown_value(flat.get(key))}"
+
+
+def mismatch_first(keys: Sequence[str]) -> list[str]:
+    """``keys`` with the two sides of a model mismatch first (plant and belief keys of
+    :func:`cosim.simulation.beliefs.belief_pairs`, and told beliefs), each group in its
+    order: what decides a mismatch study is named before anything else. A belief whose
+    request to be told differs too is named once, by the request."""
+    def is_pair(key: str) -> bool:
+        return key.startswith(f"{TOLD_KEY}.") or counterpart(key) is not None
+
+    # A told belief's request shows its value too (shown_difference): named once.
+    keys = [k for k in keys if f"{TOLD_KEY}.{k}" not in keys]
+    return [k for k in keys if is_pair(k)] + [k for k in keys if not is_pair(k)]
 
 
 def _default_steer_bound(config: Mapping[str, Any]) -> bool:

@@ -92,6 +92,30 @@ def test_three_runs_overlay_and_too_many_are_refused(
         plot_logs([nmpc_run.log_path] * (MAX_LOGS + 1), tmp_path / "many")
 
 
+def test_overlay_labels_name_every_difference_the_mismatch_first(nmpc_run: RunResult) -> None:
+    """Five keys differ: all are named (never "+n more": the hidden one could be the
+    cause), the plant and belief keys first; a belief told the plant's value shows as the
+    request with its value."""
+    from dataclasses import replace
+
+    base = load_run(nmpc_run.log_path)
+    config = {**base.config,
+              "tracker": {**base.config["tracker"], "horizon": 31, "latency_s": 0.1,
+                          "latency_compensation": False, "weights": {
+                              **base.config["tracker"]["weights"], "cte": 77.0}},
+              "plant": {**base.config["plant"], "actuator_delay_s": 0.1},
+              "beliefs_from_plant": {"tracker.latency_s": "plant.actuator_delay_s"}}
+    other = replace(base, config=config)
+    labels = [r.label for r in distinct_labels([base, other])]
+    assert "more" not in " ".join(labels)
+    assert labels[1].startswith("lane-change / dynamic-nmpc: plant.actuator_delay_s=0.1, "
+                                "tracker.latency_s=plant (0.1)")
+    for key in ("tracker.horizon=31", "tracker.latency_compensation=false",
+                "tracker.weights.cte=77"):
+        assert key in labels[1], labels[1]
+    assert "tracker.latency_s=0," in labels[0]
+
+
 def test_overlaid_runs_are_named_by_their_difference_and_told_apart_by_style(
         nmpc_run: RunResult) -> None:
     from dataclasses import replace
