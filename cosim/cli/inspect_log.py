@@ -19,6 +19,10 @@ def add_parsers(commands: Any) -> dict[str, Handler]:
     inspect.add_argument("--head", type=int, metavar="N", help="only the first N messages")
     inspect.add_argument("--csv", metavar="DIR",
                          help="write each topic (or only --topic) as DIR/<topic>.csv")
+    inspect.add_argument("--require", action="append", default=[], metavar="'STL FORMULA'",
+                         help="evaluate this STL requirement on the log's signals and print "
+                         "its robustness (repeatable; exit 3 when one is violated), e.g. "
+                         "'always (abs(cte_m) <= 0.3)'")
     return {"inspect": command}
 
 
@@ -31,7 +35,10 @@ def command(args: argparse.Namespace) -> int:
     path = Path(args.file)
     if not path.is_file():
         raise CosimError(f"{args.file!r}: no such file (expected an MCAP log)")
+    period_s = _log_period_s(args.require, path)
     summary = read_summary(path)
+    if args.require:
+        return _requirements(path, args.require, period_s, args.json)
     if args.csv is not None:
         return csv_command(summary, args.csv, args.topic, args.head)
     if args.topic is not None:
@@ -107,3 +114,43 @@ def _print_summary(path: Path, summary: Any, document: dict[str, Any]) -> None:
         print_table("metrics", [(k, format_value(v)) for k, v in summary.metrics.items()])
     elif summary.written_by_cosim:
         print("metrics: none (the run did not finish)")
+
+
+def _log_period_s(formulas: list[str], path: Path) -> float:
+    """The log period of ``path`` (the sampling period of its signals), after checking every
+    formula before the log is read (a typo costs no reading)."""
+    from cosim.log.reader import read_summary
+    from cosim.simulation.requirements import check_formula
+
+    for formula in formulas:
+        check_formula(formula, "--require")
+    if not formulas:
+        return 0.0
+    config = read_summary(path).config or {}
+    return float(config.get("sim", {}).get("log_period_s", 0.01))
+
+
+def _requirements(path: Path, formulas: list[str], period_s: float, as_json: bool) -> int:
+    """Each formula's robustness on the log's ``/control/errors`` and ``/vehicle/truth``
+    (the signals the run itself evaluates): 0 when every one holds, else 3."""
+    from cosim.cli.common import EXIT_BAD_OUTCOME
+    from cosim.log import topics
+    from cosim.log.reader import iter_messages
+    from cosim.simulation.requirements import robustness, trace_from_messages
+
+    errors = [m for _, m in iter_messages(path, topics.CONTROL_ERRORS)]
+    truths = [m for _, m in iter_messages(path, topics.VEHICLE_TRUTH)]
+    if not errors:
+        raise CosimError(f"{str(path)!r}: no {topics.CONTROL_ERRORS} messages: expected a "
+                         "log of a path-tracking run")
+    trace = trace_from_messages(errors, truths)
+    rows = [{"formula": f, "robustness": robustness(f, trace, period_s)} for f in formulas]
+    for row in rows:
+        row["satisfied"] = bool(row["robustness"] >= 0.0)
+    if as_json:
+        print(json.dumps({"file": str(path), "requirements": rows}))
+    else:
+        for row in rows:
+            verdict = "holds" if row["satisfied"] else "VIOLATED"
+            print(f"{verdict}  robustness {row['robustness']:.6g}  {row['formula']}")
+    return 0 if all(row["satisfied"] for row in rows) else EXIT_BAD_OUTCOME

@@ -51,7 +51,13 @@ def add_parsers(commands: Any) -> dict[str, Handler]:
                      help="replace --out if it exists (refused otherwise)")
     run.add_argument("--fail-if", action="append", default=[], metavar="'METRIC>VALUE'",
                      dest="fail_if", help="exit 3 when this holds for the run's metrics "
-                     "(<, <=, >, >=, ==, !=; repeatable), e.g. 'cte_max_m>0.3'")
+                     "(<, <=, >, >=, ==, !=; repeatable), e.g. 'cte_max_m>0.3', or when this "
+                     "STL formula holds, e.g. 'eventually (abs(cte_m) > 0.3)'")
+    run.add_argument("--require", action="append", default=[], metavar="'STL FORMULA'",
+                     help="exit 3 when the run violates this STL requirement over its "
+                     "signals (repeatable; cosim.simulation.requirements), e.g. "
+                     "'always (abs(cte_m) <= 0.3)'; its robustness is the metric "
+                     "stl_robustness_<i>")
     run.add_argument("--json", action="store_true", help="print the metrics as JSON")
     run.add_argument("--live", action="store_true",
                      help="stream the run to Foxglove while it happens (a WebSocket server)")
@@ -69,7 +75,8 @@ def add_parsers(commands: Any) -> dict[str, Handler]:
 
 
 def command(args: argparse.Namespace) -> int:
-    from cosim.simulation.fail_if import parse_conditions
+    from cosim.simulation.fail_if import bind_formulas, formula_requirements, parse_conditions
+    from cosim.simulation.requirements import with_requirements
     from cosim.simulation.runner import run
     from cosim.simulation.scenario_config import load_config
 
@@ -83,6 +90,9 @@ def command(args: argparse.Namespace) -> int:
         raise CosimError(f"--duration {args.duration}: expected a number of seconds >= 0")
     config = load_config(args.scenario, args.config, args.overrides, args.seed,
                          args.duration, args.tracker, args.estimator)
+    config, first = with_requirements(config, formula_requirements(conditions, args.require),
+                                      "--require")
+    conditions = bind_formulas(conditions, args.require, first)
     with contextlib.ExitStack() as stack:
         out = stack.enter_context(_claim_out(args, config.name))
         mirror = None
@@ -201,9 +211,7 @@ def _exit_code(result: Any, conditions: list[Any]) -> int:
         return EXIT_BAD_OUTCOME
     held = [c for c in conditions if c.holds(result.metrics)]
     if held:
-        missing = "" if held[0].metric in result.metrics else \
-            f" (this run has no metric {held[0].metric!r})"
-        print(f"cosim: --fail-if {held[0].text!r} holds{missing}"
+        print(f"cosim: {held[0].failure(result.metrics)}"
               + (f" (and {len(held) - 1} more)" if len(held) > 1 else ""), file=sys.stderr)
         return EXIT_BAD_OUTCOME
     return 0
@@ -223,6 +231,6 @@ def _fails_every_condition(conditions: list[Any], outcome: str, completed: bool)
     if not conditions:
         return
     partial = "" if completed else "; its metrics cover the run up to the stop only (partial)"
-    texts = ", ".join(repr(c.text) for c in conditions)
-    print(f"cosim: --fail-if {texts}: the run fails on its {outcome} whatever the "
+    texts = ", ".join(f"{c.option} {c.text!r}" for c in conditions)
+    print(f"cosim: {texts}: the run fails on its {outcome} whatever the "
           f"metrics say{partial}", file=sys.stderr)

@@ -1,5 +1,10 @@
 """``cosim run --fail-if 'cte_max_m>0.3'``: conditions on a run's metrics for scripts and CI.
 
+A condition may also be an STL formula over the run's signals
+(:mod:`cosim.simulation.requirements`): ``--fail-if 'eventually (abs(cte_m) > 0.3)'`` fails
+the run when the formula holds; ``cosim run --require 'always (abs(cte_m) <= 0.3)'`` when it
+is violated. Either adds a requirement to the run, whose robustness is a metric.
+
 A condition is ``METRIC OP VALUE`` with OP one of ``<``, ``<=``, ``>``, ``>=``, ``==``,
 ``!=``. Every condition is parsed and checked before the run starts, so a typo costs no
 simulation (one line, exit code 2, the closest metric suggested):
@@ -22,12 +27,13 @@ import math
 import operator
 import re
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 from cosim.core.exceptions import ConfigError
 from cosim.core.yaml_io import shown
 from cosim.simulation.metric_keys import METRICS, metric_key
+from cosim.simulation.requirements import TEMPORAL, check_formula
 
 _OPERATORS: dict[str, Callable[[Any, Any], bool]] = {
     "<=": operator.le, ">=": operator.ge, "==": operator.eq, "!=": operator.ne,
@@ -62,6 +68,23 @@ class Condition:
     metric: str
     op: str
     value: float | bool | str
+    option: str = "--fail-if"
+    """The option that gave it: ``--fail-if``, or ``--require`` (a requirement that fails
+    the run when violated)."""
+    formula: bool = False
+    """An STL formula (:mod:`cosim.simulation.requirements`): it tests the robustness metric
+    of the requirement the run adds for it (:func:`bind_formulas`)."""
+
+    def failure(self, metrics: dict[str, Any]) -> str:
+        """The line that says why this condition fails the run."""
+        value = metrics.get(self.metric)
+        if value is None:
+            return f"{self.option} {self.text!r}: this run has no metric {self.metric!r}"
+        if self.option == "--require":
+            return f"{self.option} {self.text!r} is violated (robustness {value:.4g})"
+        if self.formula:  # its requirement is the negation: minus its robustness
+            return f"{self.option} {self.text!r} holds (robustness {-value:.4g})"
+        return f"{self.option} {self.text!r} holds"
 
     def holds(self, metrics: dict[str, Any]) -> bool:
         actual = metrics.get(self.metric)
@@ -90,9 +113,13 @@ def _closest(word: str, choices: Sequence[str]) -> str:
 def parse_condition(text: str) -> Condition:
     """One ``--fail-if`` text as a :class:`Condition`, checked (module docstring)."""
     match = _PATTERN.match(text)
+    if (match is None or metric_kind(match.group(1)) is None) and TEMPORAL.search(text):
+        check_formula(text, "--fail-if")  # an STL formula: the run fails if it holds
+        return Condition(text, "", ">=", 0.0, formula=True)
     if match is None:
         raise _error(text, "expected METRIC OP VALUE with OP one of <, <=, >, >=, ==, != "
-                     "(e.g. 'cte_max_m>0.3')")
+                     "(e.g. 'cte_max_m>0.3'), or an STL formula (e.g. "
+                     "'eventually (abs(cte_m) > 0.3)')")
     metric, op, raw = match.groups()
     kind = metric_kind(metric)
     if kind is None:
@@ -122,3 +149,27 @@ def parse_condition(text: str) -> Condition:
 def parse_conditions(texts: Sequence[str]) -> list[Condition]:
     """Parse every ``--fail-if`` text; a malformed one is a ConfigError naming it."""
     return [parse_condition(text) for text in texts]
+
+
+def bind_formulas(conditions: Sequence[Condition], requires: Sequence[str],
+                  first_index: int) -> list[Condition]:
+    """The conditions of a run whose requirements from ``first_index`` on are ``requires``
+    then the negation of each ``--fail-if`` formula (:func:`formula_requirements`), in
+    order: each fails the run when its requirement's robustness is below zero."""
+    bound = [Condition(text, f"stl_robustness_{first_index + i}", "<", 0.0,
+                       option="--require", formula=True) for i, text in enumerate(requires)]
+    index = first_index + len(requires)
+    for condition in conditions:
+        if condition.formula:
+            bound.append(replace(condition, metric=f"stl_robustness_{index}", op="<"))
+            index += 1
+        else:
+            bound.append(condition)
+    return bound
+
+
+def formula_requirements(conditions: Sequence[Condition], requires: Sequence[str]) -> list[str]:
+    """The requirements a run adds for its options: each ``--require`` formula, then for
+    each ``--fail-if`` formula its negation (the run must not let it hold), so that every
+    requirement is one the run should satisfy and ``stl_robustness`` is their worst."""
+    return [*requires, *(f"not ({c.text})" for c in conditions if c.formula)]

@@ -37,9 +37,10 @@ FRICTION_LIMITED = "friction-limited speed profiles (`path.speed_profile: fricti
 TRAFFIC = "runs with traffic (`traffic:`)"
 ACC = "runs with the ACC (`tracker.acc.enabled`)"
 WHEN_IT_HAPPENS = "runs where it happens"
+REQUIREMENTS = "runs with STL requirements (`requirements:`, `--require`, `pass: {stl: ...}`)"
 
 SCOPES = (EVERY_RUN, OPEN_LOOP, GATES, CIRCUIT, CLOSED, FRICTION_LIMITED, TRAFFIC, ACC,
-          WHEN_IT_HAPPENS)
+          REQUIREMENTS, WHEN_IT_HAPPENS)
 """When a run has a key, in the order ``docs/metrics.md`` lists them."""
 
 UNITS = ("m", "rad", "m/s", "m/s^2", "m/s^3", "rad/s", "1/s", "s", "ms", "%", "1", "count",
@@ -70,6 +71,7 @@ PLACEHOLDERS: Mapping[str, Placeholder] = MappingProxyType({
     "section": Placeholder((), r"[0-9]+", "an ISO 3888-1 lane section, from 1"),
     "gain": Placeholder(GAIN_NAMES, meaning="an ACC gain"),
     "lap": Placeholder((), r"[1-9][0-9]*", "a completed lap, from 1"),
+    "index": Placeholder((), r"[0-9]+", "a requirement's place in `requirements:`, from 0"),
 })
 """Every placeholder a key family may use."""
 
@@ -121,6 +123,7 @@ _COURSE = "cosim.simulation.course_metrics"
 _MANOEUVRE = "cosim.simulation.manoeuvre_metrics"
 _TRAFFIC = "cosim.simulation.traffic_loop"
 _BELIEF = "cosim.simulation.belief_check"
+_REQUIREMENTS = "cosim.simulation.requirements"
 
 TRACKING = (
     MetricKey("cte_max_m", "m", "largest absolute lateral deviation of the true centre of "
@@ -229,6 +232,11 @@ RUN = (
               _RUNNER, scope=WHEN_IT_HAPPENS),
     MetricKey("abort_reason", "text", "why the run stopped early (`interrupted`, the error)",
               "", _RUNNER, scope=WHEN_IT_HAPPENS),
+    MetricKey("stl_robustness_<index>", "1", "robustness of that STL requirement at t = 0, "
+              "in its predicates' unit: >= 0 satisfied, < 0 violated by that much",
+              ">= 0", _REQUIREMENTS, scope=REQUIREMENTS),
+    MetricKey("stl_robustness", "1", "the smallest robustness of the run's STL requirements",
+              ">= 0", _REQUIREMENTS, scope=REQUIREMENTS),
 )
 
 COURSE = (

@@ -60,6 +60,7 @@ from cosim.simulation.course import Course, build_course
 from cosim.simulation.course_metrics import CourseMonitor
 from cosim.simulation.metrics import MetricsAccumulator
 from cosim.simulation.outcome import TERMINAL, Event, OutcomeMonitor
+from cosim.simulation.requirements import SignalTrace, requirement_metrics
 from cosim.simulation.scenario_config import ScenarioConfig, steps_per_period
 from cosim.simulation.traffic_loop import CollisionError, TrafficLoop, build_traffic
 from cosim.simulation.workshop import Workshop
@@ -262,6 +263,8 @@ class _Run:
         self.faults = {s.name: FaultInjector(config.faults, s.name, s.names)
                        for s in self.sensors}
         open_loop = config.tracker.name == "open-loop"
+        self.signals: SignalTrace | None = SignalTrace() if config.requirements else None
+        """The signals of the run's STL requirements (none without requirements)."""
         self.metrics = MetricsAccumulator(self.reference,
                                           config.manoeuvre if open_loop else None)
         self.monitor = OutcomeMonitor(
@@ -373,6 +376,14 @@ class _Run:
         metrics = self.metrics
         metrics.add_truth(self.truth)
         metrics.add_estimate(estimate, self.truth)
+        if self.signals is not None:  # the STL requirements' signals, at the log instants
+            truth = self.truth
+            self.signals.add({
+                "t": t_s, "cte_m": metrics.cte_m.last,
+                "heading_err_rad": metrics.heading_err_rad.last,
+                "speed_err_mps": metrics.speed_err_mps.last, "speed_mps": truth.speed_mps,
+                "ref_speed_mps": metrics.last_ref_speed_mps, "lat_accel_mps2": truth.ay_mps2,
+                "yaw_rate_radps": truth.yaw_rate_radps, "steer_rad": truth.steer_rad})
         forces = self.plant.tyre_forces()
         for event in self.monitor.observe(
                 self.truth, metrics.cte_m.last, metrics.heading_err_rad.last, metrics.last_path_s_m,
@@ -656,6 +667,8 @@ def _finish(recorder: Recorder, state: _Run, wall_start: float, completed: bool,
     values["outcome"] = state.monitor.outcome(abort)
     if state.traffic is not None:
         values.update(state.traffic.result())
+    values.update(requirement_metrics(state.config.requirements, state.signals,
+                                      state.config.sim.log_period_s))
     values["events"] = len(state.monitor.events)
     for event in state.monitor.events:
         values.setdefault(f"{event.kind}_t_s", event.t_s)

@@ -45,6 +45,7 @@ from cosim.sensing.sensors import SensorsConfig, suite_preset
 from cosim.simulation.beliefs import take_plant_requests, tell
 from cosim.simulation.outcome import OutcomeConfig
 from cosim.simulation.path_config import PathConfig
+from cosim.simulation.requirements import RequirementConfig, check_requirements
 from cosim.simulation.traffic_checks import check_traffic
 from cosim.simulation.unread_keys import UnreadKeyWarning, unread_key_warnings
 from estimation.config import ESTIMATOR_NAMES, EstimatorConfig
@@ -130,6 +131,7 @@ class ScenarioConfig:
     traffic: dict[str, Any] = mapping(
         doc="other cars by name (cosim.plant.traffic), e.g. traffic.lead.speed_mps; each "
         "validated as a TrafficCarConfig when the config is loaded")
+    requirements: tuple[RequirementConfig, ...] = items(RequirementConfig)
     beliefs_from_plant: dict[str, Any] = mapping(
         doc="the beliefs the controller was told from the plant, belief key -> plant key: "
         "written by the loader for each belief set to `plant` (e.g. tracker.latency_s=plant), "
@@ -293,6 +295,7 @@ def load_config(
                                     to_dict(ScenarioConfig())):
         warnings.warn(line, UnreadKeyWarning, stacklevel=2)
     check_rates(config)
+    check_requirements(config.requirements, config.sim.log_period_s)
     check_required_sensors(config)
     check_faults(config)
     check_traffic(config)  # a bad car, or one the ego or its ACC cannot meet: here

@@ -19,6 +19,9 @@ A spec is a YAML mapping::
       cte_max_m: 0.3
       completed: true
       gap_min_m: {min: 5}            # a lower bound (a *_min metric must say which)
+      stl: always (abs(cte_m) <= 0.3)  # STL requirements (or a list): each run must
+                                     # satisfy them (robustness >= 0, a metric of its own;
+                                     # cosim.simulation.requirements)
     metric: cte_max_m                # optional headline metric of the summary and plots
                                      # (a list plots each: [gap_min_m, ttc_min_s]);
                                      # default: the first numeric pass criterion
@@ -61,6 +64,7 @@ from cosim.core.yaml_io import read_yaml_file, shown
 from cosim.simulation.beliefs import counterpart, mismatch_table
 from cosim.simulation.fail_if import FLAG, NUMBER, WORD, known_metrics, metric_kind
 from cosim.simulation.metric_keys import METRIC_KEYS, metric_key
+from cosim.simulation.requirements import check_formula
 from tracker.config import is_plugin_name
 from tracker.plugins.loading import resolved_params
 
@@ -104,6 +108,10 @@ def unit_of(key: str) -> str:
 def axis_label(key: str) -> str:
     """``plant.mass_kg [kg]``: a dotted key with its unit, for tables and plot axes."""
     return f"{key} [{unit_of(key)}]"
+
+
+STL_KEY = "stl"
+"""The ``pass:`` key of STL requirements (:meth:`_SpecReader.formulas`)."""
 
 
 def override_text(key: str, value: Any) -> str:
@@ -159,8 +167,13 @@ class PassCriterion:
     metric: str
     bound: float | bool
     lower: float = -math.inf
+    label: str = ""
+    """How the criterion reads when its metric does not say it (an STL requirement's
+    formula, for its ``stl_robustness_<i> >= 0``)."""
 
     def describe(self) -> str:
+        if self.label:
+            return self.label
         if isinstance(self.bound, bool):
             return f"{self.metric} is {str(self.bound).lower()}"
         unit = unit_of(self.metric)
@@ -296,6 +309,8 @@ class SweepSpec:
             for key in ("bound", "lower"):
                 if isinstance(criterion[key], float) and math.isinf(criterion[key]):
                     criterion.pop(key)
+            if not criterion["label"]:
+                criterion.pop("label")
         return json.loads(json.dumps(data, default=str))
 
     def digest(self) -> str:
@@ -405,6 +420,8 @@ class _SpecReader:
     def criteria(self, data: dict[str, Any]) -> tuple[PassCriterion, ...]:
         criteria = []
         for metric, bound in self.mapping(data, "pass").items():
+            if metric == STL_KEY:  # requirements: :meth:`formulas`
+                continue
             kind = metric_kind(str(metric))
             if kind is None:
                 close = difflib.get_close_matches(str(metric), known_metrics(), n=1)
@@ -421,6 +438,23 @@ class _SpecReader:
                 continue
             criteria.append(self.range_criterion(str(metric), bound))
         return tuple(criteria)
+
+    def formulas(self, data: dict[str, Any]) -> tuple[str, ...]:
+        """``pass: {stl: FORMULA}`` (or a list of them): STL requirements every run must
+        satisfy, each checked here (:mod:`cosim.simulation.requirements`)."""
+        value = self.mapping(data, "pass").get(STL_KEY)
+        if value is None:
+            return ()
+        formulas = [value] if isinstance(value, str) else value
+        if not isinstance(formulas, list) or not formulas:
+            raise self.error(f"pass: {STL_KEY}: {shown(value)}: expected an STL formula or a "
+                             "list of them (e.g. always (abs(cte_m) <= 0.3))")
+        for index, formula in enumerate(formulas):
+            try:
+                check_formula(formula, f"pass: {STL_KEY}[{index}]")
+            except ConfigError as error:
+                raise self.error(str(error)) from None
+        return tuple(formulas)
 
     def sampling(self, data: dict[str, Any]) -> tuple[str, dict[Any, Any], int, int]:
         """``(mode, ranges, random_n, random_seed)``: ``grid`` with its lists, ``random``
@@ -506,7 +540,7 @@ def load_spec(path: str | Path) -> SweepSpec:
     fixed = tuple((canonical_key(k, where) if isinstance(k, str) else k, v)
                   for k, v in reader.mapping(data, "set").items())
     criteria = reader.criteria(data)
-    metric, *also_plotted = reader.metrics(data.get("metric"), criteria)
+    formulas = reader.formulas(data)
     ray_address = reader.optional_str(data, "ray_address")
 
     def config(extra: tuple[tuple[str, Any], ...], what: str) -> Any:
@@ -517,6 +551,14 @@ def load_spec(path: str | Path) -> SweepSpec:
         except ConfigError as error:
             raise reader.error(f"{what}: {error}") from None
 
+    if formulas:  # every run gets the requirements, after the scenario's own
+        existing = [r.formula for r in config((), "config").requirements]
+        fixed = (*fixed, ("requirements", [{"formula": f} for f in (*existing, *formulas)]))
+        criteria = (*criteria, *(
+            PassCriterion(f"stl_robustness_{len(existing) + i}", math.inf, 0.0,
+                          label=f"{formula} holds")
+            for i, formula in enumerate(formulas)))
+    metric, *also_plotted = reader.metrics(data.get("metric"), criteria)
     base = config((), "config")
     leaves = _leaves(to_dict(base))
     if is_plugin_name(base.tracker.name):  # a plug-in's own settings, defaults filled in
