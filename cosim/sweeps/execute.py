@@ -300,7 +300,9 @@ def _run_pool(pending: list[RunTask], workers: int, on_row: RowSink) -> list[Run
     # At most one batch per worker is handed to the pool: a batch in the pool's queue can
     # no longer be cancelled, so a deeper queue would run on after an interrupt.
     running: dict[concurrent.futures.Future[None], list[RunTask]] = {}
-    broken: list[RunTask] = []
+    broken: list[list[RunTask]] = []
+    """Batches in flight when the pool broke; which of their runs finished is known only
+    once every worker is gone and every queued row handed over (below)."""
     try:
         try:
             while (pending or running) and not broken:
@@ -321,7 +323,7 @@ def _run_pool(pending: list[RunTask], workers: int, on_row: RowSink) -> list[Run
                     batch = running.pop(future)
                     if isinstance(future.exception(),
                                   concurrent.futures.process.BrokenProcessPool):
-                        broken.extend(rows.unfinished(batch))
+                        broken.append(batch)
         except KeyboardInterrupt:
             _stop(executor, set(running), rows)
             raise
@@ -333,8 +335,11 @@ def _run_pool(pending: list[RunTask], workers: int, on_row: RowSink) -> list[Run
     if broken:  # the runs still in flight went down with the pool
         for future, batch in running.items():
             if not (future.done() and future.exception() is None):
-                broken.extend(rows.unfinished(batch))
-    return sorted(broken, key=lambda task: task.run_id)
+                broken.append(batch)
+    # Only now, with the workers gone and their queued rows handed over: a run of a broken
+    # batch whose row arrived is finished, and running it again would give it two rows.
+    return sorted((task for batch in broken for task in rows.unfinished(batch)),
+                  key=lambda task: task.run_id)
 
 
 ROW_POLL_S = 0.1
@@ -359,7 +364,8 @@ class _RowQueue:
                 row = self._queue.get_nowait()
             except queue_module.Empty:
                 return
-            self._handed.add(row["run_id"])
+            if not row.get("interrupted"):  # a run stopped by the pool's end runs again
+                self._handed.add(row["run_id"])
             self._on_row(row)
 
     def unfinished(self, batch: Sequence[RunTask]) -> list[RunTask]:
