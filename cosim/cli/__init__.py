@@ -54,6 +54,7 @@ from cosim.cli import (
     compare,
     components,
     config_command,
+    envelope,
     export,
     identify,
     inspect_log,
@@ -77,7 +78,7 @@ from cosim.core.exceptions import CosimError
 __all__ = ["EXIT_BAD_OUTCOME", "EXIT_INTERRUPT", "EXIT_IO", "EXIT_USAGE", "main"]
 
 COMMAND_MODULES = (run, inspect_log, views, export, components, compare, identify, sweep,
-                   config_command)
+                   envelope, config_command)
 """Every command's module, in the order ``cosim --help`` lists their commands."""
 
 

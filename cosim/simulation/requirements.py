@@ -32,6 +32,7 @@ import contextlib
 import logging
 import math
 import re
+import warnings
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -78,7 +79,9 @@ def _quiet() -> Iterator[None]:
 
 
 def _specification(formula: str, period_s: float) -> Any:
-    import rtamt
+    with warnings.catch_warnings():  # its ANTLR runtime imports typing.io (deprecated)
+        warnings.simplefilter("ignore", DeprecationWarning)
+        import rtamt
 
     spec = rtamt.StlDiscreteTimeOfflineSpecification()
     for name in SIGNALS:

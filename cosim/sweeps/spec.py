@@ -111,7 +111,7 @@ def axis_label(key: str) -> str:
 
 
 STL_KEY = "stl"
-"""The ``pass:`` key of STL requirements (:meth:`_SpecReader.formulas`)."""
+"""The ``pass:`` key of STL requirements (:meth:`SpecReader.formulas`)."""
 
 
 def override_text(key: str, value: Any) -> str:
@@ -344,24 +344,27 @@ def _leaves(data: dict[str, Any], prefix: str = "") -> dict[str, Any]:
     return leaves
 
 
-class _SpecReader:
+class SpecReader:
     """Reads and validates one spec file; every error names the file and the bad value."""
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, what: str = "sweep spec",
+                 keys: tuple[str, ...] | None = None) -> None:
         self.path = path
-        self.where = f"sweep spec {str(path)!r}"
+        self.what = what
+        self.keys = keys if keys is not None else SPEC_KEYS
+        self.where = f"{what} {str(path)!r}"
 
     def error(self, message: str) -> ConfigError:
         return ConfigError(f"{self.where}: {message}")
 
     def read(self) -> dict[str, Any]:
-        data = read_yaml_file(self.path, "sweep spec")
+        data = read_yaml_file(self.path, self.what)
         if not isinstance(data, dict):
-            raise self.error("expected a mapping with scenario:, seeds:, grid: or random:")
-        unknown = sorted(set(data) - set(SPEC_KEYS))
+            raise self.error(f"expected a mapping with {', '.join(self.keys[:4])} ...")
+        unknown = sorted(set(data) - set(self.keys), key=str)
         if unknown:
             raise self.error(f"unknown key {shown(unknown[0])}: expected one of "
-                             f"{', '.join(SPEC_KEYS)}")
+                             f"{', '.join(self.keys)}")
         return data
 
     def optional_str(self, data: dict[str, Any], key: str) -> str | None:
@@ -529,7 +532,7 @@ def load_spec(path: str | Path) -> SweepSpec:
     from cosim.core.config_fields import to_dict
     from cosim.simulation.scenario_config import load_config
 
-    reader = _SpecReader(Path(path))
+    reader = SpecReader(Path(path))
     data = reader.read()
     scenario, scenario_text = reader.scenario(data)
     tracker = reader.optional_str(data, "tracker")
@@ -586,7 +589,7 @@ def load_spec(path: str | Path) -> SweepSpec:
     )
 
 
-def _parameter(reader: _SpecReader, mode: str, key: Any, value: Any, leaves: dict[str, Any],
+def _parameter(reader: SpecReader, mode: str, key: Any, value: Any, leaves: dict[str, Any],
                fixed_keys: set[str], config: Callable[..., Any]) -> Parameter:
     """One varied key of ``grid:`` or ``random:`` with its values checked by the config's
     own validation (``config((key, value), where)`` raises naming the value)."""
