@@ -20,7 +20,7 @@ def add_parsers(commands: Any) -> dict[str, Handler]:
                          help="trackers to compare (default: every closed-loop tracker)")
     compare.add_argument("--scenarios", metavar="X,Y,..",
                          help="scenarios, built-in names or YAML paths (default: the library)")
-    compare.add_argument("--seeds", type=int, default=1, metavar="N",
+    compare.add_argument("--seeds", type=int, metavar="N",
                          help="seeds 0..N-1 per combination (default 1)")
     compare.add_argument("--workers", type=int, metavar="N",
                          help="parallel runs (default: the usable cores)")
@@ -37,7 +37,8 @@ def add_parsers(commands: Any) -> dict[str, Handler]:
     compare.add_argument("--force", action="store_true",
                          help="write into a --out DIR that has files (refused otherwise)")
     compare.add_argument("--resume", action="store_true",
-                         help="finish the interrupted comparison in --out DIR (same options)")
+                         help="finish the interrupted comparison in --out DIR (its "
+                         "trackers, scenarios, seeds and duration unless given)")
     return {"compare": command}
 
 
@@ -49,6 +50,8 @@ def command(args: argparse.Namespace) -> int:
     from tracker.fmu.config import is_fmu_name
     from tracker.registry import TRACKER_NAMES
 
+    if args.resume and args.out is not None:  # what was compared, unless given again
+        _take_stored_options(args, compare.stored_what(Path(args.out)))
     closed_loop = [name for name in TRACKER_NAMES if name != "open-loop"]
     trackers = compare.parse_names(args.trackers, compare.DEFAULT_TRACKERS, None, "trackers")
     for name in trackers:  # built-in closed-loop trackers, or trackers from outside cosim
@@ -64,7 +67,8 @@ def command(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path("logs") / time.strftime("compare-%Y%m%d-%H%M%S")
     try:
         with sigterm_as_interrupt():
-            rows = compare.run_compare(scenarios, trackers, args.seeds, args.workers,
+            rows = compare.run_compare(scenarios, trackers,
+                                       args.seeds if args.seeds is not None else 1, args.workers,
                                        args.duration, out, args.keep_logs, args.force,
                                        args.resume)
     except compare.CompareInterrupted as stop:  # Ctrl-C or SIGTERM: finished runs kept
@@ -73,8 +77,8 @@ def command(args: argparse.Namespace) -> int:
             compare.write_outputs(stop.rows, out)
             league = f"the league of the {len(stop.rows)} finished run(s) is in " \
                 f"{out / 'league.md'}; "
-        print(f"cosim: compare interrupted; {league}finish with --resume --out {out}",
-              file=sys.stderr)
+        print(f"cosim: compare interrupted; {league}finish with: cosim compare --resume "
+              f"--out {out}", file=sys.stderr)
         return EXIT_INTERRUPT
     table = compare.write_outputs(rows, out)
     if args.json:
@@ -84,6 +88,21 @@ def command(args: argparse.Namespace) -> int:
     for name in ("league.md", "league.csv", "league.png", "rows.json"):
         print(f"  {out / name}")
     return 0
+
+
+def _take_stored_options(args: argparse.Namespace, what: dict[str, Any] | None) -> None:
+    """Fill the options ``--resume`` was not given from the interrupted comparison's own
+    record (``compare.json``), so ``cosim compare --resume --out DIR`` is enough."""
+    if what is None:
+        return
+    if args.trackers is None and what.get("trackers"):
+        args.trackers = ",".join(what["trackers"])
+    if args.scenarios is None and what.get("scenarios"):
+        args.scenarios = ",".join(what["scenarios"])
+    if args.seeds is None and isinstance(what.get("seeds"), int):
+        args.seeds = what["seeds"]
+    if args.duration is None and isinstance(what.get("duration_s"), (int, float)):
+        args.duration = float(what["duration_s"])
 
 
 def _print_league(table: list[Any]) -> None:

@@ -14,6 +14,9 @@ def add_parsers(commands: Any) -> dict[str, Handler]:
                       help="a log, or several (up to 6) to overlay")
     plot.add_argument("--out", metavar="DIR",
                       help="output directory (default <log>-plots beside the log)")
+    plot.add_argument("--label", action="append", default=[], metavar="TEXT",
+                      help="name a log in the legends, once per log in their order "
+                           "(default: what differs in their configurations)")
     render = commands.add_parser(
         "render", help="render a log to a video from a chase camera (MuJoCo, offscreen)")
     render.add_argument("file", metavar="FILE.mcap")
@@ -34,7 +37,7 @@ def add_parsers(commands: Any) -> dict[str, Handler]:
 def plot_command(args: argparse.Namespace) -> int:
     from cosim.plots import plot_command
 
-    return plot_command(args.files, args.out)
+    return plot_command(args.files, args.out, args.label)
 
 
 def render_command(args: argparse.Namespace) -> int:

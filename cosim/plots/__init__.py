@@ -45,8 +45,11 @@ def default_out_dir(paths: Sequence[Path]) -> Path:
     return paths[0].parent / f"{stem}-plots"
 
 
-def plot_logs(paths: Sequence[Path | str], out_dir: Path | str | None = None) -> list[Path]:
-    """Write every figure of one log, or of several logs overlaid; returns the PNG paths."""
+def plot_logs(paths: Sequence[Path | str], out_dir: Path | str | None = None,
+              labels: Sequence[str] = ()) -> list[Path]:
+    """Write every figure of one log, or of several logs overlaid; returns the PNG paths.
+    ``labels``, if given, name the logs in the legends, one a log in order (else each is
+    named by what differs in its configuration)."""
     from cosim.plots.acc import acc_figure, load_acc
     from cosim.plots.commands import commands_figure
     from cosim.plots.data import distinct_labels, load_run
@@ -59,7 +62,19 @@ def plot_logs(paths: Sequence[Path | str], out_dir: Path | str | None = None) ->
     if not 1 <= len(paths) <= MAX_LOGS:
         raise CosimError(f"{len(paths)} logs: expected one log, or up to {MAX_LOGS} to "
                          "overlay")
-    runs = distinct_labels([load_run(p) for p in paths])
+    if labels and len(labels) != len(paths):
+        raise CosimError(f"--label given {len(labels)} time(s) for {len(paths)} log(s): "
+                         "expected one --label per log, in the order of the logs")
+    if labels and len(set(labels)) != len(labels):
+        raise CosimError(f"--label {', '.join(repr(x) for x in labels)}: expected a different "
+                         "label for each log")
+    runs = [load_run(p) for p in paths]
+    if labels:
+        from dataclasses import replace
+
+        runs = [replace(run, label=label) for run, label in zip(runs, labels, strict=True)]
+    else:
+        runs = distinct_labels(runs)
     out = Path(out_dir) if out_dir is not None else default_out_dir(paths)
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -84,8 +99,9 @@ def plot_logs(paths: Sequence[Path | str], out_dir: Path | str | None = None) ->
     return written
 
 
-def plot_command(files: Sequence[str], out_dir: str | None) -> int:
-    """`cosim plot FILE [FILE ...] [--out DIR]`: write the PNGs and print their paths."""
-    for written in plot_logs(list(files), out_dir):
+def plot_command(files: Sequence[str], out_dir: str | None, labels: Sequence[str] = ()) -> int:
+    """`cosim plot FILE [FILE ...] [--out DIR] [--label L ...]`: write the PNGs and print
+    their paths."""
+    for written in plot_logs(list(files), out_dir, labels):
         print(written)
     return 0

@@ -127,8 +127,7 @@ def parse_condition(text: str) -> Condition:
                      "expected a metric of `cosim inspect --json` (e.g. cte_max_m)")
     if kind == NUMBER:
         if not _NUMBER.match(raw) or not math.isfinite(float(raw)):
-            unit = re.match(r"^([+-]?[\d.]+(?:[eE][+-]?\d+)?)\s*[A-Za-z%/]+$", raw)
-            hint = f" (without a unit: {unit.group(1)})" if unit else ""
+            hint = _unit_hint(raw, metric_key(metric).unit)  # type: ignore[union-attr]
             raise _error(text, f"{shown(raw)} is not a number{hint}: expected {metric} "
                          f"{op} a finite number in the metric's own unit")
         return Condition(text, metric, op, float(raw))
@@ -144,6 +143,36 @@ def parse_condition(text: str) -> Condition:
         raise _error(text, f"{shown(raw)}{_closest(raw, words)}: expected one of "
                      f"{', '.join(words)} for {metric}")
     return Condition(text, metric, op, raw)
+
+
+UNIT_FACTORS: dict[str, dict[str, float]] = {
+    "m": {"mm": 1e-3, "cm": 1e-2, "m": 1.0, "km": 1e3},
+    "rad": {"rad": 1.0, "deg": math.pi / 180.0, "mrad": 1e-3},
+    "s": {"ms": 1e-3, "s": 1.0, "min": 60.0},
+    "ms": {"ms": 1.0, "s": 1e3, "us": 1e-3},
+    "m/s": {"m/s": 1.0, "mps": 1.0, "km/h": 1.0 / 3.6, "kph": 1.0 / 3.6},
+    "m/s^2": {"m/s^2": 1.0, "mps2": 1.0, "g": 9.80665},
+    "rad/s": {"rad/s": 1.0, "radps": 1.0, "deg/s": math.pi / 180.0},
+}
+"""Units a ``--fail-if`` value may have been typed in, per metric unit, with the factor to
+the metric's unit (for the hint only: the value itself must be a plain number)."""
+
+
+def _unit_hint(raw: str, unit: str) -> str:
+    """`` (in m: 0.3)`` for ``30cm`` against a metric in metres: the number to type,
+    converted; `` (a plain number in m)`` for a unit it cannot convert."""
+    match = re.match(r"^([+-]?[\d.]+(?:[eE][+-]?\d+)?)\s*([A-Za-z%/^0-9]+)$", raw)
+    if match is None:
+        return ""
+    number, typed = match.groups()
+    factor = UNIT_FACTORS.get(unit, {}).get(typed)
+    try:
+        value = float(number)
+    except ValueError:
+        return ""
+    if factor is None:
+        return f" (a plain number in {unit})" if unit not in ("1", "count") else ""
+    return f" (in {unit}: {value * factor:.6g})"
 
 
 def parse_conditions(texts: Sequence[str]) -> list[Condition]:

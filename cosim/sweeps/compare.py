@@ -381,12 +381,24 @@ def _prepare(out_dir: Path, what: dict[str, Any], force: bool,
     return {}
 
 
+def stored_what(out_dir: Path) -> dict[str, Any] | None:
+    """What the comparison in ``out_dir`` compared (its ``compare.json``), if readable."""
+    try:
+        what = json.loads((out_dir / COMPARE_FILE).read_text())
+    except (OSError, ValueError):
+        return None
+    return what if isinstance(what, dict) else None
+
+
 def shown_what(what: Any) -> str:
     """A comparison's description in a few words (for messages)."""
     if not isinstance(what, dict):
         return "something else"
-    return (f"{','.join(what.get('scenarios', []))} x {','.join(what.get('trackers', []))} "
-            f"x {what.get('seeds')} seed(s), duration {what.get('duration_s')}")
+    scenarios, trackers = what.get("scenarios", []), what.get("trackers", [])
+    duration = what.get("duration_s")
+    return (f"{len(scenarios)} scenario(s) x {len(trackers)} tracker(s) x "
+            f"{what.get('seeds')} seed(s), "
+            + ("each scenario's own duration" if duration is None else f"{duration:g} s"))
 
 
 def run_compare(scenarios: Sequence[str], trackers: Sequence[str], seeds: int,

@@ -245,3 +245,21 @@ def test_bad_files_are_one_line_and_exit_code_2(
     lines = captured.err.strip().splitlines()
     assert len(lines) == 1 and fragment in lines[0], captured.err
     assert captured.out == ""
+
+
+def test_labels_name_overlaid_logs_one_each(nmpc_run: RunResult, tmp_path: Path,
+                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    import cosim.plots.tracking as tracking
+
+    log = nmpc_run.log_path
+    with pytest.raises(CosimError, match=r"--label given 1 time\(s\) for 2 log\(s\)"):
+        plot_logs([log, log], tmp_path, labels=["only one"])
+    with pytest.raises(CosimError, match="a different label for each log"):
+        plot_logs([log, log], tmp_path, labels=["same", "same"])
+    seen: list[list[str]] = []
+    real = tracking.tracking_figure
+    monkeypatch.setattr(tracking, "tracking_figure",
+                        lambda runs, path: (seen.append([r.label for r in runs]),
+                                            real(runs, path))[1])
+    plot_logs([log, log], tmp_path, labels=["before", "after"])
+    assert seen == [["before", "after"]]

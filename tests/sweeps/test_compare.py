@@ -121,11 +121,11 @@ def test_a_signal_to_compare_alone_stops_its_runs_and_writes_the_league(
     assert len(rows) in (1, 2), "the run in progress was waited for instead of stopped"
     assert stderr.strip().splitlines()[-1] == (
         f"cosim: compare interrupted; the league of the {len(rows)} finished run(s) is in "
-        f"{out / 'league.md'}; finish with --resume --out {out}")
+        f"{out / 'league.md'}; finish with: cosim compare --resume --out {out}")
     assert "Traceback" not in stderr
     assert all(row["metrics"]["completed"] for row in rows)
     assert rows[0]["params"]["tracker"] in (out / "league.md").read_text()
-    again = cosim(*args[1:], "--resume")
+    again = cosim("compare", "--resume", "--out", str(out))  # as the hint says, no more
     assert again.returncode == 0, again.stderr
     rows = [json.loads(line) for line in rows_file.read_text().splitlines()]
     assert sorted(r["run_id"] for r in rows) == [0, 1, 2]
