@@ -124,6 +124,7 @@ _MANOEUVRE = "cosim.simulation.manoeuvre_metrics"
 _TRAFFIC = "cosim.simulation.traffic_loop"
 _BELIEF = "cosim.simulation.belief_check"
 _REQUIREMENTS = "cosim.simulation.requirements"
+_HEALTH = "cosim.simulation.filter_health"
 
 TRACKING = (
     MetricKey("cte_max_m", "m", "largest absolute lateral deviation of the true centre of "
@@ -228,6 +229,11 @@ RUN = (
               "the band while the sensor's noise and the filter's belief about it differ "
               "(each one also a `belief_mismatch` line on `/events`; the outcome is "
               "unchanged)", "0", _BELIEF),
+    MetricKey("filter_warnings", "count", "signs of an inconsistent filter at the end of "
+              "the run: `nees_mean` above 2.5 x its 4 degrees of freedom, or a sensor's NIS "
+              "per degree of freedom out of [0.3, 3] with its figure and belief alike (each "
+              "a `filter_inconsistent` line on `/events` and a warning; the outcome is "
+              "unchanged)", "0", _HEALTH),
     MetricKey("<kind>_t_s", "s", "simulated time of the first event of that kind", "",
               _RUNNER, scope=WHEN_IT_HAPPENS),
     MetricKey("abort_reason", "text", "why the run stopped early (`interrupted`, the error)",

@@ -58,6 +58,7 @@ from cosim.simulation.belief_check import BeliefMismatchWarning, belief_mismatch
 from cosim.simulation.beliefs import mismatch_table, told
 from cosim.simulation.course import Course, build_course
 from cosim.simulation.course_metrics import CourseMonitor
+from cosim.simulation.filter_health import FilterInconsistentWarning, filter_warnings
 from cosim.simulation.metrics import MetricsAccumulator
 from cosim.simulation.outcome import TERMINAL, Event, OutcomeMonitor
 from cosim.simulation.requirements import SignalTrace, requirement_metrics
@@ -680,6 +681,12 @@ def _finish(recorder: Recorder, state: _Run, wall_start: float, completed: bool,
         state.write_event(Event("belief_mismatch", metrics.last_t_s, mismatch.nis,
                                 mismatch.bound, mismatch.line))
         warnings.warn(mismatch.line, BeliefMismatchWarning, stacklevel=2)
+    health = filter_warnings(values, {m.sensor for m in mismatches})
+    values["filter_warnings"] = len(health)
+    for _, value, threshold, line in health:
+        state.write_event(Event("filter_inconsistent", metrics.last_t_s, value, threshold,
+                                line))
+        warnings.warn(line, FilterInconsistentWarning, stacklevel=2)
     recorder.write_finite(topics.METRICS, metrics.last_t_s, values)
     recorder.add_metadata("metrics", {"json": json.dumps(
         {k: (v if not isinstance(v, float) or np.isfinite(v) else None)
