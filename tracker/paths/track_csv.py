@@ -16,8 +16,12 @@ millimetres, or scaled by mistake), two consecutive points at the same place, a 
 on itself (:data:`MAX_TURN_DEG`), and a circuit (``path.closed``, the default) whose last
 point is far from its first: an open path must say ``path.closed: false``. A centre line
 that crosses itself is accepted with a warning (a figure eight is legal; a circuit that
-does is usually a mistake). Every check is linear in the point count but the crossing
-test, which is O(n log n) (:func:`first_self_intersection`).
+does is usually a mistake), and so is one whose points lie more than
+:data:`MAX_SPACING_M` apart (coordinates in centimetres read as metres). A header that
+names a column cosim would not read (a single ``width``) is refused rather than dropped,
+and so is a file whose columns are separated by semicolons or tabs. Every check is linear
+in the point count but the crossing test, which is O(n log n)
+(:func:`first_self_intersection`).
 """
 
 from __future__ import annotations
@@ -48,6 +52,14 @@ class TrackData:
 
 class SelfIntersectionWarning(UserWarning):
     """The centre line crosses itself."""
+
+
+class TrackScaleWarning(UserWarning):
+    """The centre line's points are far apart: its unit may not be metres."""
+
+
+MAX_SPACING_M = 50.0
+"""A median point spacing above this is said (centimetres read as metres give ~100 m)."""
 
 
 MAX_FILE_BYTES = 64 * 1024 * 1024
@@ -112,6 +124,11 @@ def _rows(path: Path, name: str) -> tuple[list[str], list[list[str]]]:
         stripped = line.strip()
         if not stripped:
             continue
+        if "," not in stripped and not stripped.startswith("#"):
+            for other, called in ((";", "semicolons"), ("\t", "tabs")):
+                if other in stripped:
+                    raise ConfigError(f"{name}: columns separated by {called} "
+                                      f"({shown(stripped[:40])}): expected commas (x,y)")
         if stripped.startswith("#"):
             if not header and not rows:
                 header = [c.strip() for c in stripped.lstrip("#").split(",")]
@@ -138,8 +155,11 @@ def load_track(path: str | Path, closed: bool = True) -> TrackData:
     path = Path(path)
     name = f"path.file {str(path)!r}"
     header, rows = _rows(path, name)
+    _check_header(header, rows, name)
     racetrack = [h for h in header if h in RACETRACK_COLUMNS]
     columns = 4 if len(racetrack) == 4 or (not header and rows and len(rows[0]) >= 4) else 2
+    if header[:2] == ["x_m", "y_m"] and len(header) == 2:
+        racetrack = []  # plain x, y in metres
     if header and racetrack and len(racetrack) < 4:
         missing = [c for c in RACETRACK_COLUMNS if c not in header]
         raise ConfigError(f"{name}: missing column(s) {', '.join(missing)} (expected "
@@ -156,6 +176,25 @@ def load_track(path: str | Path, closed: bool = True) -> TrackData:
     return TrackData(data[:, 0].copy(), data[:, 1].copy(),
                      data[:, 2].copy() if columns == 4 else None,
                      data[:, 3].copy() if columns == 4 else None)
+
+
+PLAIN_HEADERS = (["x", "y"], ["x_m", "y_m"])
+"""Headers of a plain centre line (no widths)."""
+
+
+def _check_header(header: list[str], rows: list[list[str]], name: str) -> None:
+    """Refuse columns cosim would not read (a single ``width``, a third unnamed column):
+    dropping them silently would lose the track's limits."""
+    expected = ("expected x,y (or x_m,y_m) for a centre line alone, or "
+                f"{','.join(RACETRACK_COLUMNS)} for one with its half-widths")
+    if header and header not in PLAIN_HEADERS and not set(RACETRACK_COLUMNS) <= set(header) \
+            and not any(h in RACETRACK_COLUMNS[2:] for h in header):
+        unread = [h for h in header if h not in ("x", "y", "x_m", "y_m")]
+        if unread:
+            raise ConfigError(f"{name}: column(s) {', '.join(unread)} would not be read: "
+                              f"{expected} (a full track width w: w/2 in each)")
+    if not header and rows and len(rows[0]) == 3:
+        raise ConfigError(f"{name}: 3 columns and no header: {expected}")
 
 
 def _numbers(rows: list[list[str]], columns: int, name: str) -> np.ndarray:
@@ -208,6 +247,12 @@ def _check_course(x_m: np.ndarray, y_m: np.ndarray, closed: bool, name: str) -> 
     step = np.hypot(np.diff(x_m), np.diff(y_m))
     gap = float(np.hypot(x_m[-1] - x_m[0], y_m[-1] - y_m[0]))
     spacing = float(np.median(step))
+    if spacing > MAX_SPACING_M:
+        warnings.warn(f"{name}: its points are {spacing:.3g} m apart (median) on a "
+                      f"{float(step.sum()) / 1000.0:.3g} km centre line: are the coordinates "
+                      "in metres? (a circuit's centre line is usually a point every 1-10 m; "
+                      "centimetres would make it 100 times too large)", TrackScaleWarning,
+                      stacklevel=3)
     if closed and gap > max(OPEN_GAP_SPACINGS * spacing, 10.0):
         raise ConfigError(f"{name}: its last point is {gap:.1f} m from its first (the points "
                           f"are {spacing:.2g} m apart): expected a closed circuit, as "

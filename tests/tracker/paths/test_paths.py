@@ -32,7 +32,8 @@ def test_racetrack_database_csv_is_read_with_its_widths(tmp_path: Path) -> None:
 
 
 def test_plain_xy_csv_is_read_with_or_without_a_header(tmp_path: Path) -> None:
-    for text in ("x,y\n0,0\n5,0\n5,5\n", "0,0\n5,0\n5,5\n"):
+    for text in ("x,y\n0,0\n5,0\n5,5\n", "0,0\n5,0\n5,5\n", "x_m,y_m\n0,0\n5,0\n5,5\n",
+                 "# x_m,y_m\n0,0\n5,0\n5,5\n"):
         track = load_track(_write(tmp_path, text))
         np.testing.assert_array_equal(track.y_m, [0, 0, 5])
         assert track.width_left_m is None
@@ -47,12 +48,27 @@ def test_plain_xy_csv_is_read_with_or_without_a_header(tmp_path: Path) -> None:
     ("x,y\n0,0\n1,0\n1,0\n2,2\n", "data rows 2 and 3 are the same point"),
     ("x,y\n0,0\n1\n2,2\n", "data row 2 has 1 column(s)"),
     ("x,y\n0,0\n1,abc\n2,2\n", "expected numbers"),
+    ("x,y,width\n0,0,8\n10,0,8\n10,10,8\n", "column(s) width would not be read"),
+    ("0,0,8\n10,0,8\n10,10,8\n", "3 columns and no header"),
+    ("x;y\n0;0\n10;0\n10;10\n", "columns separated by semicolons"),
+    ("0\t0\n10\t0\n10\t10\n", "columns separated by tabs"),
 ])
 def test_bad_csv_is_one_clear_error(tmp_path: Path, text: str, fragment: str) -> None:
     with pytest.raises(ConfigError) as error:
         load_track(_write(tmp_path, text))
     assert fragment in str(error.value)
     assert "\n" not in str(error.value)
+
+
+def test_a_centre_line_in_centimetres_is_said(tmp_path: Path) -> None:
+    from tracker.paths.track_csv import TrackScaleWarning
+
+    square_cm = "x,y\n0,0\n20000,0\n20000,20000\n0,20000\n"  # a 200 m square, in cm
+    with pytest.warns(TrackScaleWarning, match="are the coordinates in metres"):
+        load_track(_write(tmp_path, square_cm))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        load_track(_write(tmp_path, "x,y\n0,0\n20,0\n20,20\n0,20\n"))
 
 
 def test_self_intersecting_centre_line_is_a_warning(tmp_path: Path) -> None:
