@@ -22,6 +22,7 @@ binaries) and refuses, each in one line naming the FMU and what was expected:
 
 from __future__ import annotations
 
+import difflib
 import math
 import zipfile
 from dataclasses import dataclass
@@ -123,7 +124,9 @@ def describe(name: str, config: FmuConfig, control_period_s: float,
             raise check.error(f"the FMU's communication step is fixed at {fixed_step_s:g} s: "
                               f"expected sim.control_period_s = {control_period_s:g} to be a "
                               "whole multiple of it")
-    parameters = tuple(check.parameter(variables.get(key), key, value)
+    parameters = tuple(check.parameter(variables.get(key), key, value,
+                                       [v.name for v in variables.values()
+                                        if v.causality in ("parameter", "structuralParameter")])
                        for key, value in config.parameters.items())
     return FmuDescription(
         tracker_name=name, path=check.path, fmi_major=version,
@@ -229,13 +232,16 @@ class _Check:
             raise self.error(f"{role} {variable.name!r}: {problem} (the unit its name "
                              "implies)")
 
-    def parameter(self, variable: FmuVariable | None, key: str,
-                  value: Any) -> FmuParameter:
+    def parameter(self, variable: FmuVariable | None, key: str, value: Any,
+                  known: list[str] | None = None) -> FmuParameter:
         where = f"tracker.fmu.parameters.{key}"
         if variable is None or variable.causality not in ("parameter", "structuralParameter"):
             what = "no such variable" if variable is None else _a(variable.causality)
-            raise PluginError(f"{where}: {what} in {self.name!r}: expected a parameter of "
-                              "the FMU")
+            names = ", ".join(known or []) or "none: it has no parameters"
+            close = difflib.get_close_matches(key, known or [], n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise PluginError(f"{where}: {what} in {self.name!r}{hint}: expected a parameter "
+                              f"of the FMU: {names}")
         kind = variable.type
         if kind in FLOAT_TYPES and _is_number(value):
             return FmuParameter(variable, float(value))

@@ -135,6 +135,8 @@ def test_a_binary_for_another_fmi_version_layout_is_no_binary(
 @pytest.mark.parametrize(("setting", "fragment"), [
     ("tracker.fmu.parameters.stiffness=3",
      "tracker.fmu.parameters.stiffness: no such variable in"),
+    ("tracker.fmu.parameters.gain=2",  # the FMU's own parameters are listed
+     "(did you mean 'gain_1ps'?): expected a parameter of the FMU: gain_1ps, softening_mps,"),
     ("tracker.fmu.parameters.cte_m=1", "tracker.fmu.parameters.cte_m: an input in"),
     ("tracker.fmu.parameters.gain_1ps=true",
      "tracker.fmu.parameters.gain_1ps = True: the FMU's parameter is Real: expected a "
