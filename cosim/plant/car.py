@@ -154,6 +154,7 @@ class MujocoPlant:
             **resistance_constants(cfg),
             "max_velocity_norm2": MAX_VELOCITY_NORM2,
             "max_position_norm2": MAX_POSITION_NORM2,
+            "tyre_friction": cfg.tyre_friction,
         }
         m = self._model
         chassis = self._id(mujoco.mjtObj.mjOBJ_BODY, "chassis")

@@ -42,8 +42,10 @@ CONSTANT_FIELDS: tuple[str, ...] = (
     "kv_over_kp", "inertia_over_kp", "max_drive_power_w", "min_power_spin_radps",
     "brake_spin_scale2", "brake_share0", "brake_share1", "brake_share2", "brake_share3",
     "drag_coefficient", "rolling_force_n", "rolling_speed_scale_mps", "max_velocity_norm2",
-    "max_position_norm2")
-"""The numbers of ``plant_step.c`` (its ``PC_*`` indices), in order."""
+    "max_position_norm2", "tyre_friction")
+"""The numbers of ``plant_step.c`` (its ``PC_*`` indices), in order: parameters of the
+compiled library, so one library serves every car and road (the tyre friction is the tyre
+function's last input)."""
 
 INDEX_FIELDS: tuple[str, ...] = (
     "servo_left", "servo_right", "n_driven", "driven_dof0", "driven_dof1", "driven_dof2",

@@ -38,7 +38,7 @@ enum {
   PC_DT, PC_DECAY, PC_STEP_MAX, PC_MAX_STEER, PC_WHEELBASE, PC_FRONT_TRACK, PC_KV_KP,
   PC_I_KP, PC_MAX_POWER, PC_MIN_POWER_SPIN, PC_BRAKE_SCALE2, PC_BRAKE_SHARE0,
   PC_DRAG = PC_BRAKE_SHARE0 + 4, PC_ROLLING, PC_ROLLING_SPEED, PC_MAX_VEL2, PC_MAX_POS2,
-  PC_SIZE
+  PC_FRICTION, PC_SIZE
 };
 enum {
   PI_SERVO_LEFT, PI_SERVO_RIGHT, PI_N_DRIVEN, PI_DRIVEN_DOF0, PI_DRIVE_ACT0 = PI_DRIVEN_DOF0 + 4,
@@ -129,7 +129,7 @@ static int wheel_of(const int* ic, int geom) {
 }
 
 /* MagicFormulaTyres.apply_forces; fills the tyre contacts' constraint rows. */
-static int apply_tyres(const int* ic, double* s, mjData* d, double* contact_buf,
+static int apply_tyres(const double* c, const int* ic, double* s, mjData* d, double* contact_buf,
                        double* state_buf, double* wrench, double* forces, double* new_state,
                        casadi_int* iw, double* w, int* efc_wheel, int* efc_address,
                        int* n_efc) {
@@ -177,8 +177,8 @@ static int apply_tyres(const int* ic, double* s, mjData* d, double* contact_buf,
     }
     out[7] = s[PS_LOAD0 + wheel];
   }
-  const double* arg[7] = {d->cvel, d->xpos, d->xipos, d->xmat, d->subtree_com, contact_buf,
-                          state_buf};
+  const double* arg[8] = {d->cvel, d->xpos, d->xipos, d->xmat, d->subtree_com, contact_buf,
+                          state_buf, c + PC_FRICTION};
   double* res[3] = {wrench, forces, new_state};
   if (PATCHES(arg, res, iw, w, 0)) return -1;
   for (int wheel = 0; wheel < N_WHEELS; wheel++) {
@@ -215,7 +215,7 @@ int cosim_plant_advance(mjModel* m, mjData* d, int n, double* s, const double* c
     s[PS_PREV_VZ] = vz;
     int n_efc = 0;
     mj_step1(m, d);
-    if (apply_tyres(ic, s, d, contact_buf, state_buf, wrench, forces, new_state, iw, w,
+    if (apply_tyres(c, ic, s, d, contact_buf, state_buf, wrench, forces, new_state, iw, w,
                     efc_wheel, efc_address, &n_efc))
       return -1;
     mj_step2(m, d);

@@ -99,11 +99,13 @@ class MagicFormulaTyres:
         self._wrench_buffer = np.zeros((self._n_wheels, 6))
         self._forces_buffer = np.zeros((self._n_wheels, FORCE_FIELDS))
         self._new_state_buffer = np.zeros(self._n_wheels * PATCH_STATE_SIZE)
+        self._friction_buffer = np.array([self._friction])
+        """The road's friction, an input of the compiled tyres (one library, every road)."""
         self._compiled: tuple[ctypes.CDLL, ca.Function] | None = None
         """The four tyres as one compiled C call (:mod:`cosim.plant.tyre_patches`); None:
         the plain reference, :func:`cosim.plant.tyre_model.patch_step` per wheel."""
         if one_call:
-            function = tyre_patches_function(self._params, self._friction, physics_dt_s,
+            function = tyre_patches_function(self._params, physics_dt_s,
                                              self._wheel_body, self._root, model.nbody)
             library = compile_function(function)
             if library is not None:
@@ -119,7 +121,7 @@ class MagicFormulaTyres:
         self._patches = CompiledFunction(
             library, function,
             [d.cvel, d.xpos, d.xipos, d.xmat, d.subtree_com, self._contact_buffer,
-             self._state_buffer],
+             self._state_buffer, self._friction_buffer],
             [self._wrench_buffer, self._forces_buffer, self._new_state_buffer])
 
     @property

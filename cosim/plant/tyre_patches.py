@@ -51,7 +51,8 @@ PATCH_STATE_SIZE = 4
 """Deflection x, y [m], deflection rate x, y [m/s] (:class:`PatchState` order)."""
 FORCE_FIELDS = 6
 """Per wheel in the ``forces`` output: load, V_cx, V_sx, V_sy, F_x, F_y (TyreForces order)."""
-INPUT_NAMES = ("cvel", "xpos", "xipos", "xmat", "subtree_com", "contacts", "patch_state")
+INPUT_NAMES = ("cvel", "xpos", "xipos", "xmat", "subtree_com", "contacts", "patch_state",
+               "friction")
 OUTPUT_NAMES = ("wrench", "forces", "new_patch_state")
 """``wrench``: per wheel, its ``xfrc_applied`` row (force, then moment about the centre of
 mass); ``new_patch_state``: the new carcass states."""
@@ -85,7 +86,8 @@ def _secant(slip: ca.SX, weight: ca.SX, stiffness: ca.SX, shape: float, curvatur
                       weight * stiffness)
 
 
-def patch_step_sx(params: TyreParams, friction: float, load: ca.SX, forward_speed: ca.SX,
+def patch_step_sx(params: TyreParams, friction: ca.SX | float, load: ca.SX,
+                  forward_speed: ca.SX,
                   slip_x: ca.SX, slip_y: ca.SX, state: Sequence[ca.SX],
                   dt_s: float) -> tuple[ca.SX, ca.SX, list[ca.SX]]:
     """:func:`cosim.plant.tyre_model.patch_step`, symbolically: ``(F_x, F_y, new state)``."""
@@ -145,7 +147,7 @@ def _dot(a: Sequence[ca.SX], b: Sequence[ca.SX]) -> ca.SX:
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-def _wheel(params: TyreParams, friction: float, dt_s: float, subtree_com: list[ca.SX],
+def _wheel(params: TyreParams, friction: ca.SX, dt_s: float, subtree_com: list[ca.SX],
            body: dict[str, list[ca.SX]], contact: dict[str, list[ca.SX]],
            state: list[ca.SX]) -> tuple[list[ca.SX], list[ca.SX], list[ca.SX]]:
     """One wheel's wrench, forces and new carcass state."""
@@ -182,17 +184,20 @@ def _wheel(params: TyreParams, friction: float, dt_s: float, subtree_com: list[c
             when_on(new_state))
 
 
-def tyre_patches_function(params: Sequence[TyreParams], friction: float, dt_s: float,
+def tyre_patches_function(params: Sequence[TyreParams], dt_s: float,
                           wheel_bodies: Sequence[int], root_body: int,
                           n_bodies: int) -> ca.Function:
-    """``f(cvel, xpos, xipos, xmat, subtree_com, contacts, patch_state) -> (wrench, forces,
-    patch_state)`` for the wheels ``wheel_bodies`` (body ids, ``params`` in the same
-    order) of a model with ``n_bodies`` bodies (see the module docstring)."""
+    """``f(cvel, xpos, xipos, xmat, subtree_com, contacts, patch_state, friction) ->
+    (wrench, forces, patch_state)`` for the wheels ``wheel_bodies`` (body ids, ``params``
+    in the same order) of a model with ``n_bodies`` bodies (see the module docstring). The
+    road's friction coefficient (``plant.tyre_friction``) is an input, so one compiled
+    library serves every road."""
     n_wheels = len(params)
     widths = {"cvel": 6, "xpos": 3, "xipos": 3, "xmat": 9, "subtree_com": 3}
     arrays = {name: ca.SX.sym(name, n_bodies * width) for name, width in widths.items()}
     contacts = ca.SX.sym("contacts", n_wheels * CONTACT_SIZE)
     states = ca.SX.sym("patch_state", n_wheels * PATCH_STATE_SIZE)
+    friction = ca.SX.sym("friction")
 
     def row(name: str, body_id: int) -> list[ca.SX]:
         width = widths[name]
@@ -213,7 +218,7 @@ def tyre_patches_function(params: Sequence[TyreParams], friction: float, dt_s: f
         new_states += new_state
     return ca.Function(
         "cosim_tyre_patches",
-        [*arrays.values(), contacts, states],
+        [*arrays.values(), contacts, states, friction],
         [ca.vertcat(*wrenches), ca.vertcat(*forces), ca.vertcat(*new_states)],
         list(INPUT_NAMES), list(OUTPUT_NAMES),
     )

@@ -39,12 +39,15 @@ def _same(a: MujocoPlant, b: MujocoPlant) -> bool:
                for name in ("qpos", "qvel", "ctrl", "xfrc_applied", "efc_force"))
 
 
-@pytest.mark.parametrize("drive", ["rwd", "awd"])
-def test_the_compiled_steps_are_the_python_steps_bit_for_bit(drive: str) -> None:
+@pytest.mark.parametrize(("drive", "friction"), [("rwd", 1.0), ("awd", 1.0), ("rwd", 0.55)])
+def test_the_compiled_steps_are_the_python_steps_bit_for_bit(drive: str,
+                                                             friction: float) -> None:
     # 3,000 steps (6 s) of swinging steering, drive with the power limit and brakes, in
     # chunks of 1 to 7 steps as the runner takes them: every array MuJoCo integrates and
-    # every state the plant reports is the Python step's to the last bit.
-    compiled, python = _pair(dataclasses.replace(PlantConfig(), drive=drive))
+    # every state the plant reports is the Python step's to the last bit (on a slippery
+    # road too: the friction is the compiled tyres' input, not a number built into them).
+    compiled, python = _pair(dataclasses.replace(PlantConfig(), drive=drive,
+                                                 tyre_friction=friction))
     k = 0
     while k < 3000:
         if k % 10 == 0:
@@ -93,3 +96,12 @@ def test_without_a_c_compiler_the_python_step_runs_with_one_warning(
     plant.apply(_command(0))
     plant.advance_steps(50)
     assert plant.state().vx_mps > 14.0
+
+
+def test_one_library_serves_every_road() -> None:
+    """The friction is a parameter of the compiled step: a second road builds nothing."""
+    dry = MujocoPlant(PlantConfig(), DT_S, InitialState(speed_mps=15.0))
+    wet = MujocoPlant(dataclasses.replace(PlantConfig(), tyre_friction=0.37), DT_S,
+                      InitialState(speed_mps=15.0))
+    assert dry._steps is not None and wet._steps is not None
+    assert dry._steps._library._name == wet._steps._library._name
