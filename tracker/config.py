@@ -25,7 +25,7 @@ which lacks it, adds ``model.steer_time_constant_s`` to the delay it predicts ov
 (:mod:`tracker.mpc.kinematic_nmpc`).
 
 The defaults of the weights and settings were chosen by measurement, on the default
-tracker ``dynamic-nmpc``; the measurements behind each: README, "Why the defaults".
+tracker ``dynamic-nmpc``; the measurements behind each: docs/defaults.md.
 """
 
 from __future__ import annotations
@@ -166,14 +166,14 @@ class TrackerConfig:
     solver: str = setting(
         "fatrop",
         choices=("ipopt", "fatrop", "sqp-rti"),
-        doc="NLP solver of kinematic-nmpc and dynamic-nmpc (measured table in README, 'The "
-        "NMPC solvers'): fatrop (default: interior point over the stages, converged to "
-        "tolerance every step; IPOPT's optimum 2-3x faster), ipopt (interior point, "
-        "general sparse; the reference), sqp-rti (real-time iteration: rti_iterations "
-        "Gauss-Newton SQP steps per control step from the shifted plan, one QP each; the "
-        "solve 3-5x faster than fatrop's and the same max CTE on the lane change, but at "
-        "the grip limit it lags: with friction 0.6 known to the tracker 3 of 5 seeds spin "
-        "at 2 steps a control step, none with fatrop)",
+        doc="NLP solver of kinematic-nmpc and dynamic-nmpc (measured table in "
+        "docs/defaults.md, 'The NMPC solvers'): fatrop (default: interior point over the "
+        "stages, converged to tolerance every step; IPOPT's optimum 2-3x faster), ipopt "
+        "(interior point, general sparse; the reference), sqp-rti (real-time iteration: "
+        "rti_iterations Gauss-Newton SQP steps per control step from the shifted plan, "
+        "one QP each; the solve 3-5x faster than fatrop's and the same max CTE on the "
+        "lane change, but at the grip limit it lags: with friction 0.6 known to the "
+        "tracker 3 of 5 seeds spin at 2 steps a control step, none with fatrop)",
     )
     rti_qp_solver: str = setting(
         "hpipm",

@@ -617,7 +617,7 @@ def _run_with(
     why not."""
     completed, abort_reason, abort = False, "", ""
     # One BLAS thread: the matrices here are small, and an idle BLAS thread spinning on
-    # the other core makes MPC solve times jitter (README, "Why the defaults").
+    # the other core makes MPC solve times jitter (docs/defaults.md).
     with threadpool_limits(limits=1, user_api="blas"), contextlib.ExitStack() as release:
         state = _Run(config, recorder, workshop=workshop)
         if isinstance(state.tracker, Closable):  # released however the run ends

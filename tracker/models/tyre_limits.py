@@ -4,7 +4,7 @@ Why: the dynamic bicycle's linear tyres (:mod:`tracker.models.dynamic_bicycle`, 
 force the plan asks for, and the acceleration input ``vx' = a`` costs no grip at all. On a
 wet road the plan then asks more of the rear axle than it has: the rear-driven sedan,
 accelerating at its bound into the lane change, spins its rear wheels and turns round, even
-with the belief knowing the friction (README, "Why the defaults"). The soft slip-angle
+with the belief knowing the friction (docs/defaults.md). The soft slip-angle
 limits (lateral only) cannot see it.
 
 The constraint (the friction circle of each axle, e.g. Rajamani 2012, sec. 13.2 "tire
@@ -26,7 +26,7 @@ differentiable, so the penalty is too. Lateral load transfer is left out (it low
 axle's grip through the tyres' load sensitivity); ``usage_max`` < 1 covers it.
 
 Measured, with the cost of the constraint (it is added only when the believed friction is
-below ``grip.tyre_limits_below_friction``): README, "Why the defaults", the friction ellipse.
+below ``grip.tyre_limits_below_friction``): docs/defaults.md, the friction ellipse.
 """
 
 from __future__ import annotations

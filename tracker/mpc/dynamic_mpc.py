@@ -64,7 +64,7 @@ stages; ``dt_s`` is ``Ts``. Nothing depends on wall-clock time but ``solve_time_
 
 The choices (back-end HiGHS, a slack per node and limit, the weights, the reference
 design's heading reference ``e2 = 0``, no actuator lag in the model) and the measurements
-behind them: README, "Why the defaults", ``dynamic-mpc``; today's accuracy: ``docs/trackers.md``.
+behind them: docs/defaults.md, ``dynamic-mpc``; today's accuracy: ``docs/trackers.md``.
 """
 
 from __future__ import annotations

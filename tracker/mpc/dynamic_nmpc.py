@@ -17,7 +17,7 @@ command per control period and the plant lags it, which is exactly the model), i
 internal state propagated with the applied commands; ``vy`` and ``r`` come from the estimate;
 both axles' slip angles are softly limited to the linear tyres' range
 (``mu m g l_r / (L C_f)``, ``mu m g l_f / (L C_r)``) by a quadratic exterior penalty, not
-slack variables. The measurements behind each choice: README, "Why the defaults",
+slack variables. The measurements behind each choice: docs/defaults.md,
 ``dynamic-nmpc``; today's accuracy: ``docs/trackers.md``.
 """
 

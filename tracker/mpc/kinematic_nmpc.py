@@ -13,7 +13,7 @@ model's speed, the CoG speed; ``vy`` is not read).
 The kinematic model has no steering actuator, so its ``unmodelled_lag_s`` is the belief's
 steering time constant ``tracker.model.steer_time_constant_s``: the estimate is predicted
 over it plus ``tracker.latency_s`` (the earlier fixed ``latency_s``, lag plus half a period,
-did no better: README, "Why the defaults").
+did no better: docs/defaults.md).
 
 ``tracker.kinematic_understeer`` (the default) keeps the four states but turns at the
 steady-state yaw rate and slip angle of the belief's linear tyres ((U1)-(U2) of
@@ -22,7 +22,7 @@ lane change on an understeering car (a kinematic MPC becomes unstable on an unde
 car: the car turns less than the model expects); with the steady-state understeer it can:
 at 0.5 g the transient lateral dynamics settle within a few tenths of a second and the
 steering lag is predicted over, so what the kinematic model lacked was the steady-state
-gain (measured: README, "Why the defaults", ``kinematic-nmpc``).
+gain (measured: docs/defaults.md, ``kinematic-nmpc``).
 """
 
 from __future__ import annotations

@@ -62,7 +62,7 @@ The plan's ``solve_time_s`` is the QP back-end's call alone (what the runner's
 inputs give equal outputs.
 
 The measurements behind the defaults (back-end, linearisation trajectory, slip limits):
-README, "Why the defaults", ``ltv-mpc``; today's accuracy: ``docs/trackers.md``.
+docs/defaults.md, ``ltv-mpc``; today's accuracy: ``docs/trackers.md``.
 """
 
 from __future__ import annotations

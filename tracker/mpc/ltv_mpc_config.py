@@ -1,6 +1,6 @@
 """Settings of the ``ltv-mpc`` tracker: ``tracker.ltv_mpc`` (Falcone et al. 2007, sec. IV).
 
-Defaults (the measurements behind them: README, "Why the defaults", ``ltv-mpc``):
+Defaults (the measurements behind them: docs/defaults.md, ``ltv-mpc``):
 
 * ``qp_solver = hpipm`` on the sparse QP: the fastest back-end that never failed on the
   bench's QPs; qpOASES prints its licence banner to stdout, HPIPM cannot run the condensed

@@ -37,7 +37,7 @@ the cost (:mod:`tracker.mpc.compiled_rti`). The same NLP and iterates
 (``tests/tracker/mpc/test_nmpc_solvers.py``), solved faster (``bench/where_time_goes.py``).
 
 Solve times and accuracy of each solver, and why the real-time iteration is not the
-default: README, "Why the defaults", NMPC solvers; ``bench/solve_time.py`` times them on
+default: docs/defaults.md, NMPC solvers; ``bench/solve_time.py`` times them on
 this machine.
 """
 
