@@ -26,6 +26,16 @@ PATH_TRACKING_METRICS = ("cte_max_m", "cte_rms_m", "heading_err_max_rad",
                          "heading_err_rms_rad", "speed_err_rms_mps")
 """Not shown in an open-loop run's table: it follows no path (they stay in the log)."""
 
+HEADLINE_METRICS = ("outcome", "completed", "cte_max_m", "cte_rms_m", "heading_err_max_rad",
+                    "speed_err_rms_mps", "est_pos_rmse_m", "nees_mean", "solver_failures",
+                    "step_ms_p50", "realtime_factor", "gates_hit", "track_limit_exceedances",
+                    "lap_time_s", "gap_min_m", "ttc_min_s", "stl_robustness")
+"""What ``cosim run`` prints by default (the keys a run has), then any event's time and
+any warning count that is not zero; ``--all`` prints every metric."""
+
+NOTICES = ("belief_mismatches", "filter_warnings", "events")
+"""Counts shown in the headline when they are not zero."""
+
 
 def add_parsers(commands: Any) -> dict[str, Handler]:
     run = commands.add_parser("run", help="run a scenario and log it to MCAP")
@@ -59,6 +69,8 @@ def add_parsers(commands: Any) -> dict[str, Handler]:
                      "'always (abs(cte_m) <= 0.3)'; its robustness is the metric "
                      "stl_robustness_<i>")
     run.add_argument("--json", action="store_true", help="print the metrics as JSON")
+    run.add_argument("--all", action="store_true",
+                     help="print every metric (default: the headline ones)")
     run.add_argument("--live", action="store_true",
                      help="stream the run to Foxglove while it happens (a WebSocket server)")
     run.add_argument("--port", type=int, metavar="N",
@@ -117,12 +129,15 @@ def command(args: argparse.Namespace) -> int:
             if Path(out).is_file():
                 raise type(error)(f"{error} (the log up to it: {out})") from None
             raise
-    shown = shown_metrics(result.metrics, config.tracker.name == "open-loop")
+    shown = shown_metrics(result.metrics, config.tracker.name == "open-loop", args.all)
     if args.json:
         print(json.dumps({"log": str(result.log_path), "metrics": json_ready(result.metrics)}))
     else:
         print_table(f"{config.name} (seed {config.seed}) -> {result.log_path}",
                     [(k, format_value(v)) for k, v in shown.items()])
+        hidden = len(result.metrics) - len(shown)
+        if hidden > 0:
+            print(f"  ({hidden} more metrics: --all, or cosim inspect {result.log_path})")
     if result.abort_reason == "interrupted":
         print(f"cosim: interrupted; log written up to the interrupt: {result.log_path}",
               file=sys.stderr)
@@ -217,13 +232,22 @@ def _exit_code(result: Any, conditions: list[Any]) -> int:
     return 0
 
 
-def shown_metrics(metrics: dict[str, Any], open_loop: bool) -> dict[str, Any]:
+def shown_metrics(metrics: dict[str, Any], open_loop: bool,
+                  every: bool = True) -> dict[str, Any]:
     """The metrics a run prints: the outcome first; an open-loop run's manoeuvre figures
-    instead of path-tracking errors."""
+    instead of path-tracking errors; unless ``every``, the headline alone
+    (:data:`HEADLINE_METRICS`, events' times, non-zero :data:`NOTICES`, requirements)."""
     shown = {"outcome": metrics.get("outcome", "ok"), **metrics}
     if open_loop:
         shown = {k: v for k, v in shown.items() if k not in PATH_TRACKING_METRICS}
-    return shown
+        return shown  # the manoeuvre's own figures, all of them
+    if every:
+        return shown
+    headline = {k: shown[k] for k in HEADLINE_METRICS if k in shown}
+    headline.update({k: v for k, v in shown.items()
+                     if (k.endswith("_t_s") and k != "sim_duration_s")
+                     or k.startswith("stl_robustness_") or (k in NOTICES and v)})
+    return headline
 
 
 def _fails_every_condition(conditions: list[Any], outcome: str, completed: bool) -> None:

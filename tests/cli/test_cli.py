@@ -88,6 +88,12 @@ def test_run_writes_a_log_and_prints_the_metrics(tmp_path: Path) -> None:
     assert result.returncode == 0, result.stderr
     assert out.is_file()
     assert "cte_max_m" in result.stdout and "completed" in result.stdout
+    # The headline fits a screen; --all prints every metric.
+    assert len(result.stdout.splitlines()) <= 20 and "nis_gnss" not in result.stdout
+    assert f"more metrics: --all, or cosim inspect {out}" in result.stdout
+    every = cosim("run", "lane-change", "--duration", "1", "--seed", "3", "--out", str(out),
+                  "--force", "--all")
+    assert "nis_gnss" in every.stdout and "more metrics" not in every.stdout
     default = cosim("run", "lane-change", "--duration", "0.5", cwd=tmp_path)
     assert default.returncode == 0, default.stderr
     logs = list((tmp_path / "logs").glob("lane-change-*.mcap"))
