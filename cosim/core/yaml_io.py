@@ -75,9 +75,38 @@ def shown(value: Any) -> str:
     return text if len(text) <= SHOWN_CHARS else text[: SHOWN_CHARS - 3] + "..."
 
 
+MAX_DEPTH = 64
+"""Deepest nesting of lists and mappings a configuration may have (a real one has about
+six levels; a value nested thousands deep would exhaust Python's recursion on the way)."""
+
+
 def loads(text: str) -> Any:
-    """Parse YAML text with :class:`Loader` (errors as PyYAML's or :class:`ConfigError`)."""
-    return yaml.load(text, Loader=Loader)  # noqa: S506 - Loader is a SafeLoader
+    """Parse YAML text with :class:`Loader` (errors as PyYAML's or :class:`ConfigError`);
+    a document nested deeper than :data:`MAX_DEPTH` is a ConfigError."""
+    try:
+        value = yaml.load(text, Loader=Loader)  # noqa: S506 - Loader is a SafeLoader
+    except RecursionError:
+        raise ConfigError(f"nested deeper than {MAX_DEPTH} levels of lists or mappings: "
+                          "expected a configuration value") from None
+    if _depth(value) > MAX_DEPTH:
+        raise ConfigError(f"nested deeper than {MAX_DEPTH} levels of lists or mappings: "
+                          "expected a configuration value")
+    return value
+
+
+def _depth(value: Any) -> int:
+    """How deep lists and mappings nest in ``value`` (without recursion)."""
+    deepest, stack = 0, [(value, 0)]
+    while stack:
+        item, level = stack.pop()
+        if isinstance(item, (list, dict)):
+            level += 1
+            deepest = max(deepest, level)
+            if deepest > MAX_DEPTH:
+                return deepest
+            stack.extend((child, level) for child in
+                         (item.values() if isinstance(item, dict) else item))
+    return deepest
 
 
 def read_yaml_file(path: Path, what: str) -> Any:

@@ -50,6 +50,15 @@ TIME_BROADCAST_PERIOD_NS = 50_000_000
 """How often the server tells clients the simulated time (every 50 ms of simulated time)."""
 
 
+MIN_PACE = 0.01
+"""The slowest pace: a hundredth of real time (a 15 s run in 25 minutes). Slower, one log
+period's wait would outlast a user's patience with Ctrl-C, and the wall clock's arithmetic
+its range."""
+
+MAX_PACE = 1000.0
+"""The fastest pace held; beyond it a run is not paced in practice (0 says so)."""
+
+
 @dataclass(frozen=True)
 class LiveOptions:
     """Where to serve and how fast to run.
@@ -69,9 +78,11 @@ class LiveOptions:
             raise ConfigError(f"--port {self.port!r}: expected a TCP port number in "
                               "0..65535 (0: any free port)")
         if not isinstance(self.pace, (int, float)) or isinstance(self.pace, bool) \
-                or not math.isfinite(self.pace) or self.pace < 0:
-            raise ConfigError(f"--pace {self.pace!r}: expected a rate of real time >= 0 "
-                              "(1: real time, 0: as fast as it goes)")
+                or not math.isfinite(self.pace) or not (self.pace == 0.0 or
+                                                        MIN_PACE <= self.pace <= MAX_PACE):
+            raise ConfigError(f"--pace {self.pace!r}: expected 0 (as fast as it goes) or a "
+                              f"rate of real time in [{MIN_PACE:g}, {MAX_PACE:g}] (1: real "
+                              "time)")
         if not self.host:
             raise ConfigError("--host '': expected an address to listen on "
                               "(127.0.0.1 unless you mean to serve other machines)")

@@ -267,6 +267,16 @@ ROWS = [
         ("--fail-if 'cte_max_m~0.3'", "expected METRIC OP VALUE")),
     Row("fail-if number with a unit", _fail_if("cte_max_m>0.3m"),
         ("'0.3m' is not a number", '(in m: 0.3)')),
+    Row("set value nested 2000 deep", lambda f: ["run", "lane-change", "--set",
+                                                 "plant.mass_kg=" + "[" * 2000 + "]" * 2000],
+        ("nested deeper than 64 levels", "expected a configuration value")),  # RecursionError
+    Row("set mapping nested 100 deep", lambda f: ["run", "lane-change", "--set",
+                                                  "tracker.params=" + "{a: " * 100 + "1"
+                                                  + "}" * 100],
+        ("nested deeper than 64 levels",)),
+    Row("live pace absurdly slow", lambda f: ["run", "lane-change", "--live", "--pace",
+                                              "1e-300"],
+        ("--pace 1e-300", "in [0.01, 1000]")),  # was an OverflowError
     Row("fail-if number in centimetres", _fail_if("cte_max_m>30cm"),
         ("'30cm' is not a number", '(in m: 0.3)')),
     Row("fail-if number in degrees", _fail_if("heading_err_max_rad>5deg"),

@@ -245,8 +245,11 @@ def test_a_busy_port_is_refused_in_one_line_before_the_run(tmp_path: Path) -> No
 @pytest.mark.parametrize(("args", "expected"), [
     (["--live", "--port", "65536"], "--port 65536: expected a TCP port number in 0..65535"),
     (["--live", "--port", "-1"], "--port -1: expected a TCP port number in 0..65535"),
-    (["--live", "--pace", "-2"], "--pace -2.0: expected a rate of real time >= 0"),
-    (["--live", "--pace", "inf"], "--pace inf: expected a rate of real time >= 0"),
+    (["--live", "--pace", "-2"], "--pace -2.0: expected 0 (as fast as it goes) or a rate"),
+    (["--live", "--pace", "inf"], "--pace inf: expected 0 (as fast as it goes) or a rate"),
+    (["--live", "--pace", "1e-300"], "--pace 1e-300: expected 0 (as fast as it goes) or a "
+     "rate of real time in [0.01, 1000]"),  # was an OverflowError from the wall clock
+    (["--live", "--pace", "1e-4"], "in [0.01, 1000]"),  # was deaf to Ctrl-C for minutes
     (["--pace", "1"], "--pace 1.0: only meaningful with --live"),
     (["--port", "9000"], "--port 9000: only meaningful with --live"),
 ])
