@@ -95,11 +95,15 @@ def loads(text: str) -> Any:
 
 
 def _depth(value: Any) -> int:
-    """How deep lists and mappings nest in ``value`` (without recursion)."""
-    deepest, stack = 0, [(value, 0)]
+    """How deep lists and mappings nest in ``value`` (without recursion; a list or mapping
+    that YAML aliases share is walked once, so an alias bomb costs its distinct nodes)."""
+    deepest, stack, seen = 0, [(value, 0)], set()
     while stack:
         item, level = stack.pop()
         if isinstance(item, (list, dict)):
+            if id(item) in seen:
+                continue
+            seen.add(id(item))
             level += 1
             deepest = max(deepest, level)
             if deepest > MAX_DEPTH:

@@ -172,7 +172,7 @@ def load_envelope_spec(path: str | Path) -> EnvelopeSpec:
         raise reader.error(f"max_rays: {shown(max_rays)}: expected an integer in [2, 65]")
     return EnvelopeSpec(
         name=reader.optional_str(data, "name") or Path(path).stem,
-        description=str(data.get("description") or ""), scenario=scenario, tracker=tracker,
+        description=reader.description(data), scenario=scenario, tracker=tracker,
         estimator=estimator, duration_s=duration_s, seeds=seeds, fixed=fixed,
         requirement=str(requirement), parameters=tuple(parameters),
         failure_rate=float(failure_rate), resolution=float(resolution), max_rays=max_rays,

@@ -87,6 +87,9 @@ SPEC_KEYS = ("name", "description", "scenario", "tracker", "estimator", "duratio
              "set", "grid", "random", "pass", "metric", "ray_address")
 """Top-level keys a spec may hold."""
 
+MAX_DESCRIPTION_CHARS = 10_000
+"""The longest ``description:`` a spec may have (it is copied into every summary)."""
+
 _UNITS = (
     ("_kgm2", "kg m²"), ("_mps2", "m/s²"), ("_radps", "rad/s"), ("_nspm", "N s/m"),
     ("_npm", "N/m"), ("_npr", "N/rad"), ("_prad", "1/rad"), ("_mps", "m/s"), ("_rad", "rad"),
@@ -367,6 +370,19 @@ class SpecReader:
                              f"{', '.join(self.keys)}")
         return data
 
+    def description(self, data: dict[str, Any]) -> str:
+        """``description:``, text of at most :data:`MAX_DESCRIPTION_CHARS` (a list of YAML
+        aliases would expand into gigabytes of summary)."""
+        value = data.get("description")
+        if value is None:
+            return ""
+        if not isinstance(value, str):
+            raise self.error(f"description: a {type(value).__name__}: expected text")
+        if len(value) > MAX_DESCRIPTION_CHARS:
+            raise self.error(f"description: {len(value):,} characters: expected at most "
+                             f"{MAX_DESCRIPTION_CHARS:,}")
+        return value
+
     def optional_str(self, data: dict[str, Any], key: str) -> str | None:
         value = data.get(key)
         if value is not None and not isinstance(value, str):
@@ -578,7 +594,7 @@ def load_spec(path: str | Path) -> SweepSpec:
 
     return SweepSpec(
         name=reader.optional_str(data, "name") or Path(path).stem,
-        description=str(data.get("description") or ""),
+        description=reader.description(data),
         scenario=scenario, tracker=tracker, estimator=estimator, duration_s=duration_s,
         seeds=seeds, fixed=fixed, mode=mode, parameters=tuple(parameters),
         random_n=random_n, random_seed=random_seed, criteria=criteria, metric=metric,

@@ -91,6 +91,10 @@ def files(tmp_path: Path) -> Files:
                           f"  plant.tyre_friction: {[0.5 + i / 100 for i in range(50)]}\n",
         "spec-latin1-scenario.yaml": "scenario: latin1.yaml\nseeds: 1\n",
         "spec-good.yaml": "scenario: lane-change\nseeds: 1\nduration_s: 0.1\n",
+        # YAML aliases nine deep: 9^9 strings once expanded (a 58 MB summary, or worse)
+        "spec-aliases.yaml": "scenario: lane-change\ndescription: &a9 ["
+        + "".join(f"&a{k} [" for k in range(8, 0, -1)) + "x, x, x, x, x, x, x, x, x]"
+        + "".join(f", *a{k}" * 8 + "]" for k in range(1, 9)) + "\n",
         "notes.txt": "not an MCAP file, just text\n",
         "one-point.csv": "x,y\n1,2\n",
         "huge.csv": "x,y\n" + "".join(f"{1e12 * x},{1e12 * y}\n" for x, y in _loop()),
@@ -359,6 +363,9 @@ ROWS = [
     Row("sweep spec missing", lambda f: ["sweep", f("none.yaml")], ("none.yaml", "no such file")),
     Row("sweep spec binary", lambda f: ["sweep", f("spec-binary.yaml"), "--out", f("s1")],
         ("spec-binary.yaml", "not UTF-8")),
+    Row("sweep spec description of aliases", lambda f: ["sweep", f("spec-aliases.yaml"),
+                                                        "--out", f("s9")],
+        ("spec-aliases.yaml", "description: a list: expected text")),
     Row("sweep spec duplicate key", lambda f: ["sweep", f("spec-dup.yaml"), "--out", f("s2")],
         ("spec-dup.yaml", "'seeds' given twice")),
     Row("sweep scenario latin-1", lambda f: ["sweep", f("spec-latin1-scenario.yaml"),
