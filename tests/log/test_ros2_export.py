@@ -282,3 +282,18 @@ def test_a_fix_without_a_position_is_no_fix() -> None:
     ok = build.nav_sat_fix(0, {"t_s": 0.0, "sensor": "gnss", "x_m": 0.0, "y_m": 0.0,
                                "sigma": [0.5, 0.5]})
     assert ok.status.status == 0 and ok.position_covariance[0] == 0.25
+
+
+def test_an_older_logs_planar_truth_exports_with_zeros_and_no_truth_is_refused() -> None:
+    """A log written before the truth had z_m, roll and pitch: exported as 0 (the export
+    says so once); a message without x_m is no cosim truth: one clear error."""
+    from cosim.core.exceptions import CosimError
+    from cosim.log.ros2.messages import planar_fields_missing, truth_numbers
+
+    older = {"t_s": 1.0, "x_m": 3.0, "y_m": 4.0, "yaw_rad": 0.1, "vx_mps": 10.0,
+             "vy_mps": 0.2, "yaw_rate_radps": 0.05}
+    v = truth_numbers(older)
+    assert (v["z_m"], v["roll_rad"], v["pitch_rad"]) == (0.0, 0.0, 0.0) and v["x_m"] == 3.0
+    assert planar_fields_missing(older) == ["z_m", "roll_rad", "pitch_rad"]
+    with pytest.raises(CosimError, match="/vehicle/truth without x_m"):
+        truth_numbers({k: v for k, v in older.items() if k != "x_m"})

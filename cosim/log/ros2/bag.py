@@ -26,6 +26,7 @@ The run's metadata (config, seed, versions) is copied as the MCAP metadata ``cos
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -40,7 +41,7 @@ from cosim.log import topics
 from cosim.log.foxglove import GeoOrigin
 from cosim.log.reader import LogSummary, iter_topics, read_summary
 from cosim.log.ros2 import types as ros
-from cosim.log.ros2.messages import RosMessages
+from cosim.log.ros2.messages import RosMessages, planar_fields_missing
 from cosim.log.safe_file import PendingFile, check_output_path
 
 CHUNK_SIZE_BYTES = 1 << 20
@@ -99,8 +100,16 @@ def export_ros2(log: Path | str, out: Path | str | None = None,
         writer.start(profile="ros2", library=f"{summary.library} (cosim export --ros2)")
         channels = _register(writer, store)
         writer.add_metadata("cosim_run", summary.metadata.get("run", {}))
+        planar_said = False
         for source, t_ns, message in iter_topics(log, set(converters)):
             stamp_ns = summary.epoch_ns + t_ns
+            if source == topics.VEHICLE_TRUTH and not planar_said:
+                planar_said = True
+                missing = planar_fields_missing(message)
+                if missing:  # an older log: the planar state only
+                    warnings.warn(f"--ros2 {str(log)!r}: /vehicle/truth has no "
+                                  f"{', '.join(missing)} (a log of an older cosim): exported "
+                                  "as 0", stacklevel=2)
             for topic, typename, convert in converters[source]:
                 data = store.serialize_cdr(convert(stamp_ns, message), typename)
                 writer.add_message(channels[topic], log_time=stamp_ns, publish_time=stamp_ns,

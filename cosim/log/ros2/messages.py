@@ -50,6 +50,7 @@ from typing import Any
 import numpy as np
 from rosbags.typesys.store import Typestore
 
+from cosim.core.exceptions import CosimError
 from cosim.log.foxglove import (
     CAR_FRAME,
     WORLD_FRAME,
@@ -110,7 +111,7 @@ class RosMessages:
 
     def truth_odometry(self, stamp_ns: int, truth: dict[str, Any]) -> Any:
         """``/vehicle/truth`` as ``nav_msgs/Odometry`` (exact: zero covariances)."""
-        v = _numbers(truth)
+        v = truth_numbers(truth)
         pose = self._pose(v["x_m"], v["y_m"], v["z_m"], v["roll_rad"], v["pitch_rad"],
                           v["yaw_rad"])
         return self._odometry(stamp_ns, pose, np.zeros(36),
@@ -136,7 +137,7 @@ class RosMessages:
 
     def transforms(self, stamp_ns: int, truth: dict[str, Any]) -> Any:
         """``/tf``: ``world`` -> ``base_link`` from the truth."""
-        t, v = self.types, _numbers(truth)
+        t, v = self.types, truth_numbers(truth)
         transform = t["geometry_msgs/msg/Transform"](
             translation=self._vector(v["x_m"], v["y_m"], v["z_m"]),
             rotation=self._quaternion(v["roll_rad"], v["pitch_rad"], v["yaw_rad"]))
@@ -197,6 +198,31 @@ class RosMessages:
                  for x, y, yaw in zip(reference["x_m"], reference["y_m"],
                                       reference["yaw_rad"], strict=True)]
         return self.types[ros.PATH](header=header, poses=poses)
+
+
+TRUTH_REQUIRED = ("x_m", "y_m", "yaw_rad", "vx_mps", "vy_mps", "yaw_rate_radps")
+"""Truth fields every cosim log has had: without them the message is no cosim truth."""
+
+TRUTH_PLANAR = ("z_m", "roll_rad", "pitch_rad")
+"""Truth fields older logs lack (they logged the planar state only): exported as 0."""
+
+
+def truth_numbers(truth: dict[str, Any]) -> dict[str, float]:
+    """A ``/vehicle/truth`` message's numbers; a field older logs lack (:data:`TRUTH_PLANAR`)
+    is 0, a field every log has is required (a CosimError naming it)."""
+    v = _numbers(truth)
+    missing = [name for name in TRUTH_REQUIRED if name not in v]
+    if missing:
+        raise CosimError(f"/vehicle/truth without {', '.join(missing)}: expected the truth "
+                         "of a cosim log (x_m, y_m, yaw_rad, vx_mps, vy_mps, yaw_rate_radps)")
+    for name in TRUTH_PLANAR:
+        v.setdefault(name, 0.0)
+    return v
+
+
+def planar_fields_missing(truth: dict[str, Any]) -> list[str]:
+    """The fields of :data:`TRUTH_PLANAR` a truth message lacks (an older log)."""
+    return [name for name in TRUTH_PLANAR if name not in truth]
 
 
 def _numbers(message: dict[str, Any]) -> dict[str, float]:
