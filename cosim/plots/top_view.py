@@ -410,9 +410,39 @@ def top_view_figure(runs: Sequence[RunLog], path: Path) -> Path:
     return save(top_view(runs), path)
 
 
+def _is_circuit(runs: Sequence[RunLog]) -> bool:
+    """Whether the runs follow a closed path: its x folds the straights onto each other."""
+    return any(run.reference is not None and run.reference.path.closed for run in runs)
+
+
+def _lap_deviation_panel(ax: Any, runs: Sequence[RunLog]) -> None:
+    """A circuit's deviation against the distance along the path (each lap over the last):
+    x would fold a lap's straights onto each other."""
+    ax.axhline(0.0, color=REFERENCE_COLOUR, linestyle="--", linewidth=1.2,
+               label="reference path")
+    for i, run in enumerate(runs):
+        if run.tracking is None:
+            note(ax, f"{run.label}: no reference path in the log")
+            continue
+        s_m, cte = run.tracking.s_m, run.tracking.cte_m * 100.0
+        breaks = np.flatnonzero(np.diff(s_m) < 0.0) + 1  # a new lap starts at s = 0
+        for n, (a, b) in enumerate(zip(np.r_[0, breaks], np.r_[breaks, s_m.size],
+                                       strict=True)):
+            ax.plot(s_m[a:b], cte[a:b], **run_line(i), linewidth=1.2,
+                    alpha=1.0 if n == 0 else 0.6,
+                    label=generic(i, "true CoG" + (", each lap" if breaks.size else ""))
+                    if n == 0 else None)
+    ax.set_xlabel("distance along the path s [m] (each lap from its start)")
+    ax.set_ylabel("lateral offset from\nthe reference [cm] (+ = left)")
+    ax.set_title(f"{DEVIATION_TITLE}, in path coordinates, along the lap", fontsize=10)
+
+
 def top_view(runs: Sequence[RunLog]) -> Any:
     """The top-view figure (a ``matplotlib.figure.Figure``); the deviation panel's title
-    starts with ``DEVIATION_TITLE``."""
+    starts with ``DEVIATION_TITLE``. A circuit (a closed path) gets the whole circuit at true
+    scale and the deviation along the lap instead of the manoeuvre's panels against x."""
+    if _is_circuit(runs):
+        return _circuit_view(runs)
     figure = new_figure(12.0, 15.0)
     grid = figure.add_gridspec(4, 2, height_ratios=[1.0, 2.4, 2.2, 2.8])
     true_ax = figure.add_subplot(grid[0, :])
@@ -441,5 +471,31 @@ def top_view(runs: Sequence[RunLog]) -> Any:
     stretched_ax.set_title("the manoeuvre, lateral axis stretched "
                            f"x{_stretch_factor(stretched_ax):.0f}", fontsize=10)
     suptitle(figure, "Top view: path vs reference", runs)
+    run_legend(figure, runs)
+    return figure
+
+
+def _circuit_view(runs: Sequence[RunLog]) -> Any:
+    figure = new_figure(12.0, 15.0)
+    grid = figure.add_gridspec(3, 2, height_ratios=[3.2, 2.0, 2.8])
+    true_ax = figure.add_subplot(grid[0, :])
+    lap_ax = figure.add_subplot(grid[1, :])
+    car_ax, close_ax = figure.add_subplot(grid[2, 0]), figure.add_subplot(grid[2, 1])
+    _true_scale_panel(true_ax, runs)
+    _lap_deviation_panel(lap_ax, runs)
+    for ax in (true_ax, lap_ax):
+        style_axes(ax)
+        legend(ax, runs)
+    largest = _largest_cte(runs)
+    if largest is None:
+        car_ax.set_axis_off()
+        close_ax.set_axis_off()
+    else:
+        _car_zoom_panel(car_ax, runs, *largest)
+        _close_up_panel(close_ax, runs, *largest)
+        for ax in (car_ax, close_ax):
+            style_axes(ax)
+            legend(ax, runs, loc="upper center", bbox_to_anchor=(0.5, -0.24), ncol=2)
+    suptitle(figure, "Top view: path vs reference (a circuit)", runs)
     run_legend(figure, runs)
     return figure

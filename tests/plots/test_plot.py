@@ -263,3 +263,16 @@ def test_labels_name_overlaid_logs_one_each(nmpc_run: RunResult, tmp_path: Path,
                                             real(runs, path))[1])
     plot_logs([log, log], tmp_path, labels=["before", "after"])
     assert seen == [["before", "after"]]
+
+
+def test_a_circuit_is_drawn_whole_and_its_deviation_along_the_lap(tmp_path: Path) -> None:
+    """A closed path's x folds its straights onto each other: the deviation is drawn
+    against the distance along the lap instead."""
+    from cosim.plots.top_view import top_view
+
+    result = run(load_config("track", duration_s=3.0), tmp_path / "track.mcap")
+    figure = top_view([load_run(result.log_path)])
+    labels = [ax.get_xlabel() for ax in figure.axes]
+    assert any(label.startswith("distance along the path s [m]") for label in labels)
+    assert not any(ax.get_title().startswith("the manoeuvre, lateral axis stretched")
+                   for ax in figure.axes)
