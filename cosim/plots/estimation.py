@@ -199,8 +199,13 @@ def _nis_panel(ax: Any, runs: Sequence[RunLog]) -> None:
             mean = _running_mean(nis.t_s, nis.nis_per_dof, NIS_WINDOW_S)
             curves.append(mean)
             gated = int(np.sum(~nis.accepted))
-            summaries[sensor].append(f"{float(np.mean(nis.nis_per_dof)):.2f}"
-                                     + (f" ({gated} gated)" if gated else ""))
+            # The run's own metric (summed NIS over summed channels, gated updates
+            # included), so the legend and `nis_<sensor>` agree; a mean of the updates'
+            # NIS per dof where the log has no metrics.
+            metric = (run.metrics or {}).get(f"nis_{sensor}")
+            value = float(metric) if isinstance(metric, (int, float)) else \
+                float(np.mean(nis.nis_per_dof))
+            summaries[sensor].append(f"{value:.2f}" + (f" ({gated} gated)" if gated else ""))
             (line,) = ax.plot(nis.t_s, mean, linewidth=1.0, linestyle=run_line(i)["linestyle"],
                               marker=NIS_MARKERS[n % len(NIS_MARKERS)],
                               markevery=max(1, mean.size // 12), markersize=4,
@@ -208,7 +213,7 @@ def _nis_panel(ax: Any, runs: Sequence[RunLog]) -> None:
             lines.setdefault(sensor, line)
     # One entry per sensor (colour and marker); the runs are the line styles.
     for sensor, line in lines.items():
-        line.set_label(f"{sensor}: mean " + " vs ".join(summaries[sensor]))
+        line.set_label(f"{sensor}: nis_{sensor} " + " vs ".join(summaries[sensor]))
     positive = np.concatenate([c[c > 0] for c in curves]) if curves else np.empty(0)
     if positive.size:
         ax.set_yscale("log")
@@ -266,8 +271,12 @@ def _panels_figure(runs: Sequence[RunLog], names: Sequence[str], extra: int) -> 
         _state_panel(ax, runs, name)
     for ax in axes[len(names) + extra:]:
         ax.set_axis_off()
-    for ax in grid[-1]:
-        time_axis(ax)
+    used = len(names) + extra
+    for column in range(COLUMNS):  # the lowest panel in use of each column gets the time
+        lowest = max((k for k in range(column, used, COLUMNS)), default=None)
+        if lowest is not None:
+            axes[lowest].tick_params(labelbottom=True)
+            time_axis(axes[lowest])
     return figure, axes
 
 

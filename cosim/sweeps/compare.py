@@ -306,10 +306,13 @@ def _bar_colour(row: LeagueRow) -> str:
 def shown_name(row: LeagueRow) -> str:
     """The tracker's label: with how many of its runs did not finish and how they stopped,
     if any (its figures are of the other runs)."""
+    name = row.tracker
+    if is_fmu_name(name):  # the FMU's file, not its folders (they crowd the chart)
+        name = "fmu:" + name.removeprefix("fmu:").replace("\\", "/").rsplit("/", 1)[-1]
     if not row.incomplete:
-        return row.tracker
+        return name
     how = f": {', '.join(row.stops)}" if row.stops else ""
-    return f"{row.tracker} ({row.incomplete}/{row.seeds} unfinished{how})"
+    return f"{name} ({row.incomplete}/{row.seeds} unfinished{how})"
 
 
 def json_rows(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
