@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from pathlib import Path
 from typing import Any
 
 from cosim.cli.common import Handler, format_value, json_ready
@@ -22,6 +23,12 @@ def add_parsers(commands: Any) -> dict[str, Handler]:
     identify.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                           dest="overrides", help="override a config key, e.g. plant.mass_kg=2000")
     identify.add_argument("--json", action="store_true", help="print one JSON object")
+    identify.add_argument("--belief-out", metavar="FILE.yaml",
+                          help="also write the identified tracker.model.* keys to this YAML "
+                               "file: `cosim run ... --config car.yaml --config FILE.yaml` "
+                               "drives the car with a controller that knows it")
+    identify.add_argument("--force", action="store_true",
+                          help="replace an existing --belief-out file")
     return {"identify": command}
 
 
@@ -30,7 +37,16 @@ def command(args: argparse.Namespace) -> int:
     from cosim.simulation.scenario_config import load_config
 
     config = load_config(IDENTIFY_SCENARIO, args.config, args.overrides)
+    if args.belief_out is not None:  # refused before the identification, not after it
+        from cosim.log.safe_file import check_output_path
+
+        check_output_path(Path(args.belief_out), "--belief-out", args.force,
+                          args.config or ())
     model = identify(config.plant, config.tracker.model, config.sim.physics_dt_s)
+    if args.belief_out is not None:
+        _write_belief(Path(args.belief_out), model.belief(), args)
+        print(f"cosim: the identified belief is in {args.belief_out}: run with "
+              f"--config {args.belief_out} after the car's own config", file=sys.stderr)
     if args.json:
         print(json.dumps(json_ready(model.to_dict())))
         return 0
@@ -55,3 +71,29 @@ def command(args: argparse.Namespace) -> int:
         cells = [f"{cell:<{width}}" for cell, width in zip(row[:3], widths, strict=True)]
         print(("  " + "  ".join([*cells, row[3]])).rstrip())
     return 0
+
+
+def _write_belief(path: Path, belief: dict[str, float], args: argparse.Namespace) -> None:
+    """``tracker: {model: ...}`` as YAML, with a header saying where it came from; written
+    beside and renamed into place (a crash leaves no half file)."""
+    import datetime
+
+    import yaml
+
+    from cosim.log.safe_file import PendingFile
+
+    source = " ".join([*(f"--config {c}" for c in args.config or ()),
+                       *(f"--set {o}" for o in args.overrides)]) or "the default sedan"
+    header = (f"# The controller's belief about the plant of {source},\n"
+              f"# identified by cosim identify on {datetime.date.today().isoformat()}.\n"
+              "# Merge it after the car's own config: cosim run SCENARIO --config car.yaml "
+              f"--config {path.name}\n")
+    text = header + yaml.safe_dump({"tracker": {"model": {
+        name: float(f"{value:.6g}") for name, value in belief.items()}}}, sort_keys=False)
+    pending = PendingFile(path)
+    try:
+        pending.file.write(text.encode("utf-8"))
+        pending.file.flush()
+        pending.publish()
+    finally:
+        pending.close()

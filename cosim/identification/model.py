@@ -9,6 +9,11 @@ from dataclasses import dataclass
 from cosim.identification.data import IdentificationError
 from tracker.models.dynamic_bicycle import DynamicBicycleParams
 
+BELIEF_FIELDS = ("mass_kg", "yaw_inertia_kgm2", "cog_front_m", "cog_rear_m",
+                 "cornering_stiffness_front_npr", "cornering_stiffness_rear_npr",
+                 "steer_time_constant_s")
+"""The identified quantities that are ``tracker.model.*`` keys (the controller's belief)."""
+
 
 @dataclass(frozen=True)
 class IdentifiedModel:
@@ -61,6 +66,12 @@ class IdentifiedModel:
             if isinstance(value, float) and not math.isfinite(value):
                 raise IdentificationError(f"IdentifiedModel.{field.name} = {value!r}: "
                                           "expected a finite number")
+
+    def belief(self) -> dict[str, float]:
+        """The controller's model of this plant: the ``tracker.model.*`` values identified
+        (mass, yaw inertia, CoG position, axle cornering stiffnesses, steering lag), as a
+        belief file holds them (``cosim identify --belief-out``)."""
+        return {name: float(getattr(self, name)) for name in BELIEF_FIELDS}
 
     @property
     def understeer_gradient_radpmps2(self) -> float:
