@@ -453,20 +453,10 @@ def top_view(runs: Sequence[RunLog]) -> Any:
     _true_scale_panel(true_ax, runs)
     _stretched_panel(stretched_ax, runs, x_low, x_high)
     _path_coordinates_panel(frenet_ax, runs, x_low, x_high)
-    largest = _largest_cte(runs)
-    axes = [true_ax, stretched_ax, frenet_ax]
-    for ax in axes:
+    for ax in (true_ax, stretched_ax, frenet_ax):
         style_axes(ax)
         legend(ax, runs)
-    if largest is None:
-        car_ax.set_axis_off()
-        close_ax.set_axis_off()
-    else:
-        _car_zoom_panel(car_ax, runs, *largest)
-        _close_up_panel(close_ax, runs, *largest)
-        for ax in (car_ax, close_ax):
-            style_axes(ax)
-            legend(ax, runs, loc="upper center", bbox_to_anchor=(0.5, -0.24), ncol=2)
+    _close_ups(car_ax, close_ax, runs)
     figure.canvas.draw()
     stretched_ax.set_title("the manoeuvre, lateral axis stretched "
                            f"x{_stretch_factor(stretched_ax):.0f}", fontsize=10)
@@ -486,16 +476,22 @@ def _circuit_view(runs: Sequence[RunLog]) -> Any:
     for ax in (true_ax, lap_ax):
         style_axes(ax)
         legend(ax, runs)
+    _close_ups(car_ax, close_ax, runs)
+    suptitle(figure, "Top view: path vs reference (a circuit)", runs)
+    run_legend(figure, runs)
+    return figure
+
+
+def _close_ups(car_ax: Any, close_ax: Any, runs: Sequence[RunLog]) -> None:
+    """The car at true scale and the close-up in centimetres, at the largest |CTE| (both
+    panels off when no run has a tracking error)."""
     largest = _largest_cte(runs)
     if largest is None:
         car_ax.set_axis_off()
         close_ax.set_axis_off()
-    else:
-        _car_zoom_panel(car_ax, runs, *largest)
-        _close_up_panel(close_ax, runs, *largest)
-        for ax in (car_ax, close_ax):
-            style_axes(ax)
-            legend(ax, runs, loc="upper center", bbox_to_anchor=(0.5, -0.24), ncol=2)
-    suptitle(figure, "Top view: path vs reference (a circuit)", runs)
-    run_legend(figure, runs)
-    return figure
+        return
+    _car_zoom_panel(car_ax, runs, *largest)
+    _close_up_panel(close_ax, runs, *largest)
+    for ax in (car_ax, close_ax):
+        style_axes(ax)
+        legend(ax, runs, loc="upper center", bbox_to_anchor=(0.5, -0.24), ncol=2)
