@@ -14,6 +14,12 @@ from collections.abc import Iterator
 from typing import Any
 
 from cosim.core.yaml_io import shown
+from cosim.simulation.path_config import (
+    PATH_KINDS,
+    SPEED_PROFILES,
+    PathConfig,
+    path_keys_read,
+)
 from tracker.key_readers import PLUGIN_KEYS, is_read_by, readers
 
 PACEJKA_ONLY_PLANT_KEYS = ("tyre", "front_cornering_stiffness_scale",
@@ -79,4 +85,28 @@ def unread_key_warnings(data: dict[str, Any], tracker_name: str, tyre_model: str
                 lines.append(f"plant.{key} = {shown(value)} is not read with plant.tyre_model "
                              f"= {tyre_model}: the plant reads it with plant.tyre_model = "
                              "pacejka")
+    lines += _unread_path_keys(data.get("path"), defaults)
+    return lines
+
+
+def _unread_path_keys(path: Any, defaults: dict[str, Any] | None) -> list[str]:
+    """``path.*`` keys the path's kind and speed profile do not read (``path.seed`` on a
+    ``track``), at a value other than their default."""
+    if not isinstance(path, dict):
+        return []
+    kind = path.get("kind", PathConfig.kind)
+    profile = path.get("speed_profile", PathConfig.speed_profile)
+    if kind not in PATH_KINDS or profile not in SPEED_PROFILES:
+        return []  # from_dict names the bad value
+    read = path_keys_read(str(kind), str(profile))
+    lines = []
+    for key, value in path.items():
+        if key in read or value == _default(defaults, f"path.{key}"):
+            continue
+        who = [k for k in PATH_KINDS if key in path_keys_read(k, "constant")]
+        profiles = [p for p in SPEED_PROFILES if key in path_keys_read("straight", p)]
+        readers_text = (f"path.kind {', '.join(who)}" if who else
+                        f"path.speed_profile {', '.join(profiles)}" if profiles else "no path")
+        lines.append(f"path.{key} = {shown(value)} is not read by path.kind {kind} with "
+                     f"path.speed_profile {profile}: it is read by {readers_text}")
     return lines

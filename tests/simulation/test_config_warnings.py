@@ -36,6 +36,18 @@ def test_a_key_the_tracker_does_not_read_names_who_does() -> None:
         "tracker lqr"]
 
 
+def test_a_path_key_the_path_does_not_read_names_who_does() -> None:
+    """path.seed on a track (a file's circuit) was ignored without a word."""
+    with pytest.warns(UnreadKeyWarning, match=r"path.seed = 7 is not read by path.kind "
+                      r"track .*: it is read by path.kind generated"):
+        load_config("track", overrides=["path.seed=7"])
+    lines = unread_key_warnings({"path": {"kind": "circle", "cruise_s": 9.0,
+                                          "radius_m": 30.0}}, "dynamic-nmpc", "pacejka")
+    assert lines == ["path.cruise_s = 9.0 is not read by path.kind circle with "
+                     "path.speed_profile constant: it is read by path.speed_profile "
+                     "stop-and-go"]
+
+
 def test_a_key_at_its_default_is_not_reported() -> None:
     # A whole configuration (cosim config show) names every key at its default.
     defaults = {"tracker": {"horizon": 25}}
