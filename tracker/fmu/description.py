@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import difflib
 import math
+import struct
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -135,6 +136,42 @@ def describe(name: str, config: FmuConfig, control_period_s: float,
         fixed_step_s=fixed_step_s)
 
 
+MAX_BINARY_BYTES = 256 * 1024 * 1024
+"""The largest FMU binary cosim unpacks (a controller's library is kilobytes to megabytes;
+an archive that unpacks to gigabytes is refused before it fills the disk)."""
+
+ELF_X86_64 = 62
+"""``e_machine`` of an x86-64 ELF file."""
+
+
+def elf_problem(data: bytes) -> str:
+    """Why ``data`` is no loadable x86-64 Linux shared library (``""`` when it looks like
+    one): not ELF, another class or machine, not a shared object, or cut short before the
+    end of the program or section headers its header announces (loading a truncated
+    library crashes the loader with SIGBUS; the check is the header's own arithmetic)."""
+    if data[:4] != b"\x7fELF":
+        return "not an ELF file (a Linux shared library starts with \\x7fELF): expected " \
+            "the FMU's library compiled for x86_64 Linux"
+    if data[4] != 2 or data[5] != 1:
+        return (f"an ELF file of class {'32' if data[4] == 1 else '?'}-bit, "
+                f"{'little' if data[5] == 1 else 'big'}-endian: expected 64-bit "
+                "little-endian (x86_64 Linux)")
+    if len(data) < 64:
+        return f"{len(data)} bytes, cut short inside its ELF header"
+    e_type, e_machine = struct.unpack_from("<HH", data, 16)
+    if e_machine != ELF_X86_64:
+        return f"an ELF file for machine {e_machine}: expected x86-64 ({ELF_X86_64})"
+    if e_type != 3:
+        return f"an ELF file of type {e_type}: expected a shared object (type 3)"
+    e_phoff, e_shoff = struct.unpack_from("<QQ", data, 32)
+    e_phentsize, e_phnum, e_shentsize, e_shnum = struct.unpack_from("<HHHH", data, 54)
+    needed = max(e_phoff + e_phentsize * e_phnum, e_shoff + e_shentsize * e_shnum)
+    if needed > len(data):
+        return (f"{len(data):,} bytes where its headers reach to byte {needed:,}: the "
+                "library is truncated")
+    return ""
+
+
 def _variables(model: ModelDescription) -> dict[str, FmuVariable]:
     found = {}
     for v in model.modelVariables:
@@ -190,6 +227,13 @@ class _Check:
         member = f"{folder}/{identifier}{fmpy.sharedLibraryExtension}"
         with zipfile.ZipFile(self.path) as archive:
             if member in archive.namelist():
+                info = archive.getinfo(member)
+                if info.file_size > MAX_BINARY_BYTES:
+                    raise self.error(f"{member} is {info.file_size:,} bytes unpacked: expected "
+                                     f"a shared library of at most {MAX_BINARY_BYTES:,}")
+                problem = elf_problem(archive.read(member))
+                if problem:
+                    raise self.error(f"{member} cannot be loaded: {problem}")
                 return
         has = [p for p in fmpy.supported_platforms(str(self.path))]
         hint = (" (C sources only: compile them first, e.g. with fmpy's "

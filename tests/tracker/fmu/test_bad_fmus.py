@@ -8,6 +8,7 @@ from __future__ import annotations
 import zipfile
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -130,6 +131,30 @@ def test_a_binary_for_another_fmi_version_layout_is_no_binary(
             target.writestr(name.replace("x86_64-linux", "linux64"), source.read(name))
     line = refusal(tmp_path / "bad.fmu", tmp_path, capsys)
     assert "no binary for this platform (binaries/x86_64-linux/stanley.so)" in line
+
+
+def _with_binary(fmu: Path, out: Path, change: Any) -> Path:
+    """``fmu`` with its platform binary replaced by ``change(bytes)``."""
+    with zipfile.ZipFile(fmu) as source, zipfile.ZipFile(out, "w") as target:
+        for name in source.namelist():
+            data = source.read(name)
+            target.writestr(name, change(data) if name.startswith("binaries/") and
+                            name.endswith(".so") else data)
+    return out
+
+
+@pytest.mark.parametrize(("change", "fragment"), [
+    (lambda data: b"this is not a library\n", "cannot be loaded: not an ELF file"),
+    (lambda data: data[:4] + b"\x01" + data[5:], "an ELF file of class 32-bit"),
+    (lambda data: data[: len(data) // 2], "the library is truncated"),
+])
+def test_a_binary_that_cannot_load_is_refused_before_the_run(
+        change: Any, fragment: str, c_fmus: dict[int, Path], tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """Loading these crashed the run: a traceback (wrong ELF class, a text file) or SIGBUS
+    with nothing printed (a truncated library, exit 135)."""
+    bad = _with_binary(c_fmus[2], tmp_path / "bad.fmu", change)
+    assert fragment in refusal(bad, tmp_path, capsys)
 
 
 @pytest.mark.parametrize(("setting", "fragment"), [
