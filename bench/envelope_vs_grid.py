@@ -63,6 +63,10 @@ class Runner:
         rows: dict[int, dict] = {}
         self.backend.run(tasks, lambda row: rows.__setitem__(row["run_id"], row))
         self.count += len(tasks)
+        errors = [row["error"] for row in rows.values() if row["error"]]
+        if errors or len(rows) != len(tasks):  # an error is no failure of the requirement
+            raise SystemExit(f"{len(errors)} run(s) ended in an error, e.g. "
+                             f"{(errors or ['a missing row'])[0]}: the grid would be wrong")
         return [run_passes(rows[i])[0] for i in range(len(tasks))]
 
 
@@ -79,15 +83,24 @@ def grid_boundary_1d(runner: Runner, path: str, seeds: list[int]) -> tuple[list[
     values = grid_values(path)
     first_fail = {seed: math.nan for seed in seeds}
     active = list(seeds)
-    for value in values:
+    for start in range(0, len(values), GRID_BATCH):  # one pool a batch of values
         if not active:
             break
-        results = runner.passes([({path: value}, seed) for seed in active])
-        for seed, passed in zip(list(active), results, strict=True):
-            if not passed:
-                first_fail[seed] = value
+        batch = values[start:start + GRID_BATCH]
+        points = [({path: value}, seed) for seed in active for value in batch]
+        results = dict(zip(((p[path], s) for p, s in points), runner.passes(points),
+                           strict=True))
+        for seed in list(active):
+            failing = [value for value in batch if not results[(value, seed)]]
+            if failing:
+                first_fail[seed] = failing[0]
                 active.remove(seed)
     return [first_fail[s] for s in seeds], len(values) * len(seeds)
+
+
+GRID_BATCH = 12
+"""Grid values run together (one process pool each): a seed past its first failure runs at
+most this many values too many."""
 
 
 def main() -> None:
@@ -95,18 +108,23 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=3)
     parser.add_argument("--grid-2d", type=int, default=12)
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--work", metavar="DIR",
+                        help="work folder (default: a new temporary one); an envelope search "
+                             "already there is resumed, not run again")
     args = parser.parse_args()
     seeds = held_out_seeds(args.seeds)
     print(f"held-out seeds {seeds}; requirement {REQUIREMENT}; boundary: more than "
           f"{100 * FAILURE_RATE:g} % of seeds fail")
-    work = Path(tempfile.mkdtemp(prefix="envelope-bench-"))
+    work = Path(args.work) if args.work else Path(tempfile.mkdtemp(prefix="envelope-bench-"))
+    work.mkdir(parents=True, exist_ok=True)
     spec = work / "spec.yaml"
     spec.write_text(yaml.safe_dump({
         "scenario": "lane-change", "seeds": seeds, "requirement": REQUIREMENT,
         "parameters": {k: v[1] for k, v in LIMITS.items()}, "failure_rate": FAILURE_RATE,
         "resolution": RESOLUTION}))
     start = time.perf_counter()
-    result = run_envelope(spec, work / "envelope", args.workers, "process")
+    resume = (work / "envelope" / "results.jsonl").is_file()
+    result = run_envelope(spec, work / "envelope", args.workers, "process", resume=resume)
     envelope_s = time.perf_counter() - start
     print(f"envelope: {result.runs} runs, {len(result.rays)} rays, {envelope_s:.0f} s")
     runner = Runner(args.workers)

@@ -138,15 +138,18 @@ def config_changes(config: Mapping[str, Any]) -> list[str]:
         return []
     try:
         base = to_dict(load_config(base_name))
-        suite = flat_config(config).get("sensors.suite")
+        flat = flat_config(config)
+        presets = []
         changes = []
-        if suite is not None and suite != flat_config(base).get("sensors.suite"):
-            # Compare with the base on that suite: what the preset brings is not a change.
-            base = to_dict(load_config(base_name, overrides=[f"sensors.suite={suite}"]))
-            changes.append(f"sensors.suite={suite}")
+        for key in ("car", "sensors.suite"):  # what a preset brings is not a change
+            value = flat.get(key)
+            if value is not None and value != flat_config(base).get(key):
+                presets.append(f"{key}={value}")
+        if presets:
+            base = to_dict(load_config(base_name, overrides=presets))
+            changes += presets
     except CosimError:  # a log from another version whose keys this one lacks
         return []
-    flat = flat_config(config)
     requests = told(config)
     for key in config_differences([base, config]):
         if key.split(".")[0].split("[")[0] in NOT_CHANGES:

@@ -103,6 +103,10 @@ class SimConfig:
         return epoch_ns(self.epoch)
 
 
+CAR_NAMES = ("sedan", "ford-escort", "bmw-320i", "vw-vanagon")
+"""Values of ``car:`` (:mod:`cosim.cars`)."""
+
+
 @dataclass(frozen=True)
 class ScenarioConfig:
     """Everything a run needs, resolved and validated."""
@@ -116,6 +120,11 @@ class ScenarioConfig:
         "cosim.plant.sedan_sampler (mass, yaw inertia, wheelbase, CoG, tyre stiffness and "
         "friction over published passenger-car ranges) for the plant and the controller's "
         "model alike; keys set explicitly win")
+    car: str = setting(
+        "sedan", choices=CAR_NAMES,
+        doc="sedan: cosim's own mid-size sedan; ford-escort, bmw-320i, vw-vanagon: "
+        "CommonRoad's published parameter sets as the plant (cosim/cars/NAME.yaml) with the "
+        "belief cosim identify finds for each (NAME-belief.yaml); keys set explicitly win")
     sim: SimConfig = section(SimConfig)
     path: PathConfig = section(PathConfig)
     initial: InitialState = section(InitialState)
@@ -282,6 +291,7 @@ def load_config(
         set_dotted(data, canonical_key(key, "--set"), value)
     rename_old_keys(data, "--set")  # an old key inside a mapping given as a --set value
     data = _with_sampled_vehicle(data)
+    data = _with_car(data)
     sensors = data.get("sensors")
     if isinstance(sensors, dict) and isinstance(sensors.get("suite"), str):
         # The suite presets figures; what the user set explicitly wins.
@@ -311,6 +321,18 @@ def load_config(
     if config.estimator.name not in ESTIMATOR_NAMES:
         estimator_class(config.estimator.name)
     return config
+
+
+def _with_car(data: dict[str, Any]) -> dict[str, Any]:
+    """``car: NAME``: the published car's plant and its identified belief under what was
+    set (a bad name is left to from_dict, which names the choices)."""
+    name = data.get("car", "sedan")
+    if name == "sedan" or name not in CAR_NAMES:
+        return data
+    folder = importlib.resources.files("cosim.cars")
+    car = _merge(yaml_loads((folder / f"{name}.yaml").read_text()) or {},
+                 yaml_loads((folder / f"{name}-belief.yaml").read_text()) or {})
+    return _merge(car, data)
 
 
 def _with_sampled_vehicle(data: dict[str, Any]) -> dict[str, Any]:

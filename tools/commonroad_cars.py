@@ -1,0 +1,114 @@
+"""Write ``cosim/cars/*.yaml``: CommonRoad's three published cars as cosim plants, and
+their beliefs identified by ``cosim identify``.
+
+    .venv/bin/python tools/commonroad_cars.py        # needs commonroad-vehicle-models (dev)
+
+Source: M. Althoff, M. Koschi, S. Manzinger, "CommonRoad: Composable benchmarks for motion
+planning on roads", IEEE Intelligent Vehicles Symposium 2017, and the documentation
+"CommonRoad: Vehicle Models" (2020): parameter set 1 (a Ford Escort), 2 (a BMW 320i) and 3
+(a VW Vanagon). Each plant takes the set's mass, yaw inertia, CoG position and height,
+track widths, wheel radius and spin inertia, road-wheel angle limit and rate; its Magic
+Formula tyre is given the set's cornering stiffness ``C_S mu = -p_ky1`` per unit load at
+the static axle loads and its friction ellipse ``p_dx1 / p_dy1``, as
+``tests/conformance/test_commonroad_cross_check.py`` maps the BMW. The road (``plant.
+tyre_friction``), drag and rolling resistance stay the scenario's: the sets have none, a
+car on a road has them. The belief beside each is what ``cosim identify`` finds for it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import yaml
+
+CARS = {"ford-escort": ("parameters_vehicle1", "Ford Escort"),
+        "bmw-320i": ("parameters_vehicle2", "BMW 320i"),
+        "vw-vanagon": ("parameters_vehicle3", "VW Vanagon")}
+"""cosim's name, CommonRoad's parameter function, the car."""
+
+G_MPS2 = 9.81
+PEAK_LOAD_RATIO = 9.0
+"""``p_Ky2``: the stiffness nearly linear in the load, as the single-track model's."""
+
+FOLDER = Path(__file__).resolve().parents[1] / "cosim" / "cars"
+
+
+def plant_keys(p: object) -> dict[str, object]:
+    """The ``plant:`` keys of CommonRoad parameter set ``p`` (module docstring)."""
+    from cosim.core.vehicle_params import PlantConfig
+
+    wheelbase = p.a + p.b
+    per_load_prad = -p.tire.p_ky1
+    front_load = p.m * G_MPS2 * p.b / wheelbase / 2.0
+    rear_load = p.m * G_MPS2 * p.a / wheelbase / 2.0
+
+    def shape(load_n: float) -> float:
+        return math.sin(2.0 * math.atan(load_n / (PEAK_LOAD_RATIO * front_load)))
+
+    p_ky1 = per_load_prad / shape(front_load)
+    rear_scale = per_load_prad * rear_load / (p_ky1 * front_load * shape(rear_load))
+    base = PlantConfig()
+    tyre = dataclasses.replace(base.tyre, nominal_load_n=front_load,
+                               cornering_stiffness_max_prad=p_ky1,
+                               cornering_stiffness_peak_load_ratio=PEAK_LOAD_RATIO,
+                               longitudinal_friction_scale=p.tire.p_dx1 / p.tire.p_dy1)
+    changed = {"tyre": {f.name: getattr(tyre, f.name) for f in dataclasses.fields(tyre)
+                        if getattr(tyre, f.name) != getattr(base.tyre, f.name)}}
+    changed.update({
+        "mass_kg": p.m, "yaw_inertia_kgm2": p.I_z, "cog_front_m": p.a, "cog_rear_m": p.b,
+        "cog_height_m": p.h_cg, "track_front_m": p.T_f, "track_rear_m": p.T_r,
+        "wheel_radius_m": p.R_w, "wheel_inertia_kgm2": p.I_y_w,
+        "max_steer_rad": p.steering.max, "max_steer_rate_radps": p.steering.v_max,
+        "front_cornering_stiffness_scale": 1.0, "rear_cornering_stiffness_scale": rear_scale,
+    })
+    return {k: (float(f"{v:.6g}") if isinstance(v, float) else v) for k, v in changed.items()}
+
+
+def main() -> None:
+    import importlib
+
+    for name, (function, car) in CARS.items():
+        module = importlib.import_module(f"vehiclemodels.{function}")
+        keys = plant_keys(getattr(module, function)())
+        keys["tyre"] = {k: float(f"{v:.6g}") for k, v in keys["tyre"].items()}
+        plant = FOLDER / f"{name}.yaml"
+        plant.write_text(
+            f"# {car}: CommonRoad's vehicle parameter set ({function}), as a cosim plant.\n"
+            "# Written by tools/commonroad_cars.py (Althoff, Koschi, Manzinger, IEEE IV "
+            "2017; 'CommonRoad: Vehicle Models', 2020).\n"
+            + yaml.safe_dump({"plant": keys}, sort_keys=False))
+        belief = FOLDER / f"{name}-belief.yaml"
+        root = FOLDER.parents[1]
+        done = subprocess.run(
+            [str(Path(sys.executable).with_name("cosim")), "identify", "--config",
+             str(plant.relative_to(root)), "--belief-out", str(belief.relative_to(root)),
+             "--force"], capture_output=True, text=True, cwd=root)
+        if done.returncode != 0:
+            raise SystemExit(f"{name}: cosim identify failed: {done.stderr.strip()}")
+        _add_data_sheet(belief, keys)
+        print(f"{plant.name}, {belief.name}")
+
+
+def _add_data_sheet(belief: Path, plant: dict[str, object]) -> None:
+    """The belief file with the car's own figures that identification does not fit
+    (tracks, CoG height, wheel radius, steering limits): a controller knows them from the
+    car's data sheet."""
+    from cosim.core.vehicle_params import VehicleParams
+
+    text = belief.read_text()
+    header = "".join(line + "\n" for line in text.splitlines() if line.startswith("#"))
+    data = yaml.safe_load(text)
+    model = data["tracker"]["model"]
+    shared = {f.name for f in dataclasses.fields(VehicleParams)}
+    sheet = {k: v for k, v in plant.items() if k in shared and k not in model}
+    model.update(sheet)
+    belief.write_text(header + f"# From the car's data sheet: {', '.join(sheet)}.\n"
+                      + yaml.safe_dump(data, sort_keys=False))
+
+
+if __name__ == "__main__":
+    main()
