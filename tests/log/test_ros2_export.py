@@ -297,3 +297,17 @@ def test_an_older_logs_planar_truth_exports_with_zeros_and_no_truth_is_refused()
     assert planar_fields_missing(older) == ["z_m", "roll_rad", "pitch_rad"]
     with pytest.raises(CosimError, match="/vehicle/truth without x_m"):
         truth_numbers({k: v for k, v in older.items() if k != "x_m"})
+
+
+def test_an_export_holds_its_out_as_a_run_does(short_run: RunResult, tmp_path: Path) -> None:
+    """--force onto a file another run or export is writing silently replaced it; the
+    output is now held for the export, and a second writer is refused."""
+    from cosim.core.exceptions import CosimError
+    from cosim.log.output_claim import claim_output
+    from cosim.log.ros2.bag import export_ros2
+
+    out = tmp_path / "busy.mcap"
+    with claim_output(out, "--out", False, []):  # a run writing it now
+        with pytest.raises(CosimError, match="another cosim run is writing it now"):
+            export_ros2(short_run.log_path, out, force=True)
+    assert export_ros2(short_run.log_path, out).path == out  # free again

@@ -39,10 +39,11 @@ from cosim.core.exceptions import CosimError
 from cosim.core.sensor_names import GNSS, IMU
 from cosim.log import topics
 from cosim.log.foxglove import GeoOrigin
+from cosim.log.output_claim import claim_output
 from cosim.log.reader import LogSummary, iter_topics, read_summary
 from cosim.log.ros2 import types as ros
 from cosim.log.ros2.messages import RosMessages, planar_fields_missing
-from cosim.log.safe_file import PendingFile, check_output_path
+from cosim.log.safe_file import PendingFile
 
 CHUNK_SIZE_BYTES = 1 << 20
 """Uncompressed bytes per MCAP chunk."""
@@ -85,7 +86,16 @@ def export_ros2(log: Path | str, out: Path | str | None = None,
     log = Path(log)
     summary = _run_log(log)
     out = default_out(log) if out is None else Path(out)
-    check_output_path(out, "--out", force, inputs=[log])
+    # Held for the export, as a run holds its --out: a run or another export writing the
+    # same file is refused, not silently replaced.
+    with claim_output(out, "--out", force, [log]):
+        counts = _write_bag(log, out, summary)
+    return ExportResult(out, counts, summary.truncated)
+
+
+def _write_bag(log: Path, out: Path, summary: LogSummary) -> dict[str, int]:
+    """Every ROS 2 message of ``log`` into ``out`` (written beside it, renamed into
+    place); the message count per topic."""
     origin = from_dict(GeoOrigin, summary.config.get("geo") or {}, "geo")
     store = ros.typestore()
     build = RosMessages(store, origin)
@@ -119,7 +129,7 @@ def export_ros2(log: Path | str, out: Path | str | None = None,
         pending.publish()
     finally:
         pending.close()
-    return ExportResult(out, counts, summary.truncated)
+    return counts
 
 
 def _run_log(log: Path) -> LogSummary:
