@@ -18,7 +18,6 @@ car on a road has them. The belief beside each is what ``cosim identify`` finds 
 from __future__ import annotations
 
 import dataclasses
-import math
 import subprocess
 import sys
 from pathlib import Path
@@ -30,41 +29,21 @@ CARS = {"ford-escort": ("parameters_vehicle1", "Ford Escort"),
         "vw-vanagon": ("parameters_vehicle3", "VW Vanagon")}
 """cosim's name, CommonRoad's parameter function, the car."""
 
-G_MPS2 = 9.81
-PEAK_LOAD_RATIO = 9.0
-"""``p_Ky2``: the stiffness nearly linear in the load, as the single-track model's."""
-
 FOLDER = Path(__file__).resolve().parents[1] / "cosim" / "cars"
 
 
 def plant_keys(p: object) -> dict[str, object]:
-    """The ``plant:`` keys of CommonRoad parameter set ``p`` (module docstring)."""
+    """The ``plant:`` keys of CommonRoad parameter set ``p`` that differ from the default
+    plant (:func:`cosim.plant.commonroad_cars.plant_of`)."""
     from cosim.core.vehicle_params import PlantConfig
+    from cosim.plant.commonroad_cars import plant_of
 
-    wheelbase = p.a + p.b
-    per_load_prad = -p.tire.p_ky1
-    front_load = p.m * G_MPS2 * p.b / wheelbase / 2.0
-    rear_load = p.m * G_MPS2 * p.a / wheelbase / 2.0
-
-    def shape(load_n: float) -> float:
-        return math.sin(2.0 * math.atan(load_n / (PEAK_LOAD_RATIO * front_load)))
-
-    p_ky1 = per_load_prad / shape(front_load)
-    rear_scale = per_load_prad * rear_load / (p_ky1 * front_load * shape(rear_load))
-    base = PlantConfig()
-    tyre = dataclasses.replace(base.tyre, nominal_load_n=front_load,
-                               cornering_stiffness_max_prad=p_ky1,
-                               cornering_stiffness_peak_load_ratio=PEAK_LOAD_RATIO,
-                               longitudinal_friction_scale=p.tire.p_dx1 / p.tire.p_dy1)
-    changed = {"tyre": {f.name: getattr(tyre, f.name) for f in dataclasses.fields(tyre)
-                        if getattr(tyre, f.name) != getattr(base.tyre, f.name)}}
-    changed.update({
-        "mass_kg": p.m, "yaw_inertia_kgm2": p.I_z, "cog_front_m": p.a, "cog_rear_m": p.b,
-        "cog_height_m": p.h_cg, "track_front_m": p.T_f, "track_rear_m": p.T_r,
-        "wheel_radius_m": p.R_w, "wheel_inertia_kgm2": p.I_y_w,
-        "max_steer_rad": p.steering.max, "max_steer_rate_radps": p.steering.v_max,
-        "front_cornering_stiffness_scale": 1.0, "rear_cornering_stiffness_scale": rear_scale,
-    })
+    base, car = PlantConfig(), plant_of(p)
+    changed: dict[str, object] = {"tyre": {
+        f.name: getattr(car.tyre, f.name) for f in dataclasses.fields(car.tyre)
+        if getattr(car.tyre, f.name) != getattr(base.tyre, f.name)}}
+    changed.update({f.name: getattr(car, f.name) for f in dataclasses.fields(car)
+                    if f.name != "tyre" and getattr(car, f.name) != getattr(base, f.name)})
     return {k: (float(f"{v:.6g}") if isinstance(v, float) else v) for k, v in changed.items()}
 
 

@@ -77,6 +77,7 @@ from vehiclemodels.vehicle_dynamics_mb import vehicle_dynamics_mb
 from vehiclemodels.vehicle_dynamics_st import vehicle_dynamics_st
 
 from cosim.core.vehicle_params import PlantConfig
+from cosim.plant.commonroad_cars import plant_of
 from cosim.plant.low_level import resistance_force_n
 from cosim.plant.sedan_model import sedan_layout
 from tests.conformance.driving import drive, plant_at, speed_loop
@@ -104,29 +105,11 @@ MB_SPEED, MB_YAW_RATE = 3, 5
 
 
 def bmw_plant() -> PlantConfig:
-    """The plant with CommonRoad's BMW 320i parameters and matching tyre stiffness."""
-    wheelbase = BMW.a + BMW.b
-    per_load_prad = -BMW.tire.p_ky1  # C_S mu: the axle's stiffness per unit load
-    front_load = BMW.m * G * BMW.b / wheelbase / 2.0
-    rear_load = BMW.m * G * BMW.a / wheelbase / 2.0
-
-    def shape(load_n: float) -> float:  # K_y / (p_Ky1 F_z0) of the plant's tyre
-        return math.sin(2.0 * math.atan(load_n / (PEAK_LOAD_RATIO * front_load)))
-
-    p_ky1 = per_load_prad * front_load / (front_load * shape(front_load))
-    rear_scale = per_load_prad * rear_load / (p_ky1 * front_load * shape(rear_load))
-    base = PlantConfig()
-    tyre = dataclasses.replace(base.tyre, nominal_load_n=front_load,
-                               cornering_stiffness_max_prad=p_ky1,
-                               cornering_stiffness_peak_load_ratio=PEAK_LOAD_RATIO,
-                               longitudinal_friction_scale=BMW.tire.p_dx1 / BMW.tire.p_dy1)
-    return dataclasses.replace(
-        base, mass_kg=BMW.m, yaw_inertia_kgm2=BMW.I_z, cog_front_m=BMW.a, cog_rear_m=BMW.b,
-        cog_height_m=BMW.h_cg, track_front_m=BMW.T_f, track_rear_m=BMW.T_r,
-        wheel_radius_m=BMW.R_w, wheel_inertia_kgm2=BMW.I_y_w,
-        max_steer_rad=BMW.steering.max, max_steer_rate_radps=BMW.steering.v_max,
-        tyre_friction=BMW.tire.p_dy1, tyre=tyre, drag_area_m2=0.0, rolling_resistance=0.0,
-        front_cornering_stiffness_scale=1.0, rear_cornering_stiffness_scale=rear_scale)
+    """The plant with CommonRoad's BMW 320i parameters and matching tyre stiffness
+    (:func:`cosim.plant.commonroad_cars.plant_of`), on the set's own friction and without
+    the drag and rolling resistance its models lack."""
+    return dataclasses.replace(plant_of(BMW), tyre_friction=BMW.tire.p_dy1, drag_area_m2=0.0,
+                               rolling_resistance=0.0)
 
 
 def steer_for(speed_mps: float) -> float:
