@@ -112,6 +112,7 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=3)
     parser.add_argument("--grid-2d", type=int, default=12)
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--max-rays", type=int, default=33)
     parser.add_argument("--work", metavar="DIR",
                         help="work folder (default: a new temporary one); an envelope search "
                              "already there is resumed, not run again")
@@ -128,7 +129,7 @@ def main() -> None:
     spec.write_text(yaml.safe_dump({
         "scenario": "lane-change", "seeds": seeds, "requirement": REQUIREMENT,
         "parameters": {k: v[1] for k, v in LIMITS.items()}, "failure_rate": FAILURE_RATE,
-        "resolution": RESOLUTION}))
+        "resolution": RESOLUTION, "max_rays": args.max_rays}))
     start = time.perf_counter()
     resume = (work / "envelope" / "results.jsonl").is_file()
     result = run_envelope(spec, work / "envelope", args.workers, "process", resume=resume)

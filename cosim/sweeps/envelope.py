@@ -146,7 +146,9 @@ class EnvelopeDir:
     def prepare(self, resume: bool, force: bool) -> dict[Key, dict[str, Any]]:
         """Make the folder (refusing one with files unless ``force`` or ``resume``) and
         return the rows of an earlier invocation of the same spec (``resume``)."""
-        digest = json.dumps(self.spec.to_dict(), sort_keys=True, default=str)
+        # The runs a search took stay valid whatever the ray budget: more rays resume it.
+        digest = json.dumps({k: v for k, v in self.spec.to_dict().items() if k != "max_rays"},
+                            sort_keys=True, default=str)
         spec_file = self.root / SPEC_FILE
         if resume:
             if not spec_file.is_file():

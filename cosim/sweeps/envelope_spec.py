@@ -16,7 +16,7 @@ Format (YAML)::
       plant.tyre_friction: 0.3
     failure_rate: 0.1                # the boundary: where more than 10 % of seeds fail
     resolution: 0.005                # a critical value to 0.5 % of its nominal value
-    max_rays: 17                     # two parameters: at most this many rays
+    max_rays: 33                     # two parameters: at most this many rays
 
 Each parameter's nominal value is the scenario's (after ``set:``) and must be a number; a
 ``plant.*`` parameter's belief (``tracker.model.*``, ``tracker.latency_s``) stays at its
@@ -167,7 +167,7 @@ def load_envelope_spec(path: str | Path) -> EnvelopeSpec:
     if not _number(resolution) or not 1e-5 <= resolution <= 0.2:
         raise reader.error(f"resolution: {shown(resolution)}: expected a fraction of the "
                            "nominal value in [1e-05, 0.2] (0.005: half a per cent)")
-    max_rays = data.get("max_rays", 17)
+    max_rays = data.get("max_rays", 33)
     if isinstance(max_rays, bool) or not isinstance(max_rays, int) or not 2 <= max_rays <= 65:
         raise reader.error(f"max_rays: {shown(max_rays)}: expected an integer in [2, 65]")
     return EnvelopeSpec(
