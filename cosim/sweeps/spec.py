@@ -366,7 +366,15 @@ class SpecReader:
             raise self.error(f"expected a mapping with {', '.join(self.keys[:4])} ...")
         unknown = sorted(set(data) - set(self.keys), key=str)
         if unknown:
-            raise self.error(f"unknown key {shown(unknown[0])}: expected one of "
+            other = {"sweep spec": ("envelope", ("requirement", "parameters", "failure_rate",
+                                                 "resolution", "max_rays")),
+                     "envelope spec": ("sweep", ("grid", "random", "pass", "metric"))}
+            command, keys = other.get(self.what, ("", ()))
+            hint = (f" (an {command} spec? run `cosim {command}` on it)"
+                    if command == "envelope" and unknown[0] in keys else
+                    f" (a {command} spec? run `cosim {command}` on it)"
+                    if command and unknown[0] in keys else "")
+            raise self.error(f"unknown key {shown(unknown[0])}{hint}: expected one of "
                              f"{', '.join(self.keys)}")
         return data
 

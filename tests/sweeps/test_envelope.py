@@ -176,3 +176,16 @@ def test_a_bad_envelope_spec_is_one_line(body: str, fragment: str, tmp_path: Pat
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and fragment in err[0], err
     assert not (tmp_path / "out").exists()
+
+
+def test_a_spec_of_the_other_kind_names_the_command(tmp_path: Path,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    from cosim.cli import main
+
+    examples = Path(__file__).resolve().parents[2] / "examples"
+    assert main(["sweep", str(examples / "envelope-mass-friction.yaml"), "--out",
+                 str(tmp_path / "a")]) == 2
+    assert "(an envelope spec? run `cosim envelope` on it)" in capsys.readouterr().err
+    assert main(["envelope", str(examples / "mass-friction.yaml"), "--out",
+                 str(tmp_path / "b")]) == 2
+    assert "(a sweep spec? run `cosim sweep` on it)" in capsys.readouterr().err
