@@ -34,6 +34,7 @@ LAYERS: dict[str, int] = {
     "estimation": 2,
     "cosim.sensing": 1,
     "cosim.scenarios": 1,
+    "cosim.cars": 1,
     "cosim.core": 0,
     "cosim": 8,
 }
