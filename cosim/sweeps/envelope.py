@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -212,7 +213,9 @@ def run_envelope(spec_path: str | Path, out_dir: Path, workers: int | None,
                 found[key] = row
                 ran += 1
 
-            if tasks:
+            if tasks:  # a line a round: a search of many rounds says how far it is
+                print(f"envelope: {len(tasks)} more run(s) ({ran} done so far)",
+                      file=sys.stderr, flush=True)
                 runner.run(tasks, land)
             if len(found) < len(keys):
                 raise KeyboardInterrupt  # a run was interrupted: --resume goes on
