@@ -174,6 +174,7 @@ class EnvelopeDir:
 def run_envelope(spec_path: str | Path, out_dir: Path, workers: int | None,
                  backend: str, resume: bool = False, force: bool = False) -> EnvelopeResult:
     """Search the envelope of ``spec_path`` into ``out_dir`` (module docstring)."""
+    from cosim.sweeps.driver import sigterm_as_interrupt
     from cosim.sweeps.execute import make_backend
 
     start = time.perf_counter()
@@ -221,7 +222,8 @@ def run_envelope(spec_path: str | Path, out_dir: Path, workers: int | None,
                 raise KeyboardInterrupt  # a run was interrupted: --resume goes on
             return found
 
-        searches, rows = search(spec, evaluate)
+        with sigterm_as_interrupt():  # SIGTERM as Ctrl-C: the rows so far are kept
+            searches, rows = search(spec, evaluate)
     result = EnvelopeResult(spec, searches, len(rows), ran, time.perf_counter() - start)
     from cosim.sweeps.envelope_report import write_outputs
 

@@ -40,6 +40,7 @@ import signal
 import sys
 import threading
 import time
+import warnings
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from multiprocessing.managers import SyncManager
@@ -82,7 +83,9 @@ def _now() -> str:
 def _run_task(task: RunTask, row: dict[str, Any], workshop: Workshop | None) -> None:
     """Run ``task`` and fill ``row``'s metrics and error (:func:`execute_task`)."""
     from cosim.core.config_fields import to_dict
+    from cosim.simulation.belief_check import BeliefMismatchWarning
     from cosim.simulation.beliefs import mismatch_table
+    from cosim.simulation.filter_health import FilterInconsistentWarning
     from cosim.simulation.outcome import SEVERITY
     from cosim.simulation.runner import run, run_unlogged
     from cosim.simulation.scenario_config import load_config
@@ -90,11 +93,16 @@ def _run_task(task: RunTask, row: dict[str, Any], workshop: Workshop | None) -> 
     config = load_config(task.scenario, None, list(task.overrides), task.seed,
                          task.duration_s, task.tracker, task.estimator)
     row["mismatch"] = [r.text() for r in mismatch_table(to_dict(config))]
-    if task.log_path is None:  # no log kept: none written (the same metrics, bit for bit)
-        result = run_unlogged(config, workshop=workshop)
-    else:
-        Path(task.log_path).parent.mkdir(parents=True, exist_ok=True)
-        result = run(config, Path(task.log_path), workshop=workshop)
+    with warnings.catch_warnings():
+        # The end-of-run checks are in the row's metrics (belief_mismatches,
+        # filter_warnings): a warning from every run of a sweep would drown its progress.
+        warnings.simplefilter("ignore", BeliefMismatchWarning)
+        warnings.simplefilter("ignore", FilterInconsistentWarning)
+        if task.log_path is None:  # no log kept: none written (the same metrics)
+            result = run_unlogged(config, workshop=workshop)
+        else:
+            Path(task.log_path).parent.mkdir(parents=True, exist_ok=True)
+            result = run(config, Path(task.log_path), workshop=workshop)
     row["metrics"] = {k: _plain(v) for k, v in result.metrics.items()}
     if result.abort_reason == "interrupted":
         row["interrupted"] = True

@@ -256,3 +256,19 @@ def test_several_metrics_are_plotted_and_a_lower_bound_is_drawn(tmp_path: Path) 
     assert all(p.stat().st_size > 10_000 for p in paths)
     with pytest.raises(ConfigError, match=r"metric: \[\]"):
         load_spec(write_spec(tmp_path, "scenario: acc-braking\nmetric: []\n", "empty.yaml"))
+
+
+def test_a_sweep_run_records_its_end_of_run_warnings_in_its_row(tmp_path: Path) -> None:
+    """A sweep worker's run does not print the belief check's warning (every run of a sweep
+    would): the row's metrics carry it."""
+    import warnings
+
+    from cosim.simulation.belief_check import BeliefMismatchWarning
+
+    spec = load_spec(write_spec(tmp_path, "scenario: lane-change\nduration_s: 3\nseeds: 1\n"
+                                "set: {sensors.gnss.sigma_m: 0.3}\n"))
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        row = execute_task(spec.tasks()[0])
+    assert row["metrics"]["belief_mismatches"] >= 1
+    assert not [w for w in seen if issubclass(w.category, BeliefMismatchWarning)]
