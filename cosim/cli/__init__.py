@@ -31,9 +31,14 @@ Exit codes of ``cosim run``: 0 when the run's outcome is ``ok`` (and no --fail-i
 run ended badly (its ``outcome`` is ``spun``, ``rolled_over``, ``off_road``,
 ``end_of_path``, ``diverged`` ...: see cosim.simulation.outcome) or a --fail-if condition
 holds (the log is complete up to the end or the abort in both cases); 130 on an interrupt;
-1 when a file cannot be written (a full disk) or a standard stream is closed.
-A sweep exits 0 when every run has a row (failed runs, failed pass criteria and a run whose
-worker process died included: the results say so), 130 on an interrupt (finish with --resume).
+1 when a file cannot be written (a full disk) or a standard stream is closed. A run's
+simulation goes on in a child process that ``cosim run`` watches (cosim.cli.guard): when
+foreign code ends that process (an FMU's library that crashes, a plug-in calling
+``os._exit``), the command says so in one line, names the likely component and the log up to
+then, and exits 3.
+A sweep exits 3 when a run failed (an error, a bad outcome, a failed pass criterion; 0 with
+--exit-zero) and every run has a row (a run whose worker process died included: the results
+say so), 130 on an interrupt (finish with --resume).
 
 One module per command (or family of commands), each adding its parsers and returning its
 handlers: :mod:`~cosim.cli.run`, :mod:`~cosim.cli.inspect_log`, :mod:`~cosim.cli.views`
@@ -49,6 +54,7 @@ import argparse
 import sys
 import warnings
 from collections.abc import Sequence
+from typing import Any
 
 from cosim.cli import (
     compare,
@@ -101,9 +107,29 @@ def build_parser() -> tuple[argparse.ArgumentParser, dict[str, Handler]]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``cosim`` console script."""
+    """Entry point of the ``cosim`` console script.
+
+    ``argv`` None reads this process's command line, and ``cosim run`` then runs the
+    simulation in a child process it watches (:mod:`cosim.cli.guard`: foreign native code
+    that ends its process leaves a line saying so and the log); a list runs every command in
+    this process (tests, embedding)."""
     parser, handlers = build_parser()
     args = parser.parse_args(argv)
+    args.reporter = None
+    if argv is None and args.command == "run":
+        from cosim.cli.guard import Death, guarded
+
+        def body(reporter: Any) -> int:
+            args.reporter = reporter
+            return _dispatch(args, handlers)
+
+        ended = guarded(body)
+        return run.died(args, ended) if isinstance(ended, Death) else ended
+    return _dispatch(args, handlers)
+
+
+def _dispatch(args: argparse.Namespace, handlers: dict[str, Handler]) -> int:
+    """Run the command of ``args``: its exit code, every user error as one line."""
     try:
         with warnings.catch_warnings():
             warnings.showwarning = one_line_warning

@@ -89,7 +89,6 @@ def add_parsers(commands: Any) -> dict[str, Handler]:
 def command(args: argparse.Namespace) -> int:
     from cosim.simulation.fail_if import bind_formulas, formula_requirements, parse_conditions
     from cosim.simulation.requirements import with_requirements
-    from cosim.simulation.runner import run
     from cosim.simulation.scenario_config import load_config
 
     conditions = parse_conditions(args.fail_if)
@@ -105,8 +104,30 @@ def command(args: argparse.Namespace) -> int:
     config, first = with_requirements(config, formula_requirements(conditions, args.require),
                                       "--require")
     conditions = bind_formulas(conditions, args.require, first)
+    reporter = getattr(args, "reporter", None)
+    if reporter is not None:
+        reporter.tracker(config.tracker.name)
+    with _claim_out(args, config.name) as out:
+        if reporter is not None:
+            reporter.log(out)
+        return _run_and_report(args, config, out, live, conditions, reporter)
+
+
+def _run_and_report(args: argparse.Namespace, config: Any, out: Path, live: Any,
+                    conditions: list[Any], reporter: Any) -> int:
+    """Run ``config`` to ``out``, print its metrics and return the exit code (in the
+    guarded child, ``reporter`` tells the parent how far the run is)."""
+    from cosim.simulation.runner import run
+
+    duration_s = config.sim.duration_s
+
+    def reached(done: float) -> None:
+        if reporter is not None:
+            if done == 0.0:
+                reporter.ready()
+            reporter.reached(done * duration_s)
+
     with contextlib.ExitStack() as stack:
-        out = stack.enter_context(_claim_out(args, config.name))
         mirror = None
         if live is not None:
             from cosim.log.live import LiveStream
@@ -121,21 +142,25 @@ def command(args: argparse.Namespace) -> int:
 
                 with Progress(transient=True) as bar:
                     task = bar.add_task(f"{config.name}", total=1.0)
-                    result = run(config, out, lambda done: bar.update(task, completed=done),
-                                 mirror=mirror)
+
+                    def shown(done: float) -> None:
+                        bar.update(task, completed=done)
+                        reached(done)
+
+                    result = run(config, out, shown, mirror=mirror)
             else:
-                result = run(config, out, mirror=mirror)
+                result = run(config, out, reached, mirror=mirror)
         except CosimError as error:  # refused during the run: say where its log is
             if Path(out).is_file():
                 raise type(error)(f"{error} (the log up to it: {out})") from None
             raise
-    shown = shown_metrics(result.metrics, config.tracker.name == "open-loop", args.all)
+    shown_now = shown_metrics(result.metrics, config.tracker.name == "open-loop", args.all)
     if args.json:
         print(json.dumps({"log": str(result.log_path), "metrics": json_ready(result.metrics)}))
     else:
         print_table(f"{config.name} (seed {config.seed}) -> {result.log_path}",
-                    [(k, format_value(v)) for k, v in shown.items()])
-        hidden = len(result.metrics) - len(shown)
+                    [(k, format_value(v)) for k, v in shown_now.items()])
+        hidden = len(result.metrics) - len(shown_now)
         if hidden > 0:
             print(f"  ({hidden} more metrics: --all, or cosim inspect {result.log_path})")
     if result.abort_reason == "interrupted":
@@ -148,6 +173,61 @@ def command(args: argparse.Namespace) -> int:
         print(describe(render_for_cli(result.log_path, args.video, RenderOptions())),
               file=sys.stderr if args.json else sys.stdout)
     return _exit_code(result, conditions)
+
+
+def died(args: argparse.Namespace, death: Any) -> int:
+    """Say how the guarded run's process (:mod:`cosim.cli.guard`) ended without finishing,
+    which component is the likely cause and what is left of the log; exit 3 (130 for an
+    interrupt that came before the run's own handler)."""
+    out = None if death.log_path is None else Path(death.log_path)
+    if out is not None:
+        from cosim.log.output_claim import lock_path
+        from cosim.log.safe_file import partial_path
+
+        partial_path(out).unlink(missing_ok=True)  # died before the log took its name
+        lock_path(out).unlink(missing_ok=True)  # its holder is gone: the claim with it
+    if death.interrupted:
+        print(f"cosim: interrupted ({death.how}); {_what_is_left(out)}", file=sys.stderr)
+        return EXIT_INTERRUPT
+    when = "during set-up" if death.last_t_s is None else \
+        f"after t = {death.last_t_s:.2f} s of the run"
+    reason = f"the run's process died {when} ({death.how}, without a word)"
+    cause = _likely_cause(death.tracker)
+    print(f"cosim: error: {reason}: {cause}; {_what_is_left(out)}", file=sys.stderr)
+    if args.json:
+        print(json.dumps({"log": str(out) if out is not None and out.is_file() else None,
+                          "metrics": {"outcome": "error", "completed": False,
+                                      "abort_reason": f"{reason}: {cause}"}}))
+    return EXIT_BAD_OUTCOME
+
+
+def _likely_cause(name: str | None) -> str:
+    from tracker.config import is_plugin_name
+    from tracker.fmu.config import is_fmu_name
+
+    if name is None:
+        return "it died before its configuration was read"
+    if is_fmu_name(name):
+        return (f"the tracker {name!r} is an FMU whose own code runs in the run's process, "
+                "the likely cause")
+    if is_plugin_name(name):
+        return (f"the tracker {name!r} is a plug-in whose own code runs in the run's process, "
+                "the likely cause")
+    return ("no foreign component in this run: native code of the simulation (MuJoCo, "
+            "CasADi, the compiled pieces) failed or the process was killed")
+
+
+def _what_is_left(out: Path | None) -> str:
+    if out is None or not out.is_file():
+        return "no log was written (the run had not started)"
+    from cosim.log.reader import read_summary
+
+    try:
+        summary = read_summary(out)
+    except Exception:  # noqa: BLE001 - any unreadable log gets the same answer
+        return f"the log {str(out)!r} holds nothing readable"
+    return (f"the log up to t = {summary.duration_s:.2f} s (its last complete chunk) is in "
+            f"{out} (cosim inspect reads it)")
 
 
 def _live_options(args: argparse.Namespace) -> Any:

@@ -280,6 +280,11 @@ class McapWriter:
         if len(chunk) > self._chunk_size:
             self._finish_chunk()
 
+    def flush(self) -> None:
+        """Finish the chunk being filled now: a reader of the file so far (a run that dies
+        next) sees every record added before."""
+        self._finish_chunk()
+
     def _finish_chunk(self) -> None:
         """Compress and write the chunk being filled, its message indexes after it (one
         ``write``), and keep its Chunk Index for the summary. Nothing for an empty chunk."""

@@ -170,7 +170,10 @@ class McapRecorder:
             self.close()
 
     def publish(self) -> None:
-        """Put the log at its final name (the run has started for real); idempotent."""
+        """Put the log at its final name (the run has started for real), its header, channels
+        and first messages in a complete chunk (readable whatever happens next); idempotent."""
+        if not self._pending.published:
+            self._writer.flush()
         self._pending.publish()
 
     def abandon(self) -> None:

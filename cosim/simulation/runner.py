@@ -552,9 +552,12 @@ class _Run:
     def loop(self, stop: _StopRequest, progress: Callable[[float], None] | None) -> None:
         """Step ``k`` is observed, controlled and acted on where something is due; between
         such steps the plant advances in one call (:meth:`MujocoPlant.advance_steps`: in
-        compiled code), with nothing else to do there: the same steps, the same answers."""
+        compiled code), with nothing else to do there: the same steps, the same answers.
+        ``progress(0.0)`` comes first: the run's signal handler is in place from then on."""
         clock = self.clock
         k = 0
+        if progress is not None:
+            progress(0.0)
         while True:
             if not self.observe(k):
                 return

@@ -1,0 +1,102 @@
+"""``cosim run`` watched from a parent process (:mod:`cosim.cli.guard`): foreign code that
+ends the run's process, and interrupts that come while the run is still being set up."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from cosim.cli.guard import Death, Reporter, guarded
+from cosim.log.reader import read_summary
+from cosim.log.safe_file import partial_path
+
+COSIM = str(Path(sys.executable).with_name("cosim"))
+ROOT = Path(__file__).resolve().parents[2]
+HARD_EXIT = "tests.user_trackers:HardExit"
+
+
+def _run(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([COSIM, "run", "lane-change", *args], capture_output=True,
+                          text=True, cwd=ROOT, timeout=600)
+
+
+def test_guarded_returns_the_childs_code_or_how_it_died() -> None:
+    assert guarded(lambda reporter: 4) == 4
+
+    def dies(reporter: Reporter) -> int:
+        reporter.ready()
+        reporter.reached(1.25)
+        os._exit(7)
+
+    death = guarded(dies)
+    assert death == Death(how="exit status 7", last_t_s=1.25, log_path=None, tracker=None,
+                         interrupted=False)
+
+    def crashes(reporter: Reporter) -> int:
+        os.kill(os.getpid(), signal.SIGSEGV)
+        return 0
+
+    assert guarded(crashes) == Death(how="signal SIGSEGV", last_t_s=None, log_path=None,
+                                   tracker=None, interrupted=False)
+
+
+@pytest.mark.parametrize("fail_at_s, logged_s", [(2.5, 1.0), (0.3, 0.0)])
+def test_a_plugin_that_ends_the_process_is_named_and_the_log_kept(
+        fail_at_s: float, logged_s: float, tmp_path: Path) -> None:
+    """Before the guard: exit 7, nothing printed, and at 0.3 s no readable log."""
+    out = tmp_path / "hard-exit.mcap"
+    done = _run("--tracker", HARD_EXIT, "--set", f"tracker.params.fail_at_s={fail_at_s}",
+                "--out", str(out), "--json")
+    assert done.returncode == 3, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in done.stderr, done.stderr
+    assert "the run's process died" in lines[0] and "exit status 7" in lines[0]
+    assert f"the tracker {HARD_EXIT!r} is a plug-in" in lines[0]
+    assert str(out) in lines[0]
+    document = json.loads(done.stdout)
+    assert document["metrics"]["completed"] is False
+    assert document["metrics"]["outcome"] == "error"
+    summary = read_summary(out)  # up to its last complete chunk, the config with it
+    assert summary.truncated and logged_s <= summary.duration_s < fail_at_s
+    assert {c.topic for c in summary.channels} >= {"/vehicle/truth", "/control/command"}
+    assert not partial_path(out).exists()
+
+
+def _started(out: Path, process: subprocess.Popen[str]) -> None:
+    """Wait (without timing anything) until the child has begun its set-up: the log's
+    temporary file exists."""
+    deadline = time.monotonic() + 300
+    while not partial_path(out).exists() and not out.exists() and process.poll() is None:
+        if time.monotonic() > deadline:
+            process.kill()
+            pytest.fail("the run never started its log")
+        time.sleep(0.005)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+def test_an_interrupt_during_set_up_stops_the_run_at_its_start(signum: int,
+                                                               tmp_path: Path) -> None:
+    """Before the guard a SIGTERM during set-up exited 143 without a word, and a Ctrl-C
+    that native code swallowed let the run go on to exit 0."""
+    out = tmp_path / "early.mcap"
+    process = subprocess.Popen([COSIM, "run", "lane-change", "--out", str(out)],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               cwd=ROOT, start_new_session=True)
+    _started(out, process)
+    os.killpg(process.pid, signum)  # as a terminal's Ctrl-C reaches every process
+    _, stderr = process.communicate(timeout=300)
+    assert process.returncode == 130, stderr
+    assert "interrupted" in stderr and "Traceback" not in stderr
+    if out.exists():  # stopped at its first step: a complete log saying so
+        summary = read_summary(out)
+        assert summary.metrics is not None and summary.metrics["completed"] is False
+        assert summary.metrics["sim_duration_s"] < 1.0
+    assert not partial_path(out).exists()
