@@ -30,6 +30,7 @@ import math
 import socket
 import threading
 import time
+import warnings
 from dataclasses import dataclass
 from typing import Any
 
@@ -41,6 +42,14 @@ LATCHED_TOPICS = (topics.REFERENCE_PATH, topics.SCENE)
 
 DEFAULT_PORT = 8765
 """Foxglove's default port for a WebSocket connection."""
+
+STOP_WAIT_S = 2.0
+"""How long the end of a live run waits for its clients to take what is queued for them."""
+
+
+class LiveClientStalled(UserWarning):
+    """A live client stopped reading: the server was not waited for (:meth:`LiveStream.close`)."""
+
 
 MESSAGE_BACKLOG = 16384
 """Messages queued per client before the oldest are dropped: about three simulated seconds
@@ -180,11 +189,23 @@ class LiveStream:
         self.close()
 
     def close(self) -> None:
-        """Stop the server (idempotent); connected clients see the connection close."""
+        """Stop the server (idempotent); connected clients see the connection close.
+
+        ``stop()`` waits for every client to take what is queued for it, so a client that
+        has stopped reading held the command for most of a minute after the run. It is
+        waited for :data:`STOP_WAIT_S` at most; then a warning says so and the connection is
+        left to close with the process."""
         self._closed = True
         server, self._server = self._server, None
-        if server is not None:
-            server.stop()
+        if server is None:
+            return
+        stopping = threading.Thread(target=server.stop, name="cosim-live-stop", daemon=True)
+        stopping.start()
+        stopping.join(STOP_WAIT_S)
+        if stopping.is_alive():
+            warnings.warn(f"live: a client of {self.url} is not reading what it was sent: "
+                          "its connection is left to close when this command ends",
+                          LiveClientStalled, stacklevel=2)
 
     # The recorder's mirror protocol.
     def register(self, topic: str, schema_name: str, schema: bytes) -> None:

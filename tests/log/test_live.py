@@ -327,3 +327,47 @@ def test_ctrl_c_with_a_client_connected_keeps_the_log(tmp_path: Path) -> None:
     metrics = [m for _, m in iter_messages(log, "/metrics")]
     assert metrics[-1]["completed"] is False
     assert metrics[-1]["sim_duration_s"] < 10
+
+
+async def _subscribe_and_stall(port: int, process: subprocess.Popen[bytes]) -> None:
+    """Subscribe to every channel, then read nothing more until the run's process ends
+    (the client's queue holds one frame: the socket fills, the server's backlog with it)."""
+    deadline_s = time.monotonic() + 240
+    while True:
+        try:
+            client = await websockets.connect(f"ws://127.0.0.1:{port}",
+                                              subprotocols=SUBPROTOCOLS, max_size=None,
+                                              max_queue=1)
+            break
+        except OSError:
+            if process.poll() is not None or time.monotonic() > deadline_s:
+                pytest.fail("the live run never served")
+            await asyncio.sleep(0.05)
+    advertised: list[dict[str, Any]] = []
+    while not advertised:
+        frame = await client.recv()
+        if isinstance(frame, str) and json.loads(frame)["op"] == "advertise":
+            advertised = json.loads(frame)["channels"]
+    await client.send(json.dumps({"op": "subscribe", "subscriptions": [
+        {"id": i + 1, "channelId": channel["id"]} for i, channel in enumerate(advertised)]}))
+    while process.poll() is None and time.monotonic() < deadline_s:
+        await asyncio.sleep(0.1)
+    client.transport.abort()
+
+
+@pytest.mark.slow
+def test_a_client_that_stops_reading_does_not_hold_the_command(tmp_path: Path) -> None:
+    """Before: the server's stop waited for the client, the metrics came most of a minute
+    after the run, with nothing said."""
+    port = free_port()
+    process = subprocess.Popen(
+        cosim("run", "lane-change", "--live", "--port", str(port), "--out",
+              str(tmp_path / "stalled.mcap")),
+        env={**os.environ, "MUJOCO_GL": "disable"}, stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE)
+    asyncio.run(_subscribe_and_stall(port, process))
+    out, err = process.communicate(timeout=300)
+    assert process.returncode == 0, err.decode()
+    assert "cte_max_m" in out.decode()
+    warning = [line for line in err.decode().splitlines() if "not reading" in line]
+    assert len(warning) == 1 and warning[0].startswith("cosim: warning: live: a client")
