@@ -18,9 +18,11 @@ from __future__ import annotations
 
 import collections
 import ctypes
+import os
 import shutil
 import tempfile
 import weakref
+from pathlib import Path
 from typing import Any
 
 import fmpy
@@ -140,8 +142,32 @@ class FmuSlave:
 
 
 def _make_unzip_dir(prefix: str) -> str:
-    """A new private folder for the extracted FMU (:func:`tempfile.mkdtemp`)."""
-    return tempfile.mkdtemp(prefix=prefix)
+    """A new private folder for the extracted FMU (:func:`tempfile.mkdtemp`), named with
+    this process's id; the folders of processes that died without removing theirs (a
+    crash, ``os._exit``, ``kill -9``) are removed first (:func:`_remove_orphans`)."""
+    _remove_orphans(prefix)
+    return tempfile.mkdtemp(prefix=f"{prefix}{os.getpid()}-")
+
+
+def _remove_orphans(prefix: str) -> None:
+    """Remove ``PREFIX<pid>-*`` folders in the temporary folder whose process has ended.
+    A folder of a live process (or of a pid now reused) is left alone."""
+    root = Path(tempfile.gettempdir())
+    for folder in root.glob(f"{prefix}*-*"):
+        pid = folder.name[len(prefix):].split("-", 1)[0]
+        if not pid.isdigit() or _alive(int(pid)):
+            continue
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
 
 
 def _fmi2_callbacks(logger: Any) -> fmi2CallbackFunctions:

@@ -5,6 +5,7 @@ Each bad FMU is the working C FMU (examples/fmu/stanley.c) with one thing broken
 
 from __future__ import annotations
 
+import os
 import zipfile
 from collections.abc import Callable
 from pathlib import Path
@@ -220,3 +221,24 @@ def test_an_fmu_that_fails_during_the_run_ends_it_with_the_reason(
                  "--out", str(tmp_path / "cli.mcap")])
     err = capsys.readouterr().err
     assert code == 3 and reason in err and "Traceback" not in err
+
+
+def test_an_fmu_folder_left_by_a_dead_process_is_removed(tmp_path: Path,
+                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """A run that died (a crash, ``os._exit``, ``kill -9``) left its extracted FMU in the
+    temporary folder for good; the next FMU's load removes it, and only it."""
+    import subprocess
+
+    from tracker.fmu import slave
+
+    monkeypatch.setattr(slave.tempfile, "tempdir", str(tmp_path))
+    dead = subprocess.Popen(["true"])
+    dead.wait()
+    orphan = tmp_path / f"cosim-fmu-{dead.pid}-x1"
+    alive = tmp_path / f"cosim-fmu-{os.getppid()}-x2"
+    foreign = tmp_path / "cosim-fmu-abc"
+    for folder in (orphan, alive, foreign):
+        (folder / "binaries").mkdir(parents=True)
+    made = Path(slave._make_unzip_dir("cosim-fmu-"))
+    assert made.parent == tmp_path and made.name.startswith(f"cosim-fmu-{os.getpid()}-")
+    assert not orphan.exists() and alive.exists() and foreign.exists()
