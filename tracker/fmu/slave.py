@@ -70,7 +70,7 @@ class FmuSlave:
         if d.fmi_major == 2:
             self._fmu = FMU2Slave(**common)
             self._callbacks = _fmi2_callbacks(self._log2)
-            self._fmu.instantiate(callbacks=self._callbacks)
+            self._fmu.instantiate(callbacks=self._callbacks, loggingOn=True)
             self._set_parameters()
             self._fmu.setupExperiment(startTime=0.0)
             self._fmu.enterInitializationMode()
@@ -78,7 +78,7 @@ class FmuSlave:
             self._set, self._get = self._fmu.setReal, self._fmu.getReal
         else:
             self._fmu = FMU3Slave(**common)
-            self._fmu.instantiate(logMessage=self._log3)
+            self._fmu.instantiate(loggingOn=True, logMessage=self._log3)
             self._set_parameters()
             self._fmu.enterInitializationMode(startTime=0.0)
             self._fmu.exitInitializationMode()

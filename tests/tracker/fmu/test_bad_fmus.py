@@ -242,3 +242,31 @@ def test_an_fmu_folder_left_by_a_dead_process_is_removed(tmp_path: Path,
     made = Path(slave._make_unzip_dir("cosim-fmu-"))
     assert made.parent == tmp_path and made.name.startswith(f"cosim-fmu-{os.getpid()}-")
     assert not orphan.exists() and alive.exists() and foreign.exists()
+
+
+def test_a_python_fmus_own_error_text_is_kept(tmp_path: Path,
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    """A pythonfmu FMU whose ``do_step`` raises: before, the run said only "fmi2DoStep failed
+    with status 4 (fatal)" (the FMU was instantiated with logging off, so it said nothing)."""
+    import subprocess
+    import sys
+
+    examples = Path(__file__).resolve().parents[3] / "examples" / "fmu"
+    script = (examples / "pure_pursuit_fmi2.py").read_text().replace(
+        "class PurePursuitFmi2", "class RaisingFmi2").replace(
+        "    def do_step(self, current_time, step_size):\n",
+        "    def do_step(self, current_time, step_size):\n"
+        "        if current_time >= 0.5:\n"
+        "            raise ValueError('the lookahead table ran out')\n")
+    (tmp_path / "raising_fmi2.py").write_text(script)
+    law = tmp_path / "pure_pursuit_law.py"
+    law.write_text((examples / law.name).read_text())
+    subprocess.run([sys.executable, "-m", "pythonfmu", "build", "-f", "raising_fmi2.py", "-d",
+                    str(tmp_path), law.name], check=True, capture_output=True, cwd=tmp_path)
+    name = f"fmu:{tmp_path / 'RaisingFmi2.fmu'}"
+    code = main(["run", "lane-change", "--tracker", name, "--duration", "1",
+                 "--out", str(tmp_path / "raising.mcap")])
+    err = capsys.readouterr().err
+    assert code == 3 and "Traceback" not in err
+    assert "failed at t = 0.500 s" in err
+    assert "(the FMU said: ValueError('the lookahead table ran out'))" in err
