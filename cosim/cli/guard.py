@@ -35,6 +35,7 @@ import os
 import selectors
 import signal
 import sys
+import traceback
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
@@ -69,7 +70,7 @@ class Reporter:
     def _send(self, line: str) -> None:
         if self._descriptor is not None:
             with contextlib.suppress(OSError):
-                os.write(self._descriptor, f"{line}\n".encode())
+                os.write(self._descriptor, f"{line}\n".encode(errors="surrogateescape"))
 
     def log(self, path: object) -> None:
         """The run's log is ``path``."""
@@ -152,6 +153,10 @@ def _child(body: Callable[[Reporter], int], reporter: Reporter) -> None:  # prag
     signal.signal(signal.SIGTERM, signal.default_int_handler)
     try:
         code = body(reporter)
+    except SystemExit as done:
+        code = done.code if isinstance(done.code, int) else 1
+    except BaseException:  # a bug: shown as Python would show it at exit
+        traceback.print_exc()
     finally:
         for stream in (sys.stdout, sys.stderr):
             with contextlib.suppress(OSError, ValueError):
@@ -214,7 +219,7 @@ def _follow(read_end: int, state: _State) -> None:
             buffer += data
             *lines, buffer = buffer.split(b"\n")
             for line in lines:
-                _take(line.decode(errors="replace"), state)
+                _take(line.decode(errors="surrogateescape"), state)
 
 
 def _take(line: str, state: _State) -> None:

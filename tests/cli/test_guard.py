@@ -25,7 +25,7 @@ HARD_EXIT = "tests.user_trackers:HardExit"
 
 def _run(*args: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run([COSIM, "run", "lane-change", *args], capture_output=True,
-                          text=True, cwd=ROOT, timeout=600)
+                          text=True, errors="surrogateescape", cwd=ROOT, timeout=600)
 
 
 def test_guarded_returns_the_childs_code_or_how_it_died() -> None:
@@ -102,3 +102,19 @@ def test_an_interrupt_during_set_up_stops_the_run_at_its_start(signum: int,
         assert summary.metrics is not None and summary.metrics["completed"] is False
         assert summary.metrics["sim_duration_s"] < 1.0
     assert not partial_path(out).exists()
+
+
+def test_a_bug_in_the_child_is_shown_not_swallowed(capfd: pytest.CaptureFixture[str]) -> None:
+    def buggy(reporter: Reporter) -> int:
+        raise ZeroDivisionError("a bug")
+
+    assert guarded(buggy) == 1
+    assert "ZeroDivisionError: a bug" in capfd.readouterr().err
+
+
+def test_a_log_name_that_is_not_utf8_is_run(tmp_path: Path) -> None:
+    """Before: exit 1 and nothing said (the child could not tell the parent the name)."""
+    out = Path(os.fsdecode(bytes(tmp_path) + b"/log-\xff.mcap"))
+    done = _run("--duration", "0.5", "--out", str(out))
+    assert done.returncode == 0, done.stderr
+    assert read_summary(out).metrics is not None
