@@ -124,7 +124,8 @@ class ScenarioConfig:
         "sedan", choices=CAR_NAMES,
         doc="sedan: cosim's own mid-size sedan; ford-escort, bmw-320i, vw-vanagon: "
         "CommonRoad's published parameter sets as the plant (cosim/cars/NAME.yaml) with the "
-        "belief cosim identify finds for each (NAME-belief.yaml); keys set explicitly win")
+        "belief cosim identify finds for each (NAME-belief.yaml) and tracker weights tuned "
+        "for them (published-tuning.yaml); keys set explicitly win")
     sim: SimConfig = section(SimConfig)
     path: PathConfig = section(PathConfig)
     initial: InitialState = section(InitialState)
@@ -324,14 +325,16 @@ def load_config(
 
 
 def _with_car(data: dict[str, Any]) -> dict[str, Any]:
-    """``car: NAME``: the published car's plant and its identified belief under what was
-    set (a bad name is left to from_dict, which names the choices)."""
+    """``car: NAME``: the published car's plant, its identified belief and the tracker
+    weights tuned for the published cars (``cosim/cars/published-tuning.yaml``) under what
+    was set (a bad name is left to from_dict, which names the choices)."""
     name = data.get("car", "sedan")
     if name == "sedan" or name not in CAR_NAMES:
         return data
     folder = importlib.resources.files("cosim.cars")
-    car = _merge(yaml_loads((folder / f"{name}.yaml").read_text()) or {},
-                 yaml_loads((folder / f"{name}-belief.yaml").read_text()) or {})
+    car: dict[str, Any] = {}
+    for part in (f"{name}.yaml", f"{name}-belief.yaml", "published-tuning.yaml"):
+        car = _merge(car, yaml_loads((folder / part).read_text()) or {})
     return _merge(car, data)
 
 
