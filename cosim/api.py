@@ -52,8 +52,8 @@ def load_config(
     ``"key.path=value"`` as ``--set`` takes it (the value is read as YAML). Raises
     :class:`cosim.core.exceptions.ConfigError` naming the bad key or value and what was expected.
     """
-    if duration_s is not None and not (math.isfinite(duration_s) and duration_s >= 0):
-        raise ConfigError(f"duration_s = {duration_s}: expected a number of seconds >= 0")
+    if duration_s is not None and not (math.isfinite(duration_s) and duration_s > 0):
+        raise ConfigError(f"duration_s = {duration_s}: expected a number of seconds > 0")
     if isinstance(overrides, str):  # one string would be read character by character
         raise ConfigError(f"overrides = {overrides!r}: expected a list of 'key.path=value'")
     files = None if config_file is None else \

@@ -98,7 +98,7 @@ def build_parser() -> tuple[argparse.ArgumentParser, dict[str, Handler]]:
         epilog="Every command has its own --help. Configuration keys and their units: "
         "`cosim config keys`; what a run would use: `cosim config show SCENARIO`.")
     parser.add_argument("--version", action="version", version=f"cosim {__version__}")
-    commands = parser.add_subparsers(dest="command", required=True, parser_class=Parser,
+    commands = parser.add_subparsers(dest="command", parser_class=Parser,
                                      metavar="COMMAND")
     handlers: dict[str, Handler] = {}
     for module in COMMAND_MODULES:
@@ -115,6 +115,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     this process (tests, embedding)."""
     parser, handlers = build_parser()
     args = parser.parse_args(argv)
+    if args.command is None:  # `cosim` alone: what it can do, not just "required"
+        parser.print_help()
+        say("cosim: error: expected a command (first time? `cosim run lane-change`)")
+        return EXIT_USAGE
     args.reporter = None
     if argv is None and args.command == "run":
         from cosim.cli.guard import Death, guarded

@@ -17,6 +17,7 @@ validation accepts.
 from __future__ import annotations
 
 import argparse
+import difflib
 from typing import Any
 
 from cosim.cli.common import Handler, Parser
@@ -88,6 +89,16 @@ def keys_table(prefix: str = "") -> list[tuple[str, str, str, str, str]]:
     rows = [(i.key, i.unit, _format_default(i.default), i.expected, i.doc)
             for i in infos if i.key.startswith(prefix)]
     if not rows:
+        # The closest name at the prefix's depth under the same parent ("tire": "tyre").
+        siblings = sorted({i.key.split(".")[len(parts) - 1] for i in infos
+                           if i.key.split(".")[:len(parts) - 1] == parts[:-1]
+                           and len(i.key.split(".")) >= len(parts)})
+        close = difflib.get_close_matches(parts[-1].replace("tire", "tyre"), siblings, n=1,
+                                          cutoff=0.6)
+        if close:
+            shown = ".".join([*parts[:-1], close[0]])
+            raise ConfigError(f"config keys {prefix!r}: no key starts with it; did you mean "
+                              f"{shown!r}?")
         sections = sorted({i.key.split(".")[0].removesuffix("[]") for i in infos})
         raise ConfigError(f"config keys {prefix!r}: no key starts with it; expected a prefix "
                           f"such as one of {', '.join(sections)}")

@@ -97,8 +97,8 @@ def command(args: argparse.Namespace) -> int:
         from cosim.plots.render import check_video_path
 
         check_video_path(args.video, "--video")
-    if args.duration is not None and not (math.isfinite(args.duration) and args.duration >= 0):
-        raise CosimError(f"--duration {args.duration}: expected a number of seconds >= 0")
+    if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
+        raise CosimError(f"--duration {args.duration}: expected a number of seconds > 0")
     config = load_config(args.scenario, args.config, args.overrides, args.seed,
                          args.duration, args.tracker, args.estimator)
     config, first = with_requirements(config, formula_requirements(conditions, args.require),

@@ -12,6 +12,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import datetime
+import difflib
 import importlib.resources
 import math
 import warnings
@@ -88,7 +89,8 @@ class SimConfig:
         doc="period of the Foxglove 3D scenes of the car and the estimate (/scene/car, "
         "/scene/estimate); a whole multiple of log_period_s (25 Hz plays smoothly and "
         "costs a quarter of logging them at the log rate)")
-    duration_s: float = setting(15.0, low=0.0, high=3600.0)
+    duration_s: float = setting(15.0, low=0.001, high=3600.0,
+                                doc="simulated seconds (a run of 0 s has nothing to show)")
     epoch: str = setting(
         DEFAULT_EPOCH,
         doc="UTC date and time of sim time 0 in the log's timestamps (ISO 8601, e.g. "
@@ -180,7 +182,13 @@ def _scenario_data(scenario: str) -> dict[str, Any]:
         data = _read_yaml(path, "scenario")
         data.setdefault("name", path.stem)
         return data
-    known = ", ".join(builtin_scenarios())
+    names = builtin_scenarios()
+    close = difflib.get_close_matches(scenario.replace("_", "-").lower(), list(names), n=1,
+                                      cutoff=0.6)
+    if close:
+        raise ConfigError(f"scenario {scenario!r}: did you mean {close[0]!r}? (every "
+                          "scenario: `cosim scenarios`)")
+    known = ", ".join(names)
     raise ConfigError(
         f"scenario {scenario!r}: expected a built-in name ({known}) or a YAML file path"
     )

@@ -440,8 +440,8 @@ class SpecReader:
     def duration(self, value: Any) -> float | None:
         if value is None:
             return None
-        if not _is_number(value) or value < 0:
-            raise self.error(f"duration_s: {shown(value)}: expected a number of seconds >= 0")
+        if not _is_number(value) or value <= 0:
+            raise self.error(f"duration_s: {shown(value)}: expected a number of seconds > 0")
         return float(value)
 
     def criteria(self, data: dict[str, Any]) -> tuple[PassCriterion, ...]:
