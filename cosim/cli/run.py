@@ -158,7 +158,7 @@ def _run_and_report(args: argparse.Namespace, config: Any, out: Path, live: Any,
     if args.json:
         print(json.dumps({"log": str(result.log_path), "metrics": json_ready(result.metrics)}))
     else:
-        print_table(f"{config.name} (seed {config.seed}) -> {result.log_path}",
+        print_table(f"{config.name} ({_seeds(config)}) -> {result.log_path}",
                     [(k, format_value(v)) for k, v in shown_now.items()])
         hidden = len(result.metrics) - len(shown_now)
         if hidden > 0:
@@ -228,6 +228,13 @@ def _what_is_left(out: Path | None) -> str:
         return f"the log {str(out)!r} holds nothing readable"
     return (f"the log up to t = {summary.duration_s:.2f} s (its last complete chunk) is in "
             f"{out} (cosim inspect reads it)")
+
+
+def _seeds(config: Any) -> str:
+    """The run's seed, and the circuit's where the path is generated from one: they are two
+    seeds (``--seed`` draws the noise, ``path.seed`` the circuit)."""
+    circuit = f", circuit path.seed {config.path.seed}" if config.path.kind == "generated" else ""
+    return f"run seed {config.seed}{circuit}"
 
 
 def _live_options(args: argparse.Namespace) -> Any:

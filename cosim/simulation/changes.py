@@ -161,6 +161,8 @@ def config_changes(config: Mapping[str, Any]) -> list[str]:
             continue
         if key in requests:
             continue
+        if key == "initial.speed_mps" and flat.get("initial.speed_from_profile"):
+            continue  # the profile's speed, resolved by the run: not a change
         if key in flat:  # a key the log lacks is one its cosim did not have yet
             changes.append(f"{key}={shown_value(flat.get(key))}")
     return changes

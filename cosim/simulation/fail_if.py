@@ -84,7 +84,9 @@ class Condition:
             return f"{self.option} {self.text!r} is violated (robustness {value:.4g})"
         if self.formula:  # its requirement is the negation: minus its robustness
             return f"{self.option} {self.text!r} holds (robustness {-value:.4g})"
-        return f"{self.option} {self.text!r} holds"
+        return f"{self.option} {self.text!r} holds ({self.metric} = {value:.4g})" \
+            if isinstance(value, (int, float)) and not isinstance(value, bool) else \
+            f"{self.option} {self.text!r} holds ({self.metric} = {value})"
 
     def holds(self, metrics: dict[str, Any]) -> bool:
         actual = metrics.get(self.metric)

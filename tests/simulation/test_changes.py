@@ -43,6 +43,11 @@ def test_what_follows_another_change_is_not_listed() -> None:
         "plant.actuator_delay_s=0.1", "tracker.latency_s=plant"]
     assert changes("plant.actuator_delay_s=0.1", "tracker.latency_s=0.1") == [
         "plant.actuator_delay_s=0.1", "tracker.latency_s=0.1"]
+    # The initial speed a generated circuit's profile gives (resolved by the run, logged
+    # resolved) was listed as a change the user never made.
+    logged = to_dict(load_config("generated-circuit", overrides=["path.seed=7"]))
+    logged["initial"]["speed_mps"] = 25.0
+    assert config_changes(logged) == ["path.seed=7"]
     # A belief set on purpose against its suite is a change.
     assert "estimator.noise.gnss_sigma_m=0.3" in changes(
         "sensors.suite=gnss", "estimator.noise.gnss_sigma_m=0.3")

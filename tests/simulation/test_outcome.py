@@ -128,7 +128,8 @@ def test_fail_if_turns_a_metric_into_exit_3(tmp_path: Path,
     assert main([*base, "--out", str(tmp_path / "b.mcap"), "--fail-if", "cte_max_m>=0",
                  "--fail-if", "completed==true"]) == EXIT_BAD_OUTCOME
     line = capsys.readouterr().err.strip().splitlines()[-1]
-    assert "--fail-if 'cte_max_m>=0' holds (and 1 more)" in line
+    assert "--fail-if 'cte_max_m>=0' holds (cte_max_m = " in line  # its value, with it
+    assert line.endswith(") (and 1 more)")
 
 
 def test_a_good_run_says_ok(short_run) -> None:  # noqa: ANN001 - conftest fixture
