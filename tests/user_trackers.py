@@ -141,3 +141,12 @@ class CommandOnly:
 
     def step(self, t_s: float, estimate: Estimate, reference: Any) -> Command:
         return Command(t_s, 1.0, 0.0)
+
+
+class WideSteer(Straight):
+    """Commands 20 rad of steering (a unit slip, degrees for radians) from ``fail_at_s`` on."""
+
+    def step(self, t_s: float, estimate: Estimate, reference: Any) -> tuple[Command, Plan]:
+        if self.failing(t_s):
+            return Command(t_s, 0.0, 20.0), _plan(t_s, 0.0, 20.0)
+        return super().step(t_s, estimate, reference)

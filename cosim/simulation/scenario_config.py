@@ -105,6 +105,14 @@ class SimConfig:
         return epoch_ns(self.epoch)
 
 
+KMH_SUSPECT_MPS = 50.0
+"""A path speed above this (180 km/h) is said in km/h too: 72 meant as km/h runs at 259."""
+
+
+class UnitHint(UserWarning):
+    """A value that looks like it was given in another unit (it is used as given)."""
+
+
 CAR_NAMES = ("sedan", "ford-escort", "bmw-320i", "vw-vanagon")
 """Values of ``car:`` (:mod:`cosim.cars`)."""
 
@@ -313,6 +321,11 @@ def load_config(
                                     config.initial.speed_from_profile,
                                     to_dict(ScenarioConfig())):
         warnings.warn(line, UnreadKeyWarning, stacklevel=2)
+    if config.path.speed_mps > KMH_SUSPECT_MPS:
+        warnings.warn(f"path.speed_mps = {config.path.speed_mps:g} m/s is "
+                      f"{config.path.speed_mps * 3.6:.0f} km/h; if {config.path.speed_mps:g} "
+                      f"km/h was meant, that is {config.path.speed_mps / 3.6:.3g} m/s",
+                      UnitHint, stacklevel=2)
     check_rates(config)
     check_requirements(config.requirements, config.sim.log_period_s)
     check_required_sensors(config)

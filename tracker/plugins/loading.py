@@ -27,6 +27,8 @@ from __future__ import annotations
 import dataclasses
 import time
 import traceback
+import warnings
+from dataclasses import dataclass
 from typing import Any
 
 from cosim.core.config_fields import from_dict, to_dict
@@ -87,7 +89,9 @@ def make_plugin_tracker(config: TrackerConfig) -> Tracker:
     except BaseException as error:  # noqa: BLE001 - user code: SystemExit included
         raise PluginError(f"tracker.name = {config.name!r}: {cls.__name__}(params, config) "
                           f"raised {type(error).__name__}: {error}") from None
-    return GuardedTracker(config.name, tracker, config.step_budget_s)
+    return GuardedTracker(config.name, tracker, config.step_budget_s,
+                          CommandBounds(config.max_steer_rad, config.accel_min_mps2,
+                                        config.accel_max_mps2))
 
 
 def _where(error: BaseException) -> str:
@@ -100,17 +104,59 @@ def _where(error: BaseException) -> str:
     return f" ({last.filename}:{last.lineno}, in {last.name})"
 
 
-class GuardedTracker:
-    """A user's tracker whose failures end the run with a reason instead of a traceback."""
+class TrackerCommandClipped(UserWarning):
+    """A plug-in tracker commanded beyond the tracker's bounds (:class:`GuardedTracker`)."""
 
-    def __init__(self, name: str, tracker: Any, budget_s: float) -> None:
+
+@dataclass(frozen=True)
+class CommandBounds:
+    """The tracker's bounds (``tracker.max_steer_rad``, ``tracker.accel_min_mps2``,
+    ``tracker.accel_max_mps2``) a plug-in's command is clipped to."""
+
+    max_steer_rad: float
+    accel_min_mps2: float
+    accel_max_mps2: float
+
+
+class GuardedTracker:
+    """A user's tracker whose failures end the run with a reason instead of a traceback.
+
+    Its command is clipped to the tracker's bounds, as an FMU tracker's is, and the first
+    command beyond them is said once a run (:class:`TrackerCommandClipped`): 20 rad of
+    steering used to run on without a word, the plant clipping it to its own limit."""
+
+    def __init__(self, name: str, tracker: Any, budget_s: float,
+                 bounds: CommandBounds | None = None) -> None:
         self.name = name
         self._tracker = tracker
         self._budget_s = budget_s
+        self._bounds = bounds
+        self._warned = False
 
     def reset(self) -> None:
+        self._warned = False
         if isinstance(self._tracker, Resettable):
             self._tracker.reset()
+
+    def _bounded(self, t_s: float, command: Command) -> Command:
+        bounds = self._bounds
+        if bounds is None:
+            return command
+        steer = min(max(command.steer_rad, -bounds.max_steer_rad), bounds.max_steer_rad)
+        accel = min(max(command.accel_mps2, bounds.accel_min_mps2), bounds.accel_max_mps2)
+        if (steer, accel) == (command.steer_rad, command.accel_mps2):
+            return command
+        if not self._warned:
+            self._warned = True
+            beyond = (f"steer_rad = {command.steer_rad:.4g}, beyond +-tracker.max_steer_rad = "
+                      f"{bounds.max_steer_rad:.4g}" if steer != command.steer_rad else
+                      f"accel_mps2 = {command.accel_mps2:.4g}, outside [tracker.accel_min_mps2,"
+                      f" tracker.accel_max_mps2] = [{bounds.accel_min_mps2:g}, "
+                      f"{bounds.accel_max_mps2:g}]")
+            warnings.warn(f"tracker {self.name!r} commanded {beyond} at t = {t_s:.3f} s: "
+                          "clipped to the bounds (said once a run)", TrackerCommandClipped,
+                          stacklevel=2)
+        return dataclasses.replace(command, steer_rad=steer, accel_mps2=accel)
 
     def step(self, t_s: float, estimate: Estimate,
              reference: ReferencePath) -> tuple[Command, Plan]:
@@ -133,4 +179,4 @@ class GuardedTracker:
             raise TrackerFault(f"tracker {self.name!r} took {elapsed_s:.3f} s for the step at "
                                f"t = {t_s:.3f} s: more than tracker.step_budget_s = "
                                f"{self._budget_s:g} s")
-        return command, plan
+        return self._bounded(t_s, command), plan

@@ -3,13 +3,19 @@
 from __future__ import annotations
 
 import dataclasses
+import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from cosim.core.exceptions import PluginError, TrackerFault
 from cosim.core.records import Command, Plan
+from cosim.log.reader import iter_messages
+from cosim.simulation.runner import run
+from cosim.simulation.scenario_config import UnitHint, load_config
 from tracker.plugins.checks import check_step_result
+from tracker.plugins.loading import TrackerCommandClipped
 
 
 def _good() -> tuple[Command, Plan]:
@@ -69,3 +75,26 @@ def test_a_non_finite_command_is_a_failed_step_not_a_broken_interface() -> None:
     command, plan = _good()
     with pytest.raises(TrackerFault, match="non-finite command"):
         check_step_result("mine", 0.5, (dataclasses.replace(command, steer_rad=np.nan), plan))
+
+
+def test_a_command_beyond_the_bounds_is_clipped_and_said_once(tmp_path: Path) -> None:
+    """20 rad of steering from a plug-in ran on without a word (the plant clipped it)."""
+    config = load_config("lane-change", tracker="tests.user_trackers:WideSteer",
+                         duration_s=1.0, overrides=["tracker.params.fail_at_s=0.5"])
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = run(config, tmp_path / "wide.mcap")
+    said = [w for w in caught if issubclass(w.category, TrackerCommandClipped)]
+    assert len(said) == 1
+    assert "steer_rad = 20, beyond +-tracker.max_steer_rad = 0.3927 at t = 0.500 s" in str(
+        said[0].message)
+    commands = [m["steer_rad"] for _, m in iter_messages(result.log_path, "/control/command")]
+    assert max(commands) == pytest.approx(config.tracker.max_steer_rad)
+
+
+def test_a_path_speed_in_km_per_h_by_mistake_is_said() -> None:
+    with pytest.warns(UnitHint, match=r"72 m/s is 259 km/h; if 72 km/h was meant, that is 20"):
+        load_config("lane-change", overrides=["path.speed_mps=72"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UnitHint)
+        load_config("lane-change", overrides=["path.speed_mps=40"])
