@@ -244,8 +244,7 @@ def test_an_fmu_folder_left_by_a_dead_process_is_removed(tmp_path: Path,
     assert not orphan.exists() and alive.exists() and foreign.exists()
 
 
-def test_a_python_fmus_own_error_text_is_kept(tmp_path: Path,
-                                              capsys: pytest.CaptureFixture[str]) -> None:
+def test_a_python_fmus_own_error_text_is_kept(tmp_path: Path) -> None:
     """A pythonfmu FMU whose ``do_step`` raises: before, the run said only "fmi2DoStep failed
     with status 4 (fatal)" (the FMU was instantiated with logging off, so it said nothing)."""
     import subprocess
@@ -264,9 +263,14 @@ def test_a_python_fmus_own_error_text_is_kept(tmp_path: Path,
     subprocess.run([sys.executable, "-m", "pythonfmu", "build", "-f", "raising_fmi2.py", "-d",
                     str(tmp_path), law.name], check=True, capture_output=True, cwd=tmp_path)
     name = f"fmu:{tmp_path / 'RaisingFmi2.fmu'}"
-    code = main(["run", "lane-change", "--tracker", name, "--duration", "1",
-                 "--out", str(tmp_path / "raising.mcap")])
-    err = capsys.readouterr().err
-    assert code == 3 and "Traceback" not in err
+    # In a process of its own: a pythonfmu instance whose do_step raised crashes a later
+    # garbage collection of the process that ran it (seen with FMPy 0.3.32, pythonfmu 0.7.0;
+    # `cosim run` ends its run's process after the run).
+    done = subprocess.run([str(Path(sys.executable).with_name("cosim")), "run", "lane-change",
+                           "--tracker", name, "--duration", "1", "--out",
+                           str(tmp_path / "raising.mcap")], capture_output=True, text=True,
+                          timeout=600)
+    err = done.stderr
+    assert done.returncode == 3 and "Traceback" not in err
     assert "failed at t = 0.500 s" in err
     assert "(the FMU said: ValueError('the lookahead table ran out'))" in err
