@@ -249,7 +249,9 @@ COURSE = (
     MetricKey("gates_hit", "count", "ISO 3888-1 lanes whose cone line a corner of the car's "
               "body crossed", "0", _COURSE, scope=GATES),
     MetricKey("gate_<section>_passed", "bool", "the car's body stayed within that lane's "
-              "cones", "true", _COURSE, scope=GATES),
+              "cones; ISO 3888-1 numbers the course's six sections in driving order and "
+              "cones four: 1 (entry), 3 (side lane), 5 and 6 (exit), while 2 and 4 are the "
+              "open zones of the lane changes", "true", _COURSE, scope=GATES),
     MetricKey("track_limit_exceedances", "count", "times the body's edge went beyond the "
               "track's left or right half-width (one per excursion)", "0", _COURSE,
               scope=CIRCUIT),
