@@ -23,6 +23,7 @@ import importlib.metadata
 import re
 
 from cosim.core.exceptions import PluginError
+from cosim.core.moved_modules import moved_to
 
 IMPORT_PATH = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_][\w.]*$")
 """``module.path:Attribute.path``, the form of an entry point's object reference."""
@@ -70,6 +71,11 @@ def load_object(name: str, group: str, key: str) -> object:
                 "packages and PYTHONPATH): expected an installed package, or the folder "
                 f"holding {error.name.split('.')[0]}.py on PYTHONPATH (for the current "
                 "folder: PYTHONPATH=. cosim ...)") from None
+        moved = moved_to(error.name or "")
+        if moved is not None:
+            raise PluginError(f"{where}: importing {module_name!r} needs the module "
+                              f"{error.name!r}, which cosim moved to {moved!r}: expected "
+                              f"'import {moved}' there instead") from None
         raise PluginError(f"{where}: importing {module_name!r} needs the module "
                           f"{error.name!r}, which is not installed: expected it installed "
                           "in the environment cosim runs in") from None

@@ -267,6 +267,9 @@ ROWS = [
         ("'plant.tire'", "did you mean 'plant.tyre'?")),
     Row("no command (only 'arguments are required')", lambda f: [],
         ("expected a command", "cosim run lane-change")),
+    Row("plug-in importing a module from before the regroup", lambda f: [
+        "run", "lane-change", "--tracker", "tests.old_path_tracker:Old"],
+        ("needs the module 'cosim.records', which cosim moved to 'cosim.core.records'",)),
     Row("NaN duration", lambda f: ["run", "lane-change", "--duration", "nan"],
         ("--duration nan", "expected")),
     Row("seed not a number", lambda f: ["run", "lane-change", "--seed", "abc"],
