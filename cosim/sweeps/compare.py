@@ -201,11 +201,15 @@ def _aligned(header: list[str], body: list[list[str]]) -> list[str]:
 def league_text(table: Sequence[LeagueRow], width: int | None = None) -> str:
     """The league as plain text that fits ``width`` columns (None: no limit, as when
     piped): a row per tracker when that fits, else a row per metric with the trackers as
-    columns, else a block per tracker. Every number is shown whole, never cut."""
+    columns, else a block per tracker. Every number is shown whole, never cut; a metric no
+    run of a scenario has is left out of its section (Markdown and CSV keep every column)."""
     sections = []
     for scenario, rows in by_scenario(table).items():
-        keys = [key for key, _, _ in LEAGUE_METRICS]
-        titles = [title for _, title, _ in LEAGUE_METRICS]
+        # A metric no run of the scenario has (gates off the ISO course) is left out here.
+        shown_metrics = [(key, title) for key, title, _ in LEAGUE_METRICS
+                         if any(r.values.get(key) is not None for r in rows)]
+        keys = [key for key, _ in shown_metrics]
+        titles = [title for _, title in shown_metrics]
         wide = _aligned(["tracker", *titles, "failures"],
                         [[shown_name(r), *(_cell(r.values[k]) for k in keys), str(r.failures)]
                          for r in rows])

@@ -205,3 +205,17 @@ def test_a_tracker_whose_runs_did_not_finish_ranks_below_every_finished_one() ->
     ranked = [r.tracker for r in by_scenario(league(rows))["circle"]]
     assert ranked == ["lqr", "pid", "my_pkg:Quitter", "stanley"]
     assert "| my_pkg:Quitter (1/1 unfinished) |" in markdown(league(rows))
+
+
+def test_a_metric_no_run_has_is_left_out_of_the_text_only() -> None:
+    """Off the ISO course every tracker's 'gates hit' was '-': two empty columns of 208."""
+    from cosim.sweeps.compare import LEAGUE_METRICS, LeagueRow, league_text, markdown
+
+    values = {key: 0.5 for key, _, _ in LEAGUE_METRICS}
+    values["gates_hit"] = None
+    rows = [LeagueRow("lane-change", name, 1, dict(values), 0, ()) for name in ("a", "b")]
+    assert "gates hit" not in league_text(rows, None)
+    assert "track exits" in league_text(rows, None)
+    assert "gates hit" in markdown(rows)
+    rows[1].values["gates_hit"] = 2.0
+    assert "gates hit" in league_text(rows, None)
