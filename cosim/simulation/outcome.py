@@ -12,7 +12,8 @@ kept. The thresholds are the ``outcome:`` section of the config (:class:`Outcome
 - ``rolled_over``: roll angle above ``rollover_roll_rad``, or both wheels of one side
   without load for ``wheel_lift_s`` (a car on two wheels is rolling over, whatever its
   angle); a sedan rolls 3-6 degrees at its grip limit.
-- ``off_road``: the centre of gravity further from the path than half ``lane_width_m``
+- ``off_road``: the centre of gravity further from the path than half ``lane_width_m`` (on
+  a track with widths, ``path.kind: track`` or ``generated``: beyond the track's edge)
   (path-tracking runs).
 - ``end_of_path``: the car reached the end of an open path with time left (path-tracking
   runs): what follows tracks nothing.
@@ -31,6 +32,7 @@ The run's ``outcome`` metric is ``ok`` when it completed without events; else th
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from cosim.core.config_fields import setting
@@ -62,7 +64,8 @@ class OutcomeConfig:
     wheel_lift_s: float = setting(0.5, low=0.0, high=100.0,
                                   doc="both wheels of a side unloaded this long: rollover")
     lane_width_m: float = setting(3.5, low=0.1, high=100.0,
-                                  doc="off-road beyond half of it from the path")
+                                  doc="off-road beyond half of it from the path (a track "
+                                  "with widths: beyond the track's edge instead)")
     end_margin_m: float = setting(1.0, low=0.0, high=1000.0,
                                   doc="the end of an open path is this close")
     keep_going: bool = setting(False, doc="go on after a spin, a rollover or leaving the "
@@ -94,8 +97,12 @@ class OutcomeMonitor:
     """Watches the truth for outcome events; each kind is reported once, when it starts."""
 
     def __init__(self, config: OutcomeConfig, path_length_m: float | None,
-                 tracks_path: bool) -> None:
+                 tracks_path: bool,
+                 road_edges: Callable[[float], tuple[float, float]] | None = None) -> None:
         self.config = config
+        self._road_edges = road_edges
+        """``s_m -> (left, right)`` half-widths of a track with widths: off the road is the
+        centre of gravity beyond the track's edge there, not beyond half a lane."""
         self._path_length_m = path_length_m
         """None for a closed circuit: it has no end."""
         self._tracks_path = tracks_path
@@ -136,9 +143,14 @@ class OutcomeMonitor:
             if abs(heading_err_rad) > c.spin_heading_err_rad:
                 found.append(self._raise("spun", t, abs(heading_err_rad),
                                          c.spin_heading_err_rad, "heading error to the path"))
-            if abs(cte_m) > 0.5 * c.lane_width_m:
-                found.append(self._raise("off_road", t, abs(cte_m), 0.5 * c.lane_width_m,
-                                         "distance from the path"))
+            if self._road_edges is None:
+                limit, what = 0.5 * c.lane_width_m, "distance from the path"
+            else:
+                left, right = self._road_edges(s_m)
+                limit = left if cte_m >= 0.0 else right
+                what = "distance from the path, beyond the track's edge"
+            if abs(cte_m) > limit:
+                found.append(self._raise("off_road", t, abs(cte_m), limit, what))
             if self._path_length_m is not None \
                     and s_m >= self._path_length_m - c.end_margin_m:
                 found.append(self._raise("end_of_path", t, s_m, self._path_length_m,

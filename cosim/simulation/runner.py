@@ -268,9 +268,12 @@ class _Run:
         """The signals of the run's STL requirements (none without requirements)."""
         self.metrics = MetricsAccumulator(self.reference,
                                           config.manoeuvre if open_loop else None)
+        bounds = self.course.bounds
+        period_m = self.reference.length_m if self.reference.closed else None
         self.monitor = OutcomeMonitor(
             config.outcome, None if self.reference.closed else self.reference.length_m,
-            tracks_path=not open_loop)
+            tracks_path=not open_loop,
+            road_edges=None if bounds is None else lambda s_m: bounds.at(s_m, period_m))
         self.delay_line: collections.deque[tuple[int, Command]] = collections.deque()
         self.yaw_rate_changes = collections.deque(disturbances.schedule(
             config.disturbances, self.clock.dt_s, component_rng(config.seed, "disturbances")))

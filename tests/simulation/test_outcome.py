@@ -39,6 +39,20 @@ def test_monitor_reports_each_kind_once_and_ranks_them() -> None:
     assert monitor.outcome("interrupted") == "interrupted"
 
 
+def test_on_a_track_with_widths_off_road_is_beyond_its_edge() -> None:
+    """A circuit 10 m wide left of its line and 4 m right: the car 3 m left is on the road
+    (half a 3.5 m lane used to say off_road there), 4.5 m right is off it."""
+    def edges(s_m: float) -> tuple[float, float]:
+        return 10.0, 4.0
+
+    monitor = OutcomeMonitor(OutcomeConfig(), None, tracks_path=True, road_edges=edges)
+    assert monitor.observe(_state(1.0), 3.0, 0.05, 10.0, None) == []
+    assert monitor.observe(_state(1.5), -3.9, 0.05, 12.0, None) == []
+    off = monitor.observe(_state(2.0), -4.5, 0.05, 20.0, None)
+    assert [e.kind for e in off] == ["off_road"] and off[0].threshold == 4.0
+    assert "track's edge" in off[0].detail
+
+
 def test_monitor_rollover_by_roll_or_lifted_wheels() -> None:
     by_angle = OutcomeMonitor(OutcomeConfig(), None, tracks_path=False)
     assert [e.kind for e in by_angle.observe(_state(roll_rad=0.7), 5.0, 2.0, 0.0, None)] \
