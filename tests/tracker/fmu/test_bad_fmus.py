@@ -244,33 +244,59 @@ def test_an_fmu_folder_left_by_a_dead_process_is_removed(tmp_path: Path,
     assert not orphan.exists() and alive.exists() and foreign.exists()
 
 
-def test_a_python_fmus_own_error_text_is_kept(tmp_path: Path) -> None:
-    """A pythonfmu FMU whose ``do_step`` raises: before, the run said only "fmi2DoStep failed
-    with status 4 (fatal)" (the FMU was instantiated with logging off, so it said nothing)."""
+def _misbehaving_python_fmu(tmp_path: Path, name: str, misbehaviour: str) -> str:
+    """The example pure-pursuit FMU (FMI 2, pythonfmu) as class ``name``, whose ``do_step``
+    runs ``misbehaviour`` from t = 0.5 s on: its ``fmu:`` tracker name."""
     import subprocess
     import sys
 
     examples = Path(__file__).resolve().parents[3] / "examples" / "fmu"
     script = (examples / "pure_pursuit_fmi2.py").read_text().replace(
-        "class PurePursuitFmi2", "class RaisingFmi2").replace(
+        "class PurePursuitFmi2", f"class {name}").replace(
         "    def do_step(self, current_time, step_size):\n",
         "    def do_step(self, current_time, step_size):\n"
         "        if current_time >= 0.5:\n"
-        "            raise ValueError('the lookahead table ran out')\n")
-    (tmp_path / "raising_fmi2.py").write_text(script)
+        f"            {misbehaviour}\n")
+    (tmp_path / "misbehaving_fmi2.py").write_text(script)
     law = tmp_path / "pure_pursuit_law.py"
     law.write_text((examples / law.name).read_text())
-    subprocess.run([sys.executable, "-m", "pythonfmu", "build", "-f", "raising_fmi2.py", "-d",
-                    str(tmp_path), law.name], check=True, capture_output=True, cwd=tmp_path)
-    name = f"fmu:{tmp_path / 'RaisingFmi2.fmu'}"
-    # In a process of its own: a pythonfmu instance whose do_step raised crashes a later
-    # garbage collection of the process that ran it (seen with FMPy 0.3.32, pythonfmu 0.7.0;
-    # `cosim run` ends its run's process after the run).
-    done = subprocess.run([str(Path(sys.executable).with_name("cosim")), "run", "lane-change",
-                           "--tracker", name, "--duration", "1", "--out",
-                           str(tmp_path / "raising.mcap")], capture_output=True, text=True,
-                          timeout=600)
+    subprocess.run([sys.executable, "-m", "pythonfmu", "build", "-f", "misbehaving_fmi2.py",
+                    "-d", str(tmp_path), law.name], check=True, capture_output=True,
+                   cwd=tmp_path)
+    return f"fmu:{tmp_path / f'{name}.fmu'}"
+
+
+def _cosim_run(tmp_path: Path, *args: str) -> Any:
+    """``cosim run lane-change`` in a process of its own: a pythonfmu instance whose do_step
+    raised crashes a later garbage collection of the process that ran it (seen with FMPy
+    0.3.32, pythonfmu 0.7.0; `cosim run` ends its run's process after the run)."""
+    import subprocess
+    import sys
+
+    return subprocess.run([str(Path(sys.executable).with_name("cosim")), "run", "lane-change",
+                           *args], capture_output=True, text=True, timeout=600)
+
+
+def test_a_python_fmus_own_error_text_is_kept(tmp_path: Path) -> None:
+    """A pythonfmu FMU whose ``do_step`` raises: before, the run said only "fmi2DoStep failed
+    with status 4 (fatal)" (the FMU was instantiated with logging off, so it said nothing)."""
+    name = _misbehaving_python_fmu(tmp_path, "RaisingFmi2",
+                                   "raise ValueError('the lookahead table ran out')")
+    done = _cosim_run(tmp_path, "--tracker", name, "--duration", "1", "--out",
+                      str(tmp_path / "raising.mcap"))
     err = done.stderr
     assert done.returncode == 3 and "Traceback" not in err
     assert "failed at t = 0.500 s" in err
     assert "(the FMU said: ValueError('the lookahead table ran out'))" in err
+
+
+def test_a_python_fmu_that_ends_the_process_is_named_and_the_log_kept(tmp_path: Path) -> None:
+    """Before: exit 7, nothing printed, the log lost."""
+    name = _misbehaving_python_fmu(tmp_path, "ExitingFmi2", "import os; os._exit(7)")
+    out = tmp_path / "exiting.mcap"
+    done = _cosim_run(tmp_path, "--tracker", name, "--duration", "2", "--out", str(out))
+    lines = done.stderr.strip().splitlines()
+    assert done.returncode == 3 and len(lines) == 1, done.stderr
+    assert "the run's process died" in lines[0] and "exit status 7" in lines[0]
+    assert f"the tracker {name!r} is an FMU" in lines[0]
+    assert read_summary(out).truncated
