@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cosim.core.compiled_function import CompiledCacheWarning, load_library
+from cosim.core.compiled_function import CompiledCacheWarning, compiler, load_library
 from cosim.core.dense_function import DenseFunction
 from cosim.core.exceptions import ConfigError
 from cosim.core.initial_state import InitialState
@@ -711,13 +711,16 @@ def _use_compiled(kind: str, functions: tuple[DenseFunction, ...]) -> None:
     belief: it is built once per machine."""
     if not functions:
         return
+    fallback = (f"the {kind}'s models run in CasADi's virtual machine, about 2x slower "
+                "(estimator.compiled=false says so quietly)")
     library = load_library(f"cosim_{kind.lower()}",
                            [function.function for function in functions],
-                           note=f"compiling the {kind}'s models to C (about 20 s)")
+                           note=f"compiling the {kind}'s models to C (about 20 s)",
+                           fallback=fallback)
     if library is None:
-        warnings.warn(f"no working C compiler (gcc, or $CC): the {kind}'s models run in "
-                      "CasADi's virtual machine, about 2x slower (estimator.compiled=false "
-                      "says so quietly)", CompiledCacheWarning, stacklevel=3)
+        if compiler() is None:  # a failed build or load has said why
+            warnings.warn(f"no working C compiler (gcc, or $CC): {fallback}",
+                          CompiledCacheWarning, stacklevel=3)
         return
     for function in functions:
         function.use_compiled(library)

@@ -27,6 +27,7 @@ import ctypes
 import hashlib
 import json
 import os
+import shlex
 import shutil
 import subprocess
 import sys
@@ -162,18 +163,56 @@ def _private_copy(built: Path) -> Path:
     return Path(shutil.copy2(built, folder / built.name))
 
 
-def _build(compiler: str, flags: Sequence[str], source: Path, name: str,
-           extra_sources: Sequence[Path] = (), link_flags: Sequence[str] = ()) -> Path | None:
-    """Compile ``source`` (and ``extra_sources``) into a library beside it; None when the
-    compiler fails."""
+COMPILE_TIMEOUT_S = 900.0
+"""A compiler that takes longer than this on one library is stopped (a build of the largest
+NLP takes about a minute on a loaded 2-core machine)."""
+
+
+class CompileFailedWarning(CompiledCacheWarning):
+    """A library could not be built: the run goes on without it, slower (one line with the
+    compiler's first error)."""
+
+
+def compiler() -> list[str] | None:
+    """The C compiler's command: ``$CC`` (with its arguments, e.g. ``gcc -m64``) or ``gcc``;
+    None when it is not found."""
+    command = shlex.split(os.environ.get("CC") or "gcc")
+    if not command or shutil.which(command[0]) is None:
+        return None
+    return [shutil.which(command[0]) or command[0], *command[1:]]
+
+
+def _first_error(stderr: str) -> str:
+    """The compiler's first error line (else its first line), without the file's folder."""
+    lines = [line.strip() for line in stderr.splitlines() if line.strip()]
+    chosen = next((line for line in lines if "error" in line.lower()), lines[0] if lines
+                  else "no message")
+    return chosen if len(chosen) <= 300 else chosen[:297] + "..."
+
+
+def _build(command: Sequence[str], flags: Sequence[str], source: Path, name: str,
+           extra_sources: Sequence[Path] = (), link_flags: Sequence[str] = (),
+           fallback: str = "") -> Path | None:
+    """Compile ``source`` (and ``extra_sources``) into a library beside it; None, with a
+    :class:`CompileFailedWarning` naming the compiler's first error, when it fails."""
     library = source.with_name(f"{name}.so")
     try:
-        subprocess.run([compiler, *flags, "-o", str(library), str(source),
+        subprocess.run([*command, *flags, "-o", str(library), str(source),
                         *map(str, extra_sources), "-lm", *link_flags],
-                       check=True, capture_output=True)
-    except (OSError, subprocess.CalledProcessError):
-        return None
-    return library
+                       check=True, capture_output=True, text=True, errors="replace",
+                       timeout=COMPILE_TIMEOUT_S)
+    except subprocess.CalledProcessError as error:
+        why = _first_error(error.stderr or "")
+    except subprocess.TimeoutExpired:
+        why = f"stopped after {COMPILE_TIMEOUT_S:g} s"
+    except OSError as error:
+        why = error.strerror or str(error)
+    else:
+        return library
+    warnings.warn(f"cannot compile {name} ({command[0]}: {why}): "
+                  f"{fallback or 'the run goes on without it, slower'}", CompileFailedWarning,
+                  stacklevel=3)
+    return None
 
 
 Functions = Sequence[ca.Function] | Callable[[], Sequence[ca.Function]]
@@ -185,7 +224,8 @@ def compiled_library(name: str, functions: Functions,
                      note: str | None = None, key: str | None = None,
                      extra_sources: Sequence[Path] = (),
                      link_flags: Sequence[str] = (),
-                     edit_source: Callable[[str], str] | None = None) -> Path | None:
+                     edit_source: Callable[[str], str] | None = None,
+                     fallback: str = "") -> Path | None:
     """The shared library holding ``functions`` (each under its own name), compiled with
     ``flags`` or found in the cache; None when no C compiler is available or compiling
     fails. ``name`` names the file (a C identifier). ``note``, if given, is printed as one
@@ -208,9 +248,12 @@ def compiled_library(name: str, functions: Functions,
     compiled into the same library and ``link_flags`` passed last; both are part of the
     entry's hash. ``edit_source`` rewrites the generated C before it is compiled (to work
     around a fault of CasADi's code generator); with ``key``, the key must name the edit.
+    A build that fails says so in one :class:`CompileFailedWarning` with the compiler's first
+    error and ``fallback`` (what the run does instead); no compiler at all is the caller's to
+    say (:func:`compiler` is None).
     """
-    compiler = shutil.which(os.environ.get("CC", "gcc"))
-    if compiler is None:
+    command = compiler()
+    if command is None:
         return None
     flags = (*flags, "-shared", "-fPIC")
     with tempfile.TemporaryDirectory() as tmp:
@@ -236,7 +279,7 @@ def compiled_library(name: str, functions: Functions,
         if note is not None:
             print(f"cosim: note: {note} (once per machine, cached in {entry.parent})",
                   file=sys.stderr, flush=True)
-        built = _build(compiler, flags, source, name, extra_sources, link_flags)
+        built = _build(command, flags, source, name, extra_sources, link_flags, fallback)
         if built is None:
             return None
         try:
@@ -267,14 +310,14 @@ def _source_digest(content: bytes, flags: Sequence[str]) -> str:
     return hashlib.sha256(content + " ".join(flags).encode()).hexdigest()
 
 
-def compile_function(function: ca.Function) -> ctypes.CDLL | None:
+def compile_function(function: ca.Function, fallback: str = "") -> ctypes.CDLL | None:
     """The shared library of ``function`` (compiled or from the cache), or None when no C
     compiler is available or compiling fails (:func:`load_library` of one function)."""
-    return load_library(function.name(), [function])
+    return load_library(function.name(), [function], fallback=fallback)
 
 
 def load_library(name: str, functions: Sequence[ca.Function],
-                 note: str | None = None) -> ctypes.CDLL | None:
+                 note: str | None = None, fallback: str = "") -> ctypes.CDLL | None:
     """The shared library ``name`` holding ``functions``, compiled (with ``note``, see
     :func:`compiled_library`) or from the cache, and loaded; None when no C compiler is
     available, compiling fails or the library cannot be loaded (with a warning).
@@ -282,7 +325,7 @@ def load_library(name: str, functions: Sequence[ca.Function],
     The cache entry is found by a hash of the serialised functions (about a millisecond),
     so their C is generated only to build it."""
     key = "\n".join(function.serialize() for function in functions)
-    library = compiled_library(name, functions, note=note, key=key)
+    library = compiled_library(name, functions, note=note, key=key, fallback=fallback)
     if library is None:
         return None
     try:

@@ -52,7 +52,7 @@ import warnings
 import mujoco
 import numpy as np
 
-from cosim.core.compiled_function import CompiledCacheWarning
+from cosim.core.compiled_function import CompiledCacheWarning, compiler
 from cosim.core.exceptions import PhysicsDivergenceError
 from cosim.core.initial_state import InitialState
 from cosim.core.records import WHEEL_NAMES, ActuatorCommand, VehicleState
@@ -65,7 +65,7 @@ from cosim.plant.sedan_model import FRONT_WHEELS, driven_wheels, sedan_xml_and_a
 from cosim.plant.slip_control import SlipLimiter
 from cosim.plant.steering import SteeringActuator
 from cosim.plant.traffic import Traffic
-from cosim.plant.tyre_forces import MagicFormulaTyres, TyreForces
+from cosim.plant.tyre_forces import PYTHON_STEP_FALLBACK, MagicFormulaTyres, TyreForces
 
 SETTLE_DURATION_S = 1.5
 """Simulated time the car stands at construction to find its static equilibrium [s]. The
@@ -122,9 +122,8 @@ class MujocoPlant:
         )
         if self._tyres is not None:
             self._tyres.bind(self._data)
-            if one_call_tyres and self._tyres.compiled is None:
-                warnings.warn("no working C compiler (gcc, or $CC): the plant's tyres and "
-                              "physics step run in Python, about 3x slower",
+            if one_call_tyres and self._tyres.compiled is None and compiler() is None:
+                warnings.warn(f"no working C compiler (gcc, or $CC): {PYTHON_STEP_FALLBACK}",
                               CompiledCacheWarning, stacklevel=2)
         if traffic is not None:
             traffic.bind(self._model)

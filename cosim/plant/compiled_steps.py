@@ -19,6 +19,7 @@ after every step) and slip control keep the Python step. MuJoCo's library is the
 from __future__ import annotations
 
 import ctypes
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -26,7 +27,7 @@ import casadi as ca
 import mujoco
 import numpy as np
 
-from cosim.core.compiled_function import compiled_library
+from cosim.core.compiled_function import CompileFailedWarning, compiled_library
 
 SOURCE = Path(__file__).with_name("plant_step.c")
 
@@ -65,6 +66,10 @@ def _mujoco_library() -> Path | None:
     return libraries[-1]
 
 
+STEPS_FALLBACK = "the plant's physics step runs step by step in Python, about 2x slower"
+"""What the plant does without its compiled step (said in the one warning line)."""
+
+
 def load_steps_library(tyres: ca.Function) -> ctypes.CDLL | None:
     """The library of ``plant_step.c`` and the tyre function ``tyres``, compiled (on first
     use, with a note) or from the cache; None when there is no compiler, no MuJoCo headers
@@ -79,16 +84,21 @@ def load_steps_library(tyres: ca.Function) -> ctypes.CDLL | None:
     built = compiled_library(
         "cosim_plant_steps", [tyres], flags, key=tyres.serialize() + mujoco.__version__,
         extra_sources=(SOURCE,), link_flags=link,
-        note="compiling the plant's physics step to C (about 5 s)")
+        note="compiling the plant's physics step to C (about 5 s)", fallback=STEPS_FALLBACK)
     if built is None:
         return None
     try:
         loaded = ctypes.CDLL(str(built))
         sizes = (ctypes.c_int * 3)()
         loaded.cosim_plant_sizes(sizes)
-    except (OSError, AttributeError):
+    except (OSError, AttributeError) as error:
+        warnings.warn(f"cannot load the compiled physics step {str(built)!r} ({error}): "
+                      f"{STEPS_FALLBACK}", CompileFailedWarning, stacklevel=2)
         return None
     if tuple(sizes) != (len(STATE_FIELDS), len(CONSTANT_FIELDS), len(INDEX_FIELDS)):
+        warnings.warn(f"the compiled physics step {str(built)!r} has other sizes than "
+                      f"plant_step.c's fields: {STEPS_FALLBACK}", CompileFailedWarning,
+                      stacklevel=2)
         return None
     return loaded
 

@@ -32,6 +32,9 @@ from cosim.plant.tyre_patches import (
     tyre_patches_function,
 )
 
+PYTHON_STEP_FALLBACK = "the plant's tyres and physics step run in Python, about 3x slower"
+"""What the plant does without its compiled tyres (said in the one warning line)."""
+
 
 class TyreForces(NamedTuple):
     """One tyre at one step (wheel heading frame at the contact, ISO 8855 axes)."""
@@ -107,7 +110,7 @@ class MagicFormulaTyres:
         if one_call:
             function = tyre_patches_function(self._params, physics_dt_s,
                                              self._wheel_body, self._root, model.nbody)
-            library = compile_function(function)
+            library = compile_function(function, fallback=PYTHON_STEP_FALLBACK)
             if library is not None:
                 self._compiled = (library, function)
         self._patches: CompiledFunction | None = None

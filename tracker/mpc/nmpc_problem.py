@@ -54,7 +54,7 @@ from types import MappingProxyType, SimpleNamespace
 import casadi as ca
 import numpy as np
 
-from cosim.core.compiled_function import CompiledCacheWarning, compiled_library
+from cosim.core.compiled_function import CompiledCacheWarning, compiled_library, compiler
 from cosim.core.exceptions import ConfigError
 from tracker.config import TrackerConfig, TrackerWeights
 from tracker.mpc.compiled_rti import (
@@ -498,13 +498,13 @@ class NmpcProblem:
         (:func:`cosim.core.compiled_function.compiled_library`, with a note saying it takes
         about ``build_s``), or None with a warning when no C compiler works or it cannot
         build them."""
+        fallback = (f"the NMPC's {what} runs in CasADi's virtual machine, 2-4x slower "
+                    "(tracker.compiled=false says so quietly)")
         library = compiled_library(
             name, functions, flags, key=key, link_flags=link_flags, edit_source=edit_source,
             note=f"compiling {self.model.name.replace('_', '-')}'s {what} to C "
-                 f"(about {build_s} s)")
-        if library is None:
-            warnings.warn(f"no working C compiler (gcc, or $CC), or it could not build the "
-                          f"NMPC's {what}: it runs in CasADi's virtual machine, 2-4x slower "
-                          "(tracker.compiled=false says so quietly)",
+                 f"(about {build_s} s)", fallback=fallback)
+        if library is None and compiler() is None:  # a failed build has said why
+            warnings.warn(f"no working C compiler (gcc, or $CC): {fallback}",
                           CompiledCacheWarning, stacklevel=3)
         return library
