@@ -207,10 +207,15 @@ ESTIMATION = (
 RUN = (
     MetricKey("sim_duration_s", "s", "simulated time the run reached", "the scenario's "
               "`sim.duration_s`", _METRICS, contract=True),
-    MetricKey("wall_time_s", "s", "wall time of the run, set-up included", "", _METRICS,
+    MetricKey("wall_time_s", "s", "wall time of the run from its first step to its end (its "
+              "set-up, where code may be compiled, is setup_time_s)", "", _METRICS,
               contract=True, wall_clock=True),
-    MetricKey("realtime_factor", "1", "simulated time over wall time", "", _METRICS,
+    MetricKey("realtime_factor", "1", "simulated time over wall time (wall_time_s): the "
+              "simulation's speed, a first run's compile left out", "", _METRICS,
               contract=True, wall_clock=True),
+    MetricKey("setup_time_s", "s", "wall time before the run's first step: models built, "
+              "compiled code built or loaded, the log's header written", "", _RUNNER,
+              wall_clock=True),
     MetricKey("completed", "bool", "the run reached its end without an abort", "true",
               _METRICS, contract=True),
     MetricKey("lat_accel_max_mps2", "m/s^2", "largest absolute lateral acceleration of the "

@@ -630,6 +630,7 @@ def _run_with(
             release.callback(state.tracker.close)
         state.write_header()
         recorder.publish()  # the run starts for real: the log takes its final name
+        clock = _WallClock(wall_start, time.perf_counter())  # set-up (and any build) ends
         try:
             with _stop_on_signals() as stop:
                 state.loop(stop, progress)
@@ -649,7 +650,7 @@ def _run_with(
         except KeyboardInterrupt:
             abort_reason = abort = "interrupted"
         except Exception as error:  # the log is finished below, then the error goes on
-            _finish(recorder, state, wall_start, False,
+            _finish(recorder, state, clock, False,
                     f"{type(error).__name__}: {error}", "error")
             raise
         except BaseException as error:  # noqa: BLE001 - SystemExit from a user's plug-in
@@ -657,18 +658,33 @@ def _run_with(
                 f"{error}", "error"
         if progress is not None:
             progress(1.0)
-        metrics = _finish(recorder, state, wall_start, completed, abort_reason, abort)
+        metrics = _finish(recorder, state, clock, completed, abort_reason, abort)
     return metrics, completed, abort_reason
 
 
-def _finish(recorder: Recorder, state: _Run, wall_start: float, completed: bool,
+@dataclass(frozen=True)
+class _WallClock:
+    """When the run was called and when its loop started (``time.perf_counter``): the run's
+    clock starts after its set-up, where models are built and code compiled, so that a first
+    run's ``realtime_factor`` is the simulation's, not the compiler's."""
+
+    called_s: float
+    loop_start_s: float
+
+    def times(self) -> tuple[float, float]:
+        """``(setup_time_s, wall_time_s)``: set-up, and the loop up to now."""
+        return self.loop_start_s - self.called_s, time.perf_counter() - self.loop_start_s
+
+
+def _finish(recorder: Recorder, state: _Run, clock: _WallClock, completed: bool,
             abort_reason: str, abort: str) -> dict[str, float | int | bool | str]:
     metrics = state.metrics
     estimator = state.estimator
     metrics.estimator_counts = estimator.counts() if isinstance(estimator, CountsUpdates) \
         else {}
-    values: dict[str, float | int | bool | str] = dict(
-        metrics.result(time.perf_counter() - wall_start, completed))
+    setup_time_s, wall_time_s = clock.times()
+    values: dict[str, float | int | bool | str] = dict(metrics.result(wall_time_s, completed))
+    values["setup_time_s"] = setup_time_s
     values.update(state.course_monitor.result())
     values["faults_injected"] = sum(f.injected for f in state.faults.values())
     values["outcome"] = state.monitor.outcome(abort)

@@ -151,3 +151,12 @@ def test_a_good_run_says_ok(short_run) -> None:  # noqa: ANN001 - conftest fixtu
     assert short_run.metrics["events"] == 0
     assert _events(short_run.log_path) == []
     assert math.isfinite(short_run.metrics["cte_max_m"])
+
+
+def test_the_run_clock_starts_after_the_set_up(short_run) -> None:  # noqa: ANN001 - fixture
+    """The set-up (models, compiled code: a first run's compile took 30 s) is timed apart,
+    so that realtime_factor is the simulation's speed, simulated time over wall_time_s."""
+    metrics = short_run.metrics
+    assert metrics["setup_time_s"] > 0.0 and metrics["wall_time_s"] > 0.0
+    assert metrics["realtime_factor"] == pytest.approx(
+        metrics["sim_duration_s"] / metrics["wall_time_s"], rel=1e-12)
