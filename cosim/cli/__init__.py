@@ -22,6 +22,7 @@ Start with `cosim run lane-change`, then `cosim plot` or `cosim inspect` on the 
                            [--start S] [--duration S] [--gl osmesa|egl|glfw]
     cosim config show SCENARIO [--config FILE.yaml] [--set key.path=value ...] [...]
     cosim config keys [PREFIX]
+    cosim cache [--clear]
     cosim --version
 
 The options and exit codes are a stable interface: scripts and outside tests rely on them.
@@ -57,6 +58,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from cosim.cli import (
+    cache,
     compare,
     components,
     config_command,
@@ -84,7 +86,7 @@ from cosim.core.exceptions import CosimError
 __all__ = ["EXIT_BAD_OUTCOME", "EXIT_INTERRUPT", "EXIT_IO", "EXIT_USAGE", "main"]
 
 COMMAND_MODULES = (run, inspect_log, views, export, components, compare, identify, sweep,
-                   envelope, config_command)
+                   envelope, config_command, cache)
 """Every command's module, in the order ``cosim --help`` lists their commands."""
 
 

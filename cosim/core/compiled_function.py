@@ -22,7 +22,6 @@ and the caller keeps its plain implementation.
 from __future__ import annotations
 
 import atexit
-import contextlib
 import ctypes
 import hashlib
 import json
@@ -39,13 +38,10 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from cosim.core.compiled_cache import MANIFEST, cache_dir, mark_used, prune, remove
+
 COMPILER_FLAGS = ("-O2",)
 """Optimisation flags (``-shared -fPIC`` are always added)."""
-
-
-def _cache_dir() -> Path:
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "cosim"
 
 
 class CompiledFunction:
@@ -95,7 +91,6 @@ class CompiledCacheWarning(UserWarning):
     """The cache of compiled libraries is damaged or cannot be written (the run goes on)."""
 
 
-MANIFEST = "manifest.json"
 """Beside each cached library: its size and SHA-256, checked before every load."""
 
 
@@ -110,10 +105,10 @@ def _digest(path: Path) -> str:
 def _damage(entry: Path, name: str) -> str:
     """Why the cache entry ``entry`` cannot be loaded ("" when its library is intact)."""
     library = entry / f"{name}.so"
-    try:
+    try:  # a hand-edited manifest: size Infinity, nesting deep enough to recurse ...
         manifest = json.loads((entry / MANIFEST).read_text())
         size, digest = int(manifest["size"]), str(manifest["sha256"])
-    except (OSError, ValueError, KeyError, TypeError):
+    except (OSError, ValueError, KeyError, TypeError, OverflowError, RecursionError):
         return f"its {MANIFEST} is missing or unreadable"
     try:
         actual = library.stat().st_size
@@ -124,14 +119,6 @@ def _damage(entry: Path, name: str) -> str:
     if _digest(library) != digest:
         return "the library's SHA-256 differs from the one written"
     return ""
-
-
-def _discard(entry: Path) -> None:
-    """Remove a cache entry (renamed away first, so no other process loads it half-gone)."""
-    trash = entry.with_name(f".{entry.name}.{os.getpid()}.trash")
-    with contextlib.suppress(OSError):
-        os.rename(entry, trash)
-    shutil.rmtree(trash, ignore_errors=True)
 
 
 def _install(built: Path, entry: Path, name: str) -> Path:
@@ -266,14 +253,15 @@ def compiled_library(name: str, functions: Functions,
         else:
             digest = _source_digest(f"{key}\ncasadi {ca.__version__}".encode() + own,
                                     hashed_flags)
-        entry = _cache_dir() / f"{name}-{digest[:16]}"
+        entry = cache_dir() / f"{name}-{digest[:16]}"
         if entry.is_dir():
             damage = _damage(entry, name)
             if not damage:
+                mark_used(entry)
                 return entry / f"{name}.so"
             warnings.warn(f"the compiled library {str(entry)!r} is damaged ({damage}): "
                           "rebuilding it", CompiledCacheWarning, stacklevel=2)
-            _discard(entry)
+            remove(entry)
         if key is not None:
             _generate(name, functions, tmp, edit_source)
         if note is not None:
@@ -283,7 +271,9 @@ def compiled_library(name: str, functions: Functions,
         if built is None:
             return None
         try:
-            return _install(built, entry, name)
+            installed = _install(built, entry, name)
+            prune(keep=entry)  # the cache stays within its bound (compiled_cache)
+            return installed
         except OSError as error:
             warnings.warn(f"cannot write the compiled-code cache {str(entry.parent)!r} "
                           f"({error.strerror or error}): compiling for this run only "
@@ -333,7 +323,10 @@ def load_library(name: str, functions: Sequence[ca.Function],
         for function in functions:
             getattr(loaded, function.name())
     except (OSError, AttributeError) as error:  # checked, so only a changing file gets here
-        warnings.warn(f"cannot load the compiled library {str(library)!r} ({error}): using "
-                      "the plain implementation", CompiledCacheWarning, stacklevel=3)
+        if library.parent.parent == cache_dir():  # never kept for the next run to trip on
+            remove(library.parent)
+        warnings.warn(f"cannot load the compiled library {str(library)!r} ({error}): "
+                      f"{fallback or 'using the plain implementation'}",
+                      CompileFailedWarning, stacklevel=3)
         return None
     return loaded

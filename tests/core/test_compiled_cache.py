@@ -134,3 +134,46 @@ def test_a_truncated_tyre_library_no_longer_kills_every_run(tmp_path: Path) -> N
     assert "is damaged (the library has 4096 bytes" in line
     again = run("third.mcap")
     assert again.returncode == 0 and again.stderr == ""
+
+
+@pytest.mark.parametrize("manifest", ['{"size": Infinity, "sha256": "x"}',
+                                      "[" * 100_000 + "]" * 100_000])
+def test_a_hand_edited_manifest_is_damage_not_a_traceback(cache: Path, manifest: str) -> None:
+    """Before: OverflowError (size Infinity) and RecursionError (deep nesting)."""
+    function = _function("cache_manifest")
+    assert _load_quietly(function) is not None
+    (entry,) = cache.iterdir()
+    (entry / MANIFEST).write_text(manifest)
+    with pytest.warns(CompiledCacheWarning, match="is damaged .*missing or unreadable"):
+        library = compile_function(function)
+    assert library is not None and _evaluates_right(library, function)
+
+
+def test_the_cache_keeps_within_its_bound_least_recently_used_first(
+        cache: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Before: every friction, mass or belief a sweep tried left a library for good (171
+    entries here)."""
+    from cosim.core.compiled_cache import entries
+
+    first, second, third = (_function(f"cache_lru_{i}") for i in range(3))
+    for function in (first, second):
+        assert _load_quietly(function) is not None
+    size = max(e.size_bytes for e in entries())
+    old = next(e.path for e in entries() if e.name == "cache_lru_0")
+    os.utime(old / MANIFEST, (1e9, 1e9))  # used long ago
+    assert _load_quietly(second) is not None  # a use marks the entry
+    monkeypatch.setenv("COSIM_CACHE_MAX_MB", str(2.5 * size / 1e6))
+    assert _load_quietly(third) is not None  # three do not fit: the oldest goes
+    assert sorted(e.name for e in entries()) == ["cache_lru_1", "cache_lru_2"]
+
+
+def test_cosim_cache_shows_and_clears(cache: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from cosim.cli import main
+
+    assert _load_quietly(_function("cache_shown")) is not None
+    assert main(["cache"]) == 0
+    out = capsys.readouterr().out
+    assert f"{cache}: 1 compiled libraries" in out and "cache_shown" in out
+    assert main(["cache", "--clear"]) == 0
+    assert "removed 1 compiled libraries" in capsys.readouterr().out
+    assert not any(cache.iterdir())
