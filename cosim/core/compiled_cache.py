@@ -16,10 +16,16 @@ from __future__ import annotations
 import contextlib
 import os
 import shutil
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 from cosim.core.exceptions import ConfigError
+
+try:
+    import fcntl
+except ImportError:  # not POSIX: builds are not serialised (the first to install wins)
+    fcntl = None  # type: ignore[assignment]
 
 MANIFEST = "manifest.json"
 """The file beside each library with its size and SHA-256."""
@@ -78,6 +84,43 @@ def entries(folder: Path | None = None) -> list[Entry]:
                 used = (path / MANIFEST).stat().st_mtime
             found.append(Entry(path, size, used))
     return sorted(found, key=lambda e: (e.used_s, e.path.name))
+
+
+@contextlib.contextmanager
+def build_lock(entry: Path) -> Iterator[None]:
+    """Hold the lock of building ``entry`` (``flock(2)`` on ``.NAME-HASH.lock`` beside it,
+    removed on release): a second process waits until the first has built it. Where the
+    folder cannot be written or locks do not exist, nothing is held (the build goes on; the
+    first to install wins)."""
+    lock = entry.with_name(f".{entry.name}.lock")
+    descriptor = _locked(lock)
+    try:
+        yield
+    finally:
+        if descriptor is not None:
+            with contextlib.suppress(OSError):
+                lock.unlink()
+            os.close(descriptor)  # closing releases the lock
+
+
+def _locked(lock: Path) -> int | None:
+    """A descriptor holding ``lock``'s exclusive lock (waiting for it), or None."""
+    if fcntl is None:
+        return None
+    while True:
+        try:
+            lock.parent.mkdir(parents=True, exist_ok=True)
+            descriptor = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError:
+            return None
+        try:
+            fcntl.flock(descriptor, fcntl.LOCK_EX)
+            same = os.path.samestat(os.fstat(descriptor), os.stat(lock))
+        except OSError:  # removed by its last holder meanwhile: take the new one
+            same = False
+        if same:
+            return descriptor
+        os.close(descriptor)
 
 
 def mark_used(entry: Path) -> None:

@@ -38,7 +38,14 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from cosim.core.compiled_cache import MANIFEST, cache_dir, mark_used, prune, remove
+from cosim.core.compiled_cache import (
+    MANIFEST,
+    build_lock,
+    cache_dir,
+    mark_used,
+    prune,
+    remove,
+)
 
 COMPILER_FLAGS = ("-O2",)
 """Optimisation flags (``-shared -fPIC`` are always added)."""
@@ -254,32 +261,48 @@ def compiled_library(name: str, functions: Functions,
             digest = _source_digest(f"{key}\ncasadi {ca.__version__}".encode() + own,
                                     hashed_flags)
         entry = cache_dir() / f"{name}-{digest[:16]}"
-        if entry.is_dir():
-            damage = _damage(entry, name)
-            if not damage:
-                mark_used(entry)
-                return entry / f"{name}.so"
-            warnings.warn(f"the compiled library {str(entry)!r} is damaged ({damage}): "
-                          "rebuilding it", CompiledCacheWarning, stacklevel=2)
-            remove(entry)
-        if key is not None:
-            _generate(name, functions, tmp, edit_source)
-        if note is not None:
-            print(f"cosim: note: {note} (once per machine, cached in {entry.parent})",
-                  file=sys.stderr, flush=True)
-        built = _build(command, flags, source, name, extra_sources, link_flags, fallback)
-        if built is None:
-            return None
-        try:
-            installed = _install(built, entry, name)
-            prune(keep=entry)  # the cache stays within its bound (compiled_cache)
-            return installed
-        except OSError as error:
-            warnings.warn(f"cannot write the compiled-code cache {str(entry.parent)!r} "
-                          f"({error.strerror or error}): compiling for this run only "
-                          "(XDG_CACHE_HOME names the cache)", CompiledCacheWarning,
-                          stacklevel=1)  # one place: said once per process, not per library
-            return _private_copy(built)
+        found = _cached(entry, name)
+        if found is not None:
+            return found
+        # One process builds an entry; another that needs it meanwhile (a sweep's workers on
+        # an empty cache) waits, then loads it instead of building it too.
+        with build_lock(entry):
+            found = _cached(entry, name)
+            if found is not None:
+                return found
+            if key is not None:
+                _generate(name, functions, tmp, edit_source)
+            if note is not None:
+                print(f"cosim: note: {note} (once per machine, cached in {entry.parent})",
+                      file=sys.stderr, flush=True)
+            built = _build(command, flags, source, name, extra_sources, link_flags, fallback)
+            if built is None:
+                return None
+            try:
+                installed = _install(built, entry, name)
+                prune(keep=entry)  # the cache stays within its bound (compiled_cache)
+                return installed
+            except OSError as error:
+                warnings.warn(f"cannot write the compiled-code cache {str(entry.parent)!r} "
+                              f"({error.strerror or error}): compiling for this run only "
+                              "(XDG_CACHE_HOME names the cache)", CompiledCacheWarning,
+                              stacklevel=1)  # one place: said once per process
+                return _private_copy(built)
+
+
+def _cached(entry: Path, name: str) -> Path | None:
+    """The library of an intact cache entry (marked used); None when there is none, or it
+    was damaged (removed, with a warning, to be rebuilt)."""
+    if not entry.is_dir():
+        return None
+    damage = _damage(entry, name)
+    if not damage:
+        mark_used(entry)
+        return entry / f"{name}.so"
+    warnings.warn(f"the compiled library {str(entry)!r} is damaged ({damage}): "
+                  "rebuilding it", CompiledCacheWarning, stacklevel=3)
+    remove(entry)
+    return None
 
 
 def _generate(name: str, functions: Functions, folder: str,

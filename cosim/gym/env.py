@@ -37,7 +37,7 @@ import numpy as np
 
 from cosim.core.records import Command, Estimate, Plan
 from cosim.log.recorder import McapRecorder, NoLog
-from cosim.simulation.runner import RunState, finish_run
+from cosim.simulation.runner import RunState, WallClock, finish_run
 from cosim.simulation.scenario_config import ScenarioConfig, load_config
 from tracker.paths.reference_path import ReferencePath
 
@@ -107,7 +107,7 @@ class CosimEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         self._k = 0
         self._episode = 0
         self._last_steer_rad = 0.0
-        self._wall_start_s = 0.0
+        self._clock = WallClock(0.0, 0.0)
         self.estimate: Estimate | None = None
         """The filter's estimate at the current control step (what a tracker would see)."""
 
@@ -148,6 +148,7 @@ class CosimEnv(gymnasium.Env[np.ndarray, np.ndarray]):
               options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
         self._close_episode()
+        called_s = time.perf_counter()
         run_seed = seed if seed is not None else int(self.np_random.integers(2**31))
         config = dataclasses.replace(self.base_config, seed=run_seed)
         self._episode += 1
@@ -160,7 +161,7 @@ class CosimEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         self._state.write_header()
         self._recorder.publish()
         self._k, self._last_steer_rad = 0, 0.0
-        self._wall_start_s = time.perf_counter()
+        self._clock = WallClock(called_s, time.perf_counter())
         self._advance_to_control()
         return self._observation(), {"t_s": 0.0}
 
@@ -226,7 +227,7 @@ class CosimEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         ``interrupted``); its metrics (None when none was running)."""
         if self._state is None:
             return None
-        metrics = finish_run(self._recorder, self._state, self._wall_start_s, completed,
+        metrics = finish_run(self._recorder, self._state, self._clock, completed,
                              abort, abort)
         self._recorder.close()
         self._state = None

@@ -630,7 +630,7 @@ def _run_with(
             release.callback(state.tracker.close)
         state.write_header()
         recorder.publish()  # the run starts for real: the log takes its final name
-        clock = _WallClock(wall_start, time.perf_counter())  # set-up (and any build) ends
+        clock = WallClock(wall_start, time.perf_counter())  # set-up (and any build) ends
         try:
             with _stop_on_signals() as stop:
                 state.loop(stop, progress)
@@ -663,7 +663,7 @@ def _run_with(
 
 
 @dataclass(frozen=True)
-class _WallClock:
+class WallClock:
     """When the run was called and when its loop started (``time.perf_counter``): the run's
     clock starts after its set-up, where models are built and code compiled, so that a first
     run's ``realtime_factor`` is the simulation's, not the compiler's."""
@@ -676,7 +676,7 @@ class _WallClock:
         return self.loop_start_s - self.called_s, time.perf_counter() - self.loop_start_s
 
 
-def _finish(recorder: Recorder, state: _Run, clock: _WallClock, completed: bool,
+def _finish(recorder: Recorder, state: _Run, clock: WallClock, completed: bool,
             abort_reason: str, abort: str) -> dict[str, float | int | bool | str]:
     metrics = state.metrics
     estimator = state.estimator

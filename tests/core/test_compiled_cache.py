@@ -177,3 +177,22 @@ def test_cosim_cache_shows_and_clears(cache: Path, capsys: pytest.CaptureFixture
     assert main(["cache", "--clear"]) == 0
     assert "removed 1 compiled libraries" in capsys.readouterr().out
     assert not any(cache.iterdir())
+
+
+def test_two_processes_needing_one_library_build_it_once(tmp_path: Path) -> None:
+    """Before: each of a sweep's workers on an empty cache compiled the same library (the
+    EKF's 20 s twice on two workers); now the second waits for the first and loads it."""
+    script = ("import casadi as ca\n"
+              "from cosim.core.compiled_function import compiled_library\n"
+              "x = ca.SX.sym('x', 2)\n"
+              "f = ca.Function('cache_race', [x], [x[0] * x[1]])\n"
+              "assert compiled_library('cache_race', [f], key=f.serialize(),"
+              " note='building cache_race') is not None\n")
+    env = {**os.environ, "XDG_CACHE_HOME": str(tmp_path)}
+    processes = [subprocess.Popen([sys.executable, "-c", script], env=env,
+                                  stderr=subprocess.PIPE, text=True) for _ in range(3)]
+    errs = [p.communicate(timeout=300)[1] for p in processes]
+    assert all(p.returncode == 0 for p in processes), errs
+    assert sum(err.count("cosim: note: building cache_race") for err in errs) == 1, errs
+    assert [p.name for p in (tmp_path / "cosim").iterdir()] == [
+        next((tmp_path / "cosim").iterdir()).name]  # one entry, no lock left
