@@ -40,6 +40,8 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
+from cosim.core.interrupts import interrupts_to
+
 FORCE_AFTER_SIGNALS = 2
 """Signals received before the child is ready that end it at once (``SIGKILL``)."""
 
@@ -197,12 +199,8 @@ def _forwarding_signals(child: int) -> Iterator[_State]:
             with contextlib.suppress(ProcessLookupError):
                 os.kill(child, signal.SIGKILL)
 
-    previous = {s: signal.signal(s, forward) for s in (signal.SIGINT, signal.SIGTERM)}
-    try:
+    with interrupts_to(forward):
         yield state
-    finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
 
 
 def _follow(read_end: int, state: _State) -> None:

@@ -44,6 +44,7 @@ from threadpoolctl import threadpool_limits
 from cosim import __version__
 from cosim.core.config_fields import to_dict
 from cosim.core.exceptions import PhysicsDivergenceError, TrackerFault
+from cosim.core.interrupts import interrupts_to
 from cosim.core.records import Command, Estimate, Measurement, Plan, VehicleState
 from cosim.core.sensor_names import GNSS, RADAR, TRUTH
 from cosim.log import foxglove, topics
@@ -152,12 +153,8 @@ def _stop_on_signals() -> Iterator[_StopRequest]:
     if threading.current_thread() is not threading.main_thread():
         yield request  # signal handlers can only be set from the main thread
         return
-    previous = {s: signal.signal(s, request) for s in (signal.SIGINT, signal.SIGTERM)}
-    try:
+    with interrupts_to(request):
         yield request
-    finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
 
 
 LIVE_METRICS_PERIOD_S = 1.0
