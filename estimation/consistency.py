@@ -182,6 +182,22 @@ class EnsembleConsistency:
         """The ANEES averaged over the judged steps (a summary, not the test)."""
         return float(np.mean(self.anees))
 
+    def window_means(self, window_s: float = 1.0) -> list[tuple[float, float]]:
+        """``(start_s, mean ANEES)`` of consecutive windows ``[start, start + window_s)`` from
+        the first judged step on (a last window shorter than half of ``window_s`` is left
+        out): the shape of the filter's confidence over the manoeuvre, over-confident where
+        a window's mean lies above the band, under-confident below it."""
+        if window_s <= 0.0:
+            raise ValueError(f"window_s = {window_s!r}: expected a positive duration")
+        means = []
+        start = float(self.t_s[0])
+        while start + 0.5 * window_s <= float(self.t_s[-1]) + 1e-9:
+            inside = (self.t_s >= start - 1e-9) & (self.t_s < start + window_s - 1e-9)
+            if inside.any():
+                means.append((start, float(np.mean(self.anees[inside]))))
+            start += window_s
+        return means
+
     def consistent(
         self, min_fraction: float = 0.9, nis_range: tuple[float, float] = (0.7, 1.4)
     ) -> bool:

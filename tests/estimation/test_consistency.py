@@ -116,6 +116,26 @@ def test_worst_window_finds_a_burst_above_the_band() -> None:
         result.worst_window_above(0.0)
 
 
+def test_window_means_show_where_the_filter_is_over_and_under_confident() -> None:
+    """100 runs in one band: a filter whose errors are 1.4 times its belief in one second
+    (a swerve) and 0.8 times in another (the straight after it) shows both in the window
+    means, while the whole run's mean ANEES stays near 4."""
+    rng = np.random.default_rng(5)
+    runs, t_s = 100, np.arange(1500) * 0.01
+    nees = rng.chisquare(4, size=(runs, t_s.size))
+    nees[:, (t_s >= 3.0) & (t_s < 4.0)] *= 1.4
+    nees[:, (t_s >= 5.0) & (t_s < 6.0)] *= 0.8
+    result = ensemble_consistency(t_s, nees, [{}] * runs, [{}] * runs)
+    low, high = result.band
+    means = dict(result.window_means(1.0))
+    assert sorted(means) == [float(k) for k in range(1, 15)]  # from the first judged step
+    assert means[3.0] > high and means[5.0] < low
+    assert all(low <= m <= high for start, m in means.items() if start not in (3.0, 5.0))
+    assert 3.7 < result.anees_mean < 4.3
+    with pytest.raises(ValueError, match="positive"):
+        result.window_means(-1.0)
+
+
 def test_bad_input_is_refused() -> None:
     t_s = np.arange(10) * 0.5
     with pytest.raises(ValueError, match="columns"):
