@@ -21,8 +21,8 @@ from collections.abc import Callable
 import numpy as np
 
 from cosim.core.dense_function import DenseFunction
-from estimation.fusion import KalmanFusion, _Checked
-from estimation.innovation import Selection, TrialUpdate, residual_function
+from estimation.fusion import KalmanFusion
+from estimation.innovation import CheckedMeasurement, Selection, TrialUpdate, residual_function
 from estimation.joint_update import JointPosterior, JointUpdate
 from estimation.measurement_models import MeasurementModel
 
@@ -76,7 +76,7 @@ class Ekf(KalmanFusion):
             raise ValueError("the measurement models must share one belief")
         return JointUpdate(self._models, belief)
 
-    def _joint_update(self, checked: list[_Checked]) -> JointPosterior | None:
+    def _joint_update(self, checked: list[CheckedMeasurement]) -> JointPosterior | None:
         """As compiled C (:mod:`estimation.joint_update`) when the models are compiled;
         otherwise in numpy (:meth:`_joint_trial_update`), which is then faster than the one
         function in CasADi's virtual machine."""

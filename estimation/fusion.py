@@ -25,14 +25,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import warnings
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
-from cosim.core.compiled_function import CompiledCacheWarning, compiler, load_library
 from cosim.core.dense_function import DenseFunction
 from cosim.core.exceptions import ConfigError
 from cosim.core.initial_state import InitialState
@@ -40,11 +38,18 @@ from cosim.core.records import Estimate, Measurement
 from cosim.core.sensor_names import FUSED_SENSORS, GNSS
 from cosim.core.vehicle_params import VehicleParams
 from estimation.belief_models import process_noise, roll_params
+from estimation.compiled_models import use_compiled
 from estimation.config import EstimatorConfig
 from estimation.consistency import chi_square_quantile
 from estimation.errors import EstimatorError
 from estimation.initial import initial_belief
-from estimation.innovation import Innovation, Selection, TrialUpdate, residual_function
+from estimation.innovation import (
+    CheckedMeasurement,
+    Innovation,
+    Selection,
+    TrialUpdate,
+    residual_function,
+)
 from estimation.joint_update import JointPosterior
 from estimation.measurement_models import MeasurementModel, build_measurement_models
 from estimation.process_model import (
@@ -80,17 +85,6 @@ class _Lookahead:
     t_s: float
     mean: np.ndarray
     covariance: np.ndarray
-
-
-@dataclass(frozen=True)
-class _Checked:
-    """A measurement :meth:`KalmanFusion.update` can fuse: its model, the channels, their
-    values and the time stamp."""
-
-    model: MeasurementModel
-    selection: Selection
-    z: np.ndarray
-    t_s: float
 
 
 class KalmanFusion(ABC):
@@ -150,7 +144,7 @@ class KalmanFusion(ABC):
             roll=roll,
         )
         if config.compiled:
-            _use_compiled(self.kind, self._hot_functions())
+            use_compiled(self.kind, self._hot_functions())
         self._angle_indices = tuple(state_index(name) for name in ANGLE_STATES)
         self._noise_variances = config.noise.channel_variances()
         self._gate_thresholds: dict[int, float] = {}
@@ -305,7 +299,7 @@ class KalmanFusion(ABC):
 
     # ------------------------------------------------------------------------------ update
 
-    def _check(self, measurement: Measurement) -> _Checked | tuple[str, int]:
+    def _check(self, measurement: Measurement) -> CheckedMeasurement | tuple[str, int]:
         """What :meth:`update` fuses of ``measurement`` (its model, channels and values), or
         why it fuses nothing: ``(reason, dim)``. Changes nothing."""
         model = self._models.get(measurement.sensor)
@@ -331,7 +325,7 @@ class KalmanFusion(ABC):
             return NON_FINITE, dim
         if is_stale(self._t_s, t_s):
             return STALE, dim
-        return _Checked(model, selection, z, t_s)
+        return CheckedMeasurement(model, selection, z, t_s)
 
     def update(self, measurement: Measurement) -> UpdateResult:
         """Fuse one measurement at its own time (predicting to it first).
@@ -345,7 +339,7 @@ class KalmanFusion(ABC):
         sensor = measurement.sensor
         counts = self._counts.setdefault(sensor, SensorCounts())
         checked = self._check(measurement)
-        if not isinstance(checked, _Checked):
+        if not isinstance(checked, CheckedMeasurement):
             reason, dim = checked
             if reason == IGNORED:
                 counts.ignored += 1
@@ -404,7 +398,7 @@ class KalmanFusion(ABC):
         """
         checked = [self._check(m) for m in measurements]
         if (len(measurements) < 2 or self._awaiting_first_fix
-                or not all(isinstance(c, _Checked) for c in checked)
+                or not all(isinstance(c, CheckedMeasurement) for c in checked)
                 or len({c.t_s for c in checked}) != 1):
             return [self.update(m) for m in measurements]
         self.predict(checked[0].t_s)
@@ -426,7 +420,7 @@ class KalmanFusion(ABC):
             results.append(UpdateResult(True, value, dim, ACCEPTED, value, dim))
         return results
 
-    def _joint_update(self, checked: list[_Checked]) -> JointPosterior | None:
+    def _joint_update(self, checked: list[CheckedMeasurement]) -> JointPosterior | None:
         """Every measurement of ``checked`` in one update against the current belief, and
         each one's NIS (its block of the joint innovation); None when the filter has no
         joint update or it failed (a singular innovation covariance)."""
@@ -702,25 +696,3 @@ class KalmanFusion(ABC):
 
     def _is_finite(self) -> bool:
         return bool(np.isfinite(self._x).all() and np.isfinite(self._p).all())
-
-
-def _use_compiled(kind: str, functions: tuple[DenseFunction, ...]) -> None:
-    """Evaluate ``functions`` as C: one library for all of them, compiled on first use
-    (with a one-line note) and cached; with a one-line warning, CasADi's virtual machine
-    when no C compiler works. Their numbers are inputs, so the library serves every
-    belief: it is built once per machine."""
-    if not functions:
-        return
-    fallback = (f"the {kind}'s models run in CasADi's virtual machine, about 2x slower "
-                "(estimator.compiled=false says so quietly)")
-    library = load_library(f"cosim_{kind.lower()}",
-                           [function.function for function in functions],
-                           note=f"compiling the {kind}'s models to C (about 20 s)",
-                           fallback=fallback)
-    if library is None:
-        if compiler() is None:  # a failed build or load has said why
-            warnings.warn(f"no working C compiler (gcc, or $CC): {fallback}",
-                          CompiledCacheWarning, stacklevel=3)
-        return
-    for function in functions:
-        function.use_compiled(library)

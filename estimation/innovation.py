@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from estimation.measurement_models import MeasurementModel
 from estimation.state import wrap_angle
 
 
@@ -59,3 +60,14 @@ def residual_function(
         return difference
 
     return residual
+
+
+@dataclass(frozen=True)
+class CheckedMeasurement:
+    """A measurement :meth:`estimation.fusion.KalmanFusion.update` can fuse: its model, the
+    channels, their values and the time stamp."""
+
+    model: MeasurementModel
+    selection: Selection
+    z: np.ndarray
+    t_s: float

@@ -26,7 +26,7 @@ two agree to rounding). The angle channels' innovations are wrapped to (-pi, pi]
 
 One function serves every combination of sensors and channels, and its numbers (the
 belief) are an input: it is compiled to C once per machine with the filter's other models
-(:func:`estimation.fusion._use_compiled`). Without a compiler it is not used: evaluated
+(:func:`estimation.compiled_models.use_compiled`). Without a compiler it is not used: evaluated
 by CasADi's virtual machine it costs more than the same algebra in numpy.
 """
 

@@ -37,7 +37,8 @@ import numpy as np
 
 from cosim.core.records import Command, Estimate, Plan
 from cosim.log.recorder import McapRecorder, NoLog
-from cosim.simulation.runner import RunState, WallClock, finish_run
+from cosim.simulation.run_control import WallClock
+from cosim.simulation.runner import RunState, finish_run
 from cosim.simulation.scenario_config import ScenarioConfig, load_config
 from tracker.paths.reference_path import ReferencePath
 

@@ -28,12 +28,10 @@ import contextlib
 import dataclasses
 import importlib.metadata
 import json
-import signal
-import threading
 import time
 import warnings
 import zlib
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -44,7 +42,6 @@ from threadpoolctl import threadpool_limits
 from cosim import __version__
 from cosim.core.config_fields import to_dict
 from cosim.core.exceptions import PhysicsDivergenceError, TrackerFault
-from cosim.core.interrupts import interrupts_to
 from cosim.core.records import Command, Estimate, Measurement, Plan, VehicleState
 from cosim.core.sensor_names import GNSS, RADAR, TRUTH
 from cosim.log import foxglove, topics
@@ -63,6 +60,7 @@ from cosim.simulation.filter_health import FilterInconsistentWarning, filter_war
 from cosim.simulation.metrics import MetricsAccumulator
 from cosim.simulation.outcome import TERMINAL, Event, OutcomeMonitor
 from cosim.simulation.requirements import SignalTrace, requirement_metrics
+from cosim.simulation.run_control import StopRequest, WallClock, stop_on_signals
 from cosim.simulation.scenario_config import ScenarioConfig, steps_per_period
 from cosim.simulation.traffic_loop import CollisionError, TrafficLoop, build_traffic
 from cosim.simulation.workshop import Workshop
@@ -130,31 +128,6 @@ def _versions() -> dict[str, str]:
         except importlib.metadata.PackageNotFoundError:
             versions[package] = "unknown"
     return versions
-
-
-class _StopRequest:
-    """Set by SIGINT/SIGTERM while a run goes; the loop checks it once per physics step.
-
-    A flag rather than Python's KeyboardInterrupt: CasADi polls for signals inside IPOPT and
-    would turn the exception into a failed solve, which the tracker rightly survives.
-    """
-
-    def __init__(self) -> None:
-        self.signal_name = ""
-
-    def __call__(self, signum: int, frame: object) -> None:
-        del frame
-        self.signal_name = signal.Signals(signum).name
-
-
-@contextlib.contextmanager
-def _stop_on_signals() -> Iterator[_StopRequest]:
-    request = _StopRequest()
-    if threading.current_thread() is not threading.main_thread():
-        yield request  # signal handlers can only be set from the main thread
-        return
-    with interrupts_to(request):
-        yield request
 
 
 LIVE_METRICS_PERIOD_S = 1.0
@@ -549,7 +522,7 @@ class _Run:
             due = min(due, self.yaw_rate_changes[0].step)
         return max(due - k, 1)
 
-    def loop(self, stop: _StopRequest, progress: Callable[[float], None] | None) -> None:
+    def loop(self, stop: StopRequest, progress: Callable[[float], None] | None) -> None:
         """Step ``k`` is observed, controlled and acted on where something is due; between
         such steps the plant advances in one call (:meth:`MujocoPlant.advance_steps`: in
         compiled code), with nothing else to do there: the same steps, the same answers.
@@ -629,7 +602,7 @@ def _run_with(
         recorder.publish()  # the run starts for real: the log takes its final name
         clock = WallClock(wall_start, time.perf_counter())  # set-up (and any build) ends
         try:
-            with _stop_on_signals() as stop:
+            with stop_on_signals() as stop:
                 state.loop(stop, progress)
             completed = state.stopped_by is None
             if state.stopped_by is not None:
@@ -657,20 +630,6 @@ def _run_with(
             progress(1.0)
         metrics = _finish(recorder, state, clock, completed, abort_reason, abort)
     return metrics, completed, abort_reason
-
-
-@dataclass(frozen=True)
-class WallClock:
-    """When the run was called and when its loop started (``time.perf_counter``): the run's
-    clock starts after its set-up, where models are built and code compiled, so that a first
-    run's ``realtime_factor`` is the simulation's, not the compiler's."""
-
-    called_s: float
-    loop_start_s: float
-
-    def times(self) -> tuple[float, float]:
-        """``(setup_time_s, wall_time_s)``: set-up, and the loop up to now."""
-        return self.loop_start_s - self.called_s, time.perf_counter() - self.loop_start_s
 
 
 def _finish(recorder: Recorder, state: _Run, clock: WallClock, completed: bool,

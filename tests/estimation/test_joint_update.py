@@ -14,7 +14,8 @@ import pytest
 from cosim.core.records import Measurement
 from cosim.simulation.scenario_config import load_config
 from estimation.ekf import Ekf
-from estimation.fusion import KalmanFusion, _Checked
+from estimation.fusion import KalmanFusion
+from estimation.innovation import CheckedMeasurement
 from estimation.registry import make_estimator
 from tests.conftest import run_scenario
 
@@ -41,9 +42,9 @@ def _measurement(filter_: Ekf, sensor: str, names: tuple[str, ...],
     return Measurement(sensor, T_S, names, values, np.eye(len(names)))
 
 
-def _checked(filter_: Ekf, measurements: list[Measurement]) -> list[_Checked]:
+def _checked(filter_: Ekf, measurements: list[Measurement]) -> list[CheckedMeasurement]:
     checked = [filter_._check(m) for m in measurements]
-    assert all(isinstance(c, _Checked) for c in checked)
+    assert all(isinstance(c, CheckedMeasurement) for c in checked)
     return checked  # type: ignore[return-value]
 
 
