@@ -31,6 +31,16 @@ class Parser(argparse.ArgumentParser):
         self.exit(EXIT_USAGE, f"{self.prog}: error: {message}\n")
 
 
+def add_pool_options(parser: argparse.ArgumentParser) -> None:
+    """``--workers``, ``--backend`` and the refused ``--live`` of a command that runs many
+    runs on a pool (``cosim sweep``, ``cosim envelope``)."""
+    parser.add_argument("--workers", type=int, metavar="N",
+                        help="parallel runs (default: the number of cores)")
+    parser.add_argument("--backend", choices=("process", "ray"), default="process",
+                        help="process pool on this machine (default) or Ray")
+    parser.add_argument("--live", action="store_true", help=argparse.SUPPRESS)
+
+
 def refuse_live(args: argparse.Namespace, command: str) -> None:
     """``--live`` streams a single run: refused for a command that makes many."""
     if args.live:

@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from cosim.cli.common import EXIT_INTERRUPT, Handler, refuse_live
+from cosim.cli.common import EXIT_INTERRUPT, Handler, add_pool_options, refuse_live
 from cosim.core.exceptions import CosimError
 
 
@@ -17,11 +17,7 @@ def add_parsers(commands: Any) -> dict[str, Handler]:
         "envelope", help="find the mismatch at which a requirement starts to fail")
     envelope.add_argument("spec", metavar="SPEC.yaml",
                           help="the envelope spec (see cosim.sweeps.envelope_spec)")
-    envelope.add_argument("--workers", type=int, metavar="N",
-                          help="parallel runs (default: the number of cores)")
-    envelope.add_argument("--backend", choices=("process", "ray"), default="process",
-                          help="process pool on this machine (default) or Ray")
-    envelope.add_argument("--live", action="store_true", help=argparse.SUPPRESS)
+    add_pool_options(envelope)
     envelope.add_argument("--out", metavar="DIR",
                           help="output directory (default logs/envelope-<spec>)")
     envelope.add_argument("--resume", action="store_true",

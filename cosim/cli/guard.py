@@ -37,7 +37,7 @@ import signal
 import sys
 import traceback
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from cosim.core.interrupts import interrupts_to
@@ -171,7 +171,8 @@ def _child(body: Callable[[Reporter], int], reporter: Reporter) -> None:  # prag
 class _State:
     child: int
     ready: bool = False
-    pending: list[int] | None = None
+    pending: list[int] = field(default_factory=list)
+    """Interrupts received before the child was ready, passed on when it is."""
     code: int | None = None
     last_t_s: float | None = None
     log_path: str | None = None
@@ -183,7 +184,7 @@ class _State:
 @contextlib.contextmanager
 def _forwarding_signals(child: int) -> Iterator[_State]:
     """SIGINT and SIGTERM of the parent go to the child once it is ready."""
-    state = _State(child=child, pending=[])
+    state = _State(child=child)
 
     def forward(signum: int, frame: Any) -> None:
         del frame
@@ -192,7 +193,6 @@ def _forwarding_signals(child: int) -> Iterator[_State]:
             with contextlib.suppress(ProcessLookupError):
                 os.kill(child, signum)
             return
-        assert state.pending is not None
         state.pending.append(signum)
         if len(state.pending) >= FORCE_AFTER_SIGNALS:
             state.forced = True
@@ -224,7 +224,7 @@ def _take(line: str, state: _State) -> None:
     word, _, value = line.partition(" ")
     if word == "ready":
         state.ready = True
-        for signum in state.pending or ():
+        for signum in state.pending:
             with contextlib.suppress(ProcessLookupError):
                 os.kill(state.child, signum)
         state.pending = []

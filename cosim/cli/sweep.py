@@ -14,7 +14,14 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from cosim.cli.common import EXIT_BAD_OUTCOME, EXIT_INTERRUPT, EXIT_IO, Handler, refuse_live
+from cosim.cli.common import (
+    EXIT_BAD_OUTCOME,
+    EXIT_INTERRUPT,
+    EXIT_IO,
+    Handler,
+    add_pool_options,
+    refuse_live,
+)
 from cosim.core.exceptions import CosimError
 
 
@@ -22,11 +29,7 @@ def add_parsers(commands: Any) -> dict[str, Handler]:
     sweep = commands.add_parser(
         "sweep", help="run a scenario over a grid or random sample of parameters and seeds")
     sweep.add_argument("spec", metavar="SPEC.yaml", help="the sweep spec (see cosim.sweeps.spec)")
-    sweep.add_argument("--workers", type=int, metavar="N",
-                       help="parallel runs (default: the number of cores)")
-    sweep.add_argument("--backend", choices=("process", "ray"), default="process",
-                       help="process pool on this machine (default) or Ray")
-    sweep.add_argument("--live", action="store_true", help=argparse.SUPPRESS)
+    add_pool_options(sweep)
     sweep.add_argument("--out", metavar="DIR",
                        help="output directory (default logs/sweep-<spec>-<time>)")
     sweep.add_argument("--keep-logs", action="store_true",
