@@ -40,7 +40,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
-from cosim.core.interrupts import interrupts_to
+from cosim.core.interrupts import INTERRUPTS, interrupts_to
 
 FORCE_AFTER_SIGNALS = 2
 """Signals received before the child is ready that end it at once (``SIGKILL``)."""
@@ -104,13 +104,15 @@ def guarded(body: Callable[[Reporter], int]) -> int | Death:
             stream.flush()
     read_end, write_end = os.pipe()
     parent = os.getpid()
-    child = os.fork()
-    if child == 0:  # pragma: no cover - the child's coverage is not collected
-        os.close(read_end)
-        _die_with(parent)
-        _child(body, Reporter(write_end))
-    os.close(write_end)
-    with _forwarding_signals(child) as state:
+    # The parent's handlers are in place before the fork: no interrupt falls between.
+    with _forwarding_signals() as state:
+        child = os.fork()
+        if child == 0:  # pragma: no cover - the child's coverage is not collected
+            os.close(read_end)
+            _die_with(parent)
+            _child(body, Reporter(write_end))
+        state.child = child
+        os.close(write_end)
         _follow(read_end, state)
     os.close(read_end)
     _, status = _wait(child)
@@ -151,8 +153,9 @@ def _die_with(parent: int) -> None:  # pragma: no cover - runs in the child
 def _child(body: Callable[[Reporter], int], reporter: Reporter) -> None:  # pragma: no cover
     """Run ``body`` and end the child with its code (never returns)."""
     code = 1
-    # SIGTERM during set-up is an interrupt, as Ctrl-C is (the run's loop takes both).
-    signal.signal(signal.SIGTERM, signal.default_int_handler)
+    # Ctrl-C and SIGTERM during set-up interrupt it (the run's loop takes both over).
+    for signum in INTERRUPTS:
+        signal.signal(signum, signal.default_int_handler)
     try:
         code = body(reporter)
     except SystemExit as done:
@@ -169,7 +172,8 @@ def _child(body: Callable[[Reporter], int], reporter: Reporter) -> None:  # prag
 
 @dataclass
 class _State:
-    child: int
+    child: int = 0
+    """The child's process id (0 until it is forked)."""
     ready: bool = False
     pending: list[int] = field(default_factory=list)
     """Interrupts received before the child was ready, passed on when it is."""
@@ -182,22 +186,22 @@ class _State:
 
 
 @contextlib.contextmanager
-def _forwarding_signals(child: int) -> Iterator[_State]:
+def _forwarding_signals() -> Iterator[_State]:
     """SIGINT and SIGTERM of the parent go to the child once it is ready."""
-    state = _State(child=child)
+    state = _State()
 
     def forward(signum: int, frame: Any) -> None:
         del frame
         state.signalled = True
         if state.ready:
             with contextlib.suppress(ProcessLookupError):
-                os.kill(child, signum)
+                os.kill(state.child, signum)
             return
         state.pending.append(signum)
-        if len(state.pending) >= FORCE_AFTER_SIGNALS:
+        if len(state.pending) >= FORCE_AFTER_SIGNALS and state.child:
             state.forced = True
             with contextlib.suppress(ProcessLookupError):
-                os.kill(child, signal.SIGKILL)
+                os.kill(state.child, signal.SIGKILL)
 
     with interrupts_to(forward):
         yield state
