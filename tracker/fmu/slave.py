@@ -12,6 +12,12 @@ the slave is dropped without it, through :func:`weakref.finalize`).
 fmpy raises on an FMI call that returns ``discard``, ``error`` or ``fatal``; the FMU's log
 messages (its logger callback) are kept, the last few, so that the caller can name the
 FMU's own reason. Nothing is printed.
+
+After a ``fatal`` status "it is not possible to call any other function for any of the FMU
+instances" (FMI 2.0.4 section 2.1.3; FMI 3.0 section 2.2.3): :meth:`close` then neither
+terminates nor frees the instance and leaves the library loaded until the process ends. A
+pythonfmu instance whose ``do_step`` raised, freed and unloaded, crashed the next run of the
+same process (a segmentation fault in a later garbage collection).
 """
 
 from __future__ import annotations
@@ -26,6 +32,7 @@ from pathlib import Path
 from typing import Any
 
 import fmpy
+from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import (
     FMU2Slave,
     fmi2CallbackAllocateMemoryTYPE,
@@ -41,6 +48,7 @@ LOG_LINES_KEPT = 5
 """How many of the FMU's latest log messages are kept for error messages."""
 LOG_STATUS = ("ok", "warning", "discard", "error", "fatal", "pending")
 """FMI status codes, by value (fmi2Status / fmi3Status)."""
+FATAL_STATUS = LOG_STATUS.index("fatal")
 
 
 class FmuSlave:
@@ -56,6 +64,8 @@ class FmuSlave:
         self._inputs = [v.value_reference for v in description.inputs]
         self._outputs = [description.steer.value_reference, description.accel.value_reference]
         self._fmu: Any = None
+        self._fatal = False
+        """An FMI call returned ``fatal``: no further call, no unloading."""
         try:
             fmpy.extract(str(description.path), self._unzip_dir)
             self._instantiate()
@@ -102,7 +112,11 @@ class FmuSlave:
         ``(steer_rad, accel_mps2)``; fmpy raises when a call fails."""
         if self._inputs:
             self._set(self._inputs, inputs)
-        result = self._fmu.doStep(t_s, h_s)
+        try:
+            result = self._fmu.doStep(t_s, h_s)
+        except FMICallException as error:
+            self._fatal = error.status == FATAL_STATUS
+            raise
         if self.description.fmi_major == 3 and result[1]:  # terminateSimulation
             raise RuntimeError(f"the FMU asked to terminate at t = {t_s + h_s:g} s")
         steer, accel = self._get(self._outputs)
@@ -119,7 +133,7 @@ class FmuSlave:
         """Terminate and free the instance, unload the library, remove the folder."""
         fmu, self._fmu = self._fmu, None
         try:
-            if fmu is not None and getattr(fmu, "component", None):
+            if fmu is not None and getattr(fmu, "component", None) and not self._fatal:
                 try:
                     fmu.terminate()
                 except Exception:  # an FMU that failed may refuse to terminate

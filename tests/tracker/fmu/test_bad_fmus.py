@@ -267,9 +267,7 @@ def _misbehaving_python_fmu(tmp_path: Path, name: str, misbehaviour: str) -> str
 
 
 def _cosim_run(tmp_path: Path, *args: str) -> Any:
-    """``cosim run lane-change`` in a process of its own: a pythonfmu instance whose do_step
-    raised crashes a later garbage collection of the process that ran it (seen with FMPy
-    0.3.32, pythonfmu 0.7.0; `cosim run` ends its run's process after the run)."""
+    """``cosim run lane-change`` in a process of its own (the command as a user runs it)."""
     import subprocess
     import sys
 
@@ -288,6 +286,29 @@ def test_a_python_fmus_own_error_text_is_kept(tmp_path: Path) -> None:
     assert done.returncode == 3 and "Traceback" not in err
     assert "failed at t = 0.500 s" in err
     assert "(the FMU said: ValueError('the lookahead table ran out'))" in err
+
+
+def test_a_fatal_fmu_is_not_freed_so_the_process_runs_on(tmp_path: Path) -> None:
+    """After ``fatal`` no FMI call is allowed (FMI 2.0.4 section 2.1.3). Before, the instance
+    was freed and its library unloaded: the next run in the same process (a notebook, the
+    API) died of a segmentation fault in a garbage collection."""
+    import subprocess
+    import sys
+
+    name = _misbehaving_python_fmu(tmp_path, "RaisingFmi2",
+                                   "raise ValueError('the lookahead table ran out')")
+    program = (
+        "import gc\n"
+        "from cosim.cli import main\n"
+        "for i in range(3):\n"
+        f"    code = main(['run', 'lane-change', '--tracker', {name!r}, '--duration', '1',\n"
+        f"                 '--out', {str(tmp_path)!r} + f'/run{{i}}.mcap'])\n"
+        "    assert code == 3, code\n"
+        "    gc.collect()\n"
+        "print('survived')\n")
+    done = subprocess.run([sys.executable, "-c", program], capture_output=True, text=True,
+                          timeout=600)
+    assert done.returncode == 0 and "survived" in done.stdout, done.returncode
 
 
 def test_a_python_fmu_that_ends_the_process_is_named_and_the_log_kept(tmp_path: Path) -> None:
