@@ -159,7 +159,6 @@ class CosimEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         else:
             self._recorder = NoLog()
         self._state = RunState(config, self._recorder, _ActionTracker())
-        self._state.write_header()
         self._recorder.publish()
         self._k, self._last_steer_rad = 0, 0.0
         self._clock = WallClock(called_s, time.perf_counter())
@@ -173,11 +172,7 @@ class CosimEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         assert isinstance(state.tracker, _ActionTracker)
         state.tracker.command = command
         events_before = len(state.monitor.events)
-        t_s = self._k * state.clock.dt_s
-        state.control(self._k, t_s)
-        state.act(self._k)
-        self._k += 1
-        ended = not self._advance_to_control()
+        ended = not self._advance_to_control(observed=True)
         m = state.metrics
         ref_speed = m.last_ref_speed_mps
         speed_err = 0.0 if ref_speed is None else state.truth.speed_mps - ref_speed
@@ -194,18 +189,18 @@ class CosimEnv(gymnasium.Env[np.ndarray, np.ndarray]):
             info["metrics"] = self._close_episode(completed=not terminated, abort="")
         return observation, float(reward), terminated, ended and not terminated, info
 
-    def _advance_to_control(self) -> bool:
-        """Observe physics steps until the next control step; False at the end of the run."""
+    def _advance_to_control(self, observed: bool = False) -> bool:
+        """Run to the next control instant (the run's own :meth:`RunState.advance`, from
+        the current one, whose log and sensing are ``observed`` already); False at the
+        end of the run."""
         state = self._state
         assert state is not None
-        while True:
-            if not state.observe(self._k):
-                return False
-            if self._k % state.clock.control_steps == 0:
-                self.estimate = state.current_estimate(self._k * state.clock.dt_s)
-                return True
-            state.act(self._k)
-            self._k += 1
+        self._k, ended = state.advance(self._k, observed=observed, pause_at_control=True)
+        if ended:
+            return False
+        k = self._k
+        self.estimate = state.current_estimate(k * state.clock.dt_s)
+        return True
 
     def _observation(self) -> np.ndarray:
         assert self._state is not None and self.estimate is not None
@@ -228,8 +223,7 @@ class CosimEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         ``interrupted``); its metrics (None when none was running)."""
         if self._state is None:
             return None
-        metrics = finish_run(self._recorder, self._state, self._clock, completed,
-                             abort, abort)
+        metrics = finish_run(self._state, self._clock, completed, abort, abort)
         self._recorder.close()
         self._state = None
         return metrics

@@ -4,7 +4,7 @@ A run's log holds every measurement its sensors delivered (``/sensors/<name>``, 
 and dropouts) and the truth at every log instant (``/vehicle/truth``). A filter that did not
 steer the car, the same one with other beliefs say (its process noise scaled, for a test
 that a mistuned filter fails), can be fed that stream as the runner fed the run's own
-filter, step by step (:meth:`cosim.simulation.runner._Run.observe`, then ``control``): at a
+filter, step by step (:meth:`cosim.simulation.runner._Run.advance`): at a
 log instant the estimate is looked at (``estimate_at``, which changes nothing), then the
 measurements of that instant are fused (together where the filter can,
 :class:`estimation.protocol.JointUpdater`), then at a control instant the filter is
@@ -30,13 +30,15 @@ from cosim.core.records import Measurement
 from cosim.core.sensor_names import FUSED_SENSORS
 from cosim.log import topics
 from cosim.log.reader import iter_topics
+from cosim.simulation.estimator_port import EstimatorPort
 from cosim.simulation.metrics import NEES_STATES
-from cosim.simulation.runner import component_rng, scenario_course, start_speed_resolved
+from cosim.simulation.runner import scenario_course, start_speed_resolved
 from cosim.simulation.scenario_config import ScenarioConfig, steps_per_period
+from cosim.simulation.seeding import component_rng
 from cosim.sweeps.ensemble import EnsembleMember
 from estimation.config import EstimatorConfig
 from estimation.consistency import SETTLE_S
-from estimation.protocol import JointUpdater, ObservableEstimator
+from estimation.protocol import ObservableEstimator
 from estimation.registry import make_estimator
 from estimation.update_result import GATE, PARTIAL
 from tracker.paths.reference_path import wrap_angle
@@ -84,6 +86,7 @@ def replay(config: ScenarioConfig, path: Path, estimator: EstimatorConfig | None
     if not isinstance(filter_, ObservableEstimator):
         raise TypeError(f"estimator {estimator.name!r}: a replay needs estimate_at "
                         "(estimation.protocol.ObservableEstimator)")
+    port = EstimatorPort(filter_)  # fused as the run fuses: together where it can
     stream, truth = logged_stream(path)
     sim, dt_s = config.sim, config.sim.physics_dt_s
     log_steps = steps_per_period(sim.log_period_s, dt_s, "sim.log_period_s")
@@ -112,8 +115,7 @@ def replay(config: ScenarioConfig, path: Path, estimator: EstimatorConfig | None
             nees.append(float(error @ np.linalg.solve(covariance, error)))
         delivered = stream.get(t_ns, [])
         if delivered:
-            results = (filter_.update_many(delivered) if isinstance(filter_, JointUpdater)
-                       else [filter_.update(m) for m in delivered])
+            results = port.fuse(delivered)
             for measurement, result in zip(delivered, results, strict=True):
                 sensor, value, dim = measurement.sensor, result.joint_nis, result.joint_dim
                 if dim == 0 or not np.isfinite(value):

@@ -1,0 +1,66 @@
+"""The run's sensors: each with its period in physics steps, its random stream and its faults.
+
+A sensor's period is a whole number of physics steps (checked when the run is built); its
+random generator is the run seed's stream named ``sensors.<name>``
+(:func:`cosim.simulation.seeding.component_rng`), so adding a sensor changes no other
+sensor's noise; its faults (:mod:`cosim.sensing.faults`) are applied to each sample, in
+time order, a dropout delivering nothing. A filter that asks for the truth
+(``required_sensors`` holding ``truth``) gets a noise-free :class:`TruthSensor` at the
+faster of the log and control rates.
+"""
+
+from __future__ import annotations
+
+from cosim.core.records import Measurement, VehicleState
+from cosim.core.sensor_names import TRUTH
+from cosim.sensing.faults import FaultInjector
+from cosim.sensing.protocol import BiasedSensor, Sensor
+from cosim.sensing.sensors import TruthSensor, make_sensors
+from cosim.simulation.scenario_config import ScenarioConfig, steps_per_period
+from cosim.simulation.seeding import component_rng
+
+
+class SensorSuite:
+    """The sensors of one run (module docstring)."""
+
+    def __init__(self, config: ScenarioConfig, required_sensors: tuple[str, ...],
+                 dt_s: float) -> None:
+        sensors: list[Sensor] = make_sensors(config.sensors)
+        if TRUTH in required_sensors:
+            sensors.append(TruthSensor(min(config.sim.log_period_s,
+                                           config.sim.control_period_s)))
+        self.sensors = sensors
+        self.steps = [steps_per_period(s.period_s, dt_s, f"sensors.{s.name}.period_s")
+                      for s in sensors]
+        """Each sensor's period, in physics steps."""
+        self._rngs = [component_rng(config.seed, f"sensors.{s.name}") for s in sensors]
+        self._faults = [FaultInjector(config.faults, s.name, s.names) for s in sensors]
+        self._biased = [s for s in sensors if isinstance(s, BiasedSensor)]
+
+    @property
+    def names(self) -> list[str]:
+        return [s.name for s in self.sensors]
+
+    def sample(self, k: int, truth: VehicleState) -> list[Measurement]:
+        """What the sensors due at physics step ``k`` deliver (faults applied; a dropout
+        delivers nothing), in the sensors' order."""
+        delivered = []
+        for sensor, steps, rng, faults in zip(self.sensors, self.steps, self._rngs,
+                                              self._faults, strict=True):
+            if k % steps:
+                continue
+            measurement = faults.apply(sensor.sample(truth, rng))
+            if measurement is not None:
+                delivered.append(measurement)
+        return delivered
+
+    def true_biases(self) -> dict[str, float]:
+        """The true biases of the sensors that have them (for the truth's log message)."""
+        biases: dict[str, float] = {}
+        for sensor in self._biased:
+            biases.update(sensor.true_biases())
+        return biases
+
+    def faults_injected(self) -> int:
+        """How many faults the run's sensors have had so far."""
+        return sum(f.injected for f in self._faults)
