@@ -170,7 +170,7 @@ class MujocoPlant:
             **{f"tyre_geom{i}": geom for i, geom in enumerate(tyres.tyre_geoms)},
         }
         return CompiledSteps(loaded, function, m, self._data, constants, indices,
-                             tyres.buffers())
+                             tyres.buffers(), tyres.road_tyres)
 
     # ----------------------------------------------------------------- construction
 

@@ -5,7 +5,7 @@ actuator, the drive and brakes, the chassis's resistance, ``mj_step1``, the four
 ``mj_step2`` and its checks in Python around two MuJoCo calls: about 60 us a step of which
 MuJoCo's own work is 8. ``plant_step.c`` does the same, expression by expression, in C
 against MuJoCo's C API and the tyres' CasADi-generated C (:mod:`cosim.plant.tyre_patches`),
-compiled together into one library (once per machine and tyre configuration, cached as
+compiled together into one library (once per machine and model structure, cached as
 :mod:`cosim.core.compiled_function` caches every library) and called through ctypes on
 MuJoCo's own ``mjModel``/``mjData`` and numpy buffers: :meth:`CompiledSteps.advance` steps
 the plant ``n`` times between the instants something is due (sensor, control, log), the
@@ -45,8 +45,10 @@ CONSTANT_FIELDS: tuple[str, ...] = (
     "drag_coefficient", "rolling_force_n", "rolling_speed_scale_mps", "max_velocity_norm2",
     "max_position_norm2", "tyre_friction")
 """The numbers of ``plant_step.c`` (its ``PC_*`` indices), in order: parameters of the
-compiled library, so one library serves every car and road (the tyre friction is the tyre
-function's last input)."""
+compiled library, so one library serves every car and road. The tyres' numbers follow the
+last, the road's friction: from it on the array is the tyre function's ``road_tyres``
+input (:func:`cosim.plant.tyre_patches.road_tyre_numbers`), so one library serves every
+tyre too."""
 
 INDEX_FIELDS: tuple[str, ...] = (
     "servo_left", "servo_right", "n_driven", "driven_dof0", "driven_dof1", "driven_dof2",
@@ -108,10 +110,15 @@ class CompiledSteps:
 
     def __init__(self, library: ctypes.CDLL, tyres: ca.Function, model: mujoco.MjModel,
                  data: mujoco.MjData, constants: dict[str, float], indices: dict[str, int],
-                 buffers: Sequence[np.ndarray]) -> None:
+                 buffers: Sequence[np.ndarray], road_tyres: np.ndarray) -> None:
+        """``road_tyres``: the tyre function's input of that name, whose first number is
+        ``constants["tyre_friction"]``."""
         self.state = np.zeros(len(STATE_FIELDS))
         """The state between steps (:data:`STATE_FIELDS`); written by the plant too."""
-        self._constants = np.array([constants[name] for name in CONSTANT_FIELDS], dtype=float)
+        if road_tyres[0] != constants["tyre_friction"]:
+            raise ValueError("road_tyres must begin with the constants' tyre_friction")
+        self._constants = np.concatenate((
+            [constants[name] for name in CONSTANT_FIELDS], road_tyres[1:])).astype(float)
         self._indices = np.array([indices[name] for name in INDEX_FIELDS], dtype=np.intc)
         self._buffers = tuple(buffers)
         for buffer in self._buffers:

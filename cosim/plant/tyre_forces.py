@@ -29,6 +29,7 @@ from cosim.plant.tyre_patches import (
     CONTACT_SIZE,
     FORCE_FIELDS,
     PATCH_STATE_SIZE,
+    road_tyre_numbers,
     tyre_patches_function,
 )
 
@@ -102,14 +103,15 @@ class MagicFormulaTyres:
         self._wrench_buffer = np.zeros((self._n_wheels, 6))
         self._forces_buffer = np.zeros((self._n_wheels, FORCE_FIELDS))
         self._new_state_buffer = np.zeros(self._n_wheels * PATCH_STATE_SIZE)
-        self._friction_buffer = np.array([self._friction])
-        """The road's friction, an input of the compiled tyres (one library, every road)."""
+        self._road_tyres_buffer = road_tyre_numbers(self._friction, self._params)
+        """The road's friction and the tyres' numbers, an input of the compiled tyres (one
+        library, every road and tyre)."""
         self._compiled: tuple[ctypes.CDLL, ca.Function] | None = None
         """The four tyres as one compiled C call (:mod:`cosim.plant.tyre_patches`); None:
         the plain reference, :func:`cosim.plant.tyre_model.patch_step` per wheel."""
         if one_call:
-            function = tyre_patches_function(self._params, physics_dt_s,
-                                             self._wheel_body, self._root, model.nbody)
+            function = tyre_patches_function(physics_dt_s, self._wheel_body, self._root,
+                                             model.nbody)
             library = compile_function(function, fallback=PYTHON_STEP_FALLBACK)
             if library is not None:
                 self._compiled = (library, function)
@@ -124,7 +126,7 @@ class MagicFormulaTyres:
         self._patches = CompiledFunction(
             library, function,
             [d.cvel, d.xpos, d.xipos, d.xmat, d.subtree_com, self._contact_buffer,
-             self._state_buffer, self._friction_buffer],
+             self._state_buffer, self._road_tyres_buffer],
             [self._wrench_buffer, self._forces_buffer, self._new_state_buffer])
 
     @property
@@ -142,6 +144,12 @@ class MagicFormulaTyres:
         """Each wheel's tyre geom, ``WHEEL_NAMES`` order."""
         by_wheel = {index: geom for geom, index in self._wheel_of_geom.items()}
         return tuple(by_wheel[index] for index in range(self._n_wheels))
+
+    @property
+    def road_tyres(self) -> np.ndarray:
+        """The compiled function's ``road_tyres`` input: the road's friction, then each
+        wheel's tyre numbers (:func:`cosim.plant.tyre_patches.road_tyre_numbers`)."""
+        return self._road_tyres_buffer
 
     def buffers(self) -> tuple[np.ndarray, ...]:
         """The compiled function's own buffers: contacts, patch state, wrenches, forces and

@@ -25,9 +25,13 @@ there; otherwise the plant keeps the plain reference.
 
 from __future__ import annotations
 
+import dataclasses
+import types
 from collections.abc import Sequence
+from typing import Any
 
 import casadi as ca
+import numpy as np
 
 from cosim.core.tyre_params import TyreParams
 from cosim.plant.tyre_model import (
@@ -52,10 +56,29 @@ PATCH_STATE_SIZE = 4
 FORCE_FIELDS = 6
 """Per wheel in the ``forces`` output: load, V_cx, V_sx, V_sy, F_x, F_y (TyreForces order)."""
 INPUT_NAMES = ("cvel", "xpos", "xipos", "xmat", "subtree_com", "contacts", "patch_state",
-               "friction")
+               "road_tyres")
+"""``road_tyres``: the road's friction coefficient, then each wheel's :data:`TYRE_NUMBERS`
+(:func:`road_tyre_numbers`): numbers, not constants of the code, so one compiled library
+serves every road and every tyre."""
 OUTPUT_NAMES = ("wrench", "forces", "new_patch_state")
 """``wrench``: per wheel, its ``xfrc_applied`` row (force, then moment about the centre of
 mass); ``new_patch_state``: the new carcass states."""
+
+
+TYRE_NUMBERS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(TyreParams))
+"""The numbers of one tyre (:class:`TyreParams`' fields, in order) in ``road_tyres``."""
+
+
+def road_tyre_numbers(friction: float, params: Sequence[TyreParams]) -> np.ndarray:
+    """The ``road_tyres`` input: the road's friction, then each wheel's tyre numbers."""
+    return np.array([friction, *(float(getattr(p, name)) for p in params
+                                 for name in TYRE_NUMBERS)])
+
+
+def _symbolic_tyre(numbers: ca.SX) -> Any:
+    """A tyre whose every number is a symbol (``numbers[i]`` for ``TYRE_NUMBERS[i]``): the
+    equations below read it as they read a :class:`TyreParams`."""
+    return types.SimpleNamespace(**{name: numbers[i] for i, name in enumerate(TYRE_NUMBERS)})
 
 
 def _magic_formula(slip: ca.SX, stiffness: ca.SX, shape: float, curvature: float,
@@ -86,11 +109,12 @@ def _secant(slip: ca.SX, weight: ca.SX, stiffness: ca.SX, shape: float, curvatur
                       weight * stiffness)
 
 
-def patch_step_sx(params: TyreParams, friction: ca.SX | float, load: ca.SX,
+def patch_step_sx(params: Any, friction: ca.SX | float, load: ca.SX,
                   forward_speed: ca.SX,
                   slip_x: ca.SX, slip_y: ca.SX, state: Sequence[ca.SX],
                   dt_s: float) -> tuple[ca.SX, ca.SX, list[ca.SX]]:
-    """:func:`cosim.plant.tyre_model.patch_step`, symbolically: ``(F_x, F_y, new state)``."""
+    """:func:`cosim.plant.tyre_model.patch_step`, symbolically: ``(F_x, F_y, new state)``;
+    ``params`` a :class:`TyreParams` or a symbolic one (:func:`_symbolic_tyre`)."""
     p = params
     loaded = load >= MIN_LOAD_N
     safe_load = ca.if_else(loaded, load, p.nominal_load_n)
@@ -147,7 +171,7 @@ def _dot(a: Sequence[ca.SX], b: Sequence[ca.SX]) -> ca.SX:
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-def _wheel(params: TyreParams, friction: ca.SX, dt_s: float, subtree_com: list[ca.SX],
+def _wheel(params: Any, friction: ca.SX, dt_s: float, subtree_com: list[ca.SX],
            body: dict[str, list[ca.SX]], contact: dict[str, list[ca.SX]],
            state: list[ca.SX]) -> tuple[list[ca.SX], list[ca.SX], list[ca.SX]]:
     """One wheel's wrench, forces and new carcass state."""
@@ -184,27 +208,30 @@ def _wheel(params: TyreParams, friction: ca.SX, dt_s: float, subtree_com: list[c
             when_on(new_state))
 
 
-def tyre_patches_function(params: Sequence[TyreParams], dt_s: float,
-                          wheel_bodies: Sequence[int], root_body: int,
+def tyre_patches_function(dt_s: float, wheel_bodies: Sequence[int], root_body: int,
                           n_bodies: int) -> ca.Function:
-    """``f(cvel, xpos, xipos, xmat, subtree_com, contacts, patch_state, friction) ->
-    (wrench, forces, patch_state)`` for the wheels ``wheel_bodies`` (body ids, ``params``
-    in the same order) of a model with ``n_bodies`` bodies (see the module docstring). The
-    road's friction coefficient (``plant.tyre_friction``) is an input, so one compiled
-    library serves every road."""
-    n_wheels = len(params)
+    """``f(cvel, xpos, xipos, xmat, subtree_com, contacts, patch_state, road_tyres) ->
+    (wrench, forces, patch_state)`` for the wheels ``wheel_bodies`` (body ids) of a model
+    with ``n_bodies`` bodies (see the module docstring). The road's friction coefficient
+    (``plant.tyre_friction``) and every tyre's numbers (``plant.tyre.*``, per wheel) are
+    an input (:func:`road_tyre_numbers`), so one compiled library serves every road and
+    tyre of a model with this structure and physics step."""
+    n_wheels = len(wheel_bodies)
     widths = {"cvel": 6, "xpos": 3, "xipos": 3, "xmat": 9, "subtree_com": 3}
     arrays = {name: ca.SX.sym(name, n_bodies * width) for name, width in widths.items()}
     contacts = ca.SX.sym("contacts", n_wheels * CONTACT_SIZE)
     states = ca.SX.sym("patch_state", n_wheels * PATCH_STATE_SIZE)
-    friction = ca.SX.sym("friction")
+    road_tyres = ca.SX.sym("road_tyres", 1 + n_wheels * len(TYRE_NUMBERS))
+    friction = road_tyres[0]
 
     def row(name: str, body_id: int) -> list[ca.SX]:
         width = widths[name]
         return [arrays[name][body_id * width + j] for j in range(width)]
 
     wrenches, forces, new_states = [], [], []
-    for wheel, (wheel_params, body_id) in enumerate(zip(params, wheel_bodies, strict=True)):
+    for wheel, body_id in enumerate(wheel_bodies):
+        first = 1 + wheel * len(TYRE_NUMBERS)
+        wheel_params = _symbolic_tyre(road_tyres[first:first + len(TYRE_NUMBERS)])
         body = {name: row(name, body_id) for name in ("cvel", "xpos", "xipos", "xmat")}
         offset, contact = wheel * CONTACT_SIZE, {}
         for name, size in CONTACT_FIELDS:
@@ -218,7 +245,7 @@ def tyre_patches_function(params: Sequence[TyreParams], dt_s: float,
         new_states += new_state
     return ca.Function(
         "cosim_tyre_patches",
-        [*arrays.values(), contacts, states, friction],
+        [*arrays.values(), contacts, states, road_tyres],
         [ca.vertcat(*wrenches), ca.vertcat(*forces), ca.vertcat(*new_states)],
         list(INPUT_NAMES), list(OUTPUT_NAMES),
     )

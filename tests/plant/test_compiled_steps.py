@@ -143,3 +143,28 @@ def test_cc_with_arguments_compiles(tmp_path: Path, monkeypatch: pytest.MonkeyPa
     x = ca.SX.sym("x")
     library = compiled_library("cc_args_square", [ca.Function("cc_args_square", [x], [x * x])])
     assert library is not None and library.is_file()
+
+
+def test_one_library_serves_every_tyre_and_road() -> None:
+    """A sweep over tyres and roads compiles nothing new: the tyres' numbers and the road's
+    friction are inputs of the compiled step, not constants of its code. Another tyre on
+    another road follows the plain reference (:func:`cosim.plant.tyre_model.patch_step`
+    per wheel, in Python: its numbers reach the C code) and not the default tyre."""
+    from cosim.core.tyre_params import TyreParams
+
+    tyre = dataclasses.replace(TyreParams(), lateral_shape=1.3,
+                               cornering_stiffness_max_prad=11.0, nominal_load_n=4500.0)
+    other = dataclasses.replace(PlantConfig(), tyre=tyre, tyre_friction=0.8)
+    start = InitialState(speed_mps=15.0)
+    compiled = MujocoPlant(other, DT_S, start)
+    reference = MujocoPlant(other, DT_S, start, one_call_tyres=False)
+    default = MujocoPlant(PlantConfig(), DT_S, start)
+    assert compiled._steps is not None and default._steps is not None
+    assert compiled._steps._library._name == default._steps._library._name
+    for k in range(0, 1000, 5):
+        for plant in (compiled, reference, default):
+            plant.apply(_command(k))
+            plant.advance_steps(5)
+    np.testing.assert_allclose(compiled.data.qvel, reference.data.qvel, rtol=1e-6,
+                               atol=1e-9)
+    assert np.max(np.abs(compiled.data.qvel - default.data.qvel)) > 1e-3

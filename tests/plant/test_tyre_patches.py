@@ -16,7 +16,7 @@ from cosim.core.tyre_params import TyreParams
 from cosim.core.vehicle_params import PlantConfig
 from cosim.plant.car import MujocoPlant
 from cosim.plant.tyre_model import MIN_LOAD_N, PatchState, patch_step
-from cosim.plant.tyre_patches import CONTACT_SIZE, tyre_patches_function
+from cosim.plant.tyre_patches import CONTACT_SIZE, road_tyre_numbers, tyre_patches_function
 
 DT_S = 0.002
 FRICTION = 0.9
@@ -65,7 +65,7 @@ def test_one_call_equals_patch_step_per_wheel(kind: str, compiled: bool) -> None
                                                     longitudinal_friction_scale=1.2,
                                                     lateral_friction_scale=0.95)
     params = (front, front, rear, rear)
-    function = tyre_patches_function(params, DT_S, WHEEL_BODIES, ROOT, N_BODIES)
+    function = tyre_patches_function(DT_S, WHEEL_BODIES, ROOT, N_BODIES)
     cvel, xpos = np.zeros((N_BODIES, 6)), np.zeros((N_BODIES, 3))
     xipos, xmat = np.zeros((N_BODIES, 3)), np.tile(np.eye(3).ravel(), (N_BODIES, 1))
     subtree_com = np.zeros((N_BODIES, 3))
@@ -86,7 +86,7 @@ def test_one_call_equals_patch_step_per_wheel(kind: str, compiled: bool) -> None
         expected.append([fx, fy, 0.0, 0.3 * fy, -0.3 * fx, 0.0,
                          load, speed, slip_x, slip_y, fx, fy, *reference.state])
     inputs = [cvel, xpos, xipos, xmat, subtree_com, np.array(contacts), np.array(states),
-              np.array([FRICTION])]
+              road_tyre_numbers(FRICTION, params)]
     if compiled:
         library = compile_function(function)
         assert library is not None, "gcc must compile the tyres (it is on every machine)"
@@ -102,12 +102,12 @@ def test_one_call_equals_patch_step_per_wheel(kind: str, compiled: bool) -> None
 
 
 def test_a_wheel_without_contact_gets_nothing() -> None:
-    function = tyre_patches_function((TyreParams(),) * 4, DT_S, WHEEL_BODIES, ROOT,
-                                     N_BODIES)
+    function = tyre_patches_function(DT_S, WHEEL_BODIES, ROOT, N_BODIES)
     contacts = np.ones(4 * CONTACT_SIZE)
     contacts[::CONTACT_SIZE] = 0.0  # in_contact of every wheel
     arrays = [np.ones(N_BODIES * width) for width in (6, 3, 3, 9, 3)]
-    outputs = function(*arrays, contacts, np.ones(16), FRICTION)
+    outputs = function(*arrays, contacts, np.ones(16),
+                       road_tyre_numbers(FRICTION, (TyreParams(),) * 4))
     assert not any(np.any(np.asarray(o)) for o in outputs)
 
 
