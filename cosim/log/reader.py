@@ -53,11 +53,15 @@ class LogSummary:
     metrics: dict[str, Any] | None = None
     truncated: bool = False
     library: str = ""
-    """The writer named in the MCAP header (``cosim <version>`` for cosim's logs)."""
+    """The writer named in the MCAP header (foxglove-sdk's for cosim's logs; ``cosim
+    <version>`` for those of cosim's own writer, before 2026-12)."""
 
     @property
     def written_by_cosim(self) -> bool:
-        return self.library.startswith("cosim")
+        """A cosim run's log: its ``run`` metadata names cosim's version (logs of cosim's
+        own writer named it in the header too)."""
+        return "version_cosim" in self.metadata.get("run", {}) or \
+            self.library.startswith("cosim")
 
     @property
     def duration_s(self) -> float:

@@ -4,23 +4,24 @@ Messages are encoded with orjson (a compiled encoder, 5-10x faster than :mod:`js
 messages, with the same output: compact separators, shortest round-trip floats), numpy
 scalars and arrays included; NaN and infinity, which JSON cannot represent, become null.
 
-Log time is integer nanoseconds of simulated time since the run's start. The file is
-written by :class:`cosim.log.mcap_writer.McapWriter` (cosim's own MCAP writer, after the
-MCAP specification at https://mcap.dev/spec, whose Python work per message is a fraction
-of that of the ``mcap`` package's Writer the recorder used before; ``bench/log_writer.py``
-measures both) through a stream that flushes every write, and the writer writes a finished chunk
-and its message indexes in one write, so a killed process loses at most the chunk being
-filled (about ``chunk_size_bytes`` of data, a second or so of a run).
+Log time is integer nanoseconds since the Unix epoch: the run's ``sim.epoch`` plus its
+simulated time. The file is written by foxglove-sdk's MCAP writer (``foxglove.open_mcap``:
+the Rust ``mcap`` crate, by the MCAP authors), a sink of channels on a
+:class:`foxglove.Context` of the recorder's own, so nothing else logged in the process
+reaches the file; its per-message cost is about a microsecond (``bench/log_writer.py``).
+It writes through :class:`cosim.log.held_chunks.HeldChunks`, which lets only finished
+records reach the file, so a killed process loses at most the chunk being filled (about
+``chunk_size_bytes`` of data, a second or so of a run) and leaves a log every MCAP
+reader reads.
 
-Chunks are zstd-compressed at level 1 (``mcap_writer.DEFAULT_ZSTD_LEVEL``), chosen from the
-figures of ``bench/log_writer.py``: on a default run's chunks it takes well under the time
-of zstd's default level 3 and gives a file no larger; the negative "fast" levels save
-little more time for a far larger file.
+Chunks are zstd-compressed at level 1 (:data:`ZSTD_LEVEL`), chosen from the figures of
+``bench/log_writer.py``: on a default run's messages it takes well under the time of
+zstd's default level 3 and gives a file no larger.
 
 The chunk size also sets the recorder's memory growth: MCAP's summary section indexes every
 chunk, so the writer keeps one Chunk Index record per chunk until the file is finished
-(about 80 bytes plus 10 per channel in the chunk, in a small object; ``bench/long_run.py``
-measures the growth over an hour-long run); larger chunks, fewer indexes.
+(``bench/long_run.py`` measures the growth over an hour-long run); larger chunks, fewer
+indexes.
 
 The file is written under a temporary name and renamed to its final name by
 :meth:`McapRecorder.publish` (see :mod:`cosim.log.safe_file`): a run refused before it
@@ -32,33 +33,16 @@ from __future__ import annotations
 import json
 from collections.abc import Mapping
 from pathlib import Path
-from typing import IO, Any, Protocol
+from typing import Any, Protocol
 
+import foxglove
 import orjson
+from foxglove.mcap import MCAPCompression, MCAPWriteOptions
 
-from cosim import __version__
 from cosim.core.exceptions import ConfigError
 from cosim.log import topics
-from cosim.log.mcap_writer import DEFAULT_ZSTD_LEVEL, McapWriter
+from cosim.log.held_chunks import HeldChunks
 from cosim.log.safe_file import PendingFile
-
-
-class _FlushingStream:
-    """A binary file whose every write reaches the operating system at once."""
-
-    def __init__(self, file: IO[bytes]) -> None:
-        self._file = file
-
-    def write(self, data: bytes) -> int:
-        written = self._file.write(data)
-        self._file.flush()
-        return written
-
-    def tell(self) -> int:
-        return self._file.tell()
-
-    def flush(self) -> None:
-        self._file.flush()
 
 
 def seconds_to_ns(t_s: float) -> int:
@@ -112,6 +96,8 @@ class Recorder(Protocol):
 
 CHUNK_SIZE_BYTES = 1024 * 1024
 """Uncompressed bytes per MCAP chunk: about a second of the default lane change."""
+ZSTD_LEVEL = 1
+"""The chunks' zstd level (module docstring)."""
 
 
 class NoLog:
@@ -149,15 +135,14 @@ class McapRecorder:
             raise ConfigError(
                 f"--out {str(self.path)!r}: cannot write ({error.strerror})"
             ) from None
-        self._writer = McapWriter(
-            _FlushingStream(self._pending.file),
-            chunk_size=chunk_size_bytes,
-            compression_level=DEFAULT_ZSTD_LEVEL,
-            profile="",
-            library=f"cosim {__version__}",
-        )
-        self._channels: dict[str, int] = {}
-        self._sequence: dict[str, int] = {}
+        self._context = foxglove.Context()
+        self._stream = HeldChunks(self._pending.file)
+        options = MCAPWriteOptions(compression=MCAPCompression.Zstd,
+                                   compression_level=ZSTD_LEVEL, chunk_size=chunk_size_bytes,
+                                   profile="", compression_threads=0)
+        self._writer = foxglove.open_mcap(self._stream, context=self._context,
+                                          writer_options=options)
+        self._channels: dict[str, foxglove.Channel] = {}
         self._closed = False
 
     def __enter__(self) -> McapRecorder:
@@ -174,6 +159,7 @@ class McapRecorder:
         and first messages in a complete chunk (readable whatever happens next); idempotent."""
         if not self._pending.published:
             self._writer.flush()
+            self._stream.commit()
         self._pending.publish()
 
     def abandon(self) -> None:
@@ -181,6 +167,8 @@ class McapRecorder:
         if self._closed:
             return
         self._closed = True
+        self._stream.discard()
+        self._writer.close()
         self._pending.close()
 
     def register(self, topic: str, schema: Mapping[str, Any] | None = None) -> None:
@@ -189,20 +177,17 @@ class McapRecorder:
         if schema is None:
             schema = topics.schema_of(topic)
         data = json.dumps(schema).encode()
-        schema_id = self._writer.add_schema(schema["title"], "jsonschema", data)
-        self._channels[topic] = self._writer.add_channel(topic, "json", schema_id)
-        self._sequence[topic] = 0
+        self._channels[topic] = foxglove.Channel(
+            topic, schema=foxglove.Schema(name=schema["title"], encoding="jsonschema", data=data),
+            message_encoding="json", context=self._context)
         if self.mirror is not None:
             self.mirror.register(topic, schema["title"], data)
 
     def write(self, topic: str, t_s: float, message: dict[str, Any]) -> None:
         """Write one message at simulated time ``t_s`` (NaN and inf are written as null)."""
-        channel_id = self._channels[topic]
         log_time = self.epoch_ns + seconds_to_ns(t_s)
-        sequence = self._sequence[topic]
         data = encode_message(message)
-        self._writer.add_message(channel_id, log_time, log_time, sequence, data)
-        self._sequence[topic] = sequence + 1
+        self._channels[topic].log(data, log_time=log_time)
         if self.mirror is not None:
             self.mirror.write(topic, log_time, data)
 
@@ -211,11 +196,12 @@ class McapRecorder:
         self.write(topic, t_s, message)
 
     def add_metadata(self, name: str, values: dict[str, str]) -> None:
-        self._writer.add_metadata(name, values)
+        self._writer.write_metadata(name, values)
 
     def add_attachment(self, name: str, media_type: str, data: bytes, t_s: float = 0.0) -> None:
         t_ns = self.epoch_ns + seconds_to_ns(t_s)
-        self._writer.add_attachment(name, media_type, data, log_time=t_ns, create_time=t_ns)
+        self._writer.attach(log_time=t_ns, create_time=t_ns, name=name, media_type=media_type,
+                            data=data)
 
     def close(self) -> None:
         """Write the summary, publish and close the file (idempotent)."""
@@ -223,7 +209,8 @@ class McapRecorder:
             return
         self._closed = True
         try:
-            self._writer.finish()
+            self._writer.close()
+            self._stream.commit()
             self._pending.publish()
         finally:
             self._pending.close()

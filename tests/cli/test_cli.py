@@ -151,5 +151,5 @@ def test_a_killed_run_leaves_a_log_that_inspect_reads(tmp_path: Path) -> None:
     counts = {c["topic"]: c["count"] for c in document["channels"]}
     # At least a few chunks (256 KiB each) of data survived: seconds of the run.
     assert counts["/vehicle/truth"] > 100
-    assert counts["/metrics"] == 0
+    assert counts.get("/metrics", 0) == 0  # a channel is written with its first message
     assert document["metrics"] == {}

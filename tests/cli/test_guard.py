@@ -67,7 +67,9 @@ def test_a_plugin_that_ends_the_process_is_named_and_the_log_kept(
     assert document["metrics"]["outcome"] == "error"
     summary = read_summary(out)  # up to its last complete chunk, the config with it
     assert summary.truncated and logged_s <= summary.duration_s < fail_at_s
-    assert {c.topic for c in summary.channels} >= {"/vehicle/truth", "/control/command"}
+    assert "config_json" in summary.metadata["run"]
+    assert {c.topic for c in summary.channels} >= (
+        {"/vehicle/truth", "/control/command"} if logged_s else {"/reference/path", "/scene"})
     assert not partial_path(out).exists()
 
 

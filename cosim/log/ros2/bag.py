@@ -34,6 +34,7 @@ from typing import Any
 
 from mcap.writer import CompressionType, Writer
 
+from cosim import __version__
 from cosim.core.config_fields import from_dict
 from cosim.core.exceptions import CosimError
 from cosim.core.sensor_names import GNSS, IMU
@@ -107,7 +108,7 @@ def _write_bag(log: Path, out: Path, summary: LogSummary) -> dict[str, int]:
     try:
         writer = Writer(pending.file, chunk_size=CHUNK_SIZE_BYTES,
                         compression=CompressionType.ZSTD)
-        writer.start(profile="ros2", library=f"{summary.library} (cosim export --ros2)")
+        writer.start(profile="ros2", library=f"cosim {__version__} (cosim export --ros2)")
         channels = _register(writer, store)
         writer.add_metadata("cosim_run", summary.metadata.get("run", {}))
         planar_said = False
