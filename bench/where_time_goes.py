@@ -43,22 +43,29 @@ from pathlib import Path
 from typing import Any
 
 from cosim.core.records import Estimate, Plan, VehicleState
-from cosim.simulation import runner
+from cosim.log import foxglove
+from cosim.log.recorder import McapRecorder
+from cosim.plant.car import MujocoPlant
+from cosim.simulation import run_log, runner
+from cosim.simulation.estimator_port import EstimatorPort
+from cosim.simulation.metrics import MetricsAccumulator
 from cosim.simulation.scenario_config import load_config
+from cosim.simulation.sensor_suite import SensorSuite
+from cosim.simulation.workshop import Workshop
 
 PARTS = ("physics", "sensors", "filter", "tracker", "logging", "metrics")
 """The parts timed inside the loop; the runner's own bookkeeping is the rest."""
 
-TIMED_BUILDERS: dict[str, tuple[str, tuple[str, ...]]] = {
-    "MujocoPlant": ("physics", ("advance", "advance_steps", "state", "apply", "add_yaw_rate")),
-    "make_estimator": ("filter", ("predict", "update", "update_many", "estimate")),
-    "make_tracker": ("tracker", ("step",)),
-    "McapRecorder": ("logging", ("write", "write_finite", "close")),
-    "MetricsAccumulator": ("metrics", ("add_truth", "add_estimate", "add_update", "add_plan",
-                                       "add_command", "result")),
-}
-"""What the runner builds (by its name in :mod:`cosim.simulation.runner`): the part each
-one's time counts for, and the methods timed."""
+TIMED_METHODS: tuple[tuple[str, type, tuple[str, ...]], ...] = (
+    ("physics", MujocoPlant, ("advance", "advance_steps", "state", "apply", "add_yaw_rate")),
+    ("sensors", SensorSuite, ("sample",)),
+    ("logging", McapRecorder, ("write", "write_finite", "close")),
+    ("metrics", MetricsAccumulator, ("add_truth", "add_estimate", "add_update", "add_plan",
+                                     "add_command", "result")),
+)
+"""The classes whose methods are timed, and the part each one's time counts for (the
+filter and the tracker are timed on the instances the run builds)."""
+FILTER_METHODS = ("predict", "update", "update_many", "estimate", "estimate_at")
 
 
 class _Stopwatch:
@@ -107,45 +114,30 @@ def _timed_run(out: Path, duration_s: float | None,
     per part, loop and total."""
     watch = _Stopwatch()
     config = load_config("lane-change", overrides=overrides, duration_s=duration_s)
-    original = {name: getattr(runner, name) for name in (
-        *TIMED_BUILDERS, "make_sensors", "foxglove", "FaultInjector")}
+    port_init, workshop_tracker = EstimatorPort.__init__, Workshop.tracker
 
-    def timed_builder(name: str) -> Callable[..., Any]:
-        part, methods = TIMED_BUILDERS[name]
+    def timed_port(self: EstimatorPort, estimator: Any) -> None:
+        watch.wrap_methods("filter", estimator, FILTER_METHODS)
+        port_init(self, estimator)
 
-        def build(*args: Any, **kwargs: Any) -> Any:
-            built = original[name](*args, **kwargs)
-            watch.wrap_methods(part, built, methods)
-            return built
-
-        return build
-
-    def sensors(*args: Any, **kwargs: Any) -> Any:
-        built = original["make_sensors"](*args, **kwargs)
-        for sensor in built:
-            watch.wrap_methods("sensors", sensor, ("sample",))
-        return built
+    def timed_tracker(self: Workshop, *args: Any, **kwargs: Any) -> Any:
+        tracker = workshop_tracker(self, *args, **kwargs)
+        watch.wrap_methods("tracker", tracker, ("step",))
+        return tracker
 
     class _Foxglove:
-        """The runner's view of :mod:`cosim.log.foxglove`, each scene builder timed."""
+        """The log's view of :mod:`cosim.log.foxglove`, each scene builder timed."""
 
         def __getattr__(self, name: str) -> Any:
-            value = getattr(original["foxglove"], name)
+            value = getattr(foxglove, name)
             return watch.wrap("logging", value) if callable(value) else value
 
-    class _Faults:
-        def __init__(self, *args: Any, **kwargs: Any) -> None:
-            self._inner = original["FaultInjector"](*args, **kwargs)
-            self.apply = watch.wrap("sensors", self._inner.apply)
-
-        @property
-        def injected(self) -> int:
-            return self._inner.injected
-
-    patches = [
-        *((runner, name, timed_builder(name)) for name in TIMED_BUILDERS),
-        (runner, "make_sensors", sensors), (runner, "foxglove", _Foxglove()),
-        (runner, "FaultInjector", _Faults),
+    patches: list[tuple[object, str, object]] = [
+        (cls, name, watch.wrap(part, getattr(cls, name)))
+        for part, cls, names in TIMED_METHODS for name in names]
+    patches += [
+        (EstimatorPort, "__init__", timed_port), (Workshop, "tracker", timed_tracker),
+        (run_log, "foxglove", _Foxglove()),
         (VehicleState, "to_message", watch.wrap("logging", VehicleState.to_message)),
         (Estimate, "to_message", watch.wrap("logging", Estimate.to_message)),
         (Plan, "to_message", watch.wrap("logging", Plan.to_message)),
