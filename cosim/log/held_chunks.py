@@ -14,6 +14,11 @@ writer's ``flush`` (which ends the open chunk: :meth:`McapRecorder.publish`) and
 So a killed run's log holds every chunk finished before it was killed, readable by every
 MCAP reader, as the MCAP specification's chunked layout intends (https://mcap.dev/spec);
 it loses the chunk being filled, about ``chunk_size_bytes`` of messages.
+
+A write that fails (a full disk) is not raised into the writer, which would log it and
+carry on: it is kept in :attr:`HeldChunks.error`, nothing more is written, and the
+recorder raises it at its next message, so the run ends with one line and what reached
+the disk stays readable.
 """
 
 from __future__ import annotations
@@ -41,6 +46,8 @@ class HeldChunks:
         self._filled_in = False
         """The open chunk's header was written again (its lengths filled in)."""
         self._discarded = False
+        self.error: OSError | None = None
+        """The first write to the file that failed (nothing is written after it)."""
 
     def write(self, data: bytes | bytearray | memoryview) -> int:
         if self._discarded:  # the writer finishes into nothing
@@ -54,7 +61,7 @@ class HeldChunks:
         size = len(data)
         if offset == len(self._held) and self._open_chunk is None and \
                 size == RECORD_PREFIX_BYTES and data[0] == CHUNK_OPCODE:
-            self.commit()  # a chunk opens: everything before it is finished
+            self._commit_or_keep_error()  # a chunk opens: everything before it is finished
             offset = 0
             self._open_chunk = self._position
         elif self._position == self._open_chunk:
@@ -69,7 +76,7 @@ class HeldChunks:
         if self._filled_in and target == end and target != self._position:
             self._open_chunk, self._filled_in = None, False
             self._position = target
-            self.commit()  # the chunk is finished
+            self._commit_or_keep_error()  # the chunk is finished
         self._position = target
         return target
 
@@ -79,7 +86,7 @@ class HeldChunks:
     def flush(self) -> None:
         """The writer's flush: what it holds is finished unless a chunk is open."""
         if self._open_chunk is None:
-            self.commit()
+            self._commit_or_keep_error()
 
     def commit(self) -> None:
         """Write what is held to the file and flush it to the operating system."""
@@ -88,6 +95,14 @@ class HeldChunks:
             self._file.flush()
         self._committed += len(self._held)
         self._held = bytearray()
+
+    def _commit_or_keep_error(self) -> None:
+        """:meth:`commit` from inside the writer: a failure is kept, not raised."""
+        try:
+            self.commit()
+        except OSError as error:
+            self.error = error
+            self.discard()
 
     def discard(self) -> None:
         """Write nothing more to the file (its run was abandoned)."""

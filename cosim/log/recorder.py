@@ -188,6 +188,8 @@ class McapRecorder:
         log_time = self.epoch_ns + seconds_to_ns(t_s)
         data = encode_message(message)
         self._channels[topic].log(data, log_time=log_time)
+        if self._stream.error is not None:  # the file could not take a finished chunk
+            raise self._stream.error
         if self.mirror is not None:
             self.mirror.write(topic, log_time, data)
 

@@ -212,3 +212,37 @@ def test_an_open_chunk_never_reaches_the_file() -> None:
         assert offset == len(data)
     writer.close()
     assert len(sizes) > 5  # chunks were committed as the writer went
+
+
+class _FullDisk(io.BytesIO):
+    """A file that takes ``room`` bytes, then fails as a full disk does."""
+
+    def __init__(self, room: int) -> None:
+        super().__init__()
+        self.room = room
+
+    def write(self, data: Any) -> int:
+        if self.tell() + len(data) > self.room:
+            raise OSError(28, "No space left on device")
+        return super().write(data)
+
+
+def test_a_full_disk_is_kept_for_the_recorder_not_logged_by_the_writer(
+        caplog: pytest.LogCaptureFixture) -> None:
+    """The writer would log a failed write and carry on: the stream keeps the error (the
+    recorder raises it at its next message) and writes nothing after it."""
+    import foxglove
+    from foxglove.mcap import MCAPWriteOptions
+
+    file = _FullDisk(room=3000)
+    stream = HeldChunks(file)
+    context = foxglove.Context()
+    writer = foxglove.open_mcap(stream, context=context,
+                                writer_options=MCAPWriteOptions(chunk_size=1000))
+    channel = foxglove.Channel("/a", message_encoding="json", context=context)
+    for i in range(400):
+        channel.log(b'{"i": %d, "pad": "%s"}' % (i, b"x" * 40), log_time=i)
+    writer.close()
+    assert isinstance(stream.error, OSError) and stream.error.errno == 28
+    assert 0 < len(file.getvalue()) <= 3000
+    assert not [r for r in caplog.records if r.name.startswith("foxglove")]
