@@ -344,12 +344,12 @@ class _Run:
     def steps_to_next_due(self, k: int) -> int:
         """Physics steps from step ``k`` to the next step at which anything is due: a log
         entry, a sensor, the controller, a command leaving the delay line, a disturbance,
-        the run's end (1 with traffic, whose cars and range sensor follow every step)."""
-        if self.traffic is not None:
-            return 1
+        the run's end, traffic's range sensor (the traffic cars' poses are set after every
+        physics step by the plant itself)."""
         clock = self.clock
         due = clock.n_steps
-        for period in (clock.log_steps, clock.control_steps, *self.sensors.steps):
+        traffic = () if self.traffic is None else self.traffic.periods
+        for period in (clock.log_steps, clock.control_steps, *self.sensors.steps, *traffic):
             due = min(due, (k // period + 1) * period)
         if self.delay_line:
             due = min(due, self.delay_line[0][0])

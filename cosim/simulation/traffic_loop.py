@@ -238,6 +238,12 @@ class TrafficLoop:
                 best = (pose, gap, pose.speed_mps * math.cos(relative_yaw) - ego_speed)
         return best
 
+    @property
+    def periods(self) -> tuple[int, ...]:
+        """The physics steps between the instants traffic has work of its own (the range
+        sensor's samples); the cars' poses follow every physics step inside the plant."""
+        return (self.radar_steps,) if self.radar is not None else ()
+
     def radar_due(self, k: int) -> bool:
         """Whether the range sensor samples at physics step ``k``."""
         return self.radar is not None and k % self.radar_steps == 0
