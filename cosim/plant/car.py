@@ -129,14 +129,13 @@ class MujocoPlant:
             traffic.bind(self._model)
         self._steps: CompiledSteps | None = self._compiled_steps()
         """The physics steps in one C call (:mod:`cosim.plant.compiled_steps`); None: the
-        Python step (traffic, slip control, no C compiler, the plain tyre reference)."""
+        Python step (slip control, no C compiler, the plain tyre reference)."""
         self._settle()
         self.reset()
 
     def _compiled_steps(self) -> CompiledSteps | None:
         tyres = self._tyres
-        if (tyres is None or tyres.compiled is None or self.traffic is not None
-                or self._slip_limiter is not None):
+        if tyres is None or tyres.compiled is None or self._slip_limiter is not None:
             return None
         library, function = tyres.compiled
         loaded = load_steps_library(function)
@@ -170,7 +169,8 @@ class MujocoPlant:
             **{f"tyre_geom{i}": geom for i, geom in enumerate(tyres.tyre_geoms)},
         }
         return CompiledSteps(loaded, function, m, self._data, constants, indices,
-                             tyres.buffers(), tyres.road_tyres)
+                             tyres.buffers(), tyres.road_tyres,
+                             () if self.traffic is None else self.traffic.mocap_slots)
 
     # ----------------------------------------------------------------- construction
 
@@ -371,7 +371,9 @@ class MujocoPlant:
             for _ in range(n):
                 self._advance_in_python()
             return
-        if not steps.advance(n):
+        poses = None if self.traffic is None else \
+            self.traffic.poses_after_steps(self._data.time, self.physics_dt_s, n)
+        if not steps.advance(n, poses):
             self._check(self._data.time)  # raises: the C step's checks failed
             raise PhysicsDivergenceError(
                 f"physics diverged at t = {self._data.time:.4f} s (physics_dt_s = "

@@ -11,8 +11,9 @@ MuJoCo's own ``mjModel``/``mjData`` and numpy buffers: :meth:`CompiledSteps.adva
 the plant ``n`` times between the instants something is due (sensor, control, log), the
 state that outlives a step kept in one numpy array (:data:`STATE_FIELDS`).
 
-Used for the default plant (Magic Formula tyres); traffic (its mocap cars are placed
-after every step) and slip control keep the Python step. MuJoCo's library is the one the
+Used for the default plant (Magic Formula tyres), with traffic too (the cars' mocap
+poses after each step are computed in Python for the ``n`` steps and set by the C step);
+slip control keeps the Python step. MuJoCo's library is the one the
 ``mujoco`` package ships and has loaded already.
 """
 
@@ -110,9 +111,11 @@ class CompiledSteps:
 
     def __init__(self, library: ctypes.CDLL, tyres: ca.Function, model: mujoco.MjModel,
                  data: mujoco.MjData, constants: dict[str, float], indices: dict[str, int],
-                 buffers: Sequence[np.ndarray], road_tyres: np.ndarray) -> None:
+                 buffers: Sequence[np.ndarray], road_tyres: np.ndarray,
+                 mocap_slots: Sequence[int] = ()) -> None:
         """``road_tyres``: the tyre function's input of that name, whose first number is
-        ``constants["tyre_friction"]``."""
+        ``constants["tyre_friction"]``; ``mocap_slots``: the traffic cars' mocap slots, in
+        the order of the poses :meth:`advance` is given."""
         self.state = np.zeros(len(STATE_FIELDS))
         """The state between steps (:data:`STATE_FIELDS`); written by the plant too."""
         if road_tyres[0] != constants["tyre_friction"]:
@@ -126,6 +129,7 @@ class CompiledSteps:
                 raise ValueError("the tyre buffers must be C-contiguous float64 arrays")
         self._iw = np.zeros(max(tyres.sz_iw(), 1), dtype=np.longlong)
         self._w = np.zeros(max(tyres.sz_w(), 1))
+        self._slots = np.array(mocap_slots, dtype=np.intc)
         self._model, self._data = model, data  # kept alive while their addresses are used
         entry = library.cosim_plant_advance
         entry.restype = ctypes.c_int
@@ -140,12 +144,24 @@ class CompiledSteps:
             *(buffer.ctypes.data_as(pointer) for buffer in self._buffers),
             self._iw.ctypes.data_as(pointer), self._w.ctypes.data_as(pointer))
 
-    def advance(self, n: int) -> bool:
+    def advance(self, n: int, poses: np.ndarray | None = None) -> bool:
         """``n`` physics steps; False when one ended with a MuJoCo warning or a
-        non-finite or absurd state (the steps stop there: the caller raises). Raises
+        non-finite or absurd state (the steps stop there: the caller raises). ``poses``:
+        with traffic, the cars' mocap poses after each step, ``(n, cars, 7)``. Raises
         RuntimeError when the C step cannot go on (more tyre contacts than it holds, or
         the tyre function failed)."""
-        done = self._entry(*self._fixed, ctypes.c_int(n), *self._arrays)
+        n_cars = len(self._slots)
+        if n_cars:
+            if poses is None or poses.shape != (n, n_cars, 7):
+                raise ValueError(f"advance({n}) with {n_cars} traffic cars needs their "
+                                 f"poses, shape ({n}, {n_cars}, 7)")
+            poses = np.ascontiguousarray(poses, dtype=float)
+            traffic = (poses.ctypes.data_as(ctypes.c_void_p),
+                       self._slots.ctypes.data_as(ctypes.c_void_p))
+        else:
+            traffic = (None, None)
+        done = self._entry(*self._fixed, ctypes.c_int(n), *self._arrays, *traffic,
+                           ctypes.c_int(n_cars))
         if done == -1:
             raise RuntimeError("the compiled physics step failed (more tyre contacts than "
                                "it holds, or the tyre function reported an error)")

@@ -1,13 +1,15 @@
 /* The plant's physics steps in C: actuators, Magic Formula tyres and one MuJoCo step each.
  *
  * cosim_plant_advance(m, d, n, ...) does exactly what n calls of
- * cosim.plant.car.MujocoPlant.advance do in Python (without traffic and slip control,
- * which keep the Python step): per step, the steering actuator's lag, rate limit and
+ * cosim.plant.car.MujocoPlant.advance do in Python (without slip control, which keeps the
+ * Python step): per step, the steering actuator's lag, rate limit and
  * Ackermann split into the two servos' commands, the drive torque with its power limit
  * and the brakes as implicit damping, drag and rolling resistance on the chassis,
  * mj_step1, the four tyres (the CasADi-generated function of cosim.plant.tyre_patches,
  * compiled into the same library), mj_step2 and the tyres' new loads; then the checks of
- * MujocoPlant._check. Every expression is the Python one in the same order, so the same
+ * MujocoPlant._check; then, with traffic, the traffic cars' mocap poses of that step
+ * (cosim.plant.traffic.Traffic.place, computed by Python for the n steps in `poses`).
+ * Every expression is the Python one in the same order, so the same
  * IEEE operations give the same numbers (compiled without floating-point contraction).
  *
  * The state that outlives a step (steering, commands, the chassis velocity before the
@@ -198,10 +200,23 @@ static int healthy(const mjModel* m, const double* c, const mjData* d) {
   return velocity < c[PC_MAX_VEL2] && position < c[PC_MAX_POS2];
 }
 
+/* After step k, the traffic cars' mocap poses: for car j (mocap slot slots[j]), position
+ * (3) then quaternion (4) in row k of `poses` (7 numbers per car). */
+static void place_traffic(mjData* d, const double* poses, const int* slots, int n_cars,
+                          int k) {
+  const double* row = poses + 7 * n_cars * k;
+  for (int j = 0; j < n_cars; j++) {
+    double* pos = d->mocap_pos + 3 * slots[j];
+    double* quat = d->mocap_quat + 4 * slots[j];
+    for (int i = 0; i < 3; i++) pos[i] = row[7 * j + i];
+    for (int i = 0; i < 4; i++) quat[i] = row[7 * j + 3 + i];
+  }
+}
+
 int cosim_plant_advance(mjModel* m, mjData* d, int n, double* s, const double* c,
                         const int* ic, double* contact_buf, double* state_buf,
                         double* wrench, double* forces, double* new_state, casadi_int* iw,
-                        double* w) {
+                        double* w, const double* poses, const int* slots, int n_cars) {
   int efc_wheel[MAX_TYRE_CONTACTS], efc_address[MAX_TYRE_CONTACTS];
   for (int k = 0; k < n; k++) {
     /* The velocities before the step, as advance() reads them (qvel.tolist()). */
@@ -223,6 +238,7 @@ int cosim_plant_advance(mjModel* m, mjData* d, int n, double* s, const double* c
     for (int i = 0; i < n_efc; i++) loads[efc_wheel[i]] += d->efc_force[efc_address[i]];
     for (int wheel = 0; wheel < N_WHEELS; wheel++) s[PS_LOAD0 + wheel] = loads[wheel];
     if (!healthy(m, c, d)) return -2 - k;
+    if (n_cars) place_traffic(d, poses, slots, n_cars, k);
   }
   return n;
 }

@@ -34,6 +34,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import mujoco
+import numpy as np
 
 from cosim.core.config_fields import from_dict, items, setting
 from cosim.core.exceptions import ConfigError
@@ -271,10 +272,25 @@ class Traffic:
     def place(self, data: mujoco.MjData, t_s: float) -> None:
         """Set every car's mocap pose for time ``t_s``."""
         for car, slot in zip(self.cars, self._mocap, strict=True):
-            pose = car.pose(t_s)
-            data.mocap_pos[slot] = (pose.x_m, pose.y_m, 0.0)
-            half_yaw = 0.5 * pose.yaw_rad
-            data.mocap_quat[slot] = (math.cos(half_yaw), 0.0, 0.0, math.sin(half_yaw))
+            row = _mocap_row(car.pose(t_s))
+            data.mocap_pos[slot] = row[:3]
+            data.mocap_quat[slot] = row[3:]
+
+    @property
+    def mocap_slots(self) -> tuple[int, ...]:
+        """Each car's mocap slot (after :meth:`bind`), in :attr:`cars` order."""
+        return tuple(self._mocap)
+
+    def poses_after_steps(self, t_s: float, dt_s: float, n: int) -> np.ndarray:
+        """``(n, cars, 7)``: each car's mocap position and quaternion after each of ``n``
+        physics steps from time ``t_s`` (the times MuJoCo's clock reaches, ``t += dt``
+        each step), as :meth:`place` sets them."""
+        rows = np.empty((n, len(self.cars), 7))
+        for k in range(n):
+            t_s = t_s + dt_s
+            for j, car in enumerate(self.cars):
+                rows[k, j] = _mocap_row(car.pose(t_s))
+        return rows
 
     def collision(self, data: mujoco.MjData) -> str:
         """The name of a car the ego's body touches in the last step's contacts, else ''."""
@@ -287,6 +303,12 @@ class Traffic:
             if geom2 == ego and geom1 in geoms:
                 return geoms[geom1]
         return ""
+
+
+def _mocap_row(pose: CarPose) -> tuple[float, ...]:
+    """A car's mocap position (on the ground) and quaternion (a yaw) for ``pose``."""
+    half_yaw = 0.5 * pose.yaw_rad
+    return (pose.x_m, pose.y_m, 0.0, math.cos(half_yaw), 0.0, 0.0, math.sin(half_yaw))
 
 
 def attach_traffic(root: mjcf.RootElement, names: tuple[str, ...],
