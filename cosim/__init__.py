@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 __version__ = "0.1.0"
 
 API_NAMES: tuple[str, ...] = (
-    "load_config", "run", "sweep", "RunResult", "ScenarioConfig", "SweepOutcome",
+    "load_config", "run", "sweep", "RunResult", "ScenarioConfig", "SweepOutcome", "Workshop",
 )
 """What ``cosim.<name>`` gives from :mod:`cosim.api`."""
 
@@ -37,6 +37,7 @@ if TYPE_CHECKING:
         RunResult,
         ScenarioConfig,
         SweepOutcome,
+        Workshop,
         load_config,
         run,
         sweep,
@@ -47,7 +48,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "Command", "CosimError", "Estimate", "Plan", "RunResult", "ScenarioConfig", "SweepOutcome",
-    "__version__", "load_config", "run", "setting", "sweep",
+    "Workshop", "__version__", "load_config", "run", "setting", "sweep",
 ]
 
 

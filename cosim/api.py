@@ -10,6 +10,16 @@ optimiser, with the same validation and the same errors (every user error is a
     result = cosim.run(config, out="logs/lane-change-h30.mcap")
     print(result.completed, result.outcome, result.metrics["cte_max_m"])
 
+Many runs in one process (a tuning loop) share their built parts through a
+:class:`Workshop`: the MuJoCo model, the filter's models and the NLP are built by the first
+run and restarted for the next ones of the same car, filter and tracker (set-up about
+0.02 s instead of 0.25 s; the same numbers as runs built afresh)::
+
+    workshop = cosim.Workshop()
+    for seed in range(20):
+        cosim.run(cosim.load_config("lane-change", seed=seed), out=f"logs/s{seed}.mcap",
+                  workshop=workshop)
+
 ``import cosim`` alone imports none of this (the package resolves ``cosim.run`` and the other
 names on first use), so importing the package stays light and has no side effects. The
 run's own machinery is :mod:`cosim.simulation.runner`; the sweep's is
@@ -28,9 +38,11 @@ from cosim.simulation.runner import RunResult
 from cosim.simulation.runner import run as _run_loop
 from cosim.simulation.scenario_config import ScenarioConfig
 from cosim.simulation.scenario_config import load_config as _load_config
+from cosim.simulation.workshop import Workshop
 from cosim.sweeps.driver import SweepOutcome, check_sweep_dir, run_sweep
 
-__all__ = ["RunResult", "ScenarioConfig", "SweepOutcome", "load_config", "run", "sweep"]
+__all__ = ["RunResult", "ScenarioConfig", "SweepOutcome", "Workshop", "load_config", "run",
+           "sweep"]
 
 
 def load_config(
@@ -69,13 +81,16 @@ def run(
     *,
     force: bool = False,
     progress: Callable[[float], None] | None = None,
+    workshop: Workshop | None = None,
 ) -> RunResult:
     """Run one configuration and log it to the MCAP file ``out``; its :class:`RunResult`.
 
     ``config`` is a :class:`ScenarioConfig` (from :func:`load_config`) or a scenario name or
     path, loaded with its defaults. ``out`` is refused, as ``--out`` is, when it is a folder
     or already exists (unless ``force``), or while another run writes it. ``progress`` is
-    called with the fraction done.
+    called with the fraction done. ``workshop`` keeps the parts this run builds for the
+    next run given the same workshop (module docstring); without one, every part is built
+    afresh.
 
     A run that ends badly is a result, not an exception: ``result.completed`` is false when
     it aborted (``result.reason`` says why), and ``result.outcome`` names how it ended
@@ -87,8 +102,10 @@ def run(
     if not isinstance(config, ScenarioConfig):
         raise ConfigError(f"config = {type(config).__name__}: expected a ScenarioConfig "
                           "(cosim.load_config) or a scenario name")
+    if workshop is not None and not isinstance(workshop, Workshop):
+        raise ConfigError(f"workshop = {type(workshop).__name__}: expected a cosim.Workshop")
     with claim_output(Path(out), "out", force) as path:
-        return _run_loop(config, path, progress)
+        return _run_loop(config, path, progress, workshop=workshop)
 
 
 def sweep(

@@ -197,3 +197,24 @@ def test_the_ten_line_tracker_runs_compares_and_sweeps(tmp_path: Path) -> None:
     assert swept.returncode == 0, swept.stderr
     rows = (tmp_path / "sweep" / "results.jsonl").read_text().splitlines()
     assert [json.loads(r)["metrics"]["completed"] for r in rows] == [True, True]
+
+
+def test_runs_sharing_a_workshop_reuse_their_parts_and_give_the_same_numbers(
+        tmp_path: Path) -> None:
+    """A tuning loop's runs through one :class:`cosim.Workshop`: the second run of the
+    same car, filter and tracker builds nothing, and its metrics are a fresh run's."""
+    workshop = cosim.Workshop()
+    results = [cosim.run(cosim.load_config("lane-change", seed=seed, duration_s=1.0),
+                         out=tmp_path / f"shared{seed}.mcap", workshop=workshop)
+               for seed in (1, 2)]
+    assert workshop.builds == {"plant": 1, "estimator": 1, "tracker": 1}
+    assert workshop.reuses == {"plant": 1, "estimator": 1, "tracker": 1}
+    fresh = cosim.run(cosim.load_config("lane-change", seed=2, duration_s=1.0),
+                      out=tmp_path / "fresh.mcap")
+    timing = ("wall_time_s", "realtime_factor", "setup_time_s")
+    assert {k: v for k, v in results[1].metrics.items()
+            if k not in timing and "_ms_" not in k} == {
+        k: v for k, v in fresh.metrics.items() if k not in timing and "_ms_" not in k}
+    with pytest.raises(cosim.CosimError, match="workshop = dict: expected a cosim.Workshop"):
+        cosim.run(cosim.load_config("lane-change", duration_s=0.2),
+                  out=tmp_path / "bad.mcap", workshop={})  # type: ignore[arg-type]
