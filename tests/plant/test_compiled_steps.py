@@ -35,6 +35,22 @@ def _command(k: int) -> ActuatorCommand:
                            brake_torque_nm=2500.0 if k % 900 > 780 else 0.0)
 
 
+def _drive_in_chunks(plants: tuple[MujocoPlant, ...], steps: int,
+                    check: bool = False) -> None:
+    """``steps`` physics steps of :func:`_command` (a new command every 10 steps), in
+    chunks of 1 to 7 steps as the runner takes them; ``check``: the plants the same after
+    each chunk."""
+    k = 0
+    while k < steps:
+        for plant in plants:
+            if k % 10 == 0:
+                plant.apply(_command(k))
+            plant.advance_steps(1 + k % 7)
+        k += 1 + k % 7
+        if check:
+            assert _same(*plants), f"apart after step {k}"
+
+
 def _same(a: MujocoPlant, b: MujocoPlant) -> bool:
     return all(np.array_equal(getattr(a.data, name), getattr(b.data, name))
                for name in ("qpos", "qvel", "ctrl", "xfrc_applied", "efc_force"))
@@ -49,16 +65,7 @@ def test_the_compiled_steps_are_the_python_steps_bit_for_bit(drive: str,
     # road too: the friction is the compiled tyres' input, not a number built into them).
     compiled, python = _pair(dataclasses.replace(PlantConfig(), drive=drive,
                                                  tyre_friction=friction))
-    k = 0
-    while k < 3000:
-        if k % 10 == 0:
-            compiled.apply(_command(k))
-            python.apply(_command(k))
-        n = 1 + k % 7
-        compiled.advance_steps(n)
-        python.advance_steps(n)
-        k += n
-        assert _same(compiled, python), f"apart after step {k}"
+    _drive_in_chunks((compiled, python), 3000, check=True)
     assert compiled.state() == python.state()
     assert compiled.tyre_forces() == python.tyre_forces()
     assert abs(compiled.state().y_m) > 1.0  # it turned
@@ -184,15 +191,7 @@ def test_traffic_runs_on_the_compiled_steps_bit_for_bit() -> None:
     python._steps = None
     assert compiled._steps is not None
     placed = compiled.data.mocap_pos.copy()
-    k = 0
-    while k < 6000:  # 12 s: the cut-in starts at 8 s
-        if k % 10 == 0:
-            compiled.apply(_command(k))
-            python.apply(_command(k))
-        n = 1 + k % 7
-        compiled.advance_steps(n)
-        python.advance_steps(n)
-        k += n
+    _drive_in_chunks((compiled, python), 6000)  # 12 s: the cut-in starts at 8 s
     assert _same(compiled, python)
     assert np.array_equal(compiled.data.mocap_pos, python.data.mocap_pos)
     assert np.array_equal(compiled.data.mocap_quat, python.data.mocap_quat)
