@@ -22,6 +22,7 @@ import numpy as np
 from cosim.plots.data import load_estimation
 from cosim.simulation.runner import run
 from cosim.simulation.scenario_config import ScenarioConfig
+from cosim.simulation.workshop import Workshop
 from estimation.consistency import SETTLE_S, EnsembleConsistency, ensemble_consistency
 
 NIS_PREFIX = "nis_dof_"
@@ -56,11 +57,12 @@ def _sums(metrics: Mapping[str, object], dof_prefix: str, nis_prefix: str
     return sums, dofs
 
 
-def run_member(config: ScenarioConfig, seed: int, out_dir: Path, keep_log: bool = False
-               ) -> EnsembleMember:
-    """Run ``config`` with ``seed`` into ``out_dir`` and read back its NEES and NIS."""
+def run_member(config: ScenarioConfig, seed: int, out_dir: Path, keep_log: bool = False,
+               workshop: Workshop | None = None) -> EnsembleMember:
+    """Run ``config`` with ``seed`` into ``out_dir`` and read back its NEES and NIS;
+    ``workshop`` lends the parts of the ensemble's earlier runs (the same numbers)."""
     path = Path(out_dir) / f"{config.name}-{config.estimator.name}-{seed}.mcap"
-    result = run(dataclasses.replace(config, seed=seed), path)
+    result = run(dataclasses.replace(config, seed=seed), path, workshop=workshop)
     if not result.completed:
         raise RuntimeError(f"seed {seed}: the run did not complete ({result.abort_reason})")
     errors = load_estimation(path)

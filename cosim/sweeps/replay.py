@@ -35,11 +35,11 @@ from cosim.simulation.metrics import NEES_STATES
 from cosim.simulation.runner import scenario_course, start_speed_resolved
 from cosim.simulation.scenario_config import ScenarioConfig, steps_per_period
 from cosim.simulation.seeding import component_rng
+from cosim.simulation.workshop import Workshop
 from cosim.sweeps.ensemble import EnsembleMember
 from estimation.config import EstimatorConfig
 from estimation.consistency import SETTLE_S
 from estimation.protocol import ObservableEstimator
-from estimation.registry import make_estimator
 from estimation.update_result import GATE, PARTIAL
 from tracker.paths.reference_path import wrap_angle
 
@@ -73,16 +73,18 @@ def logged_stream(path: Path) -> tuple[dict[int, list[Measurement]], dict[int, n
     return dict(by_time), truth
 
 
-def replay(config: ScenarioConfig, path: Path, estimator: EstimatorConfig | None = None
-           ) -> EnsembleMember:
+def replay(config: ScenarioConfig, path: Path, estimator: EstimatorConfig | None = None,
+           workshop: Workshop | None = None) -> EnsembleMember:
     """The filter ``estimator`` (default: the run's own, ``config.estimator``) fed the
     sensor stream of the run of ``config`` logged at ``path``; its NEES at the run's log
     instants and its NIS per sensor, as :func:`cosim.sweeps.ensemble.run_member` gives them
-    for the run's own filter (``metrics`` is empty: no car was driven)."""
+    for the run's own filter (``metrics`` is empty: no car was driven). ``workshop`` lends
+    the filter an earlier replay built, restarted (the same numbers as one built afresh)."""
     config = start_speed_resolved(config, scenario_course(config).reference)
     estimator = config.estimator if estimator is None else estimator
-    filter_ = make_estimator(estimator, config.initial, config.tracker.model,
-                             rng=component_rng(config.seed, "estimator.initial"))
+    workshop = workshop if workshop is not None else Workshop()
+    filter_ = workshop.estimator(estimator, config.initial, config.tracker.model,
+                                 component_rng(config.seed, "estimator.initial"))
     if not isinstance(filter_, ObservableEstimator):
         raise TypeError(f"estimator {estimator.name!r}: a replay needs estimate_at "
                         "(estimation.protocol.ObservableEstimator)")

@@ -22,6 +22,7 @@ import numpy as np
 import pytest
 
 from cosim.simulation.scenario_config import ScenarioConfig, load_config
+from cosim.simulation.workshop import Workshop
 from cosim.sweeps.ensemble import EnsembleMember, judge, run_member
 from cosim.sweeps.replay import replay
 from estimation.config import scaled_process_noise
@@ -164,7 +165,9 @@ def logged_ensemble(request: pytest.FixtureRequest, tmp_path_factory: pytest.Tem
     config = load_config("lane-change", overrides=[f"sensors.suite={suite}"],
                          duration_s=DURATION_S, estimator=estimator)
     out = tmp_path_factory.mktemp(f"{suite}-{estimator}")
-    members = [run_member(config, seed, out, keep_log=True) for seed in SEEDS]
+    workshop = Workshop()  # the runs share their built parts (the same numbers)
+    members = [run_member(config, seed, out, keep_log=True, workshop=workshop)
+               for seed in SEEDS]
     paths = [out / f"{config.name}-{estimator}-{seed}.mcap" for seed in SEEDS]
     return config, members, paths
 
@@ -196,7 +199,8 @@ def test_mistuned_process_noise_fails_the_check(
     the ANEES, pinned by the sensors, hardly leaves its band)."""
     config, _, paths = logged_ensemble
     estimator = scaled_process_noise(config.estimator, q_factor)
-    members = [replay(dataclasses.replace(config, seed=seed), path, estimator)
+    workshop = Workshop()  # one filter, restarted for each run's stream
+    members = [replay(dataclasses.replace(config, seed=seed), path, estimator, workshop)
                for seed, path in zip(SEEDS, paths, strict=True)]
     result = judge(members, settled_nis=True)
     print("\n".join(result.lines()))

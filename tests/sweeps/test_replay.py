@@ -53,3 +53,18 @@ def test_replay_with_other_beliefs_is_another_filter_on_one_truth(logged_run: Lo
     settled = member.t_s >= 1.0
     assert replayed.nis_dof == member.nis_dof
     assert replayed.nees[settled].mean() < member.nees[settled].mean()
+
+
+def test_a_replay_through_a_workshop_is_a_replay_built_afresh(logged_run: LoggedRun) -> None:
+    """A workshop lends the second replay the first one's filter, restarted from the run's
+    own initial draw: the same NEES and NIS, bit for bit."""
+    from cosim.simulation.workshop import Workshop
+
+    config, _, path = logged_run
+    config = dataclasses.replace(config, seed=SEED)
+    workshop = Workshop()
+    replay(dataclasses.replace(config, seed=SEED + 1), path, workshop=workshop)
+    lent = replay(config, path, workshop=workshop)
+    fresh = replay(config, path)
+    assert workshop.reuses["estimator"] == 1
+    assert np.array_equal(lent.nees, fresh.nees) and lent.nis_sum == fresh.nis_sum
