@@ -29,6 +29,8 @@ aside, peak lateral acceleration and RMS jerk are the usual path-tracking comfor
 
 from __future__ import annotations
 
+import copy
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -36,7 +38,7 @@ import numpy as np
 from cosim.core.records import Command, Estimate, Plan, VehicleState
 from cosim.simulation.manoeuvre_metrics import manoeuvre_metrics
 from cosim.simulation.metric_keys import METRIC_KEYS, WALL_CLOCK_KEYS
-from cosim.simulation.running_stats import RunningStats, Samples
+from cosim.simulation.running_stats import RunningStats, SampleBlock, Samples
 from estimation.consistency import SETTLE_S
 from estimation.update_result import GATE, PARTIAL, UpdateResult
 from tracker.manoeuvre import ManoeuvreConfig
@@ -44,6 +46,12 @@ from tracker.paths.reference_path import ReferencePath, wrap_angle
 
 NEES_STATES = ("x_m", "y_m", "yaw_rad", "vx_mps")
 """The states NEES is computed over (4 degrees of freedom)."""
+
+TRUTH_STATISTICS = ("cte_m", "heading_err_rad", "speed_err_mps")
+"""The statistics of each truth sample against the reference (``add_truth``)."""
+
+ESTIMATE_STATISTICS = ("pos_err_m", "yaw_err_rad", "speed_est_err_mps", "nees")
+"""The statistics of each estimate against the truth (``add_estimate``)."""
 
 __all__ = ["METRIC_KEYS", "NEES_STATES", "WALL_CLOCK_KEYS", "MetricsAccumulator",
            "rejection_counts"]
@@ -84,7 +92,16 @@ def _millisecond_percentiles(prefix: str, times_s: np.ndarray) -> dict[str, floa
 @dataclass
 class MetricsAccumulator:
     """Collects what the metrics need while a run goes, in constant memory (but for the
-    solve times and an open-loop manoeuvre's signals); :meth:`result` computes them."""
+    solve times and an open-loop manoeuvre's signals); :meth:`result` computes them.
+
+    Each log instant's tracking and estimation samples go into preallocated blocks
+    (:class:`SampleBlock`), reduced into the statistics with numpy each time a block fills
+    (NEES as one batched solve). Reading a figure merges the pending rows into copies, so
+    the blocks' boundaries, and so every sum's rounding, do not depend on when or whether
+    figures were read (a logged run's live metrics): the same samples give the same figures
+    bit for bit. The last tracking errors, which the monitors read at every instant, are
+    kept as plain numbers (:attr:`last_cte_m` ...).
+    """
 
     reference: ReferencePath
     manoeuvre: ManoeuvreConfig | None = None
@@ -94,9 +111,15 @@ class MetricsAccumulator:
     yaw_rate_radps: Samples = field(default_factory=Samples)
     ay_mps2: Samples = field(default_factory=Samples)
     speed_mps: Samples = field(default_factory=Samples)
-    cte_m: RunningStats = field(default_factory=RunningStats)
-    heading_err_rad: RunningStats = field(default_factory=RunningStats)
-    speed_err_mps: RunningStats = field(default_factory=RunningStats)
+    _truth_stats: tuple[RunningStats, ...] = field(
+        default_factory=lambda: tuple(RunningStats() for _ in TRUTH_STATISTICS), init=False)
+    """The :data:`TRUTH_STATISTICS` over the reduced blocks."""
+    last_cte_m: float = float("nan")
+    """Cross-track error of the last truth sample [m] (left of the path positive)."""
+    last_heading_err_rad: float = float("nan")
+    """Heading error of the last truth sample [rad], wrapped to (-pi, pi]."""
+    last_speed_err_mps: float = float("nan")
+    """Speed error of the last truth sample against the reference [m/s]."""
     last_ref_speed_mps: float = float("nan")
     """The reference speed at the last truth sample's projection and time [m/s]."""
     lat_accel_mps2: RunningStats = field(default_factory=RunningStats)
@@ -113,10 +136,10 @@ class MetricsAccumulator:
     solver_failures: int = 0
     speed_reduced_steps: int = 0
     """Control steps whose plan slowed below the reference speed (``Plan.speed_reduced``)."""
-    pos_err_m: RunningStats = field(default_factory=RunningStats)
-    yaw_err_rad: RunningStats = field(default_factory=RunningStats)
-    speed_est_err_mps: RunningStats = field(default_factory=RunningStats)
-    nees: RunningStats = field(default_factory=RunningStats)
+    _estimate_stats: tuple[RunningStats, ...] = field(
+        default_factory=lambda: tuple(RunningStats() for _ in ESTIMATE_STATISTICS),
+        init=False)
+    """The :data:`ESTIMATE_STATISTICS` over the reduced blocks."""
     nis_per_dof: RunningStats = field(default_factory=RunningStats)
     nis_sum: dict[str, float] = field(default_factory=dict)
     """Per sensor, the summed NIS of every tested update (gated included)."""
@@ -134,21 +157,34 @@ class MetricsAccumulator:
     estimator_counts: dict[str, dict[str, int]] = field(default_factory=dict)
     """Per sensor, the estimator's own counters (set at the end of the run)."""
     last_t_s: float = 0.0
-    _nees_grid: tuple[tuple[str, ...], tuple[np.ndarray, ...]] = field(
-        default=((), ()), init=False, repr=False)
-    """The estimates' state names and the index grid of their NEES block (found once)."""
+    _estimate_names: tuple[str, ...] = field(default=(), init=False, repr=False)
+    """The estimates' state names (an estimator keeps its names)."""
+    _nees_index: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int),
+                                    init=False, repr=False)
+    """Where the :data:`NEES_STATES` are among :attr:`_estimate_names`."""
+    _estimate_block: SampleBlock | None = field(default=None, init=False, repr=False)
+    """Per log instant: the estimate of the NEES states, the truth of them, and the
+    estimate's whole covariance (sized at the first estimate)."""
+    _truth_block: SampleBlock = field(init=False, repr=False)
+    """Per log instant: cross-track, heading and speed errors."""
     last_path_s_m: float | None = None
     """Arc length of the last projection of the truth onto the reference path."""
+
+    def __post_init__(self) -> None:
+        self._truth_block = SampleBlock(
+            len(TRUTH_STATISTICS), lambda rows: _reduce_truth(rows, self._truth_stats))
 
     def add_truth(self, truth: VehicleState) -> None:
         # Searched near the previous projection: the car moves < 1 m between log samples.
         projection = self.reference.project(truth.x_m, truth.y_m, self.last_path_s_m)
         self.last_path_s_m = projection.s_m
-        self.cte_m.add(projection.lateral_error_m)
-        self.heading_err_rad.add(float(wrap_angle(truth.yaw_rad - projection.path_yaw_rad)))
+        self.last_cte_m = cte_m = projection.lateral_error_m
+        self.last_heading_err_rad = heading_err_rad = float(
+            wrap_angle(truth.yaw_rad - projection.path_yaw_rad))
         ref_speed = float(self.reference.speed_ref(projection.s_m, truth.t_s))
         self.last_ref_speed_mps = ref_speed
-        self.speed_err_mps.add(truth.speed_mps - ref_speed)
+        self.last_speed_err_mps = speed_err_mps = truth.speed_mps - ref_speed
+        self._truth_block.add((cte_m, heading_err_rad, speed_err_mps))
         self._add_comfort(truth)
         self.last_t_s = truth.t_s
         if self.manoeuvre is not None:
@@ -159,22 +195,35 @@ class MetricsAccumulator:
             self.speed_mps.add(truth.speed_mps)
 
     def add_estimate(self, estimate: Estimate, truth: VehicleState) -> None:
-        error = np.array([
-            estimate["x_m"] - truth.x_m,
-            estimate["y_m"] - truth.y_m,
-            float(wrap_angle(estimate["yaw_rad"] - truth.yaw_rad)),
-            estimate["vx_mps"] - truth.vx_mps,
-        ])
-        self.pos_err_m.add(float(np.hypot(error[0], error[1])))
-        self.yaw_err_rad.add(float(error[2]))
-        self.speed_est_err_mps.add(float(error[3]))
-        names, grid = self._nees_grid
-        if names != estimate.names:  # the first estimate (an estimator keeps its names)
-            index = [estimate.names.index(name) for name in NEES_STATES]
-            names, grid = self._nees_grid = estimate.names, np.ix_(index, index)
-        covariance = estimate.covariance[grid]  # estimate.sub_covariance(NEES_STATES)
-        if np.all(np.isfinite(covariance)) and np.linalg.det(covariance) > 0.0:
-            self.nees.add(float(error @ np.linalg.solve(covariance, error)))
+        """The estimate's errors against ``truth`` over :data:`NEES_STATES` (position,
+        yaw wrapped to (-pi, pi], speed) and their NEES, ``e' P^-1 e`` with ``P`` the
+        estimate's covariance of those states (left out where ``P`` is not finite and
+        positive definite)."""
+        if estimate.names != self._estimate_names:
+            if self._estimate_block is not None:  # (an estimator keeps its names)
+                self._estimate_block.flush()
+            self._estimate_names = estimate.names
+            self._nees_index = np.array([estimate.names.index(n) for n in NEES_STATES])
+            self._estimate_block = SampleBlock(
+                2 * len(NEES_STATES) + estimate.covariance.size,
+                lambda rows: _reduce_estimates(rows, self._nees_index, self._estimate_stats))
+        assert self._estimate_block is not None
+        row = self._estimate_block.next_row()
+        row[0:4] = estimate.mean[self._nees_index]
+        row[4:8] = (truth.x_m, truth.y_m, truth.yaw_rad, truth.vx_mps)
+        row[8:] = estimate.covariance.reshape(-1)
+
+    def statistics(self) -> dict[str, RunningStats]:
+        """Every per-sample statistic over the samples so far, by name
+        (:data:`TRUTH_STATISTICS`, :data:`ESTIMATE_STATISTICS`): copies with the pending
+        rows merged in; the accumulator itself is left as it was."""
+        truth = tuple(map(copy.copy, self._truth_stats))
+        _reduce_truth(self._truth_block.pending(), truth)
+        estimates = tuple(map(copy.copy, self._estimate_stats))
+        if self._estimate_block is not None:
+            _reduce_estimates(self._estimate_block.pending(), self._nees_index, estimates)
+        return dict(zip(TRUTH_STATISTICS + ESTIMATE_STATISTICS, truth + estimates,
+                        strict=True))
 
     def add_update(self, sensor: str, update: UpdateResult, t_s: float) -> None:
         """One measurement's outcome at its time ``t_s``: its NIS over all its channels
@@ -203,15 +252,15 @@ class MetricsAccumulator:
         self.steer_rad.add(command.steer_rad)
         self.accel_mps2.add(command.accel_mps2)
 
-    def _tracking(self) -> dict[str, float]:
-        """The tracking metrics over the samples so far."""
+    def _tracking(self, stats: dict[str, RunningStats]) -> dict[str, float]:
+        """The tracking metrics of ``stats`` (:meth:`statistics`)."""
         return {
-            "cte_max_m": self.cte_m.max_abs,
-            "cte_rms_m": self.cte_m.rms,
-            "heading_err_max_rad": self.heading_err_rad.max_abs,
-            "heading_err_rms_rad": self.heading_err_rad.rms,
-            "speed_err_rms_mps": self.speed_err_mps.rms,
-            "speed_err_max_mps": self.speed_err_mps.max_abs,
+            "cte_max_m": stats["cte_m"].max_abs,
+            "cte_rms_m": stats["cte_m"].rms,
+            "heading_err_max_rad": stats["heading_err_rad"].max_abs,
+            "heading_err_rms_rad": stats["heading_err_rad"].rms,
+            "speed_err_rms_mps": stats["speed_err_mps"].rms,
+            "speed_err_max_mps": stats["speed_err_mps"].max_abs,
             "steer_max_rad": self.steer_rad.max_abs,
         }
 
@@ -219,16 +268,17 @@ class MetricsAccumulator:
         """The metrics that can be computed so far, for ``/metrics/live`` at sim time
         ``t_s`` (same keys and meaning as :meth:`result`'s, over the run up to ``t_s``)."""
         solve_ms = self.solve_time_s.as_array() * 1e3
+        stats = self.statistics()
         return {
             "t_s": t_s,
-            "cte_m": self.cte_m.last,
-            **self._tracking(),
+            "cte_m": self.last_cte_m,
+            **self._tracking(stats),
             "solve_ms_p50": float(np.percentile(solve_ms, 50)) if solve_ms.size else float("nan"),
             "solve_ms_max": float(solve_ms.max()) if solve_ms.size else float("nan"),
             "solver_failures": self.solver_failures,
-            "est_pos_rmse_m": self.pos_err_m.rms,
-            "est_yaw_rmse_rad": self.yaw_err_rad.rms,
-            "nees_mean": self.nees.mean,
+            "est_pos_rmse_m": stats["pos_err_m"].rms,
+            "est_yaw_rmse_rad": stats["yaw_err_rad"].rms,
+            "nees_mean": stats["nees"].mean,
             "nis_mean": self.nis_per_dof.mean,
         }
 
@@ -240,6 +290,7 @@ class MetricsAccumulator:
             return float(np.percentile(solve_ms, q)) if solve_ms.size else float("nan")
 
         sim_duration_s = self.last_t_s
+        stats = self.statistics()
         extra: dict[str, float] = {}
         if self.manoeuvre is not None:
             extra = manoeuvre_metrics(
@@ -247,7 +298,7 @@ class MetricsAccumulator:
                 self.yaw_rate_radps.as_array(), self.ay_mps2.as_array(),
                 self.speed_mps.as_array(), self.manoeuvre)
         return {
-            **self._tracking(),
+            **self._tracking(stats),
             "accel_max_mps2": self.accel_mps2.maximum,
             "accel_min_mps2": self.accel_mps2.minimum,
             "solve_ms_p50": percentile(50),
@@ -256,10 +307,10 @@ class MetricsAccumulator:
             **_millisecond_percentiles("step_ms", self.step_time_s.as_array()),
             "solver_failures": self.solver_failures,
             "speed_reduced_steps": self.speed_reduced_steps,
-            "est_pos_rmse_m": self.pos_err_m.rms,
-            "est_yaw_rmse_rad": self.yaw_err_rad.rms,
-            "est_speed_rmse_mps": self.speed_est_err_mps.rms,
-            "nees_mean": self.nees.mean,
+            "est_pos_rmse_m": stats["pos_err_m"].rms,
+            "est_yaw_rmse_rad": stats["yaw_err_rad"].rms,
+            "est_speed_rmse_mps": stats["speed_est_err_mps"].rms,
+            "nees_mean": stats["nees"].mean,
             "nis_mean": self.nis_per_dof.mean,
             **{f"nis_{sensor}": self.nis_sum[sensor] / self.nis_dof[sensor]
                for sensor in sorted(self.nis_sum)},
@@ -300,3 +351,28 @@ class MetricsAccumulator:
         return {"lat_accel_max_mps2": self.lat_accel_mps2.max_abs,
                 "jerk_rms_mps3": self.jerk_mps3.rms,
                 "lat_jerk_rms_mps3": self.lat_jerk_mps3.rms}
+
+
+def _reduce_truth(rows: np.ndarray, stats: tuple[RunningStats, ...]) -> None:
+    """Merge rows of :data:`TRUTH_STATISTICS` into ``stats`` (in that order)."""
+    for column, statistic in enumerate(stats):
+        statistic.merge(rows[:, column])
+
+
+def _reduce_estimates(rows: np.ndarray, nees_index: np.ndarray,
+                      stats: tuple[RunningStats, ...]) -> None:
+    """Merge rows of (estimate of the NEES states, their truth, the estimate's whole
+    covariance) into ``stats`` (:data:`ESTIMATE_STATISTICS`); ``nees_index`` locates the
+    NEES states in the covariance."""
+    pos_err, yaw_err, speed_err, nees = stats
+    error = rows[:, 0:4] - rows[:, 4:8]
+    error[:, 2] = wrap_angle(error[:, 2])
+    pos_err.merge(np.hypot(error[:, 0], error[:, 1]))
+    yaw_err.merge(error[:, 2])
+    speed_err.merge(error[:, 3])
+    size = math.isqrt(rows.shape[1] - 8)
+    covariance = rows[:, 8:].reshape(-1, size, size)[:, nees_index[:, None], nees_index]
+    usable = np.all(np.isfinite(covariance), axis=(1, 2))
+    usable[usable] = np.linalg.det(covariance[usable]) > 0.0
+    weighted = np.linalg.solve(covariance[usable], error[usable][:, :, None])[:, :, 0]
+    nees.merge(np.einsum("ij,ij->i", error[usable], weighted))

@@ -134,9 +134,9 @@ class RunLog(Observer):
             recorder.write(topics.SCENE_ESTIMATE, t_s, foxglove.estimate_scene(instant.estimate))
         metrics = self._metrics
         recorder.write_finite(topics.CONTROL_ERRORS, t_s, {
-            "t_s": t_s, "cte_m": metrics.cte_m.last,
-            "heading_err_rad": metrics.heading_err_rad.last,
-            "speed_err_mps": metrics.speed_err_mps.last, "speed_mps": truth.speed_mps,
+            "t_s": t_s, "cte_m": metrics.last_cte_m,
+            "heading_err_rad": metrics.last_heading_err_rad,
+            "speed_err_mps": metrics.last_speed_err_mps, "speed_mps": truth.speed_mps,
             "ref_speed_mps": metrics.last_ref_speed_mps,
         })
         if t_s >= self._next_live_metrics_s - 1e-9:

@@ -55,18 +55,18 @@ class RunWatch(Observer):
         metrics.add_estimate(instant.estimate, truth)
         if self.signals is not None:
             self.signals.add({
-                "t": instant.t_s, "cte_m": metrics.cte_m.last,
-                "heading_err_rad": metrics.heading_err_rad.last,
-                "speed_err_mps": metrics.speed_err_mps.last, "speed_mps": truth.speed_mps,
+                "t": instant.t_s, "cte_m": metrics.last_cte_m,
+                "heading_err_rad": metrics.last_heading_err_rad,
+                "speed_err_mps": metrics.last_speed_err_mps, "speed_mps": truth.speed_mps,
                 "ref_speed_mps": metrics.last_ref_speed_mps, "lat_accel_mps2": truth.ay_mps2,
                 "yaw_rate_radps": truth.yaw_rate_radps, "steer_rad": truth.steer_rad})
-        for event in self.monitor.observe(truth, metrics.cte_m.last,
-                                          metrics.heading_err_rad.last,
+        for event in self.monitor.observe(truth, metrics.last_cte_m,
+                                          metrics.last_heading_err_rad,
                                           metrics.last_path_s_m, instant.tyre_loads_n):
             self._emit(event)
             if event.kind in TERMINAL and not self._keep_going and self.stopped_by is None:
                 self.stopped_by = event
-        self.course_monitor.add_truth(truth, metrics.cte_m.last, metrics.last_path_s_m)
+        self.course_monitor.add_truth(truth, metrics.last_cte_m, metrics.last_path_s_m)
 
     def fused(self, t_s: float, measurement: Measurement, update: UpdateResult) -> None:
         del t_s

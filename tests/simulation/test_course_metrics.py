@@ -55,7 +55,7 @@ def test_speed_error_is_against_the_profile_at_that_time() -> None:
     profile = TimedSpeed(np.array([0.0, 10.0]), np.array([10.0, 0.0]))
     metrics = MetricsAccumulator(_straight(profile))
     metrics.add_truth(_state(5.0, x=50.0, vx=6.0))  # reference 5 m/s at 5 s
-    assert metrics.speed_err_mps.last == pytest.approx(1.0)
+    assert metrics.last_speed_err_mps == pytest.approx(1.0)
     assert metrics.last_ref_speed_mps == pytest.approx(5.0)
 
 

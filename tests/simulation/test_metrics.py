@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from cosim.core.records import Estimate, VehicleState
 from cosim.simulation.metric_keys import undocumented
 from cosim.simulation.metrics import MetricsAccumulator
 from estimation.consistency import SETTLE_S
@@ -48,3 +49,35 @@ def test_a_sensor_heard_only_at_start_up_has_no_settled_nis() -> None:
     result = metrics.result(1.0, True)
     assert "nis_settled_steering" not in result
     assert result["gated_first_s_steering"] == 0
+
+
+def test_estimation_errors_and_nees_over_many_blocks() -> None:
+    # 2,500 estimates (more than two blocks), each with its own covariance over states in
+    # an order of the estimator's own and a yaw across the +-pi seam: NEES e' P^-1 e and
+    # the RMS errors as computed one by one; a covariance that is not positive definite
+    # leaves that sample out of NEES only.
+    rng = np.random.default_rng(4)
+    names = ("vx_mps", "yaw_rad", "extra", "y_m", "x_m")
+    metrics, nees = _accumulator(), []
+    for k in range(2500):
+        root = rng.normal(0.0, 1.0, (5, 5))
+        covariance = root @ root.T + 0.1 * np.eye(5)
+        if k == 1234:
+            covariance[1, 1] = -1.0
+        mean = rng.normal(0.0, 1.0, 5)
+        mean[1] = np.pi - 0.01
+        truth = VehicleState(0.01 * k, mean[4] + 0.3, mean[3] - 0.2, 0.0, 0.0, 0.0,
+                             -np.pi + 0.02, mean[0] + 0.1, 0.0, 0.0, 0.0, 0.0, 0.0,
+                             (0.0, 0.0, 0.0, 0.0))
+        metrics.add_estimate(Estimate(truth.t_s, names, mean, covariance), truth)
+        error = np.array([-0.3, 0.2, -0.03, -0.1])
+        block = covariance[np.ix_([4, 3, 1, 0], [4, 3, 1, 0])]
+        if k != 1234:
+            nees.append(error @ np.linalg.solve(block, error))
+    stats = metrics.statistics()
+    assert stats["nees"].count == 2499
+    assert stats["nees"].mean == pytest.approx(np.mean(nees), rel=1e-12)
+    assert stats["yaw_err_rad"].rms == pytest.approx(0.03, rel=1e-9)
+    assert stats["pos_err_m"].rms == pytest.approx(np.hypot(0.3, 0.2), rel=1e-12)
+    assert stats["speed_est_err_mps"].mean == pytest.approx(-0.1, rel=1e-12)
+    assert metrics.result(1.0, True)["nees_mean"] == stats["nees"].mean
