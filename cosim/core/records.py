@@ -114,7 +114,8 @@ class Estimate:
         message.update(zip(self.names, np.asarray(self.mean, dtype=float).tolist(),
                            strict=True))
         message["state_names"] = list(self.names)
-        message["covariance"] = np.asarray(self.covariance, dtype=float).ravel().tolist()
+        # An array: the log's encoder writes it as a JSON list (NaN as null), unconverted.
+        message["covariance"] = np.ascontiguousarray(self.covariance, dtype=float).reshape(-1)
         return message
 
 
@@ -171,8 +172,8 @@ class Plan:
             "fallback": self.fallback,
             "speed_reduced": self.speed_reduced,
         }
-        for name in self.state_names + self.input_names:
-            message[f"predicted_{name}"] = _json_floats(self.column(name))
+        for name in self.state_names + self.input_names:  # arrays, as Estimate's covariance
+            message[f"predicted_{name}"] = np.ascontiguousarray(self.column(name), dtype=float)
         return message
 
 
