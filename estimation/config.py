@@ -174,6 +174,12 @@ class EstimatorConfig:
     max_step_s: float = setting(
         0.01, low=1e-4, high=0.02, doc="longest sub-step of a prediction interval"
     )
+    history_s: float = setting(
+        0.0, low=0.0, high=2.0,
+        doc="how far back a late measurement (sensors.gnss.latency_s) is fused at its own "
+        "time, the filter's later steps re-run (estimation.history); 0: none, a measurement "
+        "from before the filter's time is rejected as stale",
+    )
 
     # Model errors of the measurement equations, added to each measurement's own covariance.
     wheel_model_sigma_mps: float = setting(

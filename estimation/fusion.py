@@ -27,7 +27,6 @@ import dataclasses
 import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -42,6 +41,7 @@ from estimation.compiled_models import use_compiled
 from estimation.config import EstimatorConfig
 from estimation.consistency import chi_square_quantile
 from estimation.errors import EstimatorError
+from estimation.history import FusionState, Lookahead
 from estimation.initial import initial_belief
 from estimation.innovation import (
     CheckedMeasurement,
@@ -71,20 +71,6 @@ from estimation.update_result import (
     SensorCounts,
     UpdateResult,
 )
-
-
-@dataclass(frozen=True)
-class _Lookahead:
-    """A prediction :meth:`KalmanFusion.estimate_at` made for an observer and undid: from
-    the belief ``before`` (the very arrays, at ``t0_s``) to ``mean``/``covariance`` at
-    ``t_s``. The log looks at the instants the sensors report, just before the filter
-    itself predicts to them from the same belief: that prediction is this one."""
-
-    before: tuple[np.ndarray, np.ndarray]
-    t0_s: float
-    t_s: float
-    mean: np.ndarray
-    covariance: np.ndarray
 
 
 class KalmanFusion(ABC):
@@ -166,7 +152,7 @@ class KalmanFusion(ABC):
         self._awaiting_first_fix = self._config.initial == "first-fix"
         self._counts: dict[str, SensorCounts] = {}
         self._gate_failing_since_s: dict[tuple[str, tuple[str, ...]], float] = {}
-        self._lookahead: _Lookahead | None = None
+        self._lookahead: Lookahead | None = None
 
     # ------------------------------------------------------------------- filter-specific
 
@@ -245,8 +231,24 @@ class KalmanFusion(ABC):
             self._set_mean(mean)
             self._set_covariance(covariance)
             self._t_s = t0_s
-            self._lookahead = None if predicted is None else _Lookahead(
+            self._lookahead = None if predicted is None else Lookahead(
                 (self._x, self._p), t0_s, predicted[2], predicted[0], predicted[1])
+
+    def state(self) -> FusionState:
+        """Everything that changes as the filter runs (:mod:`estimation.history`)."""
+        return FusionState(self._t_s, self._x.copy(order="K"), self._p.copy(order="K"),
+                           {s: dataclasses.replace(c) for s, c in self._counts.items()},
+                           dict(self._gate_failing_since_s), self._awaiting_first_fix)
+
+    def restore(self, state: FusionState) -> None:
+        """Continue from ``state`` (:meth:`state`) as the filter would have from there."""
+        self._set_mean(state.mean.copy(order="K"))
+        self._set_covariance(state.covariance.copy(order="K"))
+        self._t_s = state.t_s
+        self._counts = {s: dataclasses.replace(c) for s, c in state.counts.items()}
+        self._gate_failing_since_s = dict(state.gate_failing_since_s)
+        self._awaiting_first_fix = state.awaiting_first_fix
+        self._lookahead = None
 
     def counts(self) -> dict[str, dict[str, int]]:
         """Per sensor: accepted, rejected (by cause), ignored and gate-released updates."""

@@ -22,6 +22,8 @@ from cosim.core.plugins import load_object, missing_members
 from cosim.core.vehicle_params import VehicleParams
 from estimation.config import ESTIMATOR_NAMES, PLUGIN_GROUP, EstimatorConfig, is_plugin_name
 from estimation.ekf import Ekf
+from estimation.fusion import KalmanFusion
+from estimation.history import FilterWithHistory
 from estimation.protocol import Estimator
 from estimation.truth import TruthEstimator
 
@@ -62,8 +64,13 @@ def make_estimator(
     """Build the estimator ``config.name`` with its initial belief at ``t0_s``.
 
     ``initial`` is the car's true initial state; the filters draw their initial estimate
-    around it with ``rng`` (``config.initial``, :mod:`estimation.initial`)."""
-    return estimator_class(config.name)(config, initial, belief, t0_s=t0_s, rng=rng)
+    around it with ``rng`` (``config.initial``, :mod:`estimation.initial`). With
+    ``config.history_s`` a built-in filter fuses late measurements at their own time
+    (:class:`estimation.history.FilterWithHistory`)."""
+    estimator = estimator_class(config.name)(config, initial, belief, t0_s=t0_s, rng=rng)
+    if config.history_s > 0.0 and isinstance(estimator, KalmanFusion):
+        return FilterWithHistory(estimator, config.history_s)
+    return estimator
 
 
 def required_sensors(name: str) -> tuple[str, ...]:

@@ -31,6 +31,11 @@ class GnssConfig:
     enabled: bool = setting(True)
     period_s: float = setting(0.1, low=0.001, high=10.0)
     sigma_m: float = setting(0.02, low=0.0, high=100.0, doc="per horizontal axis")
+    latency_s: float = setting(
+        0.0, low=0.0, high=1.0,
+        doc="from a fix's measurement to its delivery (receivers: 0.05-0.2 s); the fix keeps "
+        "its measurement time, and a filter fuses it there only with estimator.history_s",
+    )
 
 
 @dataclass(frozen=True)

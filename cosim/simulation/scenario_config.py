@@ -327,6 +327,7 @@ def load_config(
                       f"km/h was meant, that is {config.path.speed_mps / 3.6:.3g} m/s",
                       UnitHint, stacklevel=2)
     check_rates(config)
+    check_latency(config)
     check_requirements(config.requirements, config.sim.log_period_s)
     check_required_sensors(config)
     check_faults(config)
@@ -435,6 +436,19 @@ def steps_per_period(period_s: float, physics_dt_s: float, key: str,
             f"{physics_dt_s:g} (e.g. {below:g} or {above:g})"
         )
     return steps
+
+
+def check_latency(config: ScenarioConfig) -> None:
+    """A sensor latency is a whole number of physics steps; one longer than the filter's
+    history (``estimator.history_s``) says that the filter will reject those fixes."""
+    latency_s = config.sensors.gnss.latency_s
+    steps_per_period(latency_s, config.sim.physics_dt_s, "sensors.gnss.latency_s")
+    if (config.sensors.gnss.enabled and config.estimator.name in ("ekf", "ukf")
+            and latency_s > config.estimator.history_s):
+        warnings.warn(f"sensors.gnss.latency_s = {latency_s:g} s but estimator.history_s = "
+                      f"{config.estimator.history_s:g} s: the filter rejects every fix as "
+                      f"stale (set estimator.history_s >= {latency_s:g} to fuse them at their "
+                      "own time)", stacklevel=3)
 
 
 def check_rates(config: ScenarioConfig) -> None:

@@ -4,15 +4,19 @@ A sensor's period is a whole number of physics steps (checked when the run is bu
 random generator is the run seed's stream named ``sensors.<name>``
 (:func:`cosim.simulation.seeding.component_rng`), so adding a sensor changes no other
 sensor's noise; its faults (:mod:`cosim.sensing.faults`) are applied to each sample, in
-time order, a dropout delivering nothing. A filter that asks for the truth
-(``required_sensors`` holding ``truth``) gets a noise-free :class:`TruthSensor` at the
-faster of the log and control rates.
+time order, a dropout delivering nothing. A sensor with a latency (``sensors.gnss.latency_s``,
+a whole number of physics steps) delivers each sample that many steps after it was taken,
+with the time it was taken, before the samples taken at the delivery step. A filter that
+asks for the truth (``required_sensors`` holding ``truth``) gets a noise-free
+:class:`TruthSensor` at the faster of the log and control rates.
 """
 
 from __future__ import annotations
 
+from collections import deque
+
 from cosim.core.records import Measurement, VehicleState
-from cosim.core.sensor_names import TRUTH
+from cosim.core.sensor_names import GNSS, TRUTH
 from cosim.sensing.faults import FaultInjector
 from cosim.sensing.protocol import BiasedSensor, Sensor
 from cosim.sensing.sensors import TruthSensor, make_sensors
@@ -36,21 +40,37 @@ class SensorSuite:
         self._rngs = [component_rng(config.seed, f"sensors.{s.name}") for s in sensors]
         self._faults = [FaultInjector(config.faults, s.name, s.names) for s in sensors]
         self._biased = [s for s in sensors if isinstance(s, BiasedSensor)]
+        latency_s = {GNSS: config.sensors.gnss.latency_s}
+        self.latency_steps = [
+            steps_per_period(latency_s.get(s.name, 0.0), dt_s, f"sensors.{s.name}.latency_s")
+            for s in sensors]
+        """Each sensor's latency, in physics steps."""
+        self._held: deque[tuple[int, Measurement]] = deque()
+        """Samples taken and not yet delivered, with the step they are due at, in order."""
 
     @property
     def names(self) -> list[str]:
         return [s.name for s in self.sensors]
 
     def sample(self, k: int, truth: VehicleState) -> list[Measurement]:
-        """What the sensors due at physics step ``k`` deliver (faults applied; a dropout
-        delivers nothing), in the sensors' order."""
+        """What the sensors deliver at physics step ``k`` (faults applied; a dropout
+        delivers nothing): the late samples now due, then those taken now, in the sensors'
+        order."""
+        held = self._held
         delivered = []
-        for sensor, steps, rng, faults in zip(self.sensors, self.steps, self._rngs,
-                                              self._faults, strict=True):
+        while held and held[0][0] <= k:
+            delivered.append(held.popleft()[1])
+        for sensor, steps, rng, faults, latency in zip(
+                self.sensors, self.steps, self._rngs, self._faults, self.latency_steps,
+                strict=True):
             if k % steps:
                 continue
             measurement = faults.apply(sensor.sample(truth, rng))
-            if measurement is not None:
+            if measurement is None:
+                continue
+            if latency:
+                held.append((k + latency, measurement))
+            else:
                 delivered.append(measurement)
         return delivered
 
