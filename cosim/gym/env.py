@@ -178,7 +178,7 @@ class CosimEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         speed_err = 0.0 if ref_speed is None else state.truth.speed_mps - ref_speed
         steer_rate = (command.steer_rad - self._last_steer_rad) / state.config.sim.control_period_s
         self._last_steer_rad = command.steer_rad
-        reward = -(m.cte_m.last ** 2 + m.heading_err_rad.last ** 2 + 0.1 * speed_err ** 2
+        reward = -(m.last_cte_m ** 2 + m.last_heading_err_rad ** 2 + 0.1 * speed_err ** 2
                    + 0.1 * steer_rate ** 2)
         new_events = state.monitor.events[events_before:]
         terminated = any(e.kind in TERMINAL_EVENTS for e in new_events)
