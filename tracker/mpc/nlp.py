@@ -190,23 +190,63 @@ class Nlp:
         """
         if isinstance(self.solver, RealTimeIteration):
             return self.solver.solve(w0, params, self, cold)
+        call = self._call
         start = time.perf_counter()
-        solution = self.solver.call({"x0": w0, "p": params, **self._bounds})
+        w, cost = call(w0, params)
         solve_time_s = time.perf_counter() - start
-        stats = self.solver.stats()
+        stats = call.stats()
         success = bool(stats.get("success", False))
         status = str(stats.get("return_status", "unknown"))
         if self.solver_name == "fatrop":
             status = "Solve_Succeeded" if success else f"fatrop_flag_{status}"
-        return Solution(np.array(solution["x"].elements()), float(solution["f"]), status,
-                         int(stats.get("iter_count", 0)), success, solve_time_s)
+        return Solution(w, cost, status, int(stats.get("iter_count", 0)), success,
+                        solve_time_s)
 
     @functools.cached_property
-    def _bounds(self) -> dict[str, ca.DM]:
-        """The bounds as CasADi matrices, converted once (a conversion from numpy costs
-        about 30 us an array, every solve)."""
-        return {"lbx": ca.DM(self.lbx), "ubx": ca.DM(self.ubx), "lbg": ca.DM(self.lbg),
-                "ubg": ca.DM(self.ubg)}
+    def _call(self) -> BufferedNlpCall:
+        """The solver called on numpy arrays bound once (:class:`BufferedNlpCall`)."""
+        assert isinstance(self.solver, ca.Function)
+        return BufferedNlpCall(self.solver, {"lbx": self.lbx, "ubx": self.ubx,
+                                             "lbg": self.lbg, "ubg": self.ubg})
+
+
+class BufferedNlpCall:
+    """A CasADi ``nlpsol`` evaluated through its buffer (``Function.buffer``): every input
+    and output is a numpy array bound to the solver once, so a solve converts nothing
+    (called with a dict, each solve turned the guess and the parameters into CasADi
+    matrices and every output back, some 100 us). The same solver, so the same iterates.
+    Inputs not set here (the multipliers' initial guesses) stay zero, as in a call that
+    does not give them."""
+
+    def __init__(self, solver: ca.Function, fixed: Mapping[str, np.ndarray]) -> None:
+        self._inputs = {name: np.zeros(solver.nnz_in(i))
+                        for i, name in enumerate(solver.name_in())}
+        self._outputs = {name: np.zeros(solver.nnz_out(i))
+                         for i, name in enumerate(solver.name_out())}
+        for name, values in fixed.items():
+            self._inputs[name][:] = np.asarray(values, dtype=float).ravel()
+        self._buffer, self._evaluate = solver.buffer()
+        for i, name in enumerate(solver.name_in()):
+            self._buffer.set_arg(i, memoryview(self._inputs[name]))
+        for i, name in enumerate(solver.name_out()):
+            self._buffer.set_res(i, memoryview(self._outputs[name]))
+
+    def __call__(self, w0: np.ndarray, params: np.ndarray) -> tuple[np.ndarray, float]:
+        """Solve from the guess ``w0`` with the parameters ``params``: the solution and
+        its cost; a solver that reports an error (not a failed solve: an evaluation that
+        could not run) raises ``RuntimeError``, as a call with a dict does."""
+        self._inputs["x0"][:] = w0
+        self._inputs["p"][:] = params
+        self._evaluate()
+        if self._buffer.ret():
+            raise RuntimeError(f"the NLP solver returned {self._buffer.ret()}")
+        return self._outputs["x"].copy(), float(self._outputs["f"][0])
+
+    def stats(self) -> dict[str, object]:
+        """The solver's statistics of the last solve (``success``, ``return_status``,
+        ``iter_count`` ...): the buffer has its own memory, so the solver's ``stats()``
+        does not hold them."""
+        return self._buffer.stats()
 
 
 @dataclass(frozen=True)
