@@ -33,17 +33,20 @@ class GnssConfig:
     sigma_m: float = setting(0.02, low=0.0, high=100.0, doc="per horizontal axis")
     latency_s: float = setting(
         0.0, low=0.0, high=1.0,
-        doc="from a fix's measurement to its delivery (receivers: 0.05-0.2 s); the fix keeps "
-        "its measurement time, and a filter fuses it there only with estimator.history_s",
+        doc="from a fix's measurement to its delivery, its position and its Doppler velocity "
+        "alike (receivers: 0.05-0.2 s); the fix keeps its measurement time, and a filter "
+        "fuses it there only with estimator.history_s",
     )
 
 
 @dataclass(frozen=True)
 class GnssVelocityConfig:
     """GNSS velocity from the carriers' Doppler shift: the CoG's velocity over the ground in
-    the world frame (east, north). Off by default: not every receiver outputs it."""
+    the world frame (east, north). On in the ``rtk`` suite (the default), whose receivers
+    report it with each fix (u-blox ZED-F9P data sheet: 0.05 m/s); off in the ``gnss``
+    suite, a receiver read for its position only."""
 
-    enabled: bool = setting(False)
+    enabled: bool = setting(True)
     period_s: float = setting(0.1, low=0.001, high=10.0)
     sigma_mps: float = setting(
         0.05, low=0.0, high=10.0, doc="per horizontal axis (0.05 m/s: automotive receivers)"
@@ -118,13 +121,15 @@ class SensorsConfig:
 def suite_preset(suite: str) -> dict[str, dict[str, float]]:
     """The figures a named suite changes from the defaults, as a ``sensors:`` mapping.
 
-    - ``rtk`` (the defaults): RTK-corrected GNSS (2 cm), an automotive MEMS IMU (gyro bias
-      of about 0.1 deg/s), ABS wheel encoders, an EPS steering-angle sensor;
-    - ``gnss``: the same car with a standalone GNSS receiver (0.5 m);
+    - ``rtk`` (the defaults): RTK-corrected GNSS (2 cm) with its Doppler velocity
+      (0.05 m/s), an automotive MEMS IMU (gyro bias of about 0.1 deg/s), ABS wheel
+      encoders, an EPS steering-angle sensor;
+    - ``gnss``: the same car with a standalone GNSS receiver's position (0.5 m), no velocity;
     - ``ideal``: every sensor noise-free, unbiased and unquantised, for debugging.
     """
     if suite == "gnss":
-        return {sensor_names.GNSS: {"sigma_m": 0.5}}
+        return {sensor_names.GNSS: {"sigma_m": 0.5},
+                sensor_names.GNSS_VELOCITY: {"enabled": False}}
     if suite == "ideal":
         zero = {sensor_names.GNSS: GnssConfig, sensor_names.GNSS_VELOCITY: GnssVelocityConfig,
                 sensor_names.HEADING: HeadingConfig, sensor_names.IMU: ImuConfig,

@@ -16,7 +16,7 @@ from __future__ import annotations
 from collections import deque
 
 from cosim.core.records import Measurement, VehicleState
-from cosim.core.sensor_names import GNSS, TRUTH
+from cosim.core.sensor_names import GNSS, GNSS_VELOCITY, TRUTH
 from cosim.sensing.faults import FaultInjector
 from cosim.sensing.protocol import BiasedSensor, Sensor
 from cosim.sensing.sensors import TruthSensor, make_sensors
@@ -40,9 +40,10 @@ class SensorSuite:
         self._rngs = [component_rng(config.seed, f"sensors.{s.name}") for s in sensors]
         self._faults = [FaultInjector(config.faults, s.name, s.names) for s in sensors]
         self._biased = [s for s in sensors if isinstance(s, BiasedSensor)]
-        latency_s = {GNSS: config.sensors.gnss.latency_s}
+        receiver_latency_s = config.sensors.gnss.latency_s  # its fix and its velocity
+        latency_s = {GNSS: receiver_latency_s, GNSS_VELOCITY: receiver_latency_s}
         self.latency_steps = [
-            steps_per_period(latency_s.get(s.name, 0.0), dt_s, f"sensors.{s.name}.latency_s")
+            steps_per_period(latency_s.get(s.name, 0.0), dt_s, "sensors.gnss.latency_s")
             for s in sensors]
         """Each sensor's latency, in physics steps."""
         self._held: deque[tuple[int, Measurement]] = deque()

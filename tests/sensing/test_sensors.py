@@ -57,9 +57,15 @@ def test_gnss_noise_has_the_configured_spread() -> None:
 
 def test_gnss_velocity_is_the_world_frame_velocity_with_its_noise() -> None:
     """Doppler velocity: the vehicle-frame (vx, vy) = (20, 0.1) m/s turned by the yaw into
-    east and north; off unless enabled."""
-    assert GnssVelocityConfig().enabled is False
-    assert "gnss_velocity" not in [s.name for s in make_sensors(load_config("lane-change").sensors)]
+    east and north; on in the rtk suite (the default), off in the gnss suite unless
+    enabled."""
+    def names(*overrides: str) -> list[str]:
+        config = load_config("lane-change", overrides=overrides)
+        return [s.name for s in make_sensors(config.sensors)]
+
+    assert "gnss_velocity" in names() and "gnss_velocity" in names("sensors.suite=rtk")
+    assert "gnss_velocity" not in names("sensors.suite=gnss")
+    assert "gnss_velocity" in names("sensors.suite=gnss", "sensors.gnss_velocity.enabled=true")
     exact = GnssVelocitySensor(GnssVelocityConfig(sigma_mps=0.0))
     rng = np.random.default_rng(3)
     np.testing.assert_allclose(exact.sample(_truth(yaw_rad=0.0), rng).values, [20.0, 0.1])
@@ -68,8 +74,6 @@ def test_gnss_velocity_is_the_world_frame_velocity_with_its_noise() -> None:
     noisy = GnssVelocitySensor(GnssVelocityConfig(sigma_mps=0.05))
     errors = np.array([noisy.sample(_truth(), rng).values - [20.0, 0.1] for _ in range(4000)])
     assert np.std(errors, axis=0) == pytest.approx([0.05, 0.05], rel=0.05)
-    enabled = load_config("lane-change", overrides=["sensors.gnss_velocity.enabled=true"])
-    assert "gnss_velocity" in [s.name for s in make_sensors(enabled.sensors)]
 
 
 @pytest.mark.slow

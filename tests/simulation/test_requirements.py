@@ -15,7 +15,7 @@ from mcap.reader import make_reader
 
 COSIM = str(Path(sys.executable).with_name("cosim"))
 ALWAYS = "always (abs(cte_m) <= 0.3)"
-WINDOW = "eventually[0,1] (abs(cte_m) >= 0.04)"
+WINDOW = "eventually[0,1] (abs(cte_m) >= 0.005)"
 
 
 def _cosim(*args: str) -> subprocess.CompletedProcess[str]:
@@ -46,14 +46,14 @@ def required_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
 
 def test_robustness_agrees_with_a_hand_computation(required_run: tuple[Path, dict]) -> None:
     """``always (|cte| <= 0.3)``: 0.3 - max |cte| over the run; ``eventually[0,1]
-    (|cte| >= 0.04)``: max over t in [0, 1] s of |cte| - 0.04 (the bound in seconds)."""
+    (|cte| >= 0.005)``: max over t in [0, 1] s of |cte| - 0.005 (the bound in seconds)."""
     log, metrics = required_run
     t, cte = _errors(log)
     assert len(t) > 250  # 3 s at the log period
     assert metrics["stl_robustness_0"] == pytest.approx(0.3 - np.max(np.abs(cte)), abs=1e-12)
     window = t <= 1.0 + 1e-9
     assert metrics["stl_robustness_1"] == pytest.approx(
-        np.max(np.abs(cte[window])) - 0.04, abs=1e-12)
+        np.max(np.abs(cte[window])) - 0.005, abs=1e-12)
     assert metrics["stl_robustness"] == min(metrics["stl_robustness_0"],
                                             metrics["stl_robustness_1"])
 
@@ -61,7 +61,7 @@ def test_robustness_agrees_with_a_hand_computation(required_run: tuple[Path, dic
 def test_inspect_evaluates_a_formula_on_the_log(required_run: tuple[Path, dict]) -> None:
     log, metrics = required_run
     done = _cosim("inspect", str(log), "--json", "--require", ALWAYS, "--require",
-                  "always (abs(cte_m) <= 0.01)")
+                  "always (abs(cte_m) <= 0.005)")
     assert done.returncode == 3, done.stderr  # the second is violated
     rows = json.loads(done.stdout)["requirements"]
     assert rows[0] == {"formula": ALWAYS, "robustness": metrics["stl_robustness_0"],
