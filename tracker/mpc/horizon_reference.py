@@ -61,10 +61,18 @@ class HorizonReference:
 
 
 def _rebased_yaw(yaw_rad: np.ndarray, first_rad: float, car_yaw_rad: float) -> np.ndarray:
-    """Unwrap ``first, yaw...`` and shift by whole turns so ``first`` is near the car."""
-    yaw = np.unwrap(np.concatenate(([first_rad], yaw_rad)))
-    turns = np.round((car_yaw_rad - yaw[0]) / (2.0 * np.pi))
-    return yaw[1:] + 2.0 * np.pi * turns
+    """Unwrap ``first, yaw...`` and shift by whole turns so ``first`` is near the car.
+
+    Where no step between neighbours reaches pi (a horizon's headings nearly always), the
+    unwrap (``np.unwrap``) changes nothing but adds its zero corrections, done here
+    directly: the same numbers, without ``np.unwrap``'s general machinery."""
+    yaw = np.concatenate(([first_rad], yaw_rad))
+    if np.abs(np.diff(yaw)).max(initial=0.0) < np.pi:
+        unwrapped = yaw[1:] + 0.0  # np.unwrap's zero correction (it turns -0.0 into 0.0)
+    else:
+        unwrapped = np.unwrap(yaw)[1:]
+    turns = np.round((car_yaw_rad - first_rad) / (2.0 * np.pi))
+    return unwrapped + 2.0 * np.pi * turns
 
 
 def spline_reference(path: ReferencePath, s_m: np.ndarray, first_yaw_rad: float,

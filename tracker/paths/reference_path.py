@@ -127,8 +127,8 @@ class ReferencePath:
         The cubic pieces are evaluated by Horner's rule on arrays (one search for the
         pieces, no spline object called): a horizon of 25 points in about 20 us."""
         s = self.wrap(s_m)
-        last = self._coefficients.shape[0] - 1
-        i = np.clip(np.searchsorted(self._knots, s, side="right") - 1, 0, last)
+        i = np.searchsorted(self._knots, s, side="right") - 1  # the piece, within the path
+        np.minimum(np.maximum(i, 0, out=i), self._coefficients.shape[0] - 1, out=i)
         h = s - self._knots[i]
         ax, bx, cx, d_x, ay, by, cy, d_y = self._coefficients[i].T
         dx, dy = (3.0 * ax * h + 2.0 * bx) * h + cx, (3.0 * ay * h + 2.0 * by) * h + cy
