@@ -7,11 +7,18 @@ positive to the left, SI units with the unit in every name.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 
 import numpy as np
+
+
+def flat_message(record: object) -> dict[str, object]:
+    """A flat record (a dataclass whose fields are numbers and strings) as a message: its
+    fields in order, as ``dataclasses.asdict`` gives them, without the deep copy of every
+    value that makes ``asdict`` some 10 us a record."""
+    return dict(vars(record))
+
 
 WHEEL_NAMES: tuple[str, ...] = ("front_left", "front_right", "rear_left", "rear_right")
 """Order of the four wheels in every per-wheel tuple."""
@@ -63,7 +70,7 @@ class Command:
     steer_rad: float
 
     def to_message(self) -> dict[str, object]:
-        return dataclasses.asdict(self)
+        return flat_message(self)
 
 
 @dataclass(frozen=True)
@@ -218,4 +225,4 @@ class ActuatorCommand:
             )
 
     def to_message(self) -> dict[str, object]:
-        return dataclasses.asdict(self)
+        return flat_message(self)

@@ -6,9 +6,10 @@ They cross boundaries (plant -> sensing -> tracker -> log), so they live at the 
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
+
+from cosim.core.records import flat_message
 
 
 @dataclass(frozen=True)
@@ -28,7 +29,7 @@ class CarPose:
     width_m: float
 
     def to_message(self) -> dict[str, object]:
-        return dataclasses.asdict(self)
+        return flat_message(self)
 
 
 @dataclass(frozen=True)
@@ -52,4 +53,4 @@ class RangeReading:
         return bool(self.target) and math.isfinite(self.gap_m)
 
     def to_message(self) -> dict[str, object]:
-        return dataclasses.asdict(self)
+        return flat_message(self)
