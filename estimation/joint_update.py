@@ -32,6 +32,7 @@ by CasADi's virtual machine it costs more than the same algebra in numpy.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -77,6 +78,52 @@ def _symmetric_product(left: ca.SX, right: ca.SX) -> ca.SX:
     return ca.blockcat(entries)
 
 
+@functools.lru_cache(maxsize=8)
+def _joint_function(parts: tuple[tuple[ca.Function, int, tuple[int, ...]], ...],
+                    belief_size: int) -> ca.Function:
+    """``(x, P, z, r, mask, belief) -> (x+, P+, NIS per model)`` (module docstring) over the
+    models ``parts`` (each: its ``h`` with Jacobian, its channel count, the rows of its
+    angle channels), built once per process for the same model functions."""
+    size = sum(count for _, count, _ in parts)
+    n = len(STATE_NAMES)
+    x = ca.SX.sym("x", n)
+    p = ca.SX.sym("P", n, n)
+    z = ca.SX.sym("z", size)
+    r = ca.SX.sym("r", size)
+    mask = ca.SX.sym("mask", size)
+    numbers = ca.SX.sym("belief", belief_size)
+    values, jacobians, blocks = [], [], []
+    angle_rows = set()
+    start = 0
+    for function, count, angles in parts:
+        h, jacobian = function(x, numbers)
+        values.append(h)
+        jacobians.append(jacobian)
+        blocks.append(range(start, start + count))
+        angle_rows.update(start + row for row in angles)
+        start += count
+    residual = z - ca.vertcat(*values)
+    innovation = ca.vertcat(*[
+        _wrapped(residual[i]) if i in angle_rows else residual[i] for i in range(size)])
+    innovation = mask * innovation
+    observed = ca.diag(mask) @ ca.vertcat(*jacobians)
+    noise = ca.diag(mask * r + (1.0 - mask))
+    pht = p @ observed.T
+    s_matrix = observed @ pht + noise
+    gain = ca.solve(s_matrix, pht.T).T
+    i_kh = ca.SX.eye(n) - gain @ observed
+    covariance = _symmetric_product(i_kh @ p, i_kh) + _symmetric_product(
+        gain * ca.repmat((mask * r + (1.0 - mask)).T, n, 1), gain)
+    symmetric_s = 0.5 * (s_matrix + s_matrix.T)
+    nis = []
+    for rows in blocks:
+        index = list(rows)
+        y_block = innovation[index]
+        nis.append(ca.dot(y_block, ca.solve(symmetric_s[index, index], y_block)))
+    return ca.Function("ekf_joint_update", [x, p, z, r, mask, numbers],
+                       [x + gain @ innovation, ca.densify(covariance), ca.vertcat(*nis)])
+
+
 class JointUpdate:
     """The joint update over every channel of ``models`` (module docstring), built once.
 
@@ -91,44 +138,10 @@ class JointUpdate:
             self._offsets[sensor] = offset
             offset += len(model.channels)
         size = offset
-        n = len(STATE_NAMES)
-        x = ca.SX.sym("x", n)
-        p = ca.SX.sym("P", n, n)
-        z = ca.SX.sym("z", size)
-        r = ca.SX.sym("r", size)
-        mask = ca.SX.sym("mask", size)
-        numbers = ca.SX.sym("belief", belief.size)
-        values, jacobians, blocks = [], [], []
-        for sensor, model in models.items():
-            h, jacobian = model.function.function(x, numbers)
-            values.append(h)
-            jacobians.append(jacobian)
-            start = self._offsets[sensor]
-            blocks.append(range(start, start + len(model.channels)))
-        angle_rows = {self._offsets[sensor] + model.channels.index(channel)
-                      for sensor, model in models.items() for channel in model.angle_channels}
-        residual = z - ca.vertcat(*values)
-        innovation = ca.vertcat(*[
-            _wrapped(residual[i]) if i in angle_rows else residual[i] for i in range(size)])
-        innovation = mask * innovation
-        observed = ca.diag(mask) @ ca.vertcat(*jacobians)
-        noise = ca.diag(mask * r + (1.0 - mask))
-        pht = p @ observed.T
-        s_matrix = observed @ pht + noise
-        gain = ca.solve(s_matrix, pht.T).T
-        i_kh = ca.SX.eye(n) - gain @ observed
-        covariance = _symmetric_product(i_kh @ p, i_kh) + _symmetric_product(
-            gain * ca.repmat((mask * r + (1.0 - mask)).T, n, 1), gain)
-        symmetric_s = 0.5 * (s_matrix + s_matrix.T)
-        nis = []
-        for rows in blocks:
-            index = list(rows)
-            y_block = innovation[index]
-            nis.append(ca.dot(y_block, ca.solve(symmetric_s[index, index], y_block)))
-        self.function = DenseFunction(ca.Function(
-            "ekf_joint_update", [x, p, z, r, mask, numbers],
-            [x + gain @ innovation, ca.densify(covariance), ca.vertcat(*nis)]),
-            parameters=belief)
+        parts = tuple((model.function.function, len(model.channels),
+                       tuple(model.channels.index(c) for c in model.angle_channels))
+                      for model in models.values())
+        self.function = DenseFunction(_joint_function(parts, belief.size), parameters=belief)
         """``(x, P, z, r, mask) -> (x+, P+, NIS per model)``, the belief set once."""
         self._order = tuple(models)
         self._stack_rows: dict[tuple[str, tuple[int, ...]], tuple[int, np.ndarray]] = {}

@@ -5,6 +5,8 @@ CasADi over the state of :mod:`estimation.state` (the tyre and kinematic terms f
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
@@ -200,6 +202,26 @@ def free_rolling_wheels(belief: VehicleParams) -> tuple[str, ...]:
 
 
 def build_measurement_models(
+    belief: VehicleParams,
+    wheel_model_sigma_mps: float,
+    lateral_accel_model_sigma_mps2: float,
+    steer_model_sigma_rad: float = 0.0,
+    tyre_model: str = "saturating",
+    roll: RollParams | None = None,
+) -> dict[str, MeasurementModel]:
+    """The measurement models of every sensor the filters fuse, by sensor name
+    (:func:`_measurement_models`, whose CasADi functions are built once per process for
+    the same arguments; the models returned have evaluators of their own)."""
+    models = _measurement_models(belief, wheel_model_sigma_mps,
+                                 lateral_accel_model_sigma_mps2, steer_model_sigma_rad,
+                                 tyre_model, roll)
+    return {sensor: dataclasses.replace(model, function=model.function.fresh(),
+                                        value_function=model.value_function.fresh())
+            for sensor, model in models.items()}
+
+
+@functools.lru_cache(maxsize=8)
+def _measurement_models(
     belief: VehicleParams,
     wheel_model_sigma_mps: float,
     lateral_accel_model_sigma_mps2: float,

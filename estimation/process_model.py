@@ -87,6 +87,7 @@ like ``(2 |A| dt)^k / k!``; the largest entries of ``A`` are the roll mode's ``o
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -362,6 +363,71 @@ class _Belief:
     residual_time_constant_s: float
 
 
+@dataclass(frozen=True)
+class _ProcessFunctions:
+    """The CasADi functions of a process model (immutable: every model with the same
+    numbers shares them) and the numbers of their ``belief`` input."""
+
+    belief_names: tuple[str, ...]
+    belief_values: np.ndarray
+    derivative: ca.Function
+    step: ca.Function
+    mean_step: ca.Function
+    noise: ca.Function
+    psd: ca.Function
+    mapped_mean_step: ca.Function | None
+
+
+@functools.lru_cache(maxsize=8)
+def _process_functions(numbers: _Belief, sigma_point_count: int) -> _ProcessFunctions:
+    """The functions of :class:`ProcessModel` for ``numbers``, built once per process
+    (some 40 ms of symbolic work that every run's filter would otherwise repeat).
+
+    Every number of the belief is an input of the functions (``belief``), set by the
+    caller: one function, and one compiled library, for every belief."""
+    record = symbolic_twin(numbers)
+    twin, belief = record.twin, record.vector
+    n = len(STATE_NAMES)
+    x = ca.SX.sym("x", n)
+    dt = ca.SX.sym("dt_s")
+
+    def derivative(state: ca.SX) -> ca.SX:
+        return _derivative(state, twin.bicycle, twin.residual_time_constant_s)
+
+    x_next = rk4_step(derivative, x, dt)
+    transition = ca.jacobian(x_next, x)
+
+    a = ca.jacobian(derivative(x), x)
+    psd = (ca.diag(ca.vertcat(*twin.noise.psd_entries()))
+           + ca.diag(_force_noise(x, twin.noise, twin.bicycle)))
+    term = psd
+    q = ca.SX.zeros(n, n)
+    factor = dt
+    for k in range(NOISE_SERIES_TERMS):
+        q = q + factor * term
+        term = a @ term + term @ a.T
+        factor = factor * dt / (k + 2)
+    q = 0.5 * (q + q.T)
+
+    mean_step = ca.Function("bicycle_mean_step", [x, dt, belief], [x_next])
+    mapped = None
+    if sigma_point_count:
+        # The belief is one input shared by every point (not repeated).
+        mapped = mean_step.map("bicycle_mean_steps", "serial", sigma_point_count, [2], [])
+    return _ProcessFunctions(
+        belief_names=record.names,
+        belief_values=record.values,
+        derivative=ca.Function("bicycle_derivative", [x, belief],
+                               [derivative(x), ca.densify(a)]),
+        step=ca.Function("bicycle_step", [x, dt, belief],
+                         [x_next, ca.densify(transition), ca.densify(q)]),
+        mean_step=mean_step,
+        noise=ca.Function("bicycle_noise", [x, dt, belief], [ca.densify(q)]),
+        psd=ca.Function("bicycle_psd", [x, belief], [ca.densify(psd)]),
+        mapped_mean_step=mapped,
+    )
+
+
 class ProcessModel:
     """The dynamic-bicycle process model with its CasADi-built discretisation.
 
@@ -392,58 +458,24 @@ class ProcessModel:
         self.noise = noise
         self.bicycle = bicycle
         self.residual_time_constant_s = residual_time_constant_s
-        # Every number of the belief is an input of the functions (``belief``), set once
-        # from these values: one function, and one compiled library, for every belief.
-        numbers = symbolic_twin(_Belief(noise, bicycle, float(residual_time_constant_s)))
-        self.belief_names: tuple[str, ...] = numbers.names
+        functions = _process_functions(
+            _Belief(noise, bicycle, float(residual_time_constant_s)), sigma_point_count)
+        self.belief_names: tuple[str, ...] = functions.belief_names
         """The numbers of the ``belief`` input of the model's functions, in order."""
-        self.belief_values: np.ndarray = numbers.values
+        self.belief_values: np.ndarray = functions.belief_values.copy()
         """Their values: this model's noise, bicycle and residual time constant."""
-        twin, belief = numbers.twin, numbers.vector
-        n = len(STATE_NAMES)
-        x = ca.SX.sym("x", n)
-        dt = ca.SX.sym("dt_s")
-
-        def derivative(state: ca.SX) -> ca.SX:
-            return _derivative(state, twin.bicycle, twin.residual_time_constant_s)
-
-        x_next = rk4_step(derivative, x, dt)
-        transition = ca.jacobian(x_next, x)
-
-        a = ca.jacobian(derivative(x), x)
-        psd = (ca.diag(ca.vertcat(*twin.noise.psd_entries()))
-               + ca.diag(_force_noise(x, twin.noise, twin.bicycle)))
-        term = psd
-        q = ca.SX.zeros(n, n)
-        factor = dt
-        for k in range(NOISE_SERIES_TERMS):
-            q = q + factor * term
-            term = a @ term + term @ a.T
-            factor = factor * dt / (k + 2)
-        q = 0.5 * (q + q.T)
-
-        self.derivative_function = ca.Function(
-            "bicycle_derivative", [x, belief], [derivative(x), ca.densify(a)]
-        )
-        self.step_function = ca.Function(
-            "bicycle_step", [x, dt, belief], [x_next, ca.densify(transition), ca.densify(q)]
-        )
+        self.derivative_function = functions.derivative
+        self.step_function = functions.step
         """One sub-step, ``(x, dt_s, belief) -> (x_next, F, Q)``: the EKF's prediction."""
-        mean_step = ca.Function("bicycle_mean_step", [x, dt, belief], [x_next])
-        noise_function = ca.Function("bicycle_noise", [x, dt, belief], [ca.densify(q)])
         values = self.belief_values
-        self._psd_fast = DenseFunction(
-            ca.Function("bicycle_psd", [x, belief], [ca.densify(psd)]), parameters=values)
+        self._psd_fast = DenseFunction(functions.psd, parameters=values)
         self._derivative_fast = DenseFunction(self.derivative_function, parameters=values)
         self._step_fast = DenseFunction(self.step_function, parameters=values)
-        self._noise_fast = DenseFunction(noise_function, parameters=values)
-        self._mean_step_fast = DenseFunction(mean_step, parameters=values)
+        self._noise_fast = DenseFunction(functions.noise, parameters=values)
+        self._mean_step_fast = DenseFunction(functions.mean_step, parameters=values)
         self._mapped_step: DenseFunction | None = None
-        if sigma_point_count:
-            # The belief is one input shared by every point (not repeated).
-            self._mapped_step = DenseFunction(
-                mean_step.map("bicycle_mean_steps", "serial", sigma_point_count, [2], []),
-                parameters=values)
+        if functions.mapped_mean_step is not None:
+            self._mapped_step = DenseFunction(functions.mapped_mean_step, parameters=values)
 
     def compiled_functions(self) -> tuple[DenseFunction, ...]:
         """The evaluators worth compiling to C (the EKF's sub-step), for

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import atexit
 import ctypes
+import functools
 import hashlib
 import json
 import os
@@ -329,6 +330,14 @@ def compile_function(function: ca.Function, fallback: str = "") -> ctypes.CDLL |
     return load_library(function.name(), [function], fallback=fallback)
 
 
+@functools.lru_cache(maxsize=64)
+def serialized(function: ca.Function) -> str:
+    """``function.serialize()``, once per function object (a CasADi function is immutable
+    and hashed by identity): a model built once per process is hashed once, not at every
+    run's set-up (the EKF's nine functions, some 40 ms)."""
+    return function.serialize()
+
+
 def load_library(name: str, functions: Sequence[ca.Function],
                  note: str | None = None, fallback: str = "") -> ctypes.CDLL | None:
     """The shared library ``name`` holding ``functions``, compiled (with ``note``, see
@@ -337,7 +346,7 @@ def load_library(name: str, functions: Sequence[ca.Function],
 
     The cache entry is found by a hash of the serialised functions (about a millisecond),
     so their C is generated only to build it."""
-    key = "\n".join(function.serialize() for function in functions)
+    key = "\n".join(serialized(function) for function in functions)
     library = compiled_library(name, functions, note=note, key=key, fallback=fallback)
     if library is None:
         return None

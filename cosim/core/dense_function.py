@@ -54,6 +54,12 @@ class DenseFunction:
         self.compiled = False
         """Whether the evaluation is compiled C (:meth:`use_compiled`)."""
 
+    def fresh(self) -> DenseFunction:
+        """The same function and parameters with buffers of its own, evaluated by CasADi's
+        virtual machine until :meth:`use_compiled`: for a second user of a function built
+        once (the CasADi function is immutable; the buffers are not)."""
+        return DenseFunction(self.function, self.parameters)
+
     def use_compiled(self, library: ctypes.CDLL) -> None:
         """Evaluate with the C of this function in ``library`` (compiled from it, e.g. by
         :func:`cosim.core.compiled_function.load_library` with other functions), bound to
