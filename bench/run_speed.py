@@ -3,7 +3,9 @@
     .venv/bin/python bench/run_speed.py [--repeats 3] [--scenario lane-change]
 
 Prints the median over repeats of each figure measured in this one invocation, so figures
-are comparable with each other (same machine, same moment), not across machines.
+are comparable with each other (same machine, same moment), not across machines; and the
+set-up (``setup_time_s``: models built, libraries found, the car settled) of the process's
+first run against the median of the runs after it, which reuse what the first built.
 """
 
 from __future__ import annotations
@@ -33,6 +35,9 @@ def main() -> None:
     keys = ("wall_time_s", "realtime_factor", "solve_ms_p50", "solve_ms_p99", "solve_ms_max",
             "cte_max_m", "log_kib")
     print(f"{args.scenario}: median of {args.repeats} runs")
+    later = [row["setup_time_s"] for row in rows[1:]]
+    print(f"  setup_time_s     first run {rows[0]['setup_time_s']:.3f}"
+          + (f", later runs {statistics.median(later):.3f}" if later else ""))
     for key in keys:
         values = [row[key] for row in rows]
         print(f"  {key:<16} {statistics.median(values):10.3f}   "

@@ -26,6 +26,7 @@ there; otherwise the plant keeps the plain reference.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import types
 from collections.abc import Sequence
 from typing import Any
@@ -210,6 +211,14 @@ def _wheel(params: Any, friction: ca.SX, dt_s: float, subtree_com: list[ca.SX],
 
 def tyre_patches_function(dt_s: float, wheel_bodies: Sequence[int], root_body: int,
                           n_bodies: int) -> ca.Function:
+    """:func:`_tyre_patches_function`, built once per process for the same structure."""
+    return _tyre_patches_function(float(dt_s), tuple(int(b) for b in wheel_bodies),
+                                  int(root_body), int(n_bodies))
+
+
+@functools.lru_cache(maxsize=8)
+def _tyre_patches_function(dt_s: float, wheel_bodies: tuple[int, ...], root_body: int,
+                           n_bodies: int) -> ca.Function:
     """``f(cvel, xpos, xipos, xmat, subtree_com, contacts, patch_state, road_tyres) ->
     (wrench, forces, patch_state)`` for the wheels ``wheel_bodies`` (body ids) of a model
     with ``n_bodies`` bodies (see the module docstring). The road's friction coefficient

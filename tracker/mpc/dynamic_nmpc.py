@@ -23,11 +23,14 @@ slack variables. The measurements behind each choice: docs/defaults.md,
 
 from __future__ import annotations
 
+import functools
+
 import casadi as ca
 import numpy as np
 
 from cosim.core.exceptions import ConfigError
-from tracker.config import TrackerConfig
+from cosim.core.vehicle_params import VehicleParams
+from tracker.config import GripConfig, TrackerConfig
 from tracker.models import dynamic_bicycle as bicycle
 from tracker.models.steered_dynamic_bicycle import (
     BELIEF_NAMES,
@@ -65,23 +68,23 @@ ellipse (:data:`tracker.models.tyre_limits.USAGE_BELIEF_NAMES`, the friction amo
 which also bounds the slip angles) and ``grip.usage_max``."""
 
 
-def _belief_functions(config: TrackerConfig, params: SteeredBicycleParams,
-                      tyre_limits: bool) -> dict[str, object]:
+def _belief_functions(model: VehicleParams, dt_s: float, grip: GripConfig,
+                      params: SteeredBicycleParams, tyre_limits: bool) -> dict[str, object]:
     """The model's NLP functions with the belief :data:`NLP_BELIEF_NAMES` as an input, and
     its numbers for ``config``: one NLP for every belief of the same shape (whether the
     actuator lags, whether the friction ellipse is on, the RK4 substeps)."""
     n_steered, n_bicycle = len(BELIEF_NAMES), len(bicycle.PARAM_NAMES)
     n_usage = len(USAGE_BELIEF_NAMES)
     numbers = np.concatenate((belief_vector(params),
-                              usage_belief_vector(config.model, config.model.tyre_friction),
-                              [config.grip.usage_max]))
+                              usage_belief_vector(model, model.tyre_friction),
+                              [grip.usage_max]))
     state = ca.SX.sym("state", len(STATE_NAMES))
     inputs = ca.SX.sym("inputs", len(INPUT_NAMES))
     belief = ca.SX.sym("belief", len(NLP_BELIEF_NAMES))
     steered, usage = belief[:n_steered], belief[n_steered:n_steered + n_usage]
     friction = usage[USAGE_BELIEF_NAMES.index("tyre_friction")]
     usage_max = belief[NLP_BELIEF_NAMES.index("usage_max")]
-    step = belief_discrete_function(params, config.dt_s)
+    step = belief_discrete_function(params, dt_s)
     slip = slip_angles_of(state, ModelNumbers.symbolic(steered, params))
     slip_bounds = ca.vertcat(*linear_range_of(steered[:n_bicycle], friction))
     functions: dict[str, object] = {
@@ -107,34 +110,40 @@ def dynamic_model(config: TrackerConfig) -> NmpcModel:
     commands it applied, through the belief's actuator lag. Soft limits keep both axles'
     slip angles within the linear tyres' range at the belief's friction
     (``model.tyre_friction``) and, with ``grip.tyre_limits``, each axle's combined force
-    within its friction ellipse (:mod:`tracker.models.tyre_limits`).
+    within its friction ellipse (:mod:`tracker.models.tyre_limits`). The model's functions
+    are built once per process for the same belief, stage and grip settings.
     """
-    params = SteeredBicycleParams.from_vehicle(config.model)
+    return _dynamic_model(config.model, float(config.dt_s), config.grip)
+
+
+@functools.lru_cache(maxsize=8)
+def _dynamic_model(belief: VehicleParams, dt_s: float, grip: GripConfig) -> NmpcModel:
+    """:func:`dynamic_model` of ``tracker.model``, ``tracker.dt_s`` and ``tracker.grip``."""
+    params = SteeredBicycleParams.from_vehicle(belief)
     tyre_limits = {}
-    grip = config.grip
-    if grip.tyre_limits and config.model.tyre_friction < grip.tyre_limits_below_friction:
+    if grip.tyre_limits and belief.tyre_friction < grip.tyre_limits_below_friction:
         tyre_limits = {
-            "stage_limits": friction_usage_function(config.model, params,
-                                                    config.model.tyre_friction),
+            "stage_limits": friction_usage_function(belief, params,
+                                                    belief.tyre_friction),
             "stage_limit_names": LIMIT_NAMES,
-            "stage_limit_bounds": usage_bounds(config.grip.usage_max),
+            "stage_limit_bounds": usage_bounds(grip.usage_max),
         }
     return NmpcModel(
         name="dynamic_nmpc",
         state_names=STATE_NAMES,
         input_names=INPUT_NAMES,
         estimated_state_names=VEHICLE_STATE_NAMES,
-        step=discrete_function(params, config.dt_s),
+        step=discrete_function(params, dt_s),
         predict=predict_function(params),
-        dt_s=config.dt_s,
+        dt_s=dt_s,
         unmodelled_lag_s=0.0,
         understeer_gradient_radpmps2=params.bicycle.understeer_gradient_radpmps2,
         internal_rest_inputs={"road_wheel_angle_rad": "steer_rad"},
         limits=slip_angle_function(params),
         limit_names=("front_slip_rad", "rear_slip_rad"),
-        limit_bounds=linear_range_slip_rad(params, config.model.tyre_friction),
+        limit_bounds=linear_range_slip_rad(params, belief.tyre_friction),
         **tyre_limits,
-        **_belief_functions(config, params, bool(tyre_limits)),
+        **_belief_functions(belief, dt_s, grip, params, bool(tyre_limits)),
     )
 
 
