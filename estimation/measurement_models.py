@@ -9,6 +9,7 @@ import dataclasses
 import functools
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from typing import ParamSpec
 
 import casadi as ca
 import numpy as np
@@ -25,6 +26,8 @@ from estimation.process_model import (
     world_velocity,
 )
 from estimation.state import STATE_NAMES, named_states
+
+Params = ParamSpec("Params")
 
 
 @dataclass(frozen=True)
@@ -201,27 +204,24 @@ def free_rolling_wheels(belief: VehicleParams) -> tuple[str, ...]:
     return WHEEL_NAMES
 
 
+def _models_of_their_own(
+        build: Callable[Params, dict[str, MeasurementModel]],
+) -> Callable[Params, dict[str, MeasurementModel]]:
+    """``build`` run once per process for equal arguments (its CasADi functions are
+    immutable and shared), each call returning models with evaluators of their own."""
+    cached = functools.lru_cache(maxsize=8)(build)
+
+    @functools.wraps(build)
+    def models(*args: Params.args, **kwargs: Params.kwargs) -> dict[str, MeasurementModel]:
+        return {sensor: dataclasses.replace(model, function=model.function.fresh(),
+                                            value_function=model.value_function.fresh())
+                for sensor, model in cached(*args, **kwargs).items()}
+
+    return models
+
+
+@_models_of_their_own
 def build_measurement_models(
-    belief: VehicleParams,
-    wheel_model_sigma_mps: float,
-    lateral_accel_model_sigma_mps2: float,
-    steer_model_sigma_rad: float = 0.0,
-    tyre_model: str = "saturating",
-    roll: RollParams | None = None,
-) -> dict[str, MeasurementModel]:
-    """The measurement models of every sensor the filters fuse, by sensor name
-    (:func:`_measurement_models`, whose CasADi functions are built once per process for
-    the same arguments; the models returned have evaluators of their own)."""
-    models = _measurement_models(belief, wheel_model_sigma_mps,
-                                 lateral_accel_model_sigma_mps2, steer_model_sigma_rad,
-                                 tyre_model, roll)
-    return {sensor: dataclasses.replace(model, function=model.function.fresh(),
-                                        value_function=model.value_function.fresh())
-            for sensor, model in models.items()}
-
-
-@functools.lru_cache(maxsize=8)
-def _measurement_models(
     belief: VehicleParams,
     wheel_model_sigma_mps: float,
     lateral_accel_model_sigma_mps2: float,
@@ -255,7 +255,8 @@ def _measurement_models(
     Every number of the belief (the bicycle's, the wheels' geometry) is an input of the
     models' functions, set once, not a constant: one function, and one compiled library,
     serves every belief (each ``h`` with its Jacobian, :attr:`MeasurementModel.function`,
-    is what the EKF compiles).
+    is what the EKF compiles). The functions are built once per process for equal arguments;
+    each call returns models with evaluators of their own.
     """
     numbers = symbolic_twin(_Belief(BicycleParams.from_vehicle(belief, tyre_model, roll),
                                     WheelGeometry.from_vehicle(belief)))
