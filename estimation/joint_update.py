@@ -32,7 +32,6 @@ by CasADi's virtual machine it costs more than the same algebra in numpy.
 
 from __future__ import annotations
 
-import functools
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -40,6 +39,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from cosim.core.built_once import built_once
 from cosim.core.dense_function import DenseFunction
 from estimation.innovation import Selection
 from estimation.measurement_models import MeasurementModel
@@ -78,7 +78,7 @@ def _symmetric_product(left: ca.SX, right: ca.SX) -> ca.SX:
     return ca.blockcat(entries)
 
 
-@functools.lru_cache(maxsize=8)
+@built_once
 def _joint_function(parts: tuple[tuple[ca.Function, int, tuple[int, ...]], ...],
                     belief_size: int) -> ca.Function:
     """``(x, P, z, r, mask, belief) -> (x+, P+, NIS per model)`` (module docstring) over the

@@ -14,6 +14,7 @@ from typing import ParamSpec
 import casadi as ca
 import numpy as np
 
+from cosim.core.built_once import built_once
 from cosim.core.dense_function import DenseFunction
 from cosim.core.records import WHEEL_NAMES
 from cosim.core.symbolic_record import SymbolicRecord, symbolic_twin
@@ -209,7 +210,7 @@ def _models_of_their_own(
 ) -> Callable[Params, dict[str, MeasurementModel]]:
     """``build`` run once per process for equal arguments (its CasADi functions are
     immutable and shared), each call returning models with evaluators of their own."""
-    cached = functools.lru_cache(maxsize=8)(build)
+    cached = built_once(build)
 
     @functools.wraps(build)
     def models(*args: Params.args, **kwargs: Params.kwargs) -> dict[str, MeasurementModel]:

@@ -87,7 +87,6 @@ like ``(2 |A| dt)^k / k!``; the largest entries of ``A`` are the roll mode's ``o
 
 from __future__ import annotations
 
-import functools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -96,6 +95,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from cosim.core.built_once import built_once
 from cosim.core.dense_function import DenseFunction
 from cosim.core.symbolic_record import symbolic_twin
 from cosim.core.vehicle_equations import axle_slip_angles, rk4_step
@@ -378,7 +378,7 @@ class _ProcessFunctions:
     mapped_mean_step: ca.Function | None
 
 
-@functools.lru_cache(maxsize=8)
+@built_once
 def _process_functions(numbers: _Belief, sigma_point_count: int) -> _ProcessFunctions:
     """The functions of :class:`ProcessModel` for ``numbers``, built once per process
     (some 40 ms of symbolic work that every run's filter would otherwise repeat).

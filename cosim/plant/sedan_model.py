@@ -32,7 +32,6 @@ axis turns with the steer angle.
 
 from __future__ import annotations
 
-import functools
 import importlib.resources
 import math
 import types
@@ -41,6 +40,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from cosim.core.built_once import built_once
 from cosim.core.exceptions import ConfigError
 from cosim.core.records import WHEEL_NAMES
 from cosim.core.suspension_params import SuspensionParams
@@ -396,7 +396,7 @@ def sedan_xml_and_assets(config: PlantConfig, physics_dt_s: float,
     return xml, dict(assets)
 
 
-@functools.lru_cache(maxsize=8)
+@built_once
 def _sedan_xml_and_assets(config: PlantConfig, physics_dt_s: float,
                           traffic: tuple[str, ...]) -> tuple[str, dict[str, bytes]]:
     root = build_sedan(config, physics_dt_s, traffic)

@@ -26,7 +26,6 @@ there; otherwise the plant keeps the plain reference.
 from __future__ import annotations
 
 import dataclasses
-import functools
 import types
 from collections.abc import Sequence
 from typing import Any
@@ -34,6 +33,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from cosim.core.built_once import built_once
 from cosim.core.tyre_params import TyreParams
 from cosim.plant.tyre_model import (
     MIN_LOAD_N,
@@ -216,7 +216,7 @@ def tyre_patches_function(dt_s: float, wheel_bodies: Sequence[int], root_body: i
                                   int(root_body), int(n_bodies))
 
 
-@functools.lru_cache(maxsize=8)
+@built_once
 def _tyre_patches_function(dt_s: float, wheel_bodies: tuple[int, ...], root_body: int,
                            n_bodies: int) -> ca.Function:
     """``f(cvel, xpos, xipos, xmat, subtree_com, contacts, patch_state, road_tyres) ->

@@ -23,11 +23,10 @@ slack variables. The measurements behind each choice: docs/defaults.md,
 
 from __future__ import annotations
 
-import functools
-
 import casadi as ca
 import numpy as np
 
+from cosim.core.built_once import built_once
 from cosim.core.exceptions import ConfigError
 from cosim.core.vehicle_params import VehicleParams
 from tracker.config import GripConfig, TrackerConfig
@@ -116,7 +115,7 @@ def dynamic_model(config: TrackerConfig) -> NmpcModel:
     return _dynamic_model(config.model, float(config.dt_s), config.grip)
 
 
-@functools.lru_cache(maxsize=8)
+@built_once
 def _dynamic_model(belief: VehicleParams, dt_s: float, grip: GripConfig) -> NmpcModel:
     """:func:`dynamic_model` of ``tracker.model``, ``tracker.dt_s`` and ``tracker.grip``."""
     params = SteeredBicycleParams.from_vehicle(belief)
