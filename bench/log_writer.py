@@ -3,9 +3,9 @@ package's Writer, and the zstd level of the chunks.
 
     .venv/bin/python bench/log_writer.py [--repeats 5] [--levels 1 3] [--duration S]
 
-One default lane change (every default, full logging) is run once with a mirror on its
-recorder (:class:`cosim.log.recorder.MessageMirror`), which keeps every channel and message
-as written (topic, schema, log time, JSON bytes). The messages are then replayed,
+One default lane change (every default, full logging) is run once and its log read back
+with the ``mcap`` package's reader: every channel and message as written (topic, schema,
+log time, JSON bytes). The messages are then replayed,
 ``--repeats`` times each, into a temporary file:
 
 - ``mcap.writer.Writer``, zstd at its default level (3);
@@ -43,16 +43,20 @@ from cosim.simulation.scenario_config import load_config
 
 @dataclasses.dataclass
 class _Kept:
-    """A mirror that keeps every channel and message of a run."""
+    """Every channel and message of a run's log, in the order written."""
 
     channels: dict[str, tuple[str, bytes]] = dataclasses.field(default_factory=dict)
     messages: list[tuple[str, int, bytes]] = dataclasses.field(default_factory=list)
 
-    def register(self, topic: str, schema_name: str, schema: bytes) -> None:
-        self.channels[topic] = (schema_name, schema)
-
-    def write(self, topic: str, log_time_ns: int, data: bytes) -> None:
-        self.messages.append((topic, log_time_ns, data))
+    @classmethod
+    def read(cls, path: Path) -> _Kept:
+        kept = cls()
+        with open(path, "rb") as file:
+            for schema, channel, message in make_reader(file).iter_messages(
+                    log_time_order=False):
+                kept.channels.setdefault(channel.topic, (schema.name, schema.data))
+                kept.messages.append((channel.topic, message.log_time, message.data))
+        return kept
 
 
 def _with_mcap(kept: _Kept, path: Path) -> None:
@@ -99,11 +103,11 @@ def main() -> None:
     parser.add_argument("--duration", type=float, default=15.0)
     args = parser.parse_args()
     print(f"load average {os.getloadavg()[0]:.2f}")
-    kept = _Kept()
     config = load_config("lane-change", overrides=[f"sim.duration_s={args.duration}"])
     with tempfile.TemporaryDirectory() as tmp, warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        run(config, Path(tmp) / "run.mcap", mirror=kept)
+        run(config, Path(tmp) / "run.mcap")
+        kept = _Kept.read(Path(tmp) / "run.mcap")
         n = len(kept.messages)
         print(f"{n} messages of a {args.duration:g} s lane change\n")
         writers = {"mcap.writer.Writer, zstd 3": lambda p: _with_mcap(kept, p)}

@@ -128,13 +128,13 @@ def _run_and_report(args: argparse.Namespace, config: Any, out: Path, live: Any,
             reporter.reached(done * duration_s)
 
     with contextlib.ExitStack() as stack:
-        mirror = None
+        stream = None
         if live is not None:
             from cosim.log.live import LiveStream
 
-            mirror = stack.enter_context(LiveStream(live))
+            stream = stack.enter_context(LiveStream(live))
             paced = f"paced at {live.pace:g}x real time" if live.pace else "not paced"
-            print(f"cosim: live at {mirror.url} ({paced}); in Foxglove: Open connection > "
+            print(f"cosim: live at {stream.url} ({paced}); in Foxglove: Open connection > "
                   "Foxglove WebSocket", file=sys.stderr, flush=True)
         try:
             if sys.stderr.isatty():
@@ -147,9 +147,9 @@ def _run_and_report(args: argparse.Namespace, config: Any, out: Path, live: Any,
                         bar.update(task, completed=done)
                         reached(done)
 
-                    result = run(config, out, shown, mirror=mirror)
+                    result = run(config, out, shown, live=stream)
             else:
-                result = run(config, out, reached, mirror=mirror)
+                result = run(config, out, reached, live=stream)
         except CosimError as error:  # refused during the run: say where its log is
             if Path(out).is_file():
                 raise type(error)(f"{error} (the log up to it: {out})") from None

@@ -1,15 +1,15 @@
 """A run streamed to Foxglove while it happens: the log's topics over the Foxglove WebSocket
 protocol, optionally paced at a rate of real time.
 
-:class:`LiveStream` is a mirror of :class:`cosim.log.recorder.McapRecorder`: every channel
-the recorder registers is advertised with the same topic, schema name, schema (JSON Schema)
-and message encoding (JSON), and every message it writes is sent with the same bytes and the
-same log time (the run's epoch plus its simulated time, integer nanoseconds). The server is
-Foxglove's own (the ``foxglove-sdk`` package: ``foxglove.start_server``), on a
-:class:`foxglove.Context` of the stream's own, so nothing else logged in the process
-reaches it. The protocol is the Foxglove WebSocket protocol under the SDK's subprotocol name
-``foxglove.sdk.v1`` (the same messages as ``foxglove.websocket.v1``, renamed by Foxglove
-in 2025; the Foxglove app offers both names).
+:class:`LiveStream` is a second sink on the recorder's channels
+(:class:`cosim.log.recorder.LiveSink`): Foxglove's own WebSocket server (the ``foxglove-sdk``
+package: ``foxglove.start_server``) is started on the recorder's :class:`foxglove.Context`,
+so every channel of the log is advertised with its topic, schema name, schema (JSON Schema)
+and message encoding (JSON), and every message reaches the file and the clients from the
+same ``Channel.log``, with the same bytes and log time (the run's epoch plus its simulated
+time, integer nanoseconds). The protocol is the Foxglove WebSocket protocol under the SDK's
+subprotocol name ``foxglove.sdk.v1`` (the same messages as ``foxglove.websocket.v1``,
+renamed by Foxglove in 2025; the Foxglove app offers both names).
 
 The stream only observes: it never reads or sets anything of the run, so the log and the
 simulated car are the same with or without it (``tests/log/test_live.py`` compares the
@@ -20,22 +20,29 @@ first message of simulated time 0, so building the run does not count.
 What a client that connects late has missed: the messages written before it subscribed.
 The static ones (the reference path and the static scene, written once at the start) are
 sent again whenever a client subscribes to them, so Foxglove shows the road whenever it
-connects. The server announces the simulated time (``broadcastTime``, capability ``time``)
-so Foxglove's clock follows the run.
+connects. They go out on channels of the stream's own (the same topics and schemas, marked
+:data:`cosim.log.recorder.LIVE_ONLY`), which the file leaves out and the server shows in
+place of the log's: a message sent again reaches the clients, never the file. The server
+announces the simulated time (``broadcastTime``, capability ``time``) so Foxglove's clock
+follows the run.
 """
 
 from __future__ import annotations
 
+import contextlib
+import logging
 import math
 import socket
 import threading
 import time
 import warnings
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
 from cosim.core.exceptions import ConfigError
 from cosim.log import topics
+from cosim.log.recorder import LIVE_ONLY
 
 LATCHED_TOPICS = (topics.REFERENCE_PATH, topics.SCENE)
 """Topics written once at the start: sent again to every client that subscribes later."""
@@ -130,18 +137,18 @@ def _free_to_serve(options: LiveOptions) -> int:
 
 
 class LiveStream:
-    """A Foxglove WebSocket server fed by a run's recorder (see the module docstring).
+    """A Foxglove WebSocket server on a run's log channels (see the module docstring).
 
-    Use as a context manager (the server stops on exit). ``register`` and ``write`` are
-    the recorder's mirror protocol (:class:`cosim.log.recorder.MessageMirror`).
+    Use as a context manager (the server stops on exit); give it to the recorder
+    (``McapRecorder(..., live=stream)``), which calls the :class:`cosim.log.recorder.LiveSink`
+    methods.
     """
 
     def __init__(self, options: LiveOptions) -> None:
-        import foxglove
-
         self.options = options
-        self._context = foxglove.Context()
-        self._channels: dict[str, Any] = {}
+        self._context: Any = None
+        self._resent: dict[str, Any] = {}
+        """The stream's own channel of each latched topic (what late clients get)."""
         self._latched: dict[str, tuple[bytes, int]] = {}
         self._resend: set[str] = set()
         self._lock = threading.Lock()
@@ -164,7 +171,7 @@ class LiveStream:
             self._server = foxglove.start_server(
                 name="cosim", host=self.options.host, port=self._port, context=self._context,
                 capabilities=[Capability.Time], message_backlog_size=MESSAGE_BACKLOG,
-                server_listener=_subscription_listener(self))
+                server_listener=_subscription_listener(self), channel_filter=_served)
         except (RuntimeError, OverflowError, ValueError) as error:
             reason = str(error).removeprefix("FoxgloveError: ")
             raise ConfigError(f"--port {self._port} on {self.options.host}: cannot serve "
@@ -207,17 +214,25 @@ class LiveStream:
                           "its connection is left to close when this command ends",
                           LiveClientStalled, stacklevel=2)
 
-    # The recorder's mirror protocol.
-    def register(self, topic: str, schema_name: str, schema: bytes) -> None:
-        """Advertise ``topic`` with the recorder's schema (JSON Schema, JSON messages)."""
-        from foxglove import Channel, Schema
+    # The recorder's LiveSink protocol.
+    def attach(self, context: Any) -> None:
+        """Serve the channels of ``context`` (the recorder's), from its first message."""
+        self._context = context
 
-        self._channels[topic] = Channel(
-            topic, schema=Schema(name=schema_name, encoding="jsonschema", data=schema),
-            message_encoding="json", context=self._context)
+    def registered(self, topic: str, schema: Any) -> None:
+        """A log channel; a latched topic gets a channel of the stream's own besides, on
+        which it is sent to clients (and sent again to each client that subscribes)."""
+        if topic not in LATCHED_TOPICS:
+            return
+        from foxglove import Channel
 
-    def write(self, topic: str, log_time_ns: int, data: bytes) -> None:
-        """Send one message (the recorder's bytes), after pacing to its simulated time."""
+        with _one_channel_per_topic_said(topic):
+            self._resent[topic] = Channel(topic, schema=schema, message_encoding="json",
+                                          context=self._context,
+                                          metadata={LIVE_ONLY: "latched"})
+
+    def due(self, log_time_ns: int) -> None:
+        """Pace to the message's simulated time; start the server at the first message."""
         if self._server is None and not self._closed:
             self._start()
         if self._epoch_ns is None:
@@ -228,11 +243,16 @@ class LiveStream:
             wait_s = due_s - time.perf_counter()
             if wait_s > 0:
                 time.sleep(wait_s)
-        if topic in LATCHED_TOPICS:
-            self._latched[topic] = (data, log_time_ns)
         if self._resend:
             self._send_latched()
-        self._channels[topic].log(data, log_time=log_time_ns)
+
+    def sent(self, topic: str, log_time_ns: int, data: bytes) -> None:
+        """After a message reached the sinks: a latched one goes to the clients on the
+        stream's own channel; the simulated time is broadcast every 50 ms of it."""
+        resent = self._resent.get(topic)
+        if resent is not None:
+            self._latched[topic] = (data, log_time_ns)
+            resent.log(data, log_time=log_time_ns)
         if log_time_ns >= self._next_time_ns and self._server is not None:
             self._server.broadcast_time(log_time_ns)
             self._next_time_ns = log_time_ns + TIME_BROADCAST_PERIOD_NS
@@ -249,4 +269,34 @@ class LiveStream:
         for topic in topics:
             latched = self._latched.get(topic)
             if latched is not None:
-                self._channels[topic].log(latched[0], log_time=latched[1])
+                self._resent[topic].log(latched[0], log_time=latched[1])
+
+
+def _served(channel: Any) -> bool:
+    """The server's channel filter: a latched topic on the stream's own channel only (the
+    log's channel of it is the file's), every other topic on the log's channel."""
+    return channel.topic not in LATCHED_TOPICS or LIVE_ONLY in channel.metadata
+
+
+class _SameTopicNotice(logging.Filter):
+    def __init__(self, topic: str) -> None:
+        super().__init__()
+        self.topic = topic
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return f"topic {self.topic} already exists" not in record.getMessage()
+
+
+@contextlib.contextmanager
+def _one_channel_per_topic_said(topic: str) -> Iterator[None]:
+    """foxglove-sdk logs a warning (logger ``foxglove.context``) when a second channel of a
+    topic is created on a context: meant for a user's mistake, here the design (the file's
+    channel and the stream's own never reach the same sink). That one notice is left out
+    while the stream's channel is created; the logger is as it was afterwards."""
+    logger = logging.getLogger("foxglove.context")
+    notice = _SameTopicNotice(topic)
+    logger.addFilter(notice)
+    try:
+        yield
+    finally:
+        logger.removeFilter(notice)

@@ -9,6 +9,8 @@ simulated time. The file is written by foxglove-sdk's MCAP writer (``foxglove.op
 the Rust ``mcap`` crate, by the MCAP authors), a sink of channels on a
 :class:`foxglove.Context` of the recorder's own, so nothing else logged in the process
 reaches the file; its per-message cost is about a microsecond (``bench/log_writer.py``).
+``cosim run --live`` adds Foxglove's WebSocket server as a second sink on the same context
+(:class:`LiveSink`): the file and the live view get each message from one ``Channel.log``.
 It writes through :class:`cosim.log.held_chunks.HeldChunks`, which lets only finished
 records reach the file, so a killed process loses at most the chunk being filled (about
 ``chunk_size_bytes`` of data, a second or so of a run) and leaves a log every MCAP
@@ -58,15 +60,40 @@ def encode_message(message: dict[str, Any]) -> bytes:
     return orjson.dumps(message, option=_ORJSON_OPTIONS)
 
 
-class MessageMirror(Protocol):
-    """Something that sees every channel and message the recorder writes, as written
-    (the live stream to Foxglove, :class:`cosim.log.live.LiveStream`). It observes only."""
+LIVE_ONLY = "cosim.live_only"
+"""Channel metadata key of a channel the file does not take: a live sink's own channel for
+a topic it sends again to late clients (:class:`LiveSink`)."""
 
-    def register(self, topic: str, schema_name: str, schema: bytes) -> None:
-        """A channel: its topic, schema name and JSON Schema (as in the file)."""
 
-    def write(self, topic: str, log_time_ns: int, data: bytes) -> None:
-        """A message: its topic, log time and JSON bytes (as in the file)."""
+def _filed(channel: foxglove.ChannelDescriptor) -> bool:
+    """The file's channel filter: every channel of the recorder's context but a live sink's
+    own (called once per channel, when it is created)."""
+    return LIVE_ONLY not in channel.metadata
+
+
+class LiveSink(Protocol):
+    """A second sink on the recorder's channels (``cosim run --live``:
+    :class:`cosim.log.live.LiveStream`, a Foxglove WebSocket server on the recorder's
+    context). The file and the sink get the same channels and each message from one
+    ``Channel.log``; the sink is told around it, so that it can pace the run and start its
+    server when the header's channels exist. It observes only.
+
+    A sink may create channels of its own on the context (a topic it sends again to clients
+    that subscribe late); it marks them with the metadata key :data:`LIVE_ONLY`, which the
+    file's channel filter leaves out.
+    """
+
+    def attach(self, context: foxglove.Context) -> None:
+        """The recorder's context, before its first channel."""
+
+    def registered(self, topic: str, schema: foxglove.Schema) -> None:
+        """A channel of the log: its topic and schema (as in the file)."""
+
+    def due(self, log_time_ns: int) -> None:
+        """A message of this log time is about to be logged on every sink."""
+
+    def sent(self, topic: str, log_time_ns: int, data: bytes) -> None:
+        """A message was logged: its topic, log time and JSON bytes (as in the file)."""
 
 
 class Recorder(Protocol):
@@ -121,10 +148,10 @@ class McapRecorder:
     keeps = True
 
     def __init__(self, path: Path, chunk_size_bytes: int = CHUNK_SIZE_BYTES,
-                 epoch_ns: int = 0, mirror: MessageMirror | None = None) -> None:
+                 epoch_ns: int = 0, live: LiveSink | None = None) -> None:
         self.path = Path(path)
-        self.mirror = mirror
-        """Also sees every channel and message (``cosim run --live``), or None."""
+        self.live = live
+        """A second sink on the log's channels (``cosim run --live``), or None."""
         self.epoch_ns = epoch_ns
         """Log time of sim time 0 [ns since the Unix epoch]: every message's and
         attachment's log time is ``epoch_ns`` plus its sim time. Readers subtract it
@@ -141,7 +168,9 @@ class McapRecorder:
                                    compression_level=ZSTD_LEVEL, chunk_size=chunk_size_bytes,
                                    profile="", compression_threads=0)
         self._writer = foxglove.open_mcap(self._stream, context=self._context,
-                                          writer_options=options)
+                                          writer_options=options, channel_filter=_filed)
+        if live is not None:
+            live.attach(self._context)
         self._channels: dict[str, foxglove.Channel] = {}
         self._closed = False
 
@@ -176,22 +205,24 @@ class McapRecorder:
         gives it); the schema's title is its name."""
         if schema is None:
             schema = topics.schema_of(topic)
-        data = json.dumps(schema).encode()
-        self._channels[topic] = foxglove.Channel(
-            topic, schema=foxglove.Schema(name=schema["title"], encoding="jsonschema", data=data),
-            message_encoding="json", context=self._context)
-        if self.mirror is not None:
-            self.mirror.register(topic, schema["title"], data)
+        declared = foxglove.Schema(name=schema["title"], encoding="jsonschema",
+                                   data=json.dumps(schema).encode())
+        self._channels[topic] = foxglove.Channel(topic, schema=declared,
+                                                 message_encoding="json", context=self._context)
+        if self.live is not None:
+            self.live.registered(topic, declared)
 
     def write(self, topic: str, t_s: float, message: dict[str, Any]) -> None:
         """Write one message at simulated time ``t_s`` (NaN and inf are written as null)."""
         log_time = self.epoch_ns + seconds_to_ns(t_s)
         data = encode_message(message)
+        if self.live is not None:
+            self.live.due(log_time)
         self._channels[topic].log(data, log_time=log_time)
         if self._stream.error is not None:  # the file could not take a finished chunk
             raise self._stream.error
-        if self.mirror is not None:
-            self.mirror.write(topic, log_time, data)
+        if self.live is not None:
+            self.live.sent(topic, log_time, data)
 
     def write_finite(self, topic: str, t_s: float, message: dict[str, Any]) -> None:
         """:meth:`write`, named for the messages that may carry NaN or inf (written as null)."""

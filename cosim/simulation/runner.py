@@ -35,7 +35,7 @@ from cosim.core.config_fields import to_dict
 from cosim.core.exceptions import PhysicsDivergenceError, TrackerFault
 from cosim.core.records import Command, Estimate, VehicleState
 from cosim.core.sensor_names import RADAR
-from cosim.log.recorder import McapRecorder, MessageMirror, NoLog, Recorder
+from cosim.log.recorder import LiveSink, McapRecorder, NoLog, Recorder
 from cosim.plant import disturbances
 from cosim.plant.low_level import AccelToTorque
 from cosim.plant.protocol import Plant
@@ -369,11 +369,11 @@ def run(
     config: ScenarioConfig,
     out_path: Path,
     progress: Callable[[float], None] | None = None,
-    mirror: MessageMirror | None = None,
+    live: LiveSink | None = None,
     workshop: Workshop | None = None,
 ) -> RunResult:
     """Run one scenario to ``out_path``; ``progress`` is called with the fraction done;
-    ``mirror`` sees every message as it is written (``cosim run --live``); ``workshop``
+    ``live`` is a second sink on the log's channels (``cosim run --live``); ``workshop``
     holds parts earlier runs built, for this one to reuse (:mod:`cosim.simulation.workshop`).
 
     SIGINT and SIGTERM stop the run between two physics steps; the log is finished with
@@ -383,7 +383,7 @@ def run(
     reason; an ordinary exception is raised on once the log is finished.
     """
     wall_start = time.perf_counter()
-    with McapRecorder(out_path, epoch_ns=config.sim.epoch_ns, mirror=mirror) as recorder:
+    with McapRecorder(out_path, epoch_ns=config.sim.epoch_ns, live=live) as recorder:
         metrics, completed, abort_reason = _run_with(config, recorder, progress, wall_start,
                                                      workshop)
     return RunResult(Path(out_path), metrics, completed, abort_reason)

@@ -138,6 +138,7 @@ def test_a_live_run_streams_its_log_while_it_runs(tmp_path: Path) -> None:
         out, err = process.communicate(timeout=120)
     assert process.returncode == 0, err.decode()
     assert f"ws://127.0.0.1:{port}" in err.decode()
+    assert "already exists" not in err.decode()  # the stream's own latched channels, unsaid
     # Same schemas as the file; messages arrived while the run was going.
     assert received.channels["/vehicle/truth"]["schemaName"] == VEHICLE_STATE["title"]
     assert received.channels["/scene/car"]["schemaName"] == SCENE_UPDATE["title"]
@@ -185,7 +186,7 @@ def _log_times(path: Path, topic: str) -> list[tuple[int, dict[str, Any]]]:
 def _stream_with(topics: dict[str, dict[str, Any]], tmp_path: Path,
                  options: LiveOptions) -> tuple[LiveStream, McapRecorder]:
     stream = LiveStream(options)
-    recorder = McapRecorder(tmp_path / "log.mcap", mirror=stream)
+    recorder = McapRecorder(tmp_path / "log.mcap", live=stream)
     for topic, schema in topics.items():
         recorder.register(topic, schema)
     return stream, recorder
@@ -224,6 +225,16 @@ def test_a_late_client_gets_the_static_scene_and_the_messages_after_it(
     ((_, streamed_path),) = received.messages["/reference/path"]
     assert streamed_path == path_message
     assert all(m["t_s"] > 0 for _, m in received.messages["/vehicle/truth"])
+    # What was sent again reached the client only: the file has one channel a topic, the path once.
+    from mcap.reader import make_reader
+
+    with open(tmp_path / "log.mcap", "rb") as log:
+        summary = make_reader(log).get_summary()
+    assert summary is not None and summary.statistics is not None
+    assert sorted(c.topic for c in summary.channels.values()) == ["/reference/path",
+                                                                  "/vehicle/truth"]
+    path_id = next(i for i, c in summary.channels.items() if c.topic == "/reference/path")
+    assert summary.statistics.channel_message_counts[path_id] == 1
 
 
 def test_a_busy_port_is_refused_in_one_line_before_the_run(tmp_path: Path) -> None:
