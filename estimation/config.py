@@ -185,6 +185,12 @@ class EstimatorConfig:
     wheel_model_sigma_mps: float = setting(
         0.005, low=0.0, high=10.0, doc="tyre slip, rolling-radius error (at the wheel centre)"
     )
+    wheel_slip_per_force_ratio: float = setting(
+        1.0 / 21.51, low=0.0, high=1.0,
+        doc="wheel-speed model: longitudinal slip ratio per unit of F_x / F_z, the inverse of "
+        "the tyre's slip stiffness per load (p_Kx1 = 21.51 of the plant's default tyre, "
+        "Pacejka 2012); 0: the wheels roll without slip (estimation.wheel_slip)",
+    )
     lateral_accel_model_sigma_mps2: float = setting(
         0.0, low=0.0, high=50.0,
         doc="IMU lateral acceleration: vibration, mounting (its bias is a state)",

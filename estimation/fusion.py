@@ -126,8 +126,8 @@ class KalmanFusion(ABC):
             wheel_model_sigma_mps=config.wheel_model_sigma_mps,
             lateral_accel_model_sigma_mps2=config.lateral_accel_model_sigma_mps2,
             steer_model_sigma_rad=config.steer_model_sigma_rad,
-            tyre_model=config.tyre_model,
-            roll=roll,
+            tyre_model=config.tyre_model, roll=roll,
+            wheel_slip_per_force_ratio=config.wheel_slip_per_force_ratio,
         )
         if config.compiled:
             use_compiled(self.kind, self._hot_functions())

@@ -27,6 +27,7 @@ from estimation.process_model import (
     world_velocity,
 )
 from estimation.state import STATE_NAMES, named_states
+from estimation.wheel_slip import WheelLoads, slip_ratio
 
 Params = ParamSpec("Params")
 
@@ -108,6 +109,7 @@ class _Belief:
 
     bicycle: BicycleParams
     geometry: WheelGeometry
+    loads: WheelLoads
 
 
 def _measurement_functions(
@@ -163,16 +165,19 @@ def wheel_spin(
     wheel: str,
     belief: WheelGeometry,
     bicycle: BicycleParams,
+    loads: WheelLoads | None = None,
 ) -> ca.SX:
-    """Spin rate of ``wheel`` (one of ``WHEEL_NAMES``) of a car rolling without longitudinal
-    slip [rad/s].
+    """Spin rate of ``wheel`` (one of ``WHEEL_NAMES``) [rad/s]: rolling without longitudinal
+    slip, or with the slip the brakes and the drive cause (``loads``,
+    :mod:`estimation.wheel_slip`).
 
     The wheel centre moves with the rigid body, ``(vx - r y_w, vy_a + r x_w)`` in the
     vehicle frame at the wheel's position ``(x_w, y_w)`` (``vy_a``: the roll axis's lateral
     velocity, (R1)) (``x_w = l_f`` or ``-l_r``, ``y_w = +-t/2`` with ``t`` the believed
     track of that axle times ``wheel_track_scale``, left positive); the wheel spins at the
     component along its own plane (steered by its Ackermann angle at the front), over the
-    believed radius times ``rolling_radius_scale``.
+    believed radius times ``rolling_radius_scale``, times ``1 + kappa`` with the wheel's
+    slip ratio ``kappa`` (:func:`estimation.wheel_slip.slip_ratio`) where ``loads`` is given.
     """
     front = wheel.startswith("front")
     left = wheel.endswith("left")
@@ -189,6 +194,8 @@ def wheel_spin(
         along = forward * ca.cos(angle) + sideways * ca.sin(angle)
     else:
         along = forward
+    if loads is not None:
+        along = along * (1.0 + slip_ratio(s, front, left, track * s["wheel_track_scale"], loads))
     return along / (belief.wheel_radius_m * s["rolling_radius_scale"])
 
 
@@ -229,6 +236,7 @@ def build_measurement_models(
     steer_model_sigma_rad: float = 0.0,
     tyre_model: str = "saturating",
     roll: RollParams | None = None,
+    wheel_slip_per_force_ratio: float = 0.0,
 ) -> dict[str, MeasurementModel]:
     """The measurement models of every sensor the filters fuse, by sensor name.
 
@@ -250,6 +258,8 @@ def build_measurement_models(
       lane change with the 0.5 m GNSS. So the effective track is a state too,
       ``wheel_track_scale`` (the track over the believed one): the left-right difference
       in turns estimates it, the common mode the rolling radius.
+      With ``wheel_slip_per_force_ratio`` above 0 each wheel's spin has the longitudinal
+      slip the brakes (and an all-wheel drive's drive) cause (:mod:`estimation.wheel_slip`).
     - ``steering``: the front road-wheel angle ``steer_rad``.
     - ``heading`` (optional, e.g. a dual-antenna GNSS): ``yaw_rad`` directly.
 
@@ -260,8 +270,10 @@ def build_measurement_models(
     each call returns models with evaluators of their own.
     """
     numbers = symbolic_twin(_Belief(BicycleParams.from_vehicle(belief, tyre_model, roll),
-                                    WheelGeometry.from_vehicle(belief)))
+                                    WheelGeometry.from_vehicle(belief),
+                                    WheelLoads.from_vehicle(belief, wheel_slip_per_force_ratio)))
     bicycle, geometry = numbers.twin.bicycle, numbers.twin.geometry
+    loads = numbers.twin.loads if wheel_slip_per_force_ratio > 0.0 else None
     common = {"belief": numbers}
     wheel_sigma_radps = wheel_model_sigma_mps / belief.wheel_radius_m
     fused = free_rolling_wheels(belief)
@@ -288,7 +300,7 @@ def build_measurement_models(
         _model(
             "wheel_speed",
             tuple(f"{w}_radps" for w in fused),
-            [lambda s, w=w: wheel_spin(s, w, geometry, bicycle) for w in fused],
+            [lambda s, w=w: wheel_spin(s, w, geometry, bicycle, loads) for w in fused],
             **common,
             model_sigma=(wheel_sigma_radps,) * len(fused),
             ignored_channels=ignored,

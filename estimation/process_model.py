@@ -97,6 +97,7 @@ import numpy as np
 
 from cosim.core.built_once import built_once
 from cosim.core.dense_function import DenseFunction
+from cosim.core.physical_constants import GRAVITY_MPS2
 from cosim.core.symbolic_record import symbolic_twin
 from cosim.core.vehicle_equations import axle_slip_angles, rk4_step
 from cosim.core.vehicle_params import VehicleParams
@@ -130,8 +131,6 @@ DEFAULT_CORNERING_STIFFNESS_REAR_NPR = 79580.0
 TYRE_MODELS: tuple[str, ...] = ("saturating", "linear")
 """Tyre laws of the filters' bicycle: (D3) with or without the friction limit (D3')."""
 
-GRAVITY_MPS2 = 9.81
-"""Gravitational acceleration for the static axle loads [m/s^2]."""
 
 
 @dataclass(frozen=True)

@@ -31,6 +31,11 @@ MIN_TRACK_M = 0.5
 MAX_TRACK_M = 3.0
 """Bounds of a track (a narrow city car's is about 1.3 m, a heavy truck's about 2 m) [m]."""
 
+BRAKE_DESIGN_DECEL_G = 0.5
+"""The brake balance distributes torque as the axle loads at this deceleration (ideal
+braking, Gillespie, "Fundamentals of Vehicle Dynamics", ch. 3): front share
+``(l_r + h a/g) / L``, 0.67 for the sedan [g] (:attr:`CarParams.brake_front_share`)."""
+
 MAX_STEER_BOUND_RAD = 1.5
 """Upper bound of a road-wheel angle limit (86 deg): short of pi/2, where the bicycle
 model's ``tan(delta)`` has its pole. The car's own geometry bounds it further: the inner
@@ -115,6 +120,12 @@ class CarParams:
     def wheelbase_m(self) -> float:
         """Distance between the axles, l_f + l_r."""
         return self.cog_front_m + self.cog_rear_m
+
+    @property
+    def brake_front_share(self) -> float:
+        """The front axle's share of the brake torque: the axle loads' split at
+        :data:`BRAKE_DESIGN_DECEL_G`, ``(l_r + h a/g) / L`` (a fixed brake balance)."""
+        return (self.cog_rear_m + self.cog_height_m * BRAKE_DESIGN_DECEL_G) / self.wheelbase_m
 
     @property
     def axle_tracks_m(self) -> tuple[float, float]:

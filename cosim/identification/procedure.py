@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from cosim.core.physical_constants import GRAVITY_MPS2
 from cosim.core.vehicle_params import PlantConfig, VehicleParams
 from cosim.identification.data import IdentificationError, SteadyTurn
 from cosim.identification.fits import fit_cornering_stiffness, fit_first_order_lag, fit_wheelbase
@@ -39,7 +40,6 @@ from cosim.identification.manoeuvres import (
     step_steer,
 )
 from cosim.identification.model import IdentifiedModel
-from cosim.plant.low_level import GRAVITY_MPS2
 
 STEER_LIMIT_SHARE = 0.8
 """No manoeuvre asks for more than this share of the steering limit ``max_steer_rad``."""

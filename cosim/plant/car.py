@@ -16,7 +16,7 @@ the Python below is its reference, bit for bit, and runs with traffic or slip co
   ``max_drive_power_w / omega`` (mean spin of the driven wheels), split equally over the
   driven wheels (an open differential);
 - brakes: the total torque, clipped to ``max_brake_torque_nm``, is split front/rear with a
-  fixed brake balance (:data:`BRAKE_DESIGN_DECEL_G`) and acts on each wheel as a smooth
+  fixed brake balance (``CarParams.brake_front_share``) and acts on each wheel as a smooth
   Coulomb friction ``-T omega / sqrt(omega^2 + omega_0^2)``. It is passed to MuJoCo as the
   spin joint's damping coefficient ``T / sqrt(omega^2 + omega_0^2)``, recomputed every step,
   so the implicitfast integrator treats it implicitly: no chatter at standstill and no
@@ -74,10 +74,6 @@ slowest mode, body bounce at 1.5 Hz with damping ratio 0.5, decays by e^-7 in 1.
 BRAKE_SPIN_SCALE_RADPS = 0.1
 """omega_0 of the smooth brake: below this wheel spin the brake torque fades linearly to
 zero (0.1 rad/s is 3 cm/s at the tyre) [rad/s]."""
-
-BRAKE_DESIGN_DECEL_G = 0.5
-"""The brake balance distributes torque as the axle loads at this deceleration (ideal
-braking, Gillespie ch. 3): front share ``(l_r + h a/g) / L``, 0.67 for the sedan [g]."""
 
 MIN_POWER_SPIN_RADPS = 1.0
 """Below this mean driven-wheel spin the power limit is evaluated at this spin (it would be
@@ -223,7 +219,7 @@ class MujocoPlant:
     def _configure_actuators(self) -> None:
         """Constants of the actuator models, from the true config and the compiled model."""
         cfg, m = self.config, self._model
-        front_share = (cfg.cog_rear_m + cfg.cog_height_m * BRAKE_DESIGN_DECEL_G) / cfg.wheelbase_m
+        front_share = cfg.brake_front_share
         self._brake_share_by_dof = tuple(
             (dof, 0.5 * (front_share if wheel in FRONT_WHEELS else 1.0 - front_share))
             for wheel, dof in zip(WHEEL_NAMES, self._spin_dof, strict=True)

@@ -29,14 +29,9 @@ from __future__ import annotations
 
 import math
 
+from cosim.core.physical_constants import AIR_DENSITY_KGPM3, GRAVITY_MPS2
 from cosim.core.records import ActuatorCommand, Command
 from cosim.core.vehicle_params import VehicleParams
-
-AIR_DENSITY_KGPM3 = 1.225
-"""ISA sea-level air density [kg/m^3]."""
-
-GRAVITY_MPS2 = 9.81
-"""Gravitational acceleration [m/s^2]."""
 
 ROLLING_SPEED_SCALE_MPS = 0.1
 """Speed over which rolling resistance fades in, ``tanh(v / scale)``: a smooth stand-in for

@@ -57,11 +57,9 @@ import casadi as ca
 import numpy as np
 
 from cosim.core.exceptions import ConfigError
+from cosim.core.physical_constants import GRAVITY_MPS2
 from cosim.core.vehicle_equations import axle_slip_angles, rk4_step
 from cosim.core.vehicle_params import VehicleParams
-
-GRAVITY_MPS2 = 9.81
-"""Gravitational acceleration used to express gradients per g [m/s^2]."""
 
 LATERAL_STATE_NAMES: tuple[str, ...] = ("vy_mps", "yaw_rate_radps")
 """State of the lateral model, in vector order."""

@@ -37,12 +37,10 @@ import casadi as ca
 import numpy as np
 
 from cosim.core.exceptions import ConfigError
+from cosim.core.physical_constants import AIR_DENSITY_KGPM3
 from cosim.core.vehicle_params import VehicleParams
 from tracker.models import dynamic_bicycle as bicycle
 from tracker.models.steered_dynamic_bicycle import INPUT, STATE, STATE_NAMES, SteeredBicycleParams
-
-AIR_DENSITY_KGPM3 = 1.225
-"""ISA sea-level air density [kg/m^3] (as the low-level layer's belief)."""
 
 Symbolic = ca.SX | ca.MX | ca.DM
 

@@ -1,0 +1,112 @@
+"""The longitudinal slip of a wheel the filter reads for speed, from the forces that brake or
+drive it: the wheel-speed model's correction to free rolling.
+
+A wheel turns at ``omega = v_w (1 + kappa) / R``, with ``v_w`` its centre's speed along
+its plane and ``kappa`` its longitudinal slip ratio (SAE J670: ``kappa = (omega R - v_w) /
+v_w``); below the tyre's force peak the slip is proportional to the longitudinal force,
+``kappa = F_x / K_x`` with the slip stiffness ``K_x`` about proportional to the load
+``F_z`` (the Magic Formula's ``K_xk = p_Kx1 F_z`` at nominal load; Pacejka, "Tyre and
+Vehicle Dynamics", 3rd ed., 2012, eq. 4.E15). So::
+
+    kappa = c F_x / F_z,   c = 1 / p_Kx1                                 (S1)
+
+``c`` is the estimator's belief ``wheel_slip_per_force_ratio`` (0: the wheels roll freely).
+A free-rolling wheel slips under the brakes only: the brake torque splits over the axles
+with a fixed balance, the front share ``b`` (:attr:`CarParams.brake_front_share`), and each
+wheel's tyre force also turns the wheel's own inertia::
+
+    F_total = m_e a_x + 1/2 rho C_d A v|v| + C_rr m g tanh(v / 0.1)      (S2)
+    F_x = b_i min(F_total, 0) + d_i max(F_total, 0) + (I_w / R^2) a_x    (S3)
+    F_z = m (g l_o / L -+ a_x h / L) / 2 -+ m r v_x h l_o / (L t)        (S4)
+
+with ``m_e = m + 4 I_w / R^2`` (the low-level layer's model of what the tyres must deliver,
+:mod:`cosim.plant.low_level`), ``b_i`` the wheel's brake share (``b / 2`` at the front,
+``(1 - b) / 2`` at the rear), ``d_i`` its drive share (the driven wheels split the drive
+torque equally: an all-wheel drive's wheels, which the filter reads too), ``l_o`` the other
+axle's distance to the CoG and the load moving to the front axle as the car brakes (``-`` at
+the front, ``+`` at the rear) and to the outer wheels as it turns (``-`` on the inner wheel;
+the lateral acceleration ``r v_x`` of a steady turn, shared by the axles as their static
+loads, ``t`` the axle's track): the brakes pull the wheels of an axle alike, so the inner,
+lighter one slips more.
+
+On the sedan the front wheels slip about 1 % when it brakes at 2 m/s^2: at 20 m/s that is
+0.2 m/s, where the wheel speeds' noise is 0.016 m/s; braking at 1.3 m/s^2 in a turn at
+2.7 m/s^2, the inner front wheel some 0.35 % more than the outer one. Without (S1)-(S4) the
+filter gated the front wheels in every braking zone of the circuit.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import casadi as ca
+
+from cosim.core.physical_constants import AIR_DENSITY_KGPM3, GRAVITY_MPS2
+from cosim.core.vehicle_params import VehicleParams
+
+ROLLING_SPEED_SCALE_MPS = 0.1
+"""Speed over which rolling resistance fades in (as the plant applies it) [m/s]."""
+
+
+@dataclass(frozen=True)
+class WheelLoads:
+    """The numbers of (S1)-(S4), from the filter's belief of the car (SI)."""
+
+    mass_kg: float
+    effective_mass_kg: float
+    wheel_inertia_mass_kg: float
+    """``I_w / R^2`` of one wheel [kg]."""
+    drag_coefficient: float
+    """``1/2 rho C_d A`` [kg/m]."""
+    rolling_force_n: float
+    brake_front_share: float
+    front_drive_share: float
+    """Each front wheel's share of the drive force (0 for a rear-wheel drive)."""
+    rear_drive_share: float
+    cog_front_m: float
+    cog_rear_m: float
+    cog_height_m: float
+    slip_per_force_ratio: float
+    """``c`` of (S1): slip ratio per unit of ``F_x / F_z``."""
+
+    @classmethod
+    def from_vehicle(cls, belief: VehicleParams, slip_per_force_ratio: float) -> WheelLoads:
+        inertia_mass = belief.wheel_inertia_kgm2 / belief.wheel_radius_m**2
+        front_drive = {"rwd": 0.0, "fwd": 0.5, "awd": 0.25}[belief.drive]
+        rear_drive = {"rwd": 0.5, "fwd": 0.0, "awd": 0.25}[belief.drive]
+        return cls(
+            mass_kg=belief.mass_kg,
+            effective_mass_kg=belief.mass_kg + 4.0 * inertia_mass,
+            wheel_inertia_mass_kg=inertia_mass,
+            drag_coefficient=0.5 * AIR_DENSITY_KGPM3 * belief.drag_area_m2,
+            rolling_force_n=belief.rolling_resistance * belief.mass_kg * GRAVITY_MPS2,
+            brake_front_share=belief.brake_front_share,
+            front_drive_share=front_drive,
+            rear_drive_share=rear_drive,
+            cog_front_m=belief.cog_front_m,
+            cog_rear_m=belief.cog_rear_m,
+            cog_height_m=belief.cog_height_m,
+            slip_per_force_ratio=slip_per_force_ratio,
+        )
+
+
+def slip_ratio(s: Mapping[str, ca.SX], front: bool, left: bool, track_m: ca.SX,
+               loads: WheelLoads) -> ca.SX:
+    """``kappa`` of a wheel (front or rear, left or right, on an axle of track ``track_m``),
+    (S1)-(S4), from the state's speed, yaw rate and longitudinal acceleration."""
+    vx, ax = s["vx_mps"], s["ax_mps2"]
+    total = (loads.effective_mass_kg * ax + loads.drag_coefficient * vx * ca.fabs(vx)
+             + loads.rolling_force_n * ca.tanh(vx / ROLLING_SPEED_SCALE_MPS))
+    if front:
+        brake, drive = 0.5 * loads.brake_front_share, loads.front_drive_share
+    else:
+        brake, drive = 0.5 * (1.0 - loads.brake_front_share), loads.rear_drive_share
+    force = (brake * ca.fmin(total, 0.0) + drive * ca.fmax(total, 0.0)
+             + loads.wheel_inertia_mass_kg * ax)
+    wheelbase = loads.cog_front_m + loads.cog_rear_m
+    lever = loads.cog_rear_m if front else loads.cog_front_m
+    pitch = (-1.0 if front else 1.0) * ax * loads.cog_height_m
+    roll = (1.0 if left else -1.0) * -s["yaw_rate_radps"] * vx * loads.cog_height_m * lever
+    load = loads.mass_kg * (0.5 * (GRAVITY_MPS2 * lever + pitch) + roll / track_m) / wheelbase
+    return loads.slip_per_force_ratio * force / load
