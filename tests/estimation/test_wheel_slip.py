@@ -16,19 +16,10 @@ from cosim.simulation.runner import run
 from cosim.simulation.scenario_config import load_config
 from estimation.config import EstimatorConfig
 from estimation.measurement_models import build_measurement_models
-from estimation.state import STATE_NAMES, state_index
+from tests.estimation.test_models import _state
 
 BELIEF = VehicleParams()
 SLIP = EstimatorConfig().wheel_slip_per_force_ratio
-
-
-def _state(**values: float) -> np.ndarray:
-    x = np.zeros(len(STATE_NAMES))
-    x[state_index("rolling_radius_scale")] = 1.0
-    x[state_index("wheel_track_scale")] = 1.0
-    for name, value in values.items():
-        x[state_index(name)] = value
-    return x
 
 
 def _spins(belief: VehicleParams, slip: float, **state: float) -> np.ndarray:
