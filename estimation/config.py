@@ -260,6 +260,18 @@ class EstimatorConfig:
         "about 2x faster. Without a C compiler: the virtual machine, with a warning",
     )
 
+    # Iterated update (ekf only): estimation.ekf.Ekf._joint_update.
+    ekf_iterations: int = setting(
+        5, low=0, high=50,
+        doc="most relinearisations of an instant's update at its posterior (the iterated "
+        "EKF); 0: the plain EKF, the models linearised at the prior mean only",
+    )
+    ekf_linearisation_tolerance: float = setting(
+        0.1, low=0.0, high=1e3,
+        doc="relinearise while the update's largest linearisation error exceeds this many "
+        "standard deviations of the measurement noise",
+    )
+
     # Unscented transform (ukf only): Van der Merwe's scaled sigma points.
     ukf_alpha: float = setting(1.0, low=1e-4, high=1.0, doc="spread of the sigma points")
     ukf_beta: float = setting(2.0, low=0.0, high=10.0, doc="prior knowledge of the distribution")

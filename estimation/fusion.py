@@ -422,14 +422,15 @@ class KalmanFusion(ABC):
             results.append(UpdateResult(True, value, dim, ACCEPTED, value, dim))
         return results
 
-    def _joint_update(self, checked: list[CheckedMeasurement]) -> JointPosterior | None:
-        """Every measurement of ``checked`` in one update against the current belief, and
-        each one's NIS (its block of the joint innovation); None when the filter has no
-        joint update or it failed (a singular innovation covariance)."""
+    def _joint_update(self, checked: list[CheckedMeasurement],
+                      at: np.ndarray | None = None) -> JointPosterior | None:
+        """Every measurement of ``checked`` in one update against the belief (the models
+        linearised at ``at``, None: the mean) and each one's NIS (its block of the joint
+        innovation); None without a joint update or a singular innovation covariance."""
         blocks = [(c.model, c.selection, c.z, np.diag(c.selection.model_variance))
                   for c in checked]
         try:
-            trial = self._joint_trial_update(blocks)
+            trial = self._joint_trial_update(blocks, at)
         except np.linalg.LinAlgError:
             trial = None
         if trial is None:
@@ -451,12 +452,11 @@ class KalmanFusion(ABC):
 
     def _joint_trial_update(
         self, blocks: list[tuple[MeasurementModel, Selection, np.ndarray, np.ndarray]],
-    ) -> TrialUpdate | None:
+        at: np.ndarray | None = None) -> TrialUpdate | None:
         """One update with several measurements' channels at once (model, selection,
-        values, noise per measurement, stacked in this order), computed without changing
-        the belief; None when the filter has none (then :meth:`update_many` fuses them
-        one by one)."""
-        del blocks
+        values, noise per measurement, stacked; the models linearised at ``at``, None: the
+        mean), the belief unchanged; None without one (:meth:`update_many`: one by one)."""
+        del blocks, at
         return None
 
     def _uses_gate(self, sensor: str) -> bool:

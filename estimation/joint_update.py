@@ -24,6 +24,15 @@ above the diagonal and mirrored (the numpy path symmetrises the full products in
 two agree to rounding). The angle channels' innovations are wrapped to (-pi, pi] as
 :func:`estimation.state.wrap_angle` does.
 
+The models may be linearised at a point ``x_l`` other than the prior mean (the iterated
+EKF, :meth:`estimation.ekf.Ekf._joint_update`): then ``h(x)`` above is ``h(x_l) + H (x - x_l)``
+with ``H`` the Jacobian at ``x_l`` (Bell and Cathey, "The iterated Kalman filter update as a
+Gauss-Newton method", IEEE TAC 1993); at ``x_l = x`` this is the update above, to the bit.
+The function also gives the largest linearisation error of the update, in standard
+deviations of the measurement noise: ``max_j |h_j(x+) - h_j(x_l) - H_j (x+ - x_l)| / sqrt(r_j)``
+over the channels present (angles wrapped), which says whether the models are linear enough
+over the step ``x+ - x_l`` for the update to stand.
+
 One function serves every combination of sensors and channels, and its numbers (the
 belief) are an input: it is compiled to C once per machine with the filter's other models
 (:func:`estimation.compiled_models.use_compiled`). Without a compiler it is not used: evaluated
@@ -54,6 +63,9 @@ class JointPosterior:
     mean: np.ndarray
     covariance: np.ndarray
     nis: tuple[float, ...]
+    linearisation_error: float = 0.0
+    """The update's largest linearisation error, in standard deviations of the measurement
+    noise (module docstring); 0 where it was not computed."""
 
 
 def _wrapped(angle: ca.SX) -> ca.SX:
@@ -81,12 +93,14 @@ def _symmetric_product(left: ca.SX, right: ca.SX) -> ca.SX:
 @built_once
 def _joint_function(parts: tuple[tuple[ca.Function, int, tuple[int, ...]], ...],
                     belief_size: int) -> ca.Function:
-    """``(x, P, z, r, mask, belief) -> (x+, P+, NIS per model)`` (module docstring) over the
-    models ``parts`` (each: its ``h`` with Jacobian, its channel count, the rows of its
-    angle channels), built once per process for the same model functions."""
+    """``(x, x_l, P, z, r, mask, belief) -> (x+, P+, NIS per model, linearisation error)``
+    (module docstring) over the models ``parts`` (each: its ``h`` with Jacobian, its channel
+    count, the rows of its angle channels), built once per process for the same model
+    functions."""
     size = sum(count for _, count, _ in parts)
     n = len(STATE_NAMES)
     x = ca.SX.sym("x", n)
+    at = ca.SX.sym("x_l", n)
     p = ca.SX.sym("P", n, n)
     z = ca.SX.sym("z", size)
     r = ca.SX.sym("r", size)
@@ -96,18 +110,20 @@ def _joint_function(parts: tuple[tuple[ca.Function, int, tuple[int, ...]], ...],
     angle_rows = set()
     start = 0
     for function, count, angles in parts:
-        h, jacobian = function(x, numbers)
+        h, jacobian = function(at, numbers)
         values.append(h)
         jacobians.append(jacobian)
         blocks.append(range(start, start + count))
         angle_rows.update(start + row for row in angles)
         start += count
-    residual = z - ca.vertcat(*values)
+    stacked = ca.vertcat(*jacobians)
+    residual = z - (ca.vertcat(*values) + stacked @ (x - at))
     innovation = ca.vertcat(*[
         _wrapped(residual[i]) if i in angle_rows else residual[i] for i in range(size)])
     innovation = mask * innovation
-    observed = ca.diag(mask) @ ca.vertcat(*jacobians)
-    noise = ca.diag(mask * r + (1.0 - mask))
+    observed = ca.diag(mask) @ stacked
+    variance = mask * r + (1.0 - mask)
+    noise = ca.diag(variance)
     pht = p @ observed.T
     s_matrix = observed @ pht + noise
     gain = ca.solve(s_matrix, pht.T).T
@@ -120,8 +136,13 @@ def _joint_function(parts: tuple[tuple[ca.Function, int, tuple[int, ...]], ...],
         index = list(rows)
         y_block = innovation[index]
         nis.append(ca.dot(y_block, ca.solve(symmetric_s[index, index], y_block)))
-    return ca.Function("ekf_joint_update", [x, p, z, r, mask, numbers],
-                       [x + gain @ innovation, ca.densify(covariance), ca.vertcat(*nis)])
+    posterior = x + gain @ innovation
+    after = ca.vertcat(*[function(posterior, numbers)[0] for function, _, _ in parts])
+    miss = after - ca.vertcat(*values) - stacked @ (posterior - at)
+    miss = ca.vertcat(*[_wrapped(miss[i]) if i in angle_rows else miss[i] for i in range(size)])
+    error = ca.mmax(ca.fabs(mask * miss / ca.sqrt(variance)))
+    return ca.Function("ekf_joint_update", [x, at, p, z, r, mask, numbers],
+                       [posterior, ca.densify(covariance), ca.vertcat(*nis), error])
 
 
 class JointUpdate:
@@ -142,7 +163,8 @@ class JointUpdate:
                        tuple(model.channels.index(c) for c in model.angle_channels))
                       for model in models.values())
         self.function = DenseFunction(_joint_function(parts, belief.size), parameters=belief)
-        """``(x, P, z, r, mask) -> (x+, P+, NIS per model)``, the belief set once."""
+        """``(x, x_l, P, z, r, mask) -> (x+, P+, NIS per model, linearisation error)``, the
+        belief set once."""
         self._order = tuple(models)
         self._stack_rows: dict[tuple[str, tuple[int, ...]], tuple[int, np.ndarray]] = {}
         self._z = np.zeros(size)
@@ -163,9 +185,10 @@ class JointUpdate:
 
     def __call__(self, mean: np.ndarray, covariance: np.ndarray,
                  blocks: Sequence[tuple[MeasurementModel, Selection, np.ndarray]],
-                 ) -> JointPosterior | None:
+                 linearise_at: np.ndarray | None = None) -> JointPosterior | None:
         """The joint update of ``blocks`` (model, selected channels, their values), one
-        block per model; None when two blocks share a model or the result is not finite
+        block per model, with the models linearised at ``linearise_at`` (None: the prior
+        ``mean``); None when two blocks share a model or the result is not finite
         (a singular ``S``: the caller then fuses them one by one, which tells why)."""
         z, r, mask = self._z, self._r, self._mask
         z.fill(0.0)
@@ -180,9 +203,10 @@ class JointUpdate:
             z[rows] = values
             r[rows] = selection.model_variance
             mask[rows] = 1.0
-        posterior, posterior_covariance, nis = self.function(mean, covariance, z, r, mask)
+        posterior, posterior_covariance, nis, error = self.function(
+            mean, mean if linearise_at is None else linearise_at, covariance, z, r, mask)
         nis = nis.reshape(-1)
         if not (np.isfinite(posterior).all() and np.isfinite(nis[seen]).all()):
             return None
         return JointPosterior(posterior.reshape(-1), posterior_covariance,
-                              tuple(float(nis[i]) for i in seen))
+                              tuple(float(nis[i]) for i in seen), float(error[0, 0]))

@@ -48,10 +48,12 @@ def _checked(filter_: Ekf, measurements: list[Measurement]) -> list[CheckedMeasu
     return checked  # type: ignore[return-value]
 
 
-def _both(filter_: Ekf, measurements: list[Measurement]) -> tuple[object, object]:
+def _both(filter_: Ekf, measurements: list[Measurement],
+          at: np.ndarray | None = None) -> tuple[object, object]:
+    """One update linearised at ``at`` (None: the mean), compiled and in numpy."""
     checked = _checked(filter_, measurements)
-    compiled = filter_._joint_update(checked)
-    numpy_path = KalmanFusion._joint_update(filter_, checked)
+    compiled = filter_._linearised_update(checked, at)
+    numpy_path = filter_._posterior(checked, at)
     return compiled, numpy_path
 
 
@@ -89,13 +91,22 @@ def _cases(filter_: Ekf) -> dict[str, list[Measurement]]:
 def test_the_compiled_joint_update_is_the_numpy_one_for_every_combination() -> None:
     filter_ = _filter()
     assert filter_._joint_function.function.compiled
+    # Linearised at the mean, and elsewhere (an iterated update's later linearisations).
+    elsewhere = filter_._x + 3.0 * np.sqrt(np.diag(filter_._p))
     for name, measurements in _cases(filter_).items():
-        compiled, numpy_path = _both(filter_, measurements)
-        assert compiled is not None and numpy_path is not None, name
-        assert _relative(compiled.mean, numpy_path.mean) < 1e-9, name
-        assert _relative(compiled.covariance, numpy_path.covariance) < 1e-9, name
-        assert np.array_equal(compiled.covariance, compiled.covariance.T), name
-        assert np.allclose(compiled.nis, numpy_path.nis, rtol=1e-9, atol=0.0), name
+        for at in (None, elsewhere):
+            compiled, numpy_path = _both(filter_, measurements, at)
+            assert compiled is not None and numpy_path is not None, name
+            assert _relative(compiled.mean, numpy_path.mean) < 1e-9, name
+            assert _relative(compiled.covariance, numpy_path.covariance) < 1e-9, name
+            assert np.array_equal(compiled.covariance, compiled.covariance.T), name
+            assert np.allclose(compiled.nis, numpy_path.nis, rtol=1e-9, atol=0.0), name
+            assert compiled.linearisation_error == pytest.approx(
+                numpy_path.linearisation_error, rel=1e-6, abs=1e-12), name
+        # The plain numpy update of the fusion base class: the same at the mean.
+        compiled = _both(filter_, measurements)[0]
+        plain = KalmanFusion._joint_update(filter_, _checked(filter_, measurements))
+        assert _relative(compiled.mean, plain.mean) < 1e-9, name
         # Each measurement changed the belief: no channel was dropped by the mask.
         for m in measurements:
             alone = _both(filter_, [m])[1]
