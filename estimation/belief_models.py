@@ -35,6 +35,7 @@ def process_noise(config: EstimatorConfig) -> ProcessNoise:
         ),
         yaw_transient_psd_s3=config.yaw_transient_psd_s3,
         roll_accel_relative_psd_s=config.roll_accel_relative_psd_s,
+        yaw_moment_relative_psd_s=config.yaw_moment_relative_psd_s,
     )
 
 

@@ -124,6 +124,12 @@ class EstimatorConfig:
     lateral_accel_psd_m2ps3: float = setting(
         2e-5, low=0.0, high=1e6, doc="white lateral acceleration driving vy_mps [m^2/s^3]"
     )
+    yaw_moment_relative_psd_s: float = setting(
+        0.0, low=0.0, high=10.0,
+        doc="yaw acceleration PSD per squared yaw acceleration of each axle's moment: the "
+        "axles' balance, and with it a turn's side slip, known to a fraction (0.3 on a "
+        "circuit with rtk: docs/guide.md) [s]",
+    )
     steer_psd_rad2ps: float = setting(
         1e-5,
         low=0.0,

@@ -314,6 +314,14 @@ class ProcessNoise:
     yaw_transient_psd_s3 * r'^2``. A yaw response that lags the bicycle's by an uncertain
     time ``tau`` (tyre relaxation, steering and suspension compliance) is off by
     ``tau r'`` while the yaw rate changes, too briefly for the gyro's noise to resolve."""
+    yaw_moment_relative_psd_s: float = 0.0
+    """The yaw acceleration's PSD per squared yaw acceleration of each axle's moment:
+    ``yaw_accel_psd_rad2ps3 + yaw_moment_relative_psd_s * ((l_f F_f)^2 + (l_r F_r)^2) / I_z^2``.
+    The tyre model's balance between the axles (their effective cornering stiffnesses,
+    which lateral load transfer lowers unequally) sets the side slip of a turn; its error
+    grows with the axles' forces, does not show in the total lateral force the IMU
+    measures, and becomes a heading error once the positions pin the course. The yaw
+    moment's two large opposing parts are each known to a fraction only."""
     roll_accel_relative_psd_s: float = 0.0
     """The roll acceleration's PSD per squared roll acceleration the tyres' force commands,
     ``roll_accel_psd_rad2ps3 + roll_accel_relative_psd_s * (omega^2 G a_y)^2`` (the roll
@@ -542,6 +550,9 @@ def _force_noise(x: ca.SX, noise: ProcessNoise, bicycle: BicycleParams) -> ca.SX
         noise.lateral_residual_relative_psd_1ps * tyre_accel**2
     )
     extra[state_index("yaw_rad")] = noise.yaw_transient_psd_s3 * yaw_accel**2
+    extra[state_index("yaw_rate_radps")] = noise.yaw_moment_relative_psd_s * (
+        (bicycle.cog_front_m * force_front) ** 2 + (bicycle.cog_rear_m * force_rear) ** 2
+    ) / bicycle.yaw_inertia_kgm2**2
     roll = bicycle.roll
     commanded_roll_accel = roll.angular_frequency_radps**2 * roll.gradient_radpmps2 * tyre_accel
     extra[state_index("roll_rate_radps")] = (

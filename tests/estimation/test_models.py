@@ -8,6 +8,7 @@ matrices and steady turn) for the lateral dynamics, and numbers one can check by
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -195,6 +196,39 @@ def test_noise_psd_grows_with_the_tyre_forces(process: ProcessModel) -> None:
         assert w[state_index(name)] == pytest.approx(value, rel=1e-9), name
     others = [i for i, n in enumerate(STATE_NAMES) if n not in expected]
     np.testing.assert_array_equal(w[others], 0.0)
+
+
+def test_the_yaw_moment_noise_grows_with_each_axles_moment() -> None:
+    """With ``yaw_moment_relative_psd_s`` the yaw acceleration's PSD grows by it times
+    ``((l_f F_f)^2 + (l_r F_r)^2) / I_z^2``, the axles' forces those of the bicycle's own
+    derivative (its lateral acceleration and yaw acceleration give both); straight ahead
+    it adds nothing."""
+    relative_s = 0.3
+    noise = dataclasses.replace(NOISE, yaw_moment_relative_psd_s=relative_s)
+    bicycle = BicycleParams.from_vehicle(BELIEF, roll=ROLL)
+    process = ProcessModel(noise, bicycle, CONFIG.lateral_residual_time_constant_s)
+    straight = _state(vx_mps=20.0)
+    np.testing.assert_array_equal(process.noise_psd(straight), noise.diagonal())
+    turning = _state(vx_mps=20.0, vy_mps=-0.2, yaw_rate_radps=0.25, steer_rad=0.03)
+    derivative, _ = process.derivative(turning)
+    roll = bicycle.roll
+    lateral = derivative[state_index("roll_rate_radps")] / (
+        roll.angular_frequency_radps**2 * roll.gradient_radpmps2)
+    yaw_accel = derivative[state_index("yaw_rate_radps")]
+    # F_f + F_r = m a_y and l_f F_f - l_r F_r = I_z r'.
+    forces = np.linalg.solve(
+        [[1.0, 1.0], [bicycle.cog_front_m, -bicycle.cog_rear_m]],
+        [bicycle.mass_kg * lateral, bicycle.yaw_inertia_kgm2 * yaw_accel])
+    moments = forces * [bicycle.cog_front_m, bicycle.cog_rear_m] / bicycle.yaw_inertia_kgm2
+    w = np.diag(process.noise_psd(turning))
+    without = np.diag(ProcessModel(NOISE, bicycle, CONFIG.lateral_residual_time_constant_s)
+                      .noise_psd(turning))
+    yaw_rate = state_index("yaw_rate_radps")
+    assert np.abs(moments).min() > 0.5
+    assert w[yaw_rate] - without[yaw_rate] == pytest.approx(
+        relative_s * float(moments @ moments), rel=1e-9)
+    others = [i for i in range(len(STATE_NAMES)) if i != yaw_rate]
+    np.testing.assert_array_equal(w[others], without[others])
 
 
 def test_process_noise_grows_with_the_interval_as_expected(process: ProcessModel) -> None:
