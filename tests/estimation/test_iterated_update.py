@@ -16,18 +16,13 @@ from estimation.ekf import Ekf
 from estimation.innovation import CheckedMeasurement, residual_function
 from estimation.registry import make_estimator
 from estimation.state import state_index
-
-T_S = 0.3
+from tests.estimation.test_joint_update import _filter as _joint_update_filter
 
 
 def _filter(**settings: object) -> Ekf:
-    """The lane change's filter at the start, its steering believed 0.08 rad off."""
-    config = load_config("lane-change")
-    estimator_config = dataclasses.replace(config.estimator, **settings)
-    filter_ = make_estimator(estimator_config, config.initial, config.tracker.model,
-                             rng=np.random.default_rng(11))
-    assert isinstance(filter_, Ekf)
-    filter_.predict(T_S)
+    """The lane change's filter of ``test_joint_update``, its steering believed 0.08 rad
+    off."""
+    filter_ = _joint_update_filter(**settings)
     mean = filter_._x.copy()
     mean[state_index("steer_rad")] += 0.08
     filter_._set_mean(mean)
@@ -44,7 +39,7 @@ def _checked(filter_: Ekf) -> list[CheckedMeasurement]:
         model = filter_._models[sensor]
         h, _ = model.evaluate(truth)
         values = np.array([h[model.channels.index(name)] for name in names])
-        measurements.append(Measurement(sensor, T_S, names, values, np.eye(len(names))))
+        measurements.append(Measurement(sensor, filter_.t_s, names, values, np.eye(len(names))))
     checked = [filter_._check(m) for m in measurements]
     assert all(isinstance(c, CheckedMeasurement) for c in checked)
     return checked  # type: ignore[return-value]
