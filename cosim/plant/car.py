@@ -48,10 +48,12 @@ from __future__ import annotations
 
 import math
 import warnings
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
+from cosim.core.built_once import built_once
 from cosim.core.compiled_function import CompiledCacheWarning, compiler
 from cosim.core.exceptions import PhysicsDivergenceError
 from cosim.core.initial_state import InitialState
@@ -98,7 +100,8 @@ class MujocoPlant:
     """
 
     def __init__(self, config: PlantConfig, physics_dt_s: float, initial: InitialState,
-                 one_call_tyres: bool = True, traffic: Traffic | None = None) -> None:
+                 one_call_tyres: bool = True, traffic: Traffic | None = None,
+                 settle_here: bool = False) -> None:
         self.config = config
         self.initial = initial
         self.traffic = traffic
@@ -126,7 +129,16 @@ class MujocoPlant:
         self._steps: CompiledSteps | None = self._compiled_steps()
         """The physics steps in one C call (:mod:`cosim.plant.compiled_steps`); None: the
         Python step (slip control, no C compiler, the plain tyre reference)."""
-        self._settle()
+        # The car at rest depends on its configuration alone: found once per process
+        # (static_equilibrium), here when the model also holds traffic cars.
+        self.equilibrium: StaticEquilibrium = (
+            self._settle() if settle_here or traffic is not None
+            else static_equilibrium(config, self.physics_dt_s, one_call_tyres))
+        """The static equilibrium the car starts from (:meth:`reset`)."""
+        eq = self.equilibrium
+        self._eq_z_m, self._eq_roll_rad, self._eq_pitch_rad = eq.z_m, eq.roll_rad, eq.pitch_rad
+        self._eq_suspension_m, self._rolling_radius_m = eq.suspension_m, eq.rolling_radius_m
+        self._static_load_n = eq.static_load_n
         self.reset()
 
     def _compiled_steps(self) -> CompiledSteps | None:
@@ -232,8 +244,8 @@ class MujocoPlant:
                         [wheel in driven for wheel in WHEEL_NAMES])
             if cfg.slip_control.enabled else None)
 
-    def _settle(self) -> None:
-        """Let the car stand until its suspension is at rest; remember that equilibrium.
+    def _settle(self) -> StaticEquilibrium:
+        """Let the car stand until its suspension is at rest: that equilibrium.
 
         The springs are preloaded for the static corner loads (sedan_layout), so this only
         takes up the tyre contacts' small penetration; it records the chassis height, roll
@@ -253,13 +265,7 @@ class MujocoPlant:
         qpos = d.qpos.tolist()
         qw, qx, qy, qz = qpos[self._quat_slice]
         roll, pitch, _ = euler_zyx(qw, qx, qy, qz)
-        self._eq_z_m = qpos[self._pos_slice][2]
-        self._eq_roll_rad, self._eq_pitch_rad = roll, pitch
-        self._eq_suspension_m = tuple(qpos[a] for a in self._suspension_qpos)
         radius = self._tyre_radius_m
-        self._rolling_radius_m = tuple(
-            0.5 * (radius + float(d.xpos[b, 2])) for b in self._wheel_body
-        )
         loads = dict.fromkeys(WHEEL_NAMES, 0.0)
         wrench = np.zeros(6)
         for i in range(d.ncon):
@@ -268,7 +274,12 @@ class MujocoPlant:
                 if geom in self._tyre_geom:
                     mujoco.mj_contactForce(m, d, i, wrench)
                     loads[self._tyre_geom[geom]] += float(wrench[0])
-        self._static_load_n = tuple(loads[w] for w in WHEEL_NAMES)
+        return StaticEquilibrium(
+            z_m=qpos[self._pos_slice][2], roll_rad=roll, pitch_rad=pitch,
+            suspension_m=tuple(qpos[a] for a in self._suspension_qpos),
+            rolling_radius_m=tuple(0.5 * (radius + float(d.xpos[b, 2]))
+                                   for b in self._wheel_body),
+            static_load_n=tuple(loads[w] for w in WHEEL_NAMES))
 
     # ------------------------------------------------------------------- protocol
 
@@ -546,3 +557,30 @@ class MujocoPlant:
                 f"|qvel| = {float(np.linalg.norm(qvel)):.3g}; physics_dt_s = "
                 f"{self.physics_dt_s})"
             )
+
+
+@dataclass(frozen=True)
+class StaticEquilibrium:
+    """The car standing at rest (:meth:`MujocoPlant._settle`): chassis height, roll and
+    pitch, each suspension deflection and rolling radius, each wheel's load (WHEEL_NAMES
+    order)."""
+
+    z_m: float
+    roll_rad: float
+    pitch_rad: float
+    suspension_m: tuple[float, ...]
+    rolling_radius_m: tuple[float, ...]
+    static_load_n: tuple[float, ...]
+
+
+@built_once
+def static_equilibrium(config: PlantConfig, physics_dt_s: float,
+                       one_call_tyres: bool) -> StaticEquilibrium:
+    """The static equilibrium of the car of ``config``, found once per process: a car of
+    its own let stand for :data:`SETTLE_DURATION_S` (750 MuJoCo steps of the default 2 ms,
+    some 30 ms that every run's plant would otherwise repeat). Its warnings (no C compiler)
+    are the plant's to give, once."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", CompiledCacheWarning)
+        return MujocoPlant(config, physics_dt_s, InitialState(), one_call_tyres,
+                           settle_here=True).equilibrium
