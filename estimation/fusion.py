@@ -259,8 +259,7 @@ class KalmanFusion(ABC):
         if dim < 1:
             raise ValueError(f"dim = {dim}: expected at least one channel")
         if dim not in self._gate_thresholds:
-            self._gate_thresholds[dim] = chi_square_quantile(self._config.gate_probability,
-                                                             dim)
+            self._gate_thresholds[dim] = chi_square_quantile(self._config.gate_probability, dim)
         return self._gate_thresholds[dim]
 
     def _hot_functions(self) -> tuple[DenseFunction, ...]:
@@ -319,9 +318,9 @@ class KalmanFusion(ABC):
                 f"{measurement.sensor} measurement: {size} names but values of shape "
                 f"{values.shape} and covariance of shape {covariance.shape}"
             )
-        columns = list(selection.measurement_columns)
         # Every channel, in order: no selection needed.
-        z = values if columns == list(range(size)) else values[columns]
+        z = values if selection.every_column and len(selection.measurement_columns) == size \
+            else values[list(selection.measurement_columns)]
         t_s = float(measurement.t_s)
         if not (math.isfinite(t_s) and np.isfinite(z).all()):
             return NON_FINITE, dim
@@ -557,9 +556,8 @@ class KalmanFusion(ABC):
         return self._commit(innovation.trial.mean, innovation.trial.covariance)
 
     def _commit(self, mean: np.ndarray, covariance: np.ndarray) -> bool:
-        """Make ``mean`` and ``covariance`` (symmetrised) the belief; refuse (return False,
-        belief unchanged) if they are non-finite or the covariance is not positive
-        definite."""
+        """Make ``mean`` and ``covariance`` (symmetrised) the belief; refuse (False, the
+        belief unchanged) if they are non-finite or the covariance not positive definite."""
         mean = np.asarray(mean, dtype=float).reshape(-1)
         covariance = np.asarray(covariance, dtype=float)
         covariance = 0.5 * (covariance + covariance.T)
@@ -569,9 +567,8 @@ class KalmanFusion(ABC):
             np.linalg.cholesky(covariance)
         except np.linalg.LinAlgError:
             return False
-        self._set_mean(mean)
-        self._set_covariance(covariance)
-        self._normalise()
+        self._set_covariance(covariance)  # symmetric already: _normalise's mean only
+        self._set_wrapped_mean(mean)
         return True
 
     def _gate_and_fuse(
@@ -689,12 +686,15 @@ class KalmanFusion(ABC):
 
     def _normalise(self) -> None:
         """Wrap the angle states and symmetrise the covariance."""
-        x = np.array(self._x, dtype=float).reshape(-1)
+        self._set_wrapped_mean(self._x)
+        p = self._p
+        self._set_covariance(0.5 * (p + p.T))
+
+    def _set_wrapped_mean(self, mean: np.ndarray) -> None:
+        x = np.array(mean, dtype=float).reshape(-1)
         for index in self._angle_indices:
             x[index] = wrap_angle(x[index])
         self._set_mean(x)
-        p = self._p
-        self._set_covariance(0.5 * (p + p.T))
 
     def _is_finite(self) -> bool:
         return bool(np.isfinite(self._x).all() and np.isfinite(self._p).all())

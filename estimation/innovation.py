@@ -5,6 +5,7 @@ innovation ``y = z - h(x)`` and its covariance ``S``)."""
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -22,6 +23,11 @@ class Selection:
     measurement_columns: tuple[int, ...]
     angle_rows: tuple[int, ...]
     model_variance: np.ndarray
+
+    @functools.cached_property
+    def every_column(self) -> bool:
+        """Whether the measurement's every channel is fused, in its order (no selection)."""
+        return self.measurement_columns == tuple(range(len(self.measurement_columns)))
 
 
 @dataclass(frozen=True)
