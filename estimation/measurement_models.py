@@ -59,6 +59,16 @@ class MeasurementModel:
         """``h(x)``, one value per channel."""
         return self.value_function.vector(np.reshape(x, -1))
 
+    @functools.cached_property
+    def linear(self) -> bool:
+        """Whether ``h`` is linear in the state (its Jacobian does not depend on it, as
+        CasADi's graph of the model says): a sensor that measures states themselves."""
+        function = self.function.function
+        x = ca.SX.sym("x", function.size1_in(0))
+        rest = [ca.SX.sym(f"p{i}", function.sparsity_in(i)) for i in range(1, function.n_in())]
+        _, jacobian = function(x, *rest)
+        return not ca.depends_on(jacobian, x)
+
     def select(self, names: tuple[str, ...]) -> tuple[tuple[int, ...], tuple[int, ...]]:
         """Rows of the model and columns of the measurement for the channels in ``names``.
 
