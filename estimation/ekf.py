@@ -204,6 +204,7 @@ def _stacked(blocks: list[tuple[MeasurementModel, Selection, np.ndarray, np.ndar
     return _Stack(np.concatenate(values), np.vstack(jacobians), np.concatenate(measured),
                   tuple(angle_rows))
 
+
 def block_diagonal(blocks: list[np.ndarray]) -> np.ndarray:
     """The square blocks on the diagonal of one matrix, zeros elsewhere (what
     ``scipy.linalg.block_diag`` gives, without its general-purpose checks: a joint update

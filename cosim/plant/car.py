@@ -135,10 +135,6 @@ class MujocoPlant:
             self._settle() if settle_here or traffic is not None
             else static_equilibrium(config, self.physics_dt_s, one_call_tyres))
         """The static equilibrium the car starts from (:meth:`reset`)."""
-        eq = self.equilibrium
-        self._eq_z_m, self._eq_roll_rad, self._eq_pitch_rad = eq.z_m, eq.roll_rad, eq.pitch_rad
-        self._eq_suspension_m, self._rolling_radius_m = eq.suspension_m, eq.rolling_radius_m
-        self._static_load_n = eq.static_load_n
         self.reset()
 
     def _compiled_steps(self) -> CompiledSteps | None:
@@ -293,12 +289,12 @@ class MujocoPlant:
         commands are zero (no drive, no brake, steering straight). Traffic cars, if any, are
         back at their start.
         """
-        m, d, init = self._model, self._data, self.initial
+        m, d, init, eq = self._model, self._data, self.initial, self.equilibrium
         mujoco.mj_resetData(m, d)
         qpos, qvel = d.qpos, d.qvel
-        qpos[self._pos_slice] = (init.x_m, init.y_m, self._eq_z_m)
-        qpos[self._quat_slice] = quaternion_zyx(init.yaw_rad, self._eq_pitch_rad, self._eq_roll_rad)
-        for adr, value in zip(self._suspension_qpos, self._eq_suspension_m, strict=True):
+        qpos[self._pos_slice] = (init.x_m, init.y_m, eq.z_m)
+        qpos[self._quat_slice] = quaternion_zyx(init.yaw_rad, eq.pitch_rad, eq.roll_rad)
+        for adr, value in zip(self._suspension_qpos, eq.suspension_m, strict=True):
             qpos[adr] = value
         speed = init.speed_mps
         qvel[self._linvel_slice] = (
@@ -306,12 +302,12 @@ class MujocoPlant:
             speed * math.sin(init.yaw_rad),
             0.0,
         )
-        for dof, radius in zip(self._spin_dof, self._rolling_radius_m, strict=True):
+        for dof, radius in zip(self._spin_dof, eq.rolling_radius_m, strict=True):
             qvel[dof] = speed / radius
         for dof in self._spin_dof:
             self._dof_damping[dof] = 0.0
         if self._tyres is not None:
-            self._tyres.reset(self._static_load_n)
+            self._tyres.reset(eq.static_load_n)
         mujoco.mj_forward(m, d)
         self._check(d.time)
         self._drive_cmd_nm = 0.0
@@ -325,7 +321,7 @@ class MujocoPlant:
             state[:] = 0.0
             state[[STEPS["prev_vx_mps"], STEPS["prev_vy_mps"], STEPS["prev_vz_mps"]]] = \
                 self._prev_linvel
-            state[STEPS["load0_n"]:STEPS["load0_n"] + 4] = self._static_load_n
+            state[STEPS["load0_n"]:STEPS["load0_n"] + 4] = eq.static_load_n
         self._last_command: ActuatorCommand | None = None
         if self.traffic is not None:
             self.traffic.place(d, 0.0)
@@ -526,7 +522,7 @@ class MujocoPlant:
     @property
     def rolling_radius_m(self) -> tuple[float, float, float, float]:
         """Each wheel's loaded rolling radius at static equilibrium, WHEEL_NAMES order."""
-        return self._rolling_radius_m  # type: ignore[return-value]
+        return self.equilibrium.rolling_radius_m  # type: ignore[return-value]
 
     def tyre_forces(self) -> tuple[TyreForces, ...] | None:
         """Each tyre's load, slip and forces of the last step, ``WHEEL_NAMES`` order;
@@ -536,7 +532,7 @@ class MujocoPlant:
     @property
     def static_wheel_load_n(self) -> tuple[float, float, float, float]:
         """Each tyre's normal contact force at static equilibrium, WHEEL_NAMES order [N]."""
-        return self._static_load_n  # type: ignore[return-value]
+        return self.equilibrium.static_load_n  # type: ignore[return-value]
 
     # -------------------------------------------------------------------- helpers
 
