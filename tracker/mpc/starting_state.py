@@ -51,11 +51,26 @@ class StartingState:
         self._rest_inputs = internal_rest_inputs
         self._predict_function = DenseFunction(densified(predict)).first
         self._issued = issued
+        self._gathered: tuple[tuple[str, ...], np.ndarray, np.ndarray] | None = None
         self.reset()
 
     def reset(self) -> None:
         """Forget the last step's state (the internal states restart at rest)."""
         self._last: tuple[float, np.ndarray] | None = None
+
+    def _gather(self, names: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
+        """Where the estimated states sit in an estimate with ``names`` and in the model's
+        state (found once per estimator: an estimator keeps its names); a missing one is a
+        :class:`ConfigError`."""
+        if self._gathered is None or self._gathered[0] != names:
+            missing = [name for name in self._estimated if name not in names]
+            if missing:
+                raise ConfigError(f"{self._who}: the estimate has no {', '.join(missing)}: "
+                                  "expected an estimator that reports them")
+            self._gathered = (names,
+                              np.array([names.index(n) for n in self._estimated], dtype=int),
+                              np.array([self._index[n] for n in self._estimated], dtype=int))
+        return self._gathered[1], self._gathered[2]
 
     def predict(self, state: np.ndarray, start_s: float, end_s: float) -> np.ndarray:
         """``state`` at ``start_s`` moved to ``end_s`` through the inputs the car applies
@@ -81,13 +96,9 @@ class StartingState:
     def at(self, t_s: float, estimate: Estimate) -> np.ndarray:
         """The estimate's states and the internal ones at ``estimate.t_s``, predicted to
         ``max(t_s, estimate.t_s)`` plus the delay; NaN entries stay unpredicted."""
-        missing = [name for name in self._estimated if name not in estimate]
-        if missing:
-            raise ConfigError(f"{self._who}: the estimate has no {', '.join(missing)}: "
-                              "expected an estimator that reports them")
+        source, target = self._gather(estimate.names)
         state = np.full(len(self._index), np.nan)
-        for name in self._estimated:
-            state[self._index[name]] = estimate[name]
+        state[target] = np.asarray(estimate.mean, dtype=float).reshape(-1)[source]
         for name, value in self._internal_states(estimate.t_s).items():
             state[self._index[name]] = value
         self._last = (estimate.t_s, state.copy())
