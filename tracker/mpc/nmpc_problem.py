@@ -387,10 +387,14 @@ class NmpcProblem:
                 oracle = ca.nlpsol(name, "fatrop", dict(problem.nlp), options)
                 return [oracle.oracle(), *map(oracle.get_function, oracle.get_function())]
 
-            # The NLP's graph and the options determine every derived function; hashing
-            # them (about 1 ms) instead of the generated C (0.1 s) finds the cached library.
+            # The NLP's graph and the interface's options determine every derived function;
+            # hashing them (about 1 ms) instead of the generated C (0.1 s) finds the cached
+            # library. fatrop's own settings (tolerance, iteration limit, barrier) are read
+            # when it solves, not compiled: they are not in the key, so a sweep over
+            # tracker.tolerance or tracker.max_iterations builds one library.
             nlp = problem.nlp
-            key = json.dumps(options, sort_keys=True) + ca.Function(
+            interface = {k: v for k, v in options.items() if k != "fatrop"}
+            key = json.dumps(interface, sort_keys=True) + ca.Function(
                 "nlp", [nlp["x"], nlp["p"]], [nlp["f"], nlp["g"]]).serialize()
             library = self._compiled_library(f"nmpc_{name}", functions, key, "NLP", 20)
             if library is not None:

@@ -436,10 +436,11 @@ def test_without_a_c_compiler_the_virtual_machine_solves_with_one_warning(
 def test_one_compiled_nlp_serves_every_belief_and_weighting(
         option: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
         capfd: pytest.CaptureFixture[str]) -> None:
-    # Every number of the model and every weight is a parameter of the compiled NLP: built
-    # once (in a fresh cache, with one note), it serves a car 30 % heavier with half the
-    # rear cornering stiffness and three times the lateral-error weight, and solves that
-    # NLP as CasADi's virtual machine does, not the default one.
+    # Every number of the model and every weight is a parameter of the compiled NLP, and the
+    # solver's tolerance and iteration limit are read when it solves: built once (in a fresh
+    # cache, with one note), it serves a car 30 % heavier with half the rear cornering
+    # stiffness, three times the lateral-error weight and another tolerance and limit, and
+    # solves that NLP as CasADi's virtual machine does, not the default one.
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
     default = _config("dynamic-nmpc", option)
     model = default.model
@@ -448,7 +449,8 @@ def test_one_compiled_nlp_serves_every_belief_and_weighting(
         model=dataclasses.replace(
             model, mass_kg=1.3 * model.mass_kg,
             cornering_stiffness_rear_npr=0.5 * model.cornering_stiffness_rear_npr),
-        weights=dataclasses.replace(default.weights, cte=3.0 * default.weights.cte))
+        weights=dataclasses.replace(default.weights, cte=3.0 * default.weights.cte),
+        tolerance=1e-4, max_iterations=default.max_iterations + 7)
     _tracker(default)
     assert capfd.readouterr().err.count("cosim: note: compiling") == 1
     compiled = _tracker(other)
