@@ -206,7 +206,7 @@ class TrackerConfig:
         doc="iteration limit of solvers ipopt and fatrop, and of sqp-rti from a cold guess"
     )
     tolerance: float = setting(
-        1e-6, low=1e-12, high=1.0,
+        1e-4, low=1e-12, high=1.0,
         doc="convergence tolerance of solvers ipopt and fatrop; sqp-rti from a cold guess "
         "stops once no entry of a step exceeds it"
     )

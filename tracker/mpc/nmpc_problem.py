@@ -367,9 +367,9 @@ class NmpcProblem:
         """
         cfg = self.config
         # The warm start (the previous plan shifted) is near the optimum, so the barrier
-        # starts small: mu_init = 1e-3 instead of fatrop's 0.1 takes 3 iterations instead
-        # of 5 (median, lane change) to the same optimum. Its warm_start_init_point (the
-        # multipliers too) failed a solve on the bench.
+        # starts small: mu_init = 1e-3 instead of fatrop's 0.1 took 3 iterations instead
+        # of 5 (median, lane change, at a tolerance of 1e-6) to the same optimum. Its
+        # warm_start_init_point (the multipliers too) failed a solve on the bench.
         options = {
             "print_time": False,
             "error_on_fail": False,
