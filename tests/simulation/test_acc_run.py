@@ -11,14 +11,19 @@ import pytest
 from cosim.core.exceptions import ConfigError
 from cosim.log.reader import iter_messages, read_summary
 from cosim.plots import plot_logs
-from cosim.simulation.runner import RunResult, run
+from cosim.simulation.runner import RunResult, run, run_unlogged
 from cosim.simulation.scenario_config import load_config
 
 
 def run_acc(tmp_path: Path, scenario: str, *overrides: str,
-            duration_s: float | None = None, name: str = "run") -> RunResult:
+            duration_s: float | None = None, name: str = "run",
+            logged: bool = True) -> RunResult:
+    """The scenario with the LQR path tracker; ``logged=False``: no log written (the same
+    metrics, bit for bit), for a test that reads the metrics alone."""
     config = load_config(scenario, overrides=["tracker.name=lqr", *overrides],
                          duration_s=duration_s)
+    if not logged:
+        return run_unlogged(config)
     return run(config, tmp_path / f"{name}.mcap")
 
 
@@ -176,7 +181,7 @@ def test_the_esc_gains_settle_on_the_acc_scenario(tmp_path: Path) -> None:
     """The whole ``acc`` scenario: ESC moves ``K_vrel`` from 0.3 to near the steady
     objective's minimum and every gain then stays within the settling tolerance over the last
     window (``esc_gain_drift_pct``, judged as docs/acc.md says)."""
-    result = run_acc(tmp_path, "acc")
+    result = run_acc(tmp_path, "acc", logged=False)
     metrics = result.metrics
     assert result.completed and result.outcome == "ok"
     esc = load_config("acc").tracker.acc.esc
@@ -195,7 +200,8 @@ def test_the_earlier_esc_tuning_fails_the_settling_judgement(tmp_path: Path) -> 
 
     with pytest.warns(EscTuningWarning, match="rule 'perturbation slower than the plant': "
                                               "k_x omega = 0.13 rad/s"):
-        result = run_acc(tmp_path, "acc", *ESC_BEFORE_SETTLING, duration_s=120.0)
+        result = run_acc(tmp_path, "acc", *ESC_BEFORE_SETTLING, duration_s=120.0,
+                         logged=False)
     metrics = result.metrics
     assert result.completed
     tolerance = load_config("acc").tracker.acc.esc.settle_tolerance_pct
