@@ -55,11 +55,10 @@ def add_parsers(commands: Any) -> dict[str, Handler]:
 
 def resolved_yaml(config: Any) -> str:
     """The configuration as the YAML a run logs (metadata ``run``, ``config_yaml``)."""
-    import yaml
-
+    from cosim.core import yaml_io
     from cosim.core.config_fields import to_dict
 
-    return yaml.safe_dump(to_dict(config), sort_keys=False)
+    return yaml_io.dumps(to_dict(config))
 
 
 def _format_default(value: Any) -> str:
@@ -130,14 +129,13 @@ def command(args: argparse.Namespace) -> int:
         if args.all:
             print(resolved_yaml(config), end="")
             return 0
-        import yaml
-
+        from cosim.core import yaml_io
         from cosim.core.config_fields import to_dict
         from cosim.simulation.used_config import used_config
 
         print("# What this run reads; the keys it does not read are left out "
               "(`cosim config show --all` prints them).")
-        print(yaml.safe_dump(used_config(to_dict(config)), sort_keys=False), end="")
+        print(yaml_io.dumps(used_config(to_dict(config))), end="")
         return 0
     rows = keys_table(args.prefix)
     header = ("key", "unit", "default", "accepted", "meaning")

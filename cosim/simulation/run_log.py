@@ -23,9 +23,9 @@ import json
 from typing import Any
 
 import numpy as np
-import yaml
 
 from cosim import __version__
+from cosim.core import yaml_io
 from cosim.core.config_fields import to_dict
 from cosim.core.records import ActuatorCommand, Command, Measurement, Plan
 from cosim.core.sensor_names import GNSS, TRUTH
@@ -99,7 +99,7 @@ class RunLog(Observer):
             "seed": str(config.seed),
             "epoch": config.sim.epoch,
             "epoch_ns": str(config.sim.epoch_ns),
-            "config_yaml": yaml.safe_dump(config_dict, sort_keys=False),
+            "config_yaml": yaml_io.dumps(config_dict),
             "config_json": json.dumps(config_dict),
             "versions": json.dumps(found),
             **{f"version_{k}": v for k, v in found.items()},

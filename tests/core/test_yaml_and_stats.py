@@ -7,9 +7,11 @@ import math
 
 import numpy as np
 import pytest
+import yaml
 
+from cosim.core.config_fields import to_dict
 from cosim.core.exceptions import ConfigError
-from cosim.core.yaml_io import SHOWN_CHARS, loads, shown
+from cosim.core.yaml_io import SHOWN_CHARS, dumps, loads, shown
 from cosim.simulation.running_stats import RunningStats, SampleBlock, Samples
 from cosim.simulation.scenario_config import load_config
 from cosim.sweeps.spec import load_spec
@@ -42,6 +44,16 @@ def test_a_duplicate_key_names_itself_and_its_line() -> None:
     with pytest.raises(ConfigError, match=r"line 3: key 'b' given twice"):
         loads("a: 1\nb: 2\nb: 3\n")
     assert loads("a: {b: 1}\nc: {b: 2}\n") == {"a": {"b": 1}, "c": {"b": 2}}
+
+
+@pytest.mark.parametrize("scenario", ["lane-change", "acc-cut-in", "track"])
+def test_dumped_yaml_is_pyyamls_text_and_reads_back(scenario: str) -> None:
+    # A run's configuration as its log keeps it: PyYAML's pure-Python text to the byte (the
+    # emitter may be libyaml's), numbers such as 1e-05 as YAML 1.2 floats again.
+    data = to_dict(load_config(scenario))
+    text = dumps(data)
+    assert text == yaml.safe_dump(data, sort_keys=False)
+    assert loads(text) == data
 
 
 def test_shown_values_are_bounded() -> None:
