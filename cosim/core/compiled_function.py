@@ -119,14 +119,24 @@ def _damage(entry: Path, name: str) -> str:
     except (OSError, ValueError, KeyError, TypeError, OverflowError, RecursionError):
         return f"its {MANIFEST} is missing or unreadable"
     try:
-        actual = library.stat().st_size
+        actual = library.stat()
     except OSError:
         return "the library is missing"
-    if actual != size:
-        return f"the library has {actual} bytes, {size} were written"
-    if _digest(library) != digest:
+    if actual.st_size != size:
+        return f"the library has {actual.st_size} bytes, {size} were written"
+    if _file_digest(str(library), actual.st_size, actual.st_mtime_ns, actual.st_ino) != digest:
         return "the library's SHA-256 differs from the one written"
     return ""
+
+
+@functools.lru_cache(maxsize=64)
+def _file_digest(path: str, size: int, mtime_ns: int, inode: int) -> str:
+    """:func:`_digest` of the file at ``path``, computed once per process for each version
+    of it (its size, modification time and inode name the version: a file rewritten,
+    truncated or replaced is hashed again). A run's libraries are checked at every run's
+    set-up; hashing the NLP's 2 MB again each time cost a millisecond a run."""
+    del size, mtime_ns, inode  # part of the key only
+    return _digest(Path(path))
 
 
 def _install(built: Path, entry: Path, name: str) -> Path:
@@ -251,20 +261,25 @@ def compiled_library(name: str, functions: Functions,
     if command is None:
         return None
     flags = (*flags, "-shared", "-fPIC")
-    with tempfile.TemporaryDirectory() as tmp:
-        source = Path(tmp, f"{name}.c")
-        own = b"".join(Path(extra).read_bytes() for extra in extra_sources)
-        hashed_flags = (*flags, *link_flags)
-        if key is None:
-            _generate(name, functions, tmp, edit_source)
-            digest = _source_digest(source.read_bytes() + own, hashed_flags)
-        else:
-            digest = _source_digest(f"{key}\ncasadi {ca.__version__}".encode() + own,
-                                    hashed_flags)
+    own = b"".join(Path(extra).read_bytes() for extra in extra_sources)
+    hashed_flags = (*flags, *link_flags)
+    entry = None
+    if key is not None:  # found without generating anything, nor a temporary folder
+        digest = _source_digest(f"{key}\ncasadi {ca.__version__}".encode() + own,
+                                hashed_flags)
         entry = cache_dir() / f"{name}-{digest[:16]}"
         found = _cached(entry, name)
         if found is not None:
             return found
+    with tempfile.TemporaryDirectory() as tmp:
+        source = Path(tmp, f"{name}.c")
+        if entry is None:
+            _generate(name, functions, tmp, edit_source)
+            digest = _source_digest(source.read_bytes() + own, hashed_flags)
+            entry = cache_dir() / f"{name}-{digest[:16]}"
+            found = _cached(entry, name)
+            if found is not None:
+                return found
         # One process builds an entry; another that needs it meanwhile (a sweep's workers on
         # an empty cache) waits, then loads it instead of building it too.
         with build_lock(entry):
