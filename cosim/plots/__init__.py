@@ -90,7 +90,10 @@ def plot_logs(paths: Sequence[Path | str], out_dir: Path | str | None = None,
     internal = estimation_internal_figure(runs, out / "estimation_internal.png")
     if internal is not None:
         written.insert(FIGURES.index("estimation") + 1, internal)
-    acc_logs = [load_acc(run.path) for run in runs]
+    # A log whose configuration has no traffic has no ACC topics: not read a second time
+    # for them (a log without its configuration, an old one, is).
+    acc_logs = [None if run.config and not run.config.get("traffic") else load_acc(run.path)
+                for run in runs]
     if any(log is not None for log in acc_logs):  # runs with traffic
         with_traffic = [(r, log) for r, log in zip(runs, acc_logs, strict=True)
                         if log is not None]
