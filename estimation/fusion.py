@@ -40,6 +40,7 @@ from estimation.belief_models import process_noise, roll_params
 from estimation.compiled_models import use_compiled
 from estimation.config import EstimatorConfig
 from estimation.consistency import chi_square_quantile
+from estimation.covariance_room import first_fix, room_for_jump, room_for_surprise
 from estimation.errors import EstimatorError
 from estimation.history import FusionState, Lookahead
 from estimation.initial import initial_belief
@@ -411,13 +412,18 @@ class KalmanFusion(ABC):
             if not math.isfinite(value) or (
                     self._config.gate and value > self.gate_threshold(len(c.selection.model_rows))):
                 return [self.update(m) for m in measurements]
-        if not self._commit(joint.mean, joint.covariance):
+        if not self._commit(joint.mean, joint.covariance, symmetric=True):
             return [self.update(m) for m in measurements]
         results = []
+        counts = self._counts
         for c, value in zip(checked, joint.nis, strict=True):
             dim = len(c.selection.model_rows)
-            self._forget_gate_failures(c.model, c.selection, tuple(range(dim)))
-            self._counts.setdefault(c.model.sensor, SensorCounts()).accepted += 1
+            if self._gate_failing_since_s:
+                self._forget_gate_failures(c.model, c.selection, tuple(range(dim)))
+            sensor = c.model.sensor
+            if sensor not in counts:
+                counts[sensor] = SensorCounts()
+            counts[sensor].accepted += 1
             results.append(UpdateResult(True, value, dim, ACCEPTED, value, dim))
         return results
 
@@ -555,12 +561,15 @@ class KalmanFusion(ABC):
         """Commit a trial update (:meth:`_commit`)."""
         return self._commit(innovation.trial.mean, innovation.trial.covariance)
 
-    def _commit(self, mean: np.ndarray, covariance: np.ndarray) -> bool:
-        """Make ``mean`` and ``covariance`` (symmetrised) the belief; refuse (False, the
+    def _commit(self, mean: np.ndarray, covariance: np.ndarray,
+                symmetric: bool = False) -> bool:
+        """Make ``mean`` and ``covariance`` (symmetrised, unless the caller's is
+        ``symmetric`` to the bit, as the joint update's is) the belief; refuse (False, the
         belief unchanged) if they are non-finite or the covariance not positive definite."""
         mean = np.asarray(mean, dtype=float).reshape(-1)
         covariance = np.asarray(covariance, dtype=float)
-        covariance = 0.5 * (covariance + covariance.T)
+        if not symmetric:
+            covariance = 0.5 * (covariance + covariance.T)
         if not (np.isfinite(mean).all() and np.isfinite(covariance).all()):
             return False
         try:
@@ -621,53 +630,24 @@ class KalmanFusion(ABC):
     def _take_first_fix(
         self, model: MeasurementModel, selection: Selection, z: np.ndarray, r_matrix: np.ndarray
     ) -> None:
-        """``first-fix``: the position becomes the fix, its covariance the believed GNSS
-        noise, uncorrelated with the other states (a receiver's cold start)."""
+        """:func:`estimation.covariance_room.first_fix`."""
         rows = [state_index(model.channels[row]) for row in selection.model_rows]
-        mean = np.array(self._x, dtype=float)
-        mean[rows] = z
-        covariance = np.array(self._p, dtype=float)
-        covariance[rows, :] = 0.0
-        covariance[:, rows] = 0.0
-        covariance[np.ix_(rows, rows)] = r_matrix
+        mean, covariance = first_fix(self._x, self._p, rows, z, r_matrix)
         self._set_mean(mean)
         self._set_covariance(covariance)
         self._awaiting_first_fix = False
 
     def _inflate_for_jump(self, jacobian: np.ndarray, innovation: np.ndarray) -> None:
-        """Make room for a persistent jump before a gate-released update.
-
-        A sensor that has disagreed for ``gate_release_s`` is believed: the state is taken
-        to have jumped. The covariance grows by ``G y y' G'`` with ``G = D H' (H D H')^-1``
-        and ``D = diag(P)``: the jump ``y`` is explained by the states the channels observe,
-        shared in proportion to their variances (a GNSS jump moves the position only, not
-        the speed through its correlation with the position). Afterwards the innovation has
-        NIS ``n / (1 + n)`` < 1 and the update fuses it as an ordinary measurement.
-        """
-        spread = np.diag(self._p)[:, None] * jacobian.T
-        gain = spread @ np.linalg.inv(jacobian @ spread)
-        jump = gain @ np.asarray(innovation, dtype=float).reshape(-1)
-        self._set_covariance(self._p + np.outer(jump, jump))
+        """:func:`estimation.covariance_room.room_for_jump`."""
+        self._set_covariance(room_for_jump(self._p, jacobian, innovation))
 
     def _inflate_for_surprise(self, jacobian: np.ndarray, innovation: np.ndarray) -> None:
-        """Make room for a manoeuvre an ungated sensor saw and the model did not predict.
-
-        The IMU is never gated: it is the filter's one direct view of sudden motion (a yaw
-        kick, a kerb strike). When its NIS is above the gate, the innovation is taken as a
-        jump of the states the process noise drives, the adjustable process noise of
-        Bar-Shalom, Li, Kirubarajan (2001), section 11.2: the covariance grows by
-        ``G y y' G'`` with ``G = Q H' (H Q H')^-1`` and ``Q`` the process noise of one
-        sub-step at the current mean, so a gyro's surprise moves the yaw rate (driven by
-        the yaw-acceleration noise) and not the gyro bias (driven by a slow random walk).
-        """
+        """:func:`estimation.covariance_room.room_for_surprise`, with the process noise of
+        one sub-step at the current mean."""
         shape = self._process.process_noise(self._x, self._config.max_step_s)
-        spread = shape @ jacobian.T
-        try:
-            gain = spread @ np.linalg.inv(jacobian @ spread)
-        except np.linalg.LinAlgError:
-            return
-        jump = gain @ np.asarray(innovation, dtype=float).reshape(-1)
-        self._set_covariance(self._p + np.outer(jump, jump))
+        covariance = room_for_surprise(self._p, shape, jacobian, innovation)
+        if covariance is not None:
+            self._set_covariance(covariance)
 
     def _selection(self, model: MeasurementModel, names: tuple[str, ...]) -> Selection:
         key = (model.sensor, names)
@@ -693,8 +673,11 @@ class KalmanFusion(ABC):
     def _set_wrapped_mean(self, mean: np.ndarray) -> None:
         x = np.array(mean, dtype=float).reshape(-1)
         for index in self._angle_indices:
-            x[index] = wrap_angle(x[index])
+            angle = x[index]
+            if not -math.pi < angle <= math.pi:  # inside, wrap_angle returns it untouched
+                x[index] = wrap_angle(angle)
         self._set_mean(x)
 
     def _is_finite(self) -> bool:
         return bool(np.isfinite(self._x).all() and np.isfinite(self._p).all())
+

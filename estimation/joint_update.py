@@ -166,22 +166,34 @@ class JointUpdate:
         """``(x, x_l, P, z, r, mask) -> (x+, P+, NIS per model, linearisation error)``, the
         belief set once."""
         self._order = tuple(models)
-        self._stack_rows: dict[tuple[str, tuple[int, ...]], tuple[int, np.ndarray]] = {}
+        self._layouts: dict[tuple[tuple[str, tuple[int, ...]], ...], _Layout | None] = {}
         self._z = np.zeros(size)
-        self._r = np.ones(size)
-        self._mask = np.zeros(size)
 
-    def _rows(self, sensor: str, model_rows: tuple[int, ...]) -> tuple[int, np.ndarray]:
-        """The block of ``sensor`` and the rows of the stack its channels ``model_rows``
-        occupy (found once per selection)."""
-        key = (sensor, model_rows)
-        found = self._stack_rows.get(key)
-        if found is None:
-            offset = self._offsets[sensor]
-            found = (self._order.index(sensor),
-                     np.array([offset + row for row in model_rows], dtype=int))
-            self._stack_rows[key] = found
-        return found
+    def _layout(self, blocks: Sequence[tuple[MeasurementModel, Selection, np.ndarray]]
+                ) -> _Layout | None:
+        """Where the channels of ``blocks`` sit in the stack (found once per combination of
+        sensors and channels); None when two blocks share a model."""
+        key = tuple((model.sensor, selection.model_rows) for model, selection, _ in blocks)
+        layout = self._layouts.get(key)
+        if layout is None and key not in self._layouts:
+            seen: list[int] = []
+            rows: list[int] = []
+            for model, selection, _ in blocks:
+                block = self._order.index(model.sensor)
+                if block in seen:
+                    break
+                seen.append(block)
+                rows += [self._offsets[model.sensor] + row for row in selection.model_rows]
+            else:
+                mask = np.zeros(self._z.size)
+                mask[rows] = 1.0
+                variance = np.ones(self._z.size)
+                variance[rows] = np.concatenate([selection.model_variance
+                                                 for _, selection, _ in blocks])
+                layout = _Layout(np.array(rows, dtype=int), mask, variance,
+                                 np.array(seen, dtype=int))
+            self._layouts[key] = layout
+        return layout
 
     def __call__(self, mean: np.ndarray, covariance: np.ndarray,
                  blocks: Sequence[tuple[MeasurementModel, Selection, np.ndarray]],
@@ -190,23 +202,31 @@ class JointUpdate:
         block per model, with the models linearised at ``linearise_at`` (None: the prior
         ``mean``); None when two blocks share a model or the result is not finite
         (a singular ``S``: the caller then fuses them one by one, which tells why)."""
-        z, r, mask = self._z, self._r, self._mask
+        layout = self._layout(blocks)
+        if layout is None:
+            return None
+        z = self._z
         z.fill(0.0)
-        r.fill(1.0)
-        mask.fill(0.0)
-        seen: list[int] = []
-        for model, selection, values in blocks:
-            block, rows = self._rows(model.sensor, selection.model_rows)
-            if block in seen:
-                return None
-            seen.append(block)
-            z[rows] = values
-            r[rows] = selection.model_variance
-            mask[rows] = 1.0
+        z[layout.rows] = np.concatenate([values for _, _, values in blocks])
         posterior, posterior_covariance, nis, error = self.function(
-            mean, mean if linearise_at is None else linearise_at, covariance, z, r, mask)
-        nis = nis.reshape(-1)
-        if not (np.isfinite(posterior).all() and np.isfinite(nis[seen]).all()):
+            mean, mean if linearise_at is None else linearise_at, covariance, z,
+            layout.variance, layout.mask)
+        nis = nis.reshape(-1)[layout.blocks]
+        if not (np.isfinite(posterior).all() and np.isfinite(nis).all()):
             return None
         return JointPosterior(posterior.reshape(-1), posterior_covariance,
-                              tuple(float(nis[i]) for i in seen), float(error[0, 0]))
+                              tuple(nis.tolist()), float(error[0, 0]))
+
+
+@dataclass(frozen=True)
+class _Layout:
+    """Where one combination of measurements sits in the stack of every channel."""
+
+    rows: np.ndarray
+    """The stack's rows of the measurements' channels, in their order."""
+    mask: np.ndarray
+    """1 on those rows, 0 elsewhere."""
+    variance: np.ndarray
+    """Their noise variances on those rows, 1 elsewhere."""
+    blocks: np.ndarray
+    """Each measurement's model, as its position among the models."""

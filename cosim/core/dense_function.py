@@ -53,6 +53,11 @@ class DenseFunction:
             self._arguments = self._inputs[:-1]
         self.compiled = False
         """Whether the evaluation is compiled C (:meth:`use_compiled`)."""
+        # CasADi's (rows, columns) views of the buffers, made once: a call assigns through
+        # them and copies out of them (the same numbers as transposing at every call).
+        self._argument_views = tuple(array.T for array in self._arguments)
+        self._output_views = tuple(array.T for array in self._outputs)
+        self._scalar = tuple(view.size == 1 for view in self._argument_views)
 
     def fresh(self) -> DenseFunction:
         """The same function and parameters with buffers of its own, evaluated by CasADi's
@@ -69,12 +74,16 @@ class DenseFunction:
 
     def __call__(self, *args: np.ndarray | float) -> tuple[np.ndarray, ...]:
         """The outputs (each of the shape CasADi declares) for the inputs ``args``."""
-        if len(args) != len(self._arguments):
-            raise TypeError(f"{self.function.name()} takes {len(self._arguments)} inputs")
-        for array, value in zip(self._arguments, args, strict=True):
-            array.T[...] = np.reshape(value, array.T.shape)
+        views = self._argument_views
+        if len(args) != len(views):
+            raise TypeError(f"{self.function.name()} takes {len(views)} inputs")
+        for view, scalar, value in zip(views, self._scalar, args, strict=True):
+            if scalar and type(value) is float:
+                view[...] = value
+            else:
+                view[...] = np.reshape(value, view.shape)
         self._evaluate()
-        return tuple(array.T.copy() for array in self._outputs)
+        return tuple(view.copy() for view in self._output_views)
 
     def rows(self, *args: np.ndarray | float) -> tuple[np.ndarray, ...]:
         """Like calling, but inputs and outputs in numpy's transposed layout (one point per
