@@ -74,16 +74,19 @@ class DenseFunction:
 
     def __call__(self, *args: np.ndarray | float) -> tuple[np.ndarray, ...]:
         """The outputs (each of the shape CasADi declares) for the inputs ``args``."""
-        views = self._argument_views
-        if len(args) != len(views):
-            raise TypeError(f"{self.function.name()} takes {len(views)} inputs")
-        for view, scalar, value in zip(views, self._scalar, args, strict=True):
+        if len(args) != len(self._argument_views):
+            raise TypeError(f"{self.function.name()} takes {len(self._argument_views)} inputs")
+        self._set(args)
+        self._evaluate()
+        return tuple(view.copy() for view in self._output_views)
+
+    def _set(self, args: tuple[np.ndarray | float, ...]) -> None:
+        """The inputs' buffers hold ``args`` (CasADi's shapes; a scalar as it is)."""
+        for view, scalar, value in zip(self._argument_views, self._scalar, args, strict=True):
             if scalar and type(value) is float:
                 view[...] = value
             else:
                 view[...] = np.reshape(value, view.shape)
-        self._evaluate()
-        return tuple(view.copy() for view in self._output_views)
 
     def rows(self, *args: np.ndarray | float) -> tuple[np.ndarray, ...]:
         """Like calling, but inputs and outputs in numpy's transposed layout (one point per
@@ -98,8 +101,7 @@ class DenseFunction:
     def first(self, *args: np.ndarray | float) -> np.ndarray:
         """The first output, flattened (a column vector's entries), for the inputs
         ``args``."""
-        for array, value in zip(self._arguments, args, strict=True):
-            array.T[...] = np.reshape(value, array.T.shape)
+        self._set(args)
         self._evaluate()
         return self._outputs[0].ravel().copy()
 
