@@ -114,7 +114,7 @@ class Estimate:
     def sub_covariance(self, names: tuple[str, ...]) -> np.ndarray:
         """The covariance block of the named states, in the order given."""
         idx = [self.names.index(n) for n in names]
-        return self.covariance[np.ix_(idx, idx)]
+        return self.covariance[idx][:, idx]  # the rows, then their columns (np.ix_'s block)
 
     def to_message(self) -> dict[str, object]:
         message: dict[str, object] = {"t_s": self.t_s}

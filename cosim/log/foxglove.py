@@ -245,8 +245,9 @@ def plan_scene(plan: Plan) -> dict[str, object] | None:
         return None
     x_m, y_m = plan.column("x_m"), plan.column("y_m")
     finite = np.isfinite(x_m) & np.isfinite(y_m)
-    points = [_vector(round(float(x), 4), round(float(y), 4), PLAN_Z_M)
-              for x, y in zip(x_m[finite], y_m[finite], strict=True)]
+    z_m = float(PLAN_Z_M)
+    points = [{"x": round(x, 4), "y": round(y, 4), "z": z_m}  # a foxglove.Vector3 each
+              for x, y in zip(x_m[finite].tolist(), y_m[finite].tolist(), strict=True)]
     lines = [{
         "type": 0, "pose": _pose(0.0, 0.0, 0.0), "thickness": 0.08, "scale_invariant": False,
         "points": points, "color": _color(1.0, 0.55, 0.0), "colors": [], "indices": [],
@@ -261,6 +262,9 @@ def covariance_ellipse(covariance_xy: np.ndarray, n_sigma: float) -> Ellipse:
     minor, major = np.sqrt(np.clip(eigenvalues, 0.0, None))
     angle_rad = math.atan2(eigenvectors[1, 1], eigenvectors[0, 1])
     return Ellipse(n_sigma * float(major), n_sigma * float(minor), angle_rad)
+
+
+_POSITION = ("x_m", "y_m")
 
 
 def estimate_scene(estimate: Estimate, n_sigma: float = 3.0) -> dict[str, object]:
@@ -281,8 +285,8 @@ def estimate_scene(estimate: Estimate, n_sigma: float = 3.0) -> dict[str, object
             "shaft_length": 1.2, "shaft_diameter": 0.06, "head_length": 0.4,
             "head_diameter": 0.18, "color": _color(*magenta),
         })
-    covariance = estimate.sub_covariance(("x_m", "y_m"))
-    if np.all(np.isfinite(covariance)):
+    covariance = estimate.sub_covariance(_POSITION)
+    if np.isfinite(covariance).all():
         ellipse = covariance_ellipse(covariance, n_sigma)
         spheres.append({
             "pose": _pose(x_m, y_m, ESTIMATE_Z_M,
