@@ -89,7 +89,7 @@ class Measurement:
     def to_message(self) -> dict[str, object]:
         message: dict[str, object] = {"t_s": self.t_s, "sensor": self.sensor}
         message.update(zip(self.names, _json_floats(self.values), strict=True))
-        message["sigma"] = np.sqrt(np.diag(self.covariance)).tolist()
+        message["sigma"] = np.sqrt(np.asarray(self.covariance, dtype=float).diagonal()).tolist()
         return message
 
 

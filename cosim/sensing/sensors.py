@@ -229,7 +229,7 @@ class ImuSensor:
 
     def true_biases(self) -> dict[str, float]:
         """The bias each channel has now (zeros before the first sample)."""
-        return dict(zip(self.BIAS_NAMES, (float(b) for b in self.bias), strict=True))
+        return dict(zip(self.BIAS_NAMES, self.bias.tolist(), strict=True))
 
     def sample(self, truth: VehicleState, rng: np.random.Generator) -> Measurement:
         if self._bias is None:
