@@ -50,16 +50,23 @@ def section(factory: type) -> Any:
     return dataclasses.field(default_factory=factory, metadata={"doc": factory.__doc__ or ""})
 
 
+def _number(value: float) -> str:
+    """A bound as short as it can be written and still be itself (``1e+09``, ``0.5``; a
+    bound of 0.999999999 is not shown as 1, which it refuses)."""
+    short = f"{value:g}"
+    return short if float(short) == value else repr(value)
+
+
 def _expected(meta: dict[str, Any], kind: str) -> str:
     if meta.get("choices"):
         return "one of " + ", ".join(repr(c) for c in meta["choices"])
     low, high = meta.get("low"), meta.get("high")
     if low is not None and high is not None:
-        return f"{kind} in [{low:g}, {high:g}]"
+        return f"{kind} in [{_number(low)}, {_number(high)}]"
     if low is not None:
-        return f"{kind} >= {low:g}"
+        return f"{kind} >= {_number(low)}"
     if high is not None:
-        return f"{kind} <= {high:g}"
+        return f"{kind} <= {_number(high)}"
     return kind
 
 

@@ -58,6 +58,9 @@ def test_overrides_reach_nested_keys_with_yaml_types() -> None:
          "tracker.model.track_front_m = 0.2: expected 0 (track_m) or a track in [0.5, 3] m"),
         ("plant.tyre.longitudinal_friction_scale=4",
          "plant.tyre.longitudinal_friction_scale = 4: expected a number in [0.1, 3]"),
+        # A bound that six digits would round to the refused value is written out.
+        ("estimator.gate_probability=1",
+         "estimator.gate_probability = 1: expected a number in [0.5, 0.999999999]"),
     ],
 )
 def test_bad_values_name_the_key_and_the_expectation(override: str, fragment: str) -> None:
