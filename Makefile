@@ -7,7 +7,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 SCENARIO ?= lane-change
 
-.PHONY: demo test test-fast lint clean
+.PHONY: demo test test-fast lint clean bytecode
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -15,7 +15,14 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet -e '.[dev]'
 	touch $(STAMP)
 
-demo: $(STAMP)
+# The project's own modules compiled to bytecode once: every process a test or a user
+# starts then loads them instead of compiling some 38,000 lines again (0.15 s a process),
+# also where PYTHONDONTWRITEBYTECODE stops Python from writing them itself (compileall
+# writes them regardless; a module edited since is compiled afresh in memory, as always).
+bytecode: $(STAMP)
+	$(BIN)/python -m compileall -q cosim estimation tracker
+
+demo: bytecode
 	MUJOCO_GL=$${MUJOCO_GL:-disable} $(BIN)/cosim run $(SCENARIO)
 
 # The suite runs on every core (pytest-xdist); TEST_WORKERS=0 runs it in one process.
@@ -26,10 +33,10 @@ demo: $(STAMP)
 TEST_WORKERS ?= auto
 PYTEST := $(BIN)/python -m pytest -n $(TEST_WORKERS) --dist worksteal
 
-test: $(STAMP)
+test: bytecode
 	MUJOCO_GL=$${MUJOCO_GL:-disable} $(PYTEST)
 
-test-fast: $(STAMP)
+test-fast: bytecode
 	MUJOCO_GL=$${MUJOCO_GL:-disable} $(PYTEST) -m "not slow"
 
 lint: $(STAMP)
