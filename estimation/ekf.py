@@ -106,7 +106,8 @@ class Ekf(KalmanFusion):
                 best = latest  # Gauss-Newton may oscillate: the most nearly linear one stands
         if best is first:
             return first
-        return JointPosterior(best.mean, best.covariance, first.nis, best.linearisation_error)
+        return JointPosterior(best.mean, best.covariance, first.nis, best.linearisation_error,
+                              best.symmetric)
 
     def _linearised_update(self, checked: list[CheckedMeasurement],
                            at: np.ndarray | None) -> JointPosterior | None:

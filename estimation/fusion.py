@@ -412,7 +412,7 @@ class KalmanFusion(ABC):
             if not math.isfinite(value) or (
                     self._config.gate and value > self.gate_threshold(len(c.selection.model_rows))):
                 return [self.update(m) for m in measurements]
-        if not self._commit(joint.mean, joint.covariance, symmetric=True):
+        if not self._commit(joint.mean, joint.covariance, symmetric=joint.symmetric):
             return [self.update(m) for m in measurements]
         results = []
         counts = self._counts

@@ -66,6 +66,9 @@ class JointPosterior:
     linearisation_error: float = 0.0
     """The update's largest linearisation error, in standard deviations of the measurement
     noise (module docstring); 0 where it was not computed."""
+    symmetric: bool = False
+    """Whether :attr:`covariance` is symmetric to the bit (this module's function mirrors
+    its upper triangle; a numpy product is symmetric only to rounding)."""
 
 
 def _wrapped(angle: ca.SX) -> ca.SX:
@@ -215,7 +218,7 @@ class JointUpdate:
         if not (np.isfinite(posterior).all() and np.isfinite(nis).all()):
             return None
         return JointPosterior(posterior.reshape(-1), posterior_covariance,
-                              tuple(nis.tolist()), float(error[0, 0]))
+                              tuple(nis.tolist()), float(error[0, 0]), symmetric=True)
 
 
 @dataclass(frozen=True)
