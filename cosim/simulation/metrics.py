@@ -181,7 +181,7 @@ class MetricsAccumulator:
         self.last_cte_m = cte_m = projection.lateral_error_m
         self.last_heading_err_rad = heading_err_rad = float(
             wrap_angle(truth.yaw_rad - projection.path_yaw_rad))
-        ref_speed = float(self.reference.speed_ref(projection.s_m, truth.t_s))
+        ref_speed = self.reference.speed_ref_at(projection.s_m, truth.t_s)
         self.last_ref_speed_mps = ref_speed
         self.last_speed_err_mps = speed_err_mps = truth.speed_mps - ref_speed
         self._truth_block.add((cte_m, heading_err_rad, speed_err_mps))

@@ -112,6 +112,14 @@ class ReferencePath:
         """The reference speed at arc lengths ``s_m`` and times ``t_s`` [m/s]."""
         return self.speed_profile.speed_mps(self.wrap(s_m), np.asarray(t_s, dtype=float))
 
+    def speed_ref_at(self, s_m: float, t_s: float) -> float:
+        """:meth:`speed_ref` at one arc length and one time, as a float: the arc length
+        wrapped or clamped as :meth:`wrap` does, in plain floats (Python's ``%`` is numpy's
+        ``mod`` for floats, ``min``/``max`` its ``clip``)."""
+        s = float(s_m)
+        s = s % self.length_m if self.closed else min(max(s, 0.0), self.length_m)
+        return self.speed_profile.speed_at(s, float(t_s))
+
     def point(self, s_m: float) -> PathPoint:
         """The path at arc length ``s_m`` (clamped to the path, or wrapped when closed)."""
         s = float(self.wrap(s_m))

@@ -41,6 +41,11 @@ class SpeedProfile:
     def speed_mps(self, s_m: np.ndarray, t_s: np.ndarray) -> np.ndarray:
         raise NotImplementedError
 
+    def speed_at(self, s_m: float, t_s: float) -> float:
+        """:meth:`speed_mps` at one arc length and one time, as a float (the metrics ask
+        at every log instant)."""
+        return float(self.speed_mps(np.asarray(s_m, dtype=float), np.asarray(t_s, dtype=float)))
+
 
 @dataclass(frozen=True)
 class ConstantSpeed(SpeedProfile):
@@ -51,6 +56,9 @@ class ConstantSpeed(SpeedProfile):
     def speed_mps(self, s_m: np.ndarray, t_s: np.ndarray) -> np.ndarray:
         return np.full(np.broadcast(np.asarray(s_m), np.asarray(t_s)).shape,
                        self.top_speed_mps)
+
+    def speed_at(self, s_m: float, t_s: float) -> float:
+        return float(self.top_speed_mps)
 
 
 def _table(x: np.ndarray, v: np.ndarray, what: str) -> tuple[np.ndarray, np.ndarray]:

@@ -261,3 +261,32 @@ def test_the_crossing_search_matches_the_brute_force(seed: int, closed: bool) ->
     stride = np.where(rng.uniform(size=50) < 0.05, 30.0, rng.uniform(1.0, 3.0, 50))
     x, y = np.cumsum(stride * np.cos(heading)), np.cumsum(stride * np.sin(heading))
     assert first_self_intersection(x, y, closed) == _crossing_by_brute_force(x, y, closed)
+
+
+@pytest.mark.parametrize("closed", [True, False])
+def test_one_speed_is_the_arrays_speed_to_the_bit(closed: bool) -> None:
+    """``speed_ref_at`` (plain floats, for the metrics' every log instant) gives what
+    ``speed_ref`` gives at the same arc length and time: wrapped on a closed path, clamped on
+    an open one, for every kind of profile."""
+    circle = shapes.circle(20.0)
+    length = 2 * math.pi * 20.0
+    profiles = [
+        12.5,
+        SpatialSpeed(np.array([0.0, 40.0, 90.0]), np.array([10.0, 20.0, 14.0]),
+                     period_m=length if closed else None),
+        # Breakpoints past the path's end: only the path's own wrap or clamp keeps to it.
+        SpatialSpeed(np.array([-length, 0.0, 60.0, 2.0 * length]),
+                     np.array([3.0, 10.0, 20.0, 30.0])),
+        stop_and_go(12.0, cruise_s=4.0, stop_s=2.0, accel_mps2=2.0, decel_mps2=3.0,
+                    duration_s=30.0),
+    ]
+    arcs = [0.0, -0.0, 3.7, -1e-12, -3.7, length - 1e-9, length, length + 0.3, 3 * length + 7.1,
+            1e6, -1e6]
+    for profile in profiles:
+        path = ReferencePath(circle.x_m, circle.y_m, profile, closed=closed)
+        for s_m in arcs:
+            for t_s in (0.0, 5.5, 9.25, 40.0):
+                expected = float(path.speed_ref(s_m, t_s))
+                got = path.speed_ref_at(s_m, t_s)
+                assert type(got) is float
+                assert got == expected, (profile, s_m, t_s)
