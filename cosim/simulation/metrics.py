@@ -229,7 +229,7 @@ class MetricsAccumulator:
         """One measurement's outcome at its time ``t_s``: its NIS over all its channels
         against the prior, whether the gate then fused it or not."""
         nis, dim = update.joint_nis, update.joint_dim
-        if dim > 0 and np.isfinite(nis):
+        if dim > 0 and math.isfinite(nis):
             self.nis_per_dof.add(nis / dim)
             self.nis_sum[sensor] = self.nis_sum.get(sensor, 0.0) + nis
             self.nis_dof[sensor] = self.nis_dof.get(sensor, 0) + dim
