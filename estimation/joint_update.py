@@ -177,26 +177,25 @@ class JointUpdate:
         """Where the channels of ``blocks`` sit in the stack (found once per combination of
         sensors and channels); None when two blocks share a model."""
         key = tuple((model.sensor, selection.model_rows) for model, selection, _ in blocks)
-        layout = self._layouts.get(key)
-        if layout is None and key not in self._layouts:
-            seen: list[int] = []
-            rows: list[int] = []
-            for model, selection, _ in blocks:
-                block = self._order.index(model.sensor)
-                if block in seen:
-                    break
-                seen.append(block)
-                rows += [self._offsets[model.sensor] + row for row in selection.model_rows]
-            else:
-                mask = np.zeros(self._z.size)
-                mask[rows] = 1.0
-                variance = np.ones(self._z.size)
-                variance[rows] = np.concatenate([selection.model_variance
-                                                 for _, selection, _ in blocks])
-                layout = _Layout(np.array(rows, dtype=int), mask, variance,
-                                 np.array(seen, dtype=int))
-            self._layouts[key] = layout
-        return layout
+        if key not in self._layouts:
+            self._layouts[key] = self._new_layout(blocks)
+        return self._layouts[key]
+
+    def _new_layout(self, blocks: Sequence[tuple[MeasurementModel, Selection, np.ndarray]]
+                    ) -> _Layout | None:
+        seen: list[int] = []
+        rows: list[int] = []
+        for model, selection, _ in blocks:
+            block = self._order.index(model.sensor)
+            if block in seen:
+                return None
+            seen.append(block)
+            rows += [self._offsets[model.sensor] + row for row in selection.model_rows]
+        mask = np.zeros(self._z.size)
+        mask[rows] = 1.0
+        variance = np.ones(self._z.size)
+        variance[rows] = np.concatenate([selection.model_variance for _, selection, _ in blocks])
+        return _Layout(np.array(rows, dtype=int), mask, variance, np.array(seen, dtype=int))
 
     def __call__(self, mean: np.ndarray, covariance: np.ndarray,
                  blocks: Sequence[tuple[MeasurementModel, Selection, np.ndarray]],

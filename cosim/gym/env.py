@@ -210,7 +210,7 @@ class CosimEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         preview = reference.sample(projection.s_m + np.asarray(PREVIEW_M))
         values = [estimate[name] for name in ESTIMATE_NAMES] + [
             projection.lateral_error_m, float(np.arctan2(np.sin(heading), np.cos(heading))),
-            float(reference.speed_ref(projection.s_m, estimate.t_s)),
+            reference.speed_ref_at(projection.s_m, estimate.t_s),
             *preview["curvature_1pm"].tolist()]
         observation = np.asarray(values, dtype=np.float64)
         # A NaN (a filter that diverged) becomes the bound's middle, 0: still in the space.

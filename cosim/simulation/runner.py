@@ -100,7 +100,7 @@ def start_speed_resolved(config: ScenarioConfig, reference: ReferencePath) -> Sc
     if not initial.speed_from_profile:
         return config
     s_m = reference.project(initial.x_m, initial.y_m).s_m
-    speed_mps = float(reference.speed_ref(s_m, 0.0))
+    speed_mps = reference.speed_ref_at(s_m, 0.0)
     return dataclasses.replace(config, initial=dataclasses.replace(initial, speed_mps=speed_mps))
 
 

@@ -104,8 +104,8 @@ class SpeedLoop:
     def accel(self, pose: Pose, reference: ReferencePath, dt_s: float) -> float:
         s, t, v = pose.projection.s_m, pose.t_s, max(pose.vx_mps, 0.0)
         ahead = ACCEL_FEEDFORWARD_S
-        v_ref = float(reference.speed_ref(s, t))
-        v_next = float(reference.speed_ref(s + max(v, v_ref) * ahead, t + ahead))
+        v_ref = reference.speed_ref_at(s, t)
+        v_next = reference.speed_ref_at(s + max(v, v_ref) * ahead, t + ahead)
         error = v_ref - pose.vx_mps
         limit = self._cfg.integral_limit_mps
         self._integral = float(np.clip(self._integral + error * dt_s, -limit, limit))

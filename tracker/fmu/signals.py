@@ -149,7 +149,7 @@ class InputFeed:
             "cte_m": projection.lateral_error_m,
             "heading_err_rad": float(wrap_angle(yaw - projection.path_yaw_rad)),
             "speed_mps": math.hypot(estimate["vx_mps"], vy),
-            "ref_speed_mps": float(reference.speed_ref(projection.s_m, t_s)),
+            "ref_speed_mps": reference.speed_ref_at(projection.s_m, t_s),
             "curvature_1pm": projection.curvature_1pm,
             "path_s_m": projection.s_m,
         }
