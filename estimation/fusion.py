@@ -182,8 +182,9 @@ class KalmanFusion(ABC):
     def _set_covariance(self, covariance: np.ndarray) -> None: ...
 
     @abstractmethod
-    def _predict_substep(self, dt_s: float) -> None:
-        """Propagate mean and covariance over ``dt_s`` (at most ``max_step_s``)."""
+    def _predict_substep(self, dt_s: float) -> bool:
+        """Propagate mean and covariance over ``dt_s`` (at most ``max_step_s``); whether
+        the covariance is symmetric to the bit (not to be symmetrised again)."""
 
     @abstractmethod
     def _trial_update(
@@ -290,8 +291,7 @@ class KalmanFusion(ABC):
         substeps = max(1, math.ceil(interval_s / self._config.max_step_s - 1e-9))
         dt_s = interval_s / substeps
         for _ in range(substeps):
-            self._predict_substep(dt_s)
-            self._normalise()
+            self._normalise(symmetric=self._predict_substep(dt_s))
         self._t_s = float(t_s)
         if not self._is_finite():
             raise EstimatorError(
@@ -664,11 +664,13 @@ class KalmanFusion(ABC):
             self._selections[key] = Selection(model_rows, columns, angle_rows, variance)
         return self._selections[key]
 
-    def _normalise(self) -> None:
-        """Wrap the angle states and symmetrise the covariance."""
+    def _normalise(self, symmetric: bool = False) -> None:
+        """Wrap the angle states and symmetrise the covariance (unless ``symmetric`` to
+        the bit already: ``0.5 (P + P')`` would give it back unchanged)."""
         self._set_wrapped_mean(self._x)
-        p = self._p
-        self._set_covariance(0.5 * (p + p.T))
+        if not symmetric:
+            p = self._p
+            self._set_covariance(0.5 * (p + p.T))
 
     def _set_wrapped_mean(self, mean: np.ndarray) -> None:
         x = np.array(mean, dtype=float).reshape(-1)
