@@ -121,17 +121,11 @@ class Ekf(KalmanFusion):
         return joint(self._mean, self._covariance,
                      [(c.model, c.selection, c.z) for c in checked], at)
 
-    def _predict_substep(self, dt_s: float) -> bool:
-        """One RK4 sub-step of the process model for the mean; ``F P F' + Q``: in one
-        compiled call, symmetric already (True), where the models are C; else in numpy."""
-        predicted = self._process.predict(self._mean, self._covariance, dt_s)
-        if predicted is not None:
-            self._mean, self._covariance = predicted
-            return True
+    def _predict_substep(self, dt_s: float) -> None:
+        """One RK4 sub-step of the process model for the mean; ``F P F' + Q``."""
         mean, transition, noise = self._process.step(self._mean, dt_s)
         self._mean = mean.reshape(-1)
         self._covariance = covariance_prediction(self._covariance, transition, noise)
-        return False
 
     def _trial_update(
         self,

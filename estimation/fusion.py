@@ -182,9 +182,8 @@ class KalmanFusion(ABC):
     def _set_covariance(self, covariance: np.ndarray) -> None: ...
 
     @abstractmethod
-    def _predict_substep(self, dt_s: float) -> bool:
-        """Propagate mean and covariance over ``dt_s`` (at most ``max_step_s``); whether
-        the covariance is symmetric to the bit (not to be symmetrised again)."""
+    def _predict_substep(self, dt_s: float) -> None:
+        """Propagate mean and covariance over ``dt_s`` (at most ``max_step_s``)."""
 
     @abstractmethod
     def _trial_update(
@@ -291,7 +290,8 @@ class KalmanFusion(ABC):
         substeps = max(1, math.ceil(interval_s / self._config.max_step_s - 1e-9))
         dt_s = interval_s / substeps
         for _ in range(substeps):
-            self._normalise(symmetric=self._predict_substep(dt_s))
+            self._predict_substep(dt_s)
+            self._normalise()
         self._t_s = float(t_s)
         if not self._is_finite():
             raise EstimatorError(
@@ -664,13 +664,11 @@ class KalmanFusion(ABC):
             self._selections[key] = Selection(model_rows, columns, angle_rows, variance)
         return self._selections[key]
 
-    def _normalise(self, symmetric: bool = False) -> None:
-        """Wrap the angle states and symmetrise the covariance (unless ``symmetric`` to
-        the bit already: ``0.5 (P + P')`` would give it back unchanged)."""
+    def _normalise(self) -> None:
+        """Wrap the angle states and symmetrise the covariance."""
         self._set_wrapped_mean(self._x)
-        if not symmetric:
-            p = self._p
-            self._set_covariance(0.5 * (p + p.T))
+        p = self._p
+        self._set_covariance(0.5 * (p + p.T))
 
     def _set_wrapped_mean(self, mean: np.ndarray) -> None:
         x = np.array(mean, dtype=float).reshape(-1)

@@ -383,7 +383,6 @@ class _ProcessFunctions:
     noise: ca.Function
     psd: ca.Function
     mapped_mean_step: ca.Function | None
-    covariance_step: ca.Function
 
 
 @built_once
@@ -417,12 +416,6 @@ def _process_functions(numbers: _Belief, sigma_point_count: int) -> _ProcessFunc
         factor = factor * dt / (k + 2)
     q = 0.5 * (q + q.T)
 
-    # The EKF's whole sub-step, for C: F P F' + Q and its symmetric part, with F's zeros
-    # skipped (CasADi keeps the Jacobian's sparsity), and no F or Q copied out.
-    p = ca.SX.sym("p", n, n)
-    p_next = transition @ p @ transition.T + q
-    p_next = 0.5 * (p_next + p_next.T)
-
     mean_step = ca.Function("bicycle_mean_step", [x, dt, belief], [x_next])
     mapped = None
     if sigma_point_count:
@@ -439,8 +432,6 @@ def _process_functions(numbers: _Belief, sigma_point_count: int) -> _ProcessFunc
         noise=ca.Function("bicycle_noise", [x, dt, belief], [ca.densify(q)]),
         psd=ca.Function("bicycle_psd", [x, belief], [ca.densify(psd)]),
         mapped_mean_step=mapped,
-        covariance_step=ca.Function("bicycle_covariance_step", [x, p, dt, belief],
-                                    [x_next, ca.densify(p_next)]),
     )
 
 
@@ -487,8 +478,6 @@ class ProcessModel:
         self._psd_fast = DenseFunction(functions.psd, parameters=values)
         self._derivative_fast = DenseFunction(self.derivative_function, parameters=values)
         self._step_fast = DenseFunction(self.step_function, parameters=values)
-        self._covariance_step_fast = DenseFunction(functions.covariance_step,
-                                                   parameters=values)
         self._noise_fast = DenseFunction(functions.noise, parameters=values)
         self._mean_step_fast = DenseFunction(functions.mean_step, parameters=values)
         self._mapped_step: DenseFunction | None = None
@@ -498,7 +487,7 @@ class ProcessModel:
     def compiled_functions(self) -> tuple[DenseFunction, ...]:
         """The evaluators worth compiling to C (the EKF's sub-step), for
         :meth:`cosim.core.dense_function.DenseFunction.use_compiled`."""
-        return (self._step_fast, self._covariance_step_fast)
+        return (self._step_fast,)
 
     def derivative(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The noise-free time derivative of the state and its Jacobian ``A`` at ``x``."""
@@ -517,23 +506,6 @@ class ProcessModel:
         """
         self._check_step(dt_s)
         return self._step_fast(x, dt_s)
-
-    def predict(self, x: np.ndarray, p: np.ndarray,
-                dt_s: float) -> tuple[np.ndarray, np.ndarray] | None:
-        """One sub-step of mean and covariance, ``x' = f(x)`` and the symmetric part of
-        ``F P F' + Q``, in one compiled call; None when the model is not compiled (in
-        CasADi's virtual machine this function is slower than :meth:`step` and numpy).
-
-        The same algebra as :meth:`step` followed by ``F @ P @ F.T + Q`` and
-        ``0.5 (P + P')``; in C the sums run in another order, so the result differs from
-        numpy's in the last bits (the symmetric part is symmetric to the bit).
-        """
-        function = self._covariance_step_fast
-        if not function.compiled:
-            return None
-        self._check_step(dt_s)
-        mean, covariance = function(x, p, dt_s)
-        return mean.reshape(-1), covariance
 
     def noise_psd(self, x: np.ndarray) -> np.ndarray:
         """The white-noise PSD matrix ``W`` at ``x`` (diagonal; some entries grow with the

@@ -171,10 +171,9 @@ class Ukf(KalmanFusion):
             given[i] = result
         return given  # type: ignore[return-value]
 
-    def _predict_substep(self, dt_s: float) -> bool:
+    def _predict_substep(self, dt_s: float) -> None:
         self._kf.Q = self._process.process_noise(self._kf.x, dt_s)
         self._kf.predict(dt_s)
-        return False
 
     def _trial_update(
         self,
