@@ -201,12 +201,18 @@ class EnsembleConsistency:
     def consistent(
         self, min_fraction: float = 0.9, nis_range: tuple[float, float] = (0.7, 1.4)
     ) -> bool:
-        """ANEES inside its band at ``min_fraction`` of the steps, and every sensor's NIS
-        per dof in ``nis_range``."""
+        """ANEES inside its band at ``min_fraction`` of the steps, at most half of the rest
+        on either side of it, and every sensor's NIS per dof in ``nis_range``.
+
+        A consistent filter leaves ``(1 - p) / 2`` of its steps on each side of the band;
+        the check allows twice ``1 - p`` outside in all and twice ``(1 - p) / 2`` on each
+        side: over-confidence (above) and under-confidence (below) are failures of their
+        own, and neither hides in the allowance the other did not use."""
         low, high = nis_range
-        return self.fraction_inside >= min_fraction and all(
-            low <= s.nis_per_dof <= high for s in self.nis.values()
-        )
+        tail = 0.5 * (1.0 - min_fraction)
+        return (self.fraction_inside >= min_fraction
+                and max(self.fraction_above, self.fraction_below) <= tail
+                and all(low <= s.nis_per_dof <= high for s in self.nis.values()))
 
     def lines(self) -> list[str]:
         """A human-readable report."""

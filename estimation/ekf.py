@@ -121,9 +121,9 @@ class Ekf(KalmanFusion):
         return joint(self._mean, self._covariance,
                      [(c.model, c.selection, c.z) for c in checked], at)
 
-    def _predict_substep(self, dt_s: float) -> None:
+    def _predict_substep(self, dt_s: float, command_rad: float | None) -> None:
         """One RK4 sub-step of the process model for the mean; ``F P F' + Q``."""
-        mean, transition, noise = self._process.step(self._mean, dt_s)
+        mean, transition, noise = self._process.step(self._mean, dt_s, command_rad)
         self._mean = mean.reshape(-1)
         self._covariance = covariance_prediction(self._covariance, transition, noise)
 

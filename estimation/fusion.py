@@ -59,6 +59,8 @@ from estimation.process_model import (
     ProcessModel,
 )
 from estimation.state import ANGLE_STATES, STATE_NAMES, state_index, wrap_angle
+from estimation.steering_commands import SteeringCommands
+from estimation.steering_model import SteeringBelief
 from estimation.timing import forward_interval_s, is_stale
 from estimation.update_result import (
     ACCEPTED,
@@ -121,7 +123,10 @@ class KalmanFusion(ABC):
             BicycleParams.from_vehicle(belief, config.tyre_model, roll),
             config.lateral_residual_time_constant_s,
             sigma_point_count=self._sigma_point_count(),
+            steering=SteeringBelief.from_vehicle(belief),
         )
+        self._commands = SteeringCommands()
+        """The steering commands told (:meth:`command`), which the predictions run along."""
         self._models: dict[str, MeasurementModel] = build_measurement_models(
             belief,
             wheel_model_sigma_mps=config.wheel_model_sigma_mps,
@@ -154,6 +159,7 @@ class KalmanFusion(ABC):
         self._counts: dict[str, SensorCounts] = {}
         self._gate_failing_since_s: dict[tuple[str, tuple[str, ...]], float] = {}
         self._lookahead: Lookahead | None = None
+        self._commands.clear()
 
     # ------------------------------------------------------------------- filter-specific
 
@@ -182,8 +188,9 @@ class KalmanFusion(ABC):
     def _set_covariance(self, covariance: np.ndarray) -> None: ...
 
     @abstractmethod
-    def _predict_substep(self, dt_s: float) -> None:
-        """Propagate mean and covariance over ``dt_s`` (at most ``max_step_s``)."""
+    def _predict_substep(self, dt_s: float, command_rad: float | None) -> None:
+        """Propagate mean and covariance over ``dt_s`` (at most ``max_step_s``), the
+        steering driven by ``command_rad`` (None: no command told yet)."""
 
     @abstractmethod
     def _trial_update(
@@ -287,17 +294,30 @@ class KalmanFusion(ABC):
             self._set_covariance(lookahead.covariance)
             self._t_s = lookahead.t_s
             return
-        substeps = max(1, math.ceil(interval_s / self._config.max_step_s - 1e-9))
-        dt_s = interval_s / substeps
-        for _ in range(substeps):
-            self._predict_substep(dt_s)
-            self._normalise()
+        for piece_s, command_rad in self._commands.pieces(self._t_s, float(t_s), interval_s):
+            substeps = max(1, math.ceil(piece_s / self._config.max_step_s - 1e-9))
+            dt_s = piece_s / substeps
+            for _ in range(substeps):
+                self._predict_substep(dt_s, command_rad)
+                self._normalise()
         self._t_s = float(t_s)
         if not self._is_finite():
             raise EstimatorError(
                 f"{self.kind} prediction to t_s = {t_s} s produced a non-finite state or "
                 "covariance"
             )
+
+    def command(self, t_s: float, steer_rad: float) -> None:
+        """The steering command ``steer_rad`` acts on the actuator from ``t_s`` on (the
+        controller's command, at the time the software believes it reaches the actuator):
+        from then on the predictions drive the steering states with it
+        (:mod:`estimation.steering_model`). ``t_s`` must not be before the filter's time
+        nor the last command's."""
+        if is_stale(self._t_s, float(t_s)):
+            raise ValueError(f"steering command at t_s = {t_s!r} s: the filter is at "
+                             f"{self._t_s!r} s already")
+        self._commands.add(t_s, steer_rad)
+        self._lookahead = None  # a prediction made before it may have run past t_s
 
     # ------------------------------------------------------------------------------ update
 
@@ -644,7 +664,8 @@ class KalmanFusion(ABC):
     def _inflate_for_surprise(self, jacobian: np.ndarray, innovation: np.ndarray) -> None:
         """:func:`estimation.covariance_room.room_for_surprise`, with the process noise of
         one sub-step at the current mean."""
-        shape = self._process.process_noise(self._x, self._config.max_step_s)
+        shape = self._process.process_noise(self._x, self._config.max_step_s,
+                                            self._commands.at(self._t_s))
         covariance = room_for_surprise(self._p, shape, jacobian, innovation)
         if covariance is not None:
             self._set_covariance(covariance)

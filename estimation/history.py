@@ -71,6 +71,8 @@ class Replayable(Protocol):
 
     def update_many(self, measurements: Sequence[Measurement]) -> list[UpdateResult]: ...
 
+    def command(self, t_s: float, steer_rad: float) -> None: ...
+
     def estimate(self) -> Estimate: ...
 
     def estimate_at(self, t_s: float) -> Estimate: ...
@@ -229,6 +231,11 @@ class FilterWithHistory:
 
     def update_many(self, measurements: Sequence[Measurement]) -> list[UpdateResult]:
         return self.history.fuse(self.filter, measurements)
+
+    def command(self, t_s: float, steer_rad: float) -> None:
+        """The filter's own timeline of commands: inputs, not state, so a re-run after a
+        late measurement meets them again (:mod:`estimation.steering_commands`)."""
+        self.filter.command(t_s, steer_rad)
 
     def estimate(self) -> Estimate:
         return self.filter.estimate()

@@ -107,6 +107,12 @@ from estimation.state import (
     stacked_states,
     state_index,
 )
+from estimation.steering_model import (
+    COMMAND_INPUTS,
+    SteeringBelief,
+    command_input,
+    steering_derivatives,
+)
 
 NOISE_SERIES_TERMS = 20
 """Terms of the power series of the discrete process noise (see the module docstring)."""
@@ -368,6 +374,7 @@ class _Belief:
     noise: ProcessNoise
     bicycle: BicycleParams
     residual_time_constant_s: float
+    steering: SteeringBelief
 
 
 @dataclass(frozen=True)
@@ -396,10 +403,12 @@ def _process_functions(numbers: _Belief, sigma_point_count: int) -> _ProcessFunc
     twin, belief = record.twin, record.vector
     n = len(STATE_NAMES)
     x = ca.SX.sym("x", n)
+    u = ca.SX.sym("u", len(COMMAND_INPUTS))
     dt = ca.SX.sym("dt_s")
 
     def derivative(state: ca.SX) -> ca.SX:
-        return _derivative(state, twin.bicycle, twin.residual_time_constant_s)
+        return _derivative(state, u, twin.bicycle, twin.residual_time_constant_s,
+                           twin.steering)
 
     x_next = rk4_step(derivative, x, dt)
     transition = ca.jacobian(x_next, x)
@@ -416,20 +425,21 @@ def _process_functions(numbers: _Belief, sigma_point_count: int) -> _ProcessFunc
         factor = factor * dt / (k + 2)
     q = 0.5 * (q + q.T)
 
-    mean_step = ca.Function("bicycle_mean_step", [x, dt, belief], [x_next])
+    mean_step = ca.Function("bicycle_mean_step", [x, u, dt, belief], [x_next])
     mapped = None
     if sigma_point_count:
-        # The belief is one input shared by every point (not repeated).
-        mapped = mean_step.map("bicycle_mean_steps", "serial", sigma_point_count, [2], [])
+        # The command and the belief are inputs shared by every point (not repeated).
+        mapped = mean_step.map("bicycle_mean_steps", "serial", sigma_point_count, [1, 3],
+                               [])
     return _ProcessFunctions(
         belief_names=record.names,
         belief_values=record.values,
-        derivative=ca.Function("bicycle_derivative", [x, belief],
+        derivative=ca.Function("bicycle_derivative", [x, u, belief],
                                [derivative(x), ca.densify(a)]),
-        step=ca.Function("bicycle_step", [x, dt, belief],
+        step=ca.Function("bicycle_step", [x, u, dt, belief],
                          [x_next, ca.densify(transition), ca.densify(q)]),
         mean_step=mean_step,
-        noise=ca.Function("bicycle_noise", [x, dt, belief], [ca.densify(q)]),
+        noise=ca.Function("bicycle_noise", [x, u, dt, belief], [ca.densify(q)]),
         psd=ca.Function("bicycle_psd", [x, belief], [ca.densify(psd)]),
         mapped_mean_step=mapped,
     )
@@ -451,6 +461,7 @@ class ProcessModel:
         bicycle: BicycleParams,
         residual_time_constant_s: float,
         sigma_point_count: int = 0,
+        steering: SteeringBelief | None = None,
     ) -> None:
         if not (
             math.isfinite(residual_time_constant_s)
@@ -465,21 +476,28 @@ class ProcessModel:
         self.noise = noise
         self.bicycle = bicycle
         self.residual_time_constant_s = residual_time_constant_s
+        self.steering = SteeringBelief() if steering is None else steering
+        """The steering actuator the commands drive (:mod:`estimation.steering_model`)."""
         functions = _process_functions(
-            _Belief(noise, bicycle, float(residual_time_constant_s)), sigma_point_count)
+            _Belief(noise, bicycle, float(residual_time_constant_s), self.steering),
+            sigma_point_count)
         self.belief_names: tuple[str, ...] = functions.belief_names
         """The numbers of the ``belief`` input of the model's functions, in order."""
         self.belief_values: np.ndarray = functions.belief_values.copy()
-        """Their values: this model's noise, bicycle and residual time constant."""
+        """Their values: this model's noise, bicycle, residual time constant and steering."""
         self.derivative_function = functions.derivative
         self.step_function = functions.step
-        """One sub-step, ``(x, dt_s, belief) -> (x_next, F, Q)``: the EKF's prediction."""
+        """One sub-step, ``(x, u, dt_s, belief) -> (x_next, F, Q)``: the EKF's prediction
+        (``u``: :data:`estimation.steering_model.COMMAND_INPUTS`)."""
         values = self.belief_values
         self._psd_fast = DenseFunction(functions.psd, parameters=values)
         self._derivative_fast = DenseFunction(self.derivative_function, parameters=values)
         self._step_fast = DenseFunction(self.step_function, parameters=values)
         self._noise_fast = DenseFunction(functions.noise, parameters=values)
         self._mean_step_fast = DenseFunction(functions.mean_step, parameters=values)
+        self._last_input: tuple[float | None, np.ndarray] = (None, command_input(None))
+        """The input vector of the last command asked for (a command is held for several
+        sub-steps: its vector is made once)."""
         self._mapped_step: DenseFunction | None = None
         if functions.mapped_mean_step is not None:
             self._mapped_step = DenseFunction(functions.mapped_mean_step, parameters=values)
@@ -489,36 +507,54 @@ class ProcessModel:
         :meth:`cosim.core.dense_function.DenseFunction.use_compiled`."""
         return (self._step_fast,)
 
-    def derivative(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The noise-free time derivative of the state and its Jacobian ``A`` at ``x``."""
-        f, a = self._derivative_fast(np.asarray(x, dtype=float).reshape(-1))
+    def derivative(self, x: np.ndarray,
+                   command_rad: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The noise-free time derivative of the state and its Jacobian ``A`` at ``x``, the
+        steering driven by ``command_rad`` (None: no command, :mod:`estimation.steering_model`)."""
+        f, a = self._derivative_fast(np.asarray(x, dtype=float).reshape(-1),
+                                     self._input(command_rad))
         return f.reshape(-1), a
+
+    def _input(self, command_rad: float | None) -> np.ndarray:
+        """The input vector of ``command_rad`` (:func:`command_input`), made once per
+        command."""
+        last_rad, vector = self._last_input
+        if command_rad is not last_rad and command_rad != last_rad:
+            vector = command_input(command_rad)
+            self._last_input = (command_rad, vector)
+        return vector
 
     @staticmethod
     def _check_step(dt_s: float) -> None:
         if not 0.0 <= dt_s <= MAX_STEP_S * (1.0 + 1e-9):
             raise ValueError(f"dt_s = {dt_s!r}: expected a sub-step in [0, {MAX_STEP_S}] s")
 
-    def step(self, x: np.ndarray, dt_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """One sub-step: the predicted mean (column), its Jacobian F and the noise Q.
+    def step(self, x: np.ndarray, dt_s: float, command_rad: float | None = None
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """One sub-step: the predicted mean (column), its Jacobian F and the noise Q, the
+        steering driven by ``command_rad`` through the sub-step (None: no command).
 
         ``dt_s`` must not exceed :data:`MAX_STEP_S` (the filters split longer intervals).
         """
         self._check_step(dt_s)
-        return self._step_fast(x, dt_s)
+        return self._step_fast(x, self._input(command_rad), dt_s)
 
     def noise_psd(self, x: np.ndarray) -> np.ndarray:
         """The white-noise PSD matrix ``W`` at ``x`` (diagonal; some entries grow with the
         tyre forces, see :class:`ProcessNoise`)."""
         return self._psd_fast(np.asarray(x, dtype=float).reshape(-1))[0]
 
-    def process_noise(self, x: np.ndarray, dt_s: float) -> np.ndarray:
-        """The discrete process noise Q of a sub-step, linearised at ``x``."""
+    def process_noise(self, x: np.ndarray, dt_s: float,
+                      command_rad: float | None = None) -> np.ndarray:
+        """The discrete process noise Q of a sub-step, linearised at ``x`` (and the
+        steering command ``command_rad``, None: none)."""
         self._check_step(dt_s)
-        return self._noise_fast(x, dt_s)[0]
+        return self._noise_fast(x, self._input(command_rad), dt_s)[0]
 
-    def propagate(self, points: np.ndarray, dt_s: float) -> np.ndarray:
-        """The RK4 sub-step of every row of ``points`` (one state per row), in one call.
+    def propagate(self, points: np.ndarray, dt_s: float,
+                  command_rad: float | None = None) -> np.ndarray:
+        """The RK4 sub-step of every row of ``points`` (one state per row), in one call, the
+        steering driven by ``command_rad`` (None: no command).
 
         Uses the Function mapped over ``sigma_point_count`` points if ``points`` has that
         many rows, else one call per point.
@@ -529,10 +565,11 @@ class ProcessModel:
             raise ValueError(
                 f"points of shape {points.shape}: expected (count, {len(STATE_NAMES)})"
             )
-        mapped = self._mapped_step
+        mapped, command = self._mapped_step, self._input(command_rad)
         if mapped is not None and points.shape[0] == mapped.function.size_in(0)[1]:
-            return mapped.rows(points, np.full(points.shape[0], dt_s))[0]
-        return np.vstack([self._mean_step_fast(p, dt_s)[0].reshape(-1) for p in points])
+            return mapped.rows(points, command, np.full(points.shape[0], dt_s))[0]
+        return np.vstack([self._mean_step_fast(p, command, dt_s)[0].reshape(-1)
+                          for p in points])
 
 
 def _force_noise(x: ca.SX, noise: ProcessNoise, bicycle: BicycleParams) -> ca.SX:
@@ -561,13 +598,17 @@ def _force_noise(x: ca.SX, noise: ProcessNoise, bicycle: BicycleParams) -> ca.SX
     return extra
 
 
-def _derivative(x: ca.SX, bicycle: BicycleParams,
-                residual_time_constant_s: ca.SX) -> ca.SX:
-    """The time derivative of the state without noise, (D1)-(D6), (R1)-(R2)."""
+def _derivative(x: ca.SX, command: ca.SX, bicycle: BicycleParams,
+                residual_time_constant_s: ca.SX, steering: SteeringBelief) -> ca.SX:
+    """The time derivative of the state without noise, (D1)-(D6), (R1)-(R2), the steering
+    driven by ``command`` (:data:`estimation.steering_model.COMMAND_INPUTS`) where there is
+    one, (S1)-(S3) of :mod:`estimation.steering_model`."""
     s = named_states(x)
     velocity_east, velocity_north = world_velocity(s)
     r = s["yaw_rate_radps"]
     force_front, force_rear = axle_forces(s, bicycle)
+    steer_change, steer_rate_change = steering_derivatives(
+        s["steer_rad"], s["steer_rate_radps"], command, steering)
     return stacked_states(
         {
             "x_m": velocity_east,  # (D6)
@@ -579,8 +620,8 @@ def _derivative(x: ca.SX, bicycle: BicycleParams,
                 bicycle.cog_front_m * force_front - bicycle.cog_rear_m * force_rear
             ) / bicycle.yaw_inertia_kgm2,  # (D5)
             "ax_mps2": 0.0,
-            "steer_rad": s["steer_rate_radps"],
-            "steer_rate_radps": 0.0,
+            "steer_rad": steer_change,
+            "steer_rate_radps": steer_rate_change,
             "roll_rad": s["roll_rate_radps"],
             "roll_rate_radps": roll_accel(s, bicycle),  # (R2)
             "lateral_accel_residual_mps2": (

@@ -73,6 +73,16 @@ class ObservableEstimator(Protocol):
 
 
 @runtime_checkable
+class TakesCommands(Protocol):
+    """An estimator told the controller's steering commands (the built-in filters drive
+    their steering states with them, :mod:`estimation.steering_model`)."""
+
+    def command(self, t_s: float, steer_rad: float) -> None:
+        """The command ``steer_rad`` acts on the steering actuator from ``t_s`` on, as the
+        software believes (the control instant plus ``tracker.latency_s``)."""
+
+
+@runtime_checkable
 class Restartable(Protocol):
     """An estimator that can start a new run from a new initial belief, keeping what it
     built from its configuration and belief (the built-in filters keep their compiled

@@ -87,10 +87,13 @@ class _BicycleUnscentedFilter(UnscentedKalmanFilter):
         self._process = process
         self._angles = [state_index(name) for name in ANGLE_STATES]
 
-    def compute_process_sigmas(self, dt: float, fx: object = None, **fx_args: object) -> None:
-        """Draw the sigma points of the current belief and propagate them all at once."""
-        del fx, fx_args
-        sigmas = self._process.propagate(self.points_fn.sigma_points(self.x, self.P), dt)
+    def compute_process_sigmas(self, dt: float, fx: object = None,
+                               command_rad: float | None = None) -> None:
+        """Draw the sigma points of the current belief and propagate them all at once, the
+        steering driven by ``command_rad`` (None: none; filterpy passes its ``fx_args``)."""
+        del fx
+        sigmas = self._process.propagate(self.points_fn.sigma_points(self.x, self.P), dt,
+                                         command_rad)
         reference = sigmas[0, self._angles]
         sigmas[:, self._angles] = reference + _wrap(sigmas[:, self._angles] - reference)
         self.sigmas_f = sigmas
@@ -171,9 +174,9 @@ class Ukf(KalmanFusion):
             given[i] = result
         return given  # type: ignore[return-value]
 
-    def _predict_substep(self, dt_s: float) -> None:
-        self._kf.Q = self._process.process_noise(self._kf.x, dt_s)
-        self._kf.predict(dt_s)
+    def _predict_substep(self, dt_s: float, command_rad: float | None) -> None:
+        self._kf.Q = self._process.process_noise(self._kf.x, dt_s, command_rad)
+        self._kf.predict(dt_s, command_rad=command_rad)
 
     def _trial_update(
         self,

@@ -58,6 +58,10 @@ class DenseFunction:
         self._argument_views = tuple(array.T for array in self._arguments)
         self._output_views = tuple(array.T for array in self._outputs)
         self._scalar = tuple(view.size == 1 for view in self._argument_views)
+        # A column vector's buffer is one numpy row: a 1-D argument goes into it as it is
+        # (the same numbers as reshaping it to the column first, without the reshape).
+        self._rows = tuple(array[0] if array.ndim == 2 and array.shape[0] == 1 else None
+                           for array in self._arguments)
 
     def fresh(self) -> DenseFunction:
         """The same function and parameters with buffers of its own, evaluated by CasADi's
@@ -82,9 +86,12 @@ class DenseFunction:
 
     def _set(self, args: tuple[np.ndarray | float, ...]) -> None:
         """The inputs' buffers hold ``args`` (CasADi's shapes; a scalar as it is)."""
-        for view, scalar, value in zip(self._argument_views, self._scalar, args, strict=True):
+        for view, row, scalar, value in zip(self._argument_views, self._rows, self._scalar,
+                                            args, strict=True):
             if scalar and type(value) is float:
                 view[...] = value
+            elif row is not None and type(value) is np.ndarray and value.ndim == 1:
+                row[...] = value
             else:
                 view[...] = np.reshape(value, view.shape)
 

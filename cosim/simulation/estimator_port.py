@@ -9,7 +9,9 @@ Three uses, three contracts (:mod:`estimation.protocol`):
   the log and the low-level layer), through ``estimate_at`` where the filter has it
   (:class:`ObservableEstimator`); otherwise its latest belief as it stands;
 - :attr:`EstimatorPort.fuse`: the measurements of one instant, together where the filter
-  can (:class:`JointUpdater`: one joint update, one gate), else one by one in order.
+  can (:class:`JointUpdater`: one joint update, one gate), else one by one in order;
+- :meth:`EstimatorPort.command`: the controller's steering command, from the time the
+  software believes it acts, to a filter that takes it (:class:`TakesCommands`).
 
 The capabilities are checked once, when the port is made: a protocol's ``isinstance``
 costs some 4 us, and the log looks at every instant.
@@ -20,7 +22,13 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 
 from cosim.core.records import Estimate, Measurement
-from estimation.protocol import CountsUpdates, Estimator, JointUpdater, ObservableEstimator
+from estimation.protocol import (
+    CountsUpdates,
+    Estimator,
+    JointUpdater,
+    ObservableEstimator,
+    TakesCommands,
+)
 from estimation.update_result import UpdateResult
 
 
@@ -34,6 +42,7 @@ class EstimatorPort:
             else self._one_by_one)
         """Fuses the measurements of one instant: their update results, in order."""
         self._observable = estimator if isinstance(estimator, ObservableEstimator) else None
+        self._commanded = estimator if isinstance(estimator, TakesCommands) else None
 
     def current(self, t_s: float) -> Estimate:
         """The filter predicted to ``t_s`` (it changes) and its estimate."""
@@ -45,6 +54,11 @@ class EstimatorPort:
         if self._observable is not None:
             return self._observable.estimate_at(t_s)
         return self.estimator.estimate()
+
+    def command(self, t_s: float, steer_rad: float) -> None:
+        """The steering command acting from ``t_s`` on, to a filter that takes commands."""
+        if self._commanded is not None:
+            self._commanded.command(t_s, steer_rad)
 
     def counts(self) -> dict[str, dict[str, int]]:
         """Accepted, gated and ignored updates per sensor, where the filter counts them."""

@@ -313,6 +313,9 @@ class _Run:
         for observer in self.observers:
             observer.controlled(t_s, plan, command, step_time_s)
         self.delay_line.append((k + self.clock.delay_steps, command))
+        # The filter drives its steering with the command from when the software believes
+        # it reaches the actuator (tracker.latency_s, the belief of the plant's delay).
+        self.filter.command(t_s + self.config.tracker.latency_s, command.steer_rad)
         if self.traffic is not None:
             self.traffic.after_control(t_s)
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+import math
 
 import numpy as np
 import pytest
@@ -47,7 +48,8 @@ def test_a_late_fix_leaves_the_filter_it_would_be_with_the_fix_on_time(
     # Whenever both have had the same fixes (at each delivery when the latency is shorter
     # than the 0.1 s between fixes; at the end, the fixes still in flight delivered, for
     # any latency) the late one is the on-time one, bit for bit: mean, covariance and
-    # counters; and a late fix's NIS is the one it had on time.
+    # counters; and a late fix's NIS is the one it had on time. Both are told a steering
+    # command at every control instant: the re-run after a late fix meets them again.
     on_time, late = _filter(name, 0.0), _filter(name, 0.3)
     held: list[Measurement] = []
     fix_nis: dict[float, float] = {}
@@ -62,8 +64,10 @@ def test_a_late_fix_leaves_the_filter_it_would_be_with_the_fix_on_time(
     next_control_s = CONTROL_PERIOD_S
     for t_s, batch in _instants(6.0):
         while next_control_s <= t_s + 1e-9:
-            on_time.predict(next_control_s)
-            late.predict(next_control_s)
+            steer_rad = 0.03 * math.sin(2.0 * next_control_s)
+            for filter_ in (on_time, late):
+                filter_.predict(next_control_s)
+                filter_.command(next_control_s, steer_rad)
             next_control_s += CONTROL_PERIOD_S
         due = [m for m in held if m.t_s + latency_s <= t_s + 1e-9]
         held = [m for m in held if m not in due]
