@@ -354,7 +354,8 @@ def serialized(function: ca.Function) -> str:
 
 
 def load_library(name: str, functions: Sequence[ca.Function],
-                 note: str | None = None, fallback: str = "") -> ctypes.CDLL | None:
+                 note: str | None = None, fallback: str = "",
+                 flags: Sequence[str] = COMPILER_FLAGS) -> ctypes.CDLL | None:
     """The shared library ``name`` holding ``functions``, compiled (with ``note``, see
     :func:`compiled_library`) or from the cache, and loaded; None when no C compiler is
     available, compiling fails or the library cannot be loaded (with a warning).
@@ -362,7 +363,8 @@ def load_library(name: str, functions: Sequence[ca.Function],
     The cache entry is found by a hash of the serialised functions (about a millisecond),
     so their C is generated only to build it."""
     key = "\n".join(serialized(function) for function in functions)
-    library = compiled_library(name, functions, note=note, key=key, fallback=fallback)
+    library = compiled_library(name, functions, flags=flags, note=note, key=key,
+                               fallback=fallback)
     if library is None:
         return None
     try:

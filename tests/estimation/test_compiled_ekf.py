@@ -37,7 +37,7 @@ def _other_belief(config: EstimatorConfig) -> EstimatorConfig:
         lateral_residual_time_constant_s=2.0 * config.lateral_residual_time_constant_s)
 
 
-@pytest.mark.slow  # builds the library in an empty cache (about 20 s)
+@pytest.mark.slow  # builds the library in an empty cache (about 10 s)
 def test_one_compiled_library_serves_every_belief_with_the_vms_estimates(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
         capfd: pytest.CaptureFixture[str]) -> None:
