@@ -43,6 +43,11 @@ class EstimatorPort:
         """Fuses the measurements of one instant: their update results, in order."""
         self._observable = estimator if isinstance(estimator, ObservableEstimator) else None
         self._commanded = estimator if isinstance(estimator, TakesCommands) else None
+        self.localised = True
+        """Whether the filter has been given a position fix, or needs none: the runner
+        sets it False for a run with a receiver until its first fix is delivered (a fix
+        ``sensors.gnss.latency_s`` late leaves the filter on its prior, a metre or so
+        off, for that long), and the controller engages from then on."""
 
     def current(self, t_s: float) -> Estimate:
         """The filter predicted to ``t_s`` (it changes) and its estimate."""

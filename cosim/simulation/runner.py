@@ -34,7 +34,7 @@ from threadpoolctl import threadpool_limits
 from cosim.core.config_fields import to_dict
 from cosim.core.exceptions import PhysicsDivergenceError, TrackerFault
 from cosim.core.records import Command, Estimate, VehicleState
-from cosim.core.sensor_names import RADAR
+from cosim.core.sensor_names import GNSS, RADAR
 from cosim.log.recorder import LiveSink, McapRecorder, NoLog, Recorder
 from cosim.plant import disturbances
 from cosim.plant.low_level import AccelToTorque
@@ -159,6 +159,7 @@ class _Run:
         """The run's tracker; the Gymnasium environment passes one that replays its actions."""
         self.low_level = AccelToTorque(config.tracker.model)
         self.sensors = SensorSuite(config, self.estimator.required_sensors, self.clock.dt_s)
+        self.filter.localised = GNSS not in self.sensors.names
         self.delay_line: collections.deque[tuple[int, Command]] = collections.deque()
         self.yaw_rate_changes = collections.deque(disturbances.schedule(
             config.disturbances, self.clock.dt_s, component_rng(config.seed, "disturbances")))
@@ -294,6 +295,8 @@ class _Run:
         delivered = self.sensors.sample(k, self.truth)
         if not delivered:
             return
+        if not self.filter.localised:
+            self.filter.localised = any(m.sensor == GNSS for m in delivered)
         observers = self.observers
         for measurement in delivered:
             for observer in observers:
@@ -305,13 +308,16 @@ class _Run:
 
     def _control(self, k: int, t_s: float) -> None:
         estimate = self.filter.current(t_s)
-        # One timing scope for every tracker: the whole step (step_ms_*), not only the
-        # solver call each tracker reports itself (solve_ms_*).
-        start_s = time.perf_counter()
-        command, plan = self.tracker.step(t_s, estimate, self.reference)
-        step_time_s = time.perf_counter() - start_s
-        for observer in self.observers:
-            observer.controlled(t_s, plan, command, step_time_s)
+        if self.filter.localised:
+            # One timing scope for every tracker: the whole step (step_ms_*), not only the
+            # solver call each tracker reports itself (solve_ms_*).
+            start_s = time.perf_counter()
+            command, plan = self.tracker.step(t_s, estimate, self.reference)
+            step_time_s = time.perf_counter() - start_s
+            for observer in self.observers:
+                observer.controlled(t_s, plan, command, step_time_s)
+        else:  # no fix yet: the controller waits, straight ahead at no acceleration
+            command = Command(t_s=t_s, accel_mps2=0.0, steer_rad=0.0)
         self.delay_line.append((k + self.clock.delay_steps, command))
         # The filter drives its steering with the command from when the software believes
         # it reaches the actuator (tracker.latency_s, the belief of the plant's delay).
