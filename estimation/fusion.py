@@ -302,10 +302,8 @@ class KalmanFusion(ABC):
                 self._normalise()
         self._t_s = float(t_s)
         if not self._is_finite():
-            raise EstimatorError(
-                f"{self.kind} prediction to t_s = {t_s} s produced a non-finite state or "
-                "covariance"
-            )
+            raise EstimatorError(f"{self.kind} prediction to t_s = {t_s} s produced a "
+                                 "non-finite state or covariance")
 
     def command(self, t_s: float, steer_rad: float) -> None:
         """The steering command ``steer_rad`` acts on the actuator from ``t_s`` on (the
@@ -313,10 +311,7 @@ class KalmanFusion(ABC):
         from then on the predictions drive the steering states with it
         (:mod:`estimation.steering_model`). ``t_s`` must not be before the filter's time
         nor the last command's."""
-        if is_stale(self._t_s, float(t_s)):
-            raise ValueError(f"steering command at t_s = {t_s!r} s: the filter is at "
-                             f"{self._t_s!r} s already")
-        self._commands.add(t_s, steer_rad)
+        self._commands.add(t_s, steer_rad, not_before_s=self._t_s)
         self._lookahead = None  # a prediction made before it may have run past t_s
 
     # ------------------------------------------------------------------------------ update

@@ -36,14 +36,18 @@ class SteeringCommands:
         self._times_s.clear()
         self._commands_rad.clear()
 
-    def add(self, t_s: float, steer_rad: float) -> None:
+    def add(self, t_s: float, steer_rad: float, not_before_s: float = -math.inf) -> None:
         """The command ``steer_rad`` acts from ``t_s`` on (a command at the newest one's
-        time replaces it); raises ``ValueError`` for a non-finite value or a time before
-        the newest command's."""
+        time replaces it); raises ``ValueError`` for a non-finite value, or a time before
+        ``not_before_s`` (the filter's: the past is predicted already) or before the
+        newest command's."""
         t_s, steer_rad = float(t_s), float(steer_rad)
         if not (math.isfinite(t_s) and math.isfinite(steer_rad)):
             raise ValueError(f"steering command {steer_rad!r} rad at t_s = {t_s!r}: "
                              "expected finite numbers")
+        if t_s < not_before_s - _tolerance_s(not_before_s):
+            raise ValueError(f"steering command at t_s = {t_s!r} s: the filter is at "
+                             f"{not_before_s!r} s already")
         times = self._times_s
         if times and t_s <= times[-1] + _tolerance_s(t_s):
             if t_s < times[-1] - _tolerance_s(t_s):

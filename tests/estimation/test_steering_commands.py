@@ -39,6 +39,8 @@ def test_a_prediction_runs_piece_by_piece_along_the_commands() -> None:
         commands.add(0.07, 0.0)
     with pytest.raises(ValueError, match="finite"):
         commands.add(0.2, math.nan)
+    with pytest.raises(ValueError, match="the filter is at 0.5 s already"):
+        commands.add(0.2, 0.0, not_before_s=0.5)
     commands.add(30.0, 0.0)  # older commands than KEEP_S before it go, the one acting stays
     assert commands.at(25.0) == -0.3
 
