@@ -18,7 +18,7 @@ from __future__ import annotations
 import bisect
 import math
 
-from estimation.timing import TIME_TOLERANCE_S
+from estimation.timing import instant_tolerance_s, is_stale
 
 KEEP_S = 10.0
 """How far behind the newest command the timeline keeps the ones before [s]."""
@@ -45,12 +45,12 @@ class SteeringCommands:
         if not (math.isfinite(t_s) and math.isfinite(steer_rad)):
             raise ValueError(f"steering command {steer_rad!r} rad at t_s = {t_s!r}: "
                              "expected finite numbers")
-        if t_s < not_before_s - _tolerance_s(not_before_s):
+        if is_stale(not_before_s, t_s):
             raise ValueError(f"steering command at t_s = {t_s!r} s: the filter is at "
                              f"{not_before_s!r} s already")
         times = self._times_s
-        if times and t_s <= times[-1] + _tolerance_s(t_s):
-            if t_s < times[-1] - _tolerance_s(t_s):
+        if times and t_s <= times[-1] + instant_tolerance_s(t_s):
+            if t_s < times[-1] - instant_tolerance_s(t_s):
                 raise ValueError(f"steering command at t_s = {t_s!r} s: before the last one "
                                  f"({times[-1]!r} s); commands come in time order")
             self._commands_rad[-1] = steer_rad
@@ -65,7 +65,7 @@ class SteeringCommands:
     def at(self, t_s: float) -> float | None:
         """The command acting at ``t_s`` (one starting within the clocks' rounding of it
         included); None before the first."""
-        i = bisect.bisect_right(self._times_s, t_s + _tolerance_s(t_s)) - 1
+        i = bisect.bisect_right(self._times_s, t_s + instant_tolerance_s(t_s)) - 1
         return self._commands_rad[i] if i >= 0 else None
 
     def pieces(self, t0_s: float, t1_s: float,
@@ -74,11 +74,11 @@ class SteeringCommands:
         computed it) as pieces ``(duration_s, command)``, split where a command starts
         strictly inside; one piece of ``interval_s`` when none does."""
         times = self._times_s
-        start_before_s = t0_s + _tolerance_s(t0_s)
+        start_before_s = t0_s + instant_tolerance_s(t0_s)
         if not times or times[-1] <= start_before_s:  # every command acting from before
             return [(interval_s, self._commands_rad[-1] if times else None)]
         first = bisect.bisect_right(times, start_before_s)
-        last = bisect.bisect_left(times, t1_s - _tolerance_s(t1_s))
+        last = bisect.bisect_left(times, t1_s - instant_tolerance_s(t1_s))
         command = self._commands_rad[first - 1] if first > 0 else None
         if first >= last:
             return [(interval_s, command)]
@@ -89,7 +89,3 @@ class SteeringCommands:
             start_s, command = times[i], self._commands_rad[i]
         pieces.append((t1_s - start_s, command))
         return pieces
-
-
-def _tolerance_s(t_s: float) -> float:
-    return TIME_TOLERANCE_S * max(1.0, abs(t_s))

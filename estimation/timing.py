@@ -12,7 +12,9 @@ MuJoCo's clock is a float sum of physics steps, the runner's a product ``k dt``;
 simulated minutes they differ by about 1e-9 s, after an hour by about 1e-8 s."""
 
 
-def _tolerance_s(t_s: float) -> float:
+def instant_tolerance_s(t_s: float) -> float:
+    """How far from ``t_s`` another time is still the same instant (:data:`TIME_TOLERANCE_S`
+    relative to ``t_s``, at least 1 s)."""
     return TIME_TOLERANCE_S * max(1.0, abs(t_s))
 
 
@@ -21,7 +23,7 @@ def forward_interval_s(current_t_s: float, t_s: float, who: str) -> float:
     earlier ``t_s`` raises (an estimator cannot go back in time)."""
     if not math.isfinite(t_s):
         raise ValueError(f"predict to t_s = {t_s!r}: expected a finite time")
-    tolerance_s = _tolerance_s(current_t_s)
+    tolerance_s = instant_tolerance_s(current_t_s)
     if t_s < current_t_s - tolerance_s:
         raise TimeOrderError(
             f"predict to t_s = {t_s!r} s: the {who} is at {current_t_s!r} s and cannot go "
@@ -33,4 +35,4 @@ def forward_interval_s(current_t_s: float, t_s: float, who: str) -> float:
 
 def is_stale(current_t_s: float, t_s: float) -> bool:
     """Whether a measurement at ``t_s`` comes from before the estimator's time."""
-    return t_s < current_t_s - _tolerance_s(current_t_s)
+    return t_s < current_t_s - instant_tolerance_s(current_t_s)
