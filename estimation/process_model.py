@@ -332,6 +332,10 @@ class ProcessNoise:
     """The roll acceleration's PSD per squared roll acceleration the tyres' force commands,
     ``roll_accel_psd_rad2ps3 + roll_accel_relative_psd_s * (omega^2 G a_y)^2`` (the roll
     mode's steady gain and dynamics are known to a fraction)."""
+    jerk_relative_psd_1ps: float = 0.0
+    """The longitudinal jerk's PSD per squared longitudinal acceleration:
+    ``jerk_psd_m2ps5 + jerk_relative_psd_1ps * a_x^2``. The drive and brake forces change
+    with the force asked of them (launch, braking) and rest when the car cruises."""
 
     def __post_init__(self) -> None:
         for name, value in vars(self).items():
@@ -575,7 +579,9 @@ class ProcessModel:
 def _force_noise(x: ca.SX, noise: ProcessNoise, bicycle: BicycleParams) -> ca.SX:
     """The state-dependent part of W's diagonal: the lateral residual's PSD grows with
     the square of the tyres' lateral acceleration (a relative error of the tyre model's
-    force, e.g. of its cornering stiffness, is an error proportional to the force)."""
+    force, e.g. of its cornering stiffness, is an error proportional to the force), the
+    heading's, the yaw and roll accelerations' with the forces that drive them, the jerk's
+    with the longitudinal acceleration (:class:`ProcessNoise`)."""
     s = named_states(x)
     force_front, force_rear = axle_forces(s, bicycle)
     tyre_accel = (force_front + force_rear) / bicycle.mass_kg
@@ -595,6 +601,7 @@ def _force_noise(x: ca.SX, noise: ProcessNoise, bicycle: BicycleParams) -> ca.SX
     extra[state_index("roll_rate_radps")] = (
         noise.roll_accel_relative_psd_s * commanded_roll_accel**2
     )
+    extra[state_index("ax_mps2")] = noise.jerk_relative_psd_1ps * s["ax_mps2"] ** 2
     return extra
 
 

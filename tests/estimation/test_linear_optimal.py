@@ -36,13 +36,14 @@ GNSS_SIGMA_M = 0.5
 DURATION_S = 60.0
 CONFIG = EstimatorConfig(roll_gradient_radpmps2=0.0, noise=NoiseBelief(gnss_sigma_m=0.5),
                          yaw_psd_rad2ps=1e-8, lateral_accel_psd_m2ps3=5e-4, jerk_psd_m2ps5=5.0,
-                         steer_rate_psd_rad2ps3=1e-4)
+                         jerk_relative_psd_1ps=0.0, steer_rate_psd_rad2ps3=1e-4)
 """Without the body roll mode, whose equations have no independent implementation to
-compare with (tests/estimation/test_models.py checks it by hand). The process noise is the
-smaller one of an earlier tuning (yaw, lateral, steering rate) with a larger jerk: these tests
-check the filters' algebra against the linear optimum, so the sigma points must stay where
-the model is close to linear (the run's defaults spread them over enough yaw and steering
-for ``vx cos(yaw)`` to move the UKF 2-3 % off the linear filter)."""
+compare with (tests/estimation/test_models.py checks it by hand), and without the jerk's
+PSD growing with ``a_x^2`` (a state-dependent noise: no linear filter has it). The process
+noise is the smaller one of an earlier tuning (yaw, lateral, steering rate) with a larger
+jerk: these tests check the filters' algebra against the linear optimum, so the sigma points
+must stay where the model is close to linear (the run's defaults spread them over enough
+yaw and steering for ``vx cos(yaw)`` to move the UKF 2-3 % off the linear filter)."""
 REFERENCE_STATES = tuple(
     n for n in VEHICLE_STATE_NAMES + MODEL_STATE_NAMES if n not in ("roll_rad", "roll_rate_radps")
 )

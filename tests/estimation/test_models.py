@@ -231,6 +231,20 @@ def test_the_yaw_moment_noise_grows_with_each_axles_moment() -> None:
     np.testing.assert_array_equal(w[others], without[others])
 
 
+def test_the_jerk_noise_grows_with_the_longitudinal_acceleration(process: ProcessModel) -> None:
+    """``jerk_relative_psd_1ps`` adds ``it * a_x^2`` to the jerk's PSD, the acceleration the
+    state's own (launch or braking), and nothing else; cruising it adds nothing."""
+    assert CONFIG.jerk_relative_psd_1ps > 0.0
+    ax = state_index("ax_mps2")
+    cruising = np.diag(process.noise_psd(_state(vx_mps=20.0)))
+    for accel_mps2 in (2.0, -3.0):
+        w = np.diag(process.noise_psd(_state(vx_mps=20.0, ax_mps2=accel_mps2)))
+        assert w[ax] - cruising[ax] == pytest.approx(
+            CONFIG.jerk_relative_psd_1ps * accel_mps2**2, rel=1e-12)
+        others = [i for i in range(len(STATE_NAMES)) if i != ax]
+        np.testing.assert_array_equal(w[others], cruising[others])
+
+
 def test_process_noise_grows_with_the_interval_as_expected(process: ProcessModel) -> None:
     """Jerk noise alone: variance of ax grows as q t, of vx as q t^3 / 3 (straight line)."""
     x = _state(vx_mps=10.0)
