@@ -280,3 +280,26 @@ def ensemble_consistency(
         fraction_above=float(np.mean(anees > high)),
         nis=nis,
     )
+
+
+
+def anees_standard_error(t_s: np.ndarray, nees: np.ndarray, *,
+                         settle_s: float = SETTLE_S) -> tuple[float, float]:
+    """The standard error of the ensemble's mean ANEES after ``settle_s`` from the spread of
+    the runs' own mean NEES (``std / sqrt(runs)``), and what it would be were every step of
+    every run an independent chi-square draw, ``sqrt(2 dof / (steps runs))``.
+
+    The band assumes independent draws across runs at each step, which they are; a run's
+    steps are not: its NEES is correlated over the whole run (its sampled initial errors and
+    biases, the slow states), so one run high or low moves many steps at once. The first
+    figure over the second says how much more of a mean ANEES, and of the fraction of steps
+    inside the band, is the seeds' than the band's width suggests."""
+    t_s = np.asarray(t_s, dtype=float)
+    judged = np.atleast_2d(np.asarray(nees, dtype=float))[:, t_s >= settle_s]
+    runs, steps = judged.shape
+    if runs < 2 or steps < 1:
+        raise ValueError(f"{runs} runs of {steps} steps after {settle_s} s: expected at "
+                         "least two runs and one step")
+    run_means = judged.mean(axis=1)
+    return (float(np.std(run_means, ddof=1) / math.sqrt(runs)),
+            math.sqrt(2.0 * NEES_DOF / (steps * runs)))

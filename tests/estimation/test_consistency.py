@@ -16,6 +16,7 @@ run's filter replayed over the same sensor stream with its process noise scaled
 from __future__ import annotations
 
 import dataclasses
+import math
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +28,7 @@ from cosim.sweeps.ensemble import EnsembleMember, judge, run_member
 from cosim.sweeps.replay import replay
 from estimation.config import scaled_process_noise
 from estimation.consistency import (
+    anees_standard_error,
     chi_square_band,
     chi_square_quantile,
     ensemble_consistency,
@@ -135,6 +137,26 @@ def test_window_means_show_where_the_filter_is_over_and_under_confident() -> Non
     assert 3.7 < result.anees_mean < 4.3
     with pytest.raises(ValueError, match="positive"):
         result.window_means(-1.0)
+
+
+def test_the_mean_anees_moves_with_the_runs_drawn_when_their_steps_are_correlated() -> None:
+    """Independent draws at every step: the runs' spread gives the standard error of
+    independent steps. Each run's NEES scaled by a factor of its own (a run high or low all
+    along, as a sampled initial error makes it): the same mean, a standard error many times
+    the independent one, which is what moves a judged fraction from one seed range to the
+    next."""
+    rng = np.random.default_rng(5)
+    t_s = np.arange(600) * 0.01
+    independent = rng.chisquare(4, size=(40, t_s.size))
+    factors = rng.lognormal(0.0, 0.35, size=(40, 1))
+    correlated = independent * factors / factors.mean()
+    error, if_independent = anees_standard_error(t_s, independent)
+    assert if_independent == pytest.approx(math.sqrt(8.0 / (40 * 500)))
+    assert error == pytest.approx(if_independent, rel=0.3)
+    error, _ = anees_standard_error(t_s, correlated)
+    assert error > 5.0 * if_independent
+    with pytest.raises(ValueError, match="two runs"):
+        anees_standard_error(t_s, independent[:1])
 
 
 def test_bad_input_is_refused() -> None:
