@@ -53,8 +53,8 @@ from cosim.core.records import Measurement
 from cosim.log.reader import iter_messages
 from cosim.simulation.runner import run
 from cosim.simulation.scenario_config import ScenarioConfig, load_config
-from cosim.sweeps.ensemble import EnsembleMember, judge, run_member
-from estimation.consistency import SETTLE_S, anees_standard_error
+from cosim.sweeps.ensemble import EnsembleMember, anees_error, judge, run_member
+from estimation.consistency import SETTLE_S
 from estimation.registry import make_estimator
 
 _FIGURES = ("est_pos_rmse_m", "est_yaw_rmse_rad", "est_speed_rmse_mps", "cte_max_m",
@@ -166,9 +166,7 @@ def _report(members: list[EnsembleMember], group_size: int) -> None:
           f"{100 * every.fraction_inside:.1f} % of the steps inside, "
           f"{100 * every.fraction_below:.1f} % below, {100 * every.fraction_above:.1f} % above; "
           f"mean ANEES {every.anees_mean:.3f}")
-    steps = min(m.t_s.size for m in members)
-    error, if_independent = anees_standard_error(members[0].t_s[:steps],
-                                                 np.vstack([m.nees[:steps] for m in members]))
+    error, if_independent = anees_error(members)
     print(f"  its standard error over the runs +- {error:.3f} (independent steps would give "
           f"+- {if_independent:.3f}): the seeds move a mean, and the fraction inside, by that")
     print(f"  its {WINDOW_S:g} s window means: " + ", ".join(

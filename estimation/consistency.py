@@ -282,7 +282,6 @@ def ensemble_consistency(
     )
 
 
-
 def anees_standard_error(t_s: np.ndarray, nees: np.ndarray, *,
                          settle_s: float = SETTLE_S) -> tuple[float, float]:
     """The standard error of the ensemble's mean ANEES after ``settle_s`` from the spread of

@@ -23,7 +23,12 @@ from cosim.plots.data import load_estimation
 from cosim.simulation.runner import run
 from cosim.simulation.scenario_config import ScenarioConfig
 from cosim.simulation.workshop import Workshop
-from estimation.consistency import SETTLE_S, EnsembleConsistency, ensemble_consistency
+from estimation.consistency import (
+    SETTLE_S,
+    EnsembleConsistency,
+    anees_standard_error,
+    ensemble_consistency,
+)
 
 NIS_PREFIX = "nis_dof_"
 SETTLED_NIS_PREFIX = "nis_settled_dof_"
@@ -83,14 +88,27 @@ def judge(members: Sequence[EnsembleMember], probability: float = 0.95,
     """The consistency figures of the members (cut to the shortest run's samples); with
     ``settled_nis`` the NIS is that of the updates after the settling time only (the
     runs' ``nis_settled_<sensor>``, whose settling time is :data:`SETTLE_S`)."""
-    if not members:
-        raise ValueError("no runs to judge")
-    steps = min(m.t_s.size for m in members)
+    t_s, nees = _nees_matrix(members)
     return ensemble_consistency(
-        members[0].t_s[:steps],
-        np.vstack([m.nees[:steps] for m in members]),
+        t_s,
+        nees,
         [m.nis_settled_sum if settled_nis else m.nis_sum for m in members],
         [m.nis_settled_dof if settled_nis else m.nis_dof for m in members],
         probability=probability,
         settle_s=settle_s,
     )
+
+
+def anees_error(members: Sequence[EnsembleMember],
+                settle_s: float = SETTLE_S) -> tuple[float, float]:
+    """The members' mean ANEES's standard error over the runs, and the one independent steps
+    would give (:func:`estimation.consistency.anees_standard_error`)."""
+    return anees_standard_error(*_nees_matrix(members), settle_s=settle_s)
+
+
+def _nees_matrix(members: Sequence[EnsembleMember]) -> tuple[np.ndarray, np.ndarray]:
+    """The members' times and NEES, one row per run, cut to the shortest run's samples."""
+    if not members:
+        raise ValueError("no runs to judge")
+    steps = min(m.t_s.size for m in members)
+    return members[0].t_s[:steps], np.vstack([m.nees[:steps] for m in members])
