@@ -115,6 +115,30 @@ class EstimatorConfig:
         "a_x^2``, the drive and brake forces change with the force asked of them (launch, "
         "braking) and rest while the car cruises [1/s]",
     )
+    # The drive's response to the controller's acceleration commands, an input of the
+    # prediction (estimation.accel_commands): without it the acceleration is a random walk
+    # the accelerometer corrects after each change of the command (a launch's first step
+    # put the IMU's NIS in the hundreds and gated the wheels for the first second).
+    accel_commands: bool = setting(
+        True, doc="move the acceleration state with the controller's acceleration commands "
+        "(estimation.accel_commands); false: the acceleration is a random walk only",
+    )
+    accel_command_time_constant_s: float = setting(
+        0.01, low=1e-3, high=2.0,
+        doc="the lag of the car's acceleration behind its command, as the filter believes "
+        "(the drive's and the tyres' response) [s]",
+    )
+    accel_commanded_jerk_psd_m2ps5: float = setting(
+        0.0025, low=0.0, high=1e6,
+        doc="the jerk's PSD once the filter is told acceleration commands, in place of "
+        "jerk_psd_m2ps5 and jerk_relative_psd_1ps: what the drive does that its commands "
+        "do not explain [m^2/s^5]",
+    )
+    accel_command_relative_sigma: float = setting(
+        0.3, low=0.0, high=10.0,
+        doc="standard deviation of the fraction of a command's change the car does not "
+        "follow (the belief's mass and road loads, the tyres' transient)",
+    )
     yaw_accel_psd_rad2ps3: float = setting(
         5e-4, low=0.0, high=1e6, doc="yaw acceleration the bicycle does not explain [rad^2/s^3]"
     )
@@ -300,8 +324,10 @@ class EstimatorConfig:
     ukf_kappa: float = setting(0.0, low=-10.0, high=10.0, doc="secondary scaling")
 
 
-RESIDUAL_SIGMAS: tuple[str, ...] = ("lateral_residual_sigma_mps2", "lateral_residual_relative")
-"""The lateral residual's stationary sigmas (a Gauss-Markov process noise, given as sigmas)."""
+RESIDUAL_SIGMAS: tuple[str, ...] = ("lateral_residual_sigma_mps2", "lateral_residual_relative",
+                                    "accel_command_relative_sigma")
+"""The process noise given as sigmas: the lateral residual's stationary ones (a Gauss-Markov
+process noise) and the drive's response to its commands."""
 BIAS_WALKS: tuple[str, ...] = ("gyro_bias_walk_radps", "accel_bias_walk_mps2")
 """The IMU biases' random walks (``noise.*``, given per sqrt(s): sigmas)."""
 

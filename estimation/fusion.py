@@ -36,6 +36,7 @@ from cosim.core.initial_state import InitialState
 from cosim.core.records import Estimate, Measurement
 from cosim.core.sensor_names import FUSED_SENSORS, GNSS
 from cosim.core.vehicle_params import VehicleParams
+from estimation.accel_commands import AccelCommands, DriveBelief
 from estimation.belief_models import process_noise, roll_params
 from estimation.compiled_models import use_compiled
 from estimation.config import EstimatorConfig
@@ -49,6 +50,7 @@ from estimation.innovation import (
     Innovation,
     Selection,
     TrialUpdate,
+    normalised_innovation_squared,
     residual_function,
 )
 from estimation.joint_update import JointPosterior
@@ -118,8 +120,12 @@ class KalmanFusion(ABC):
             )
         self._config = config
         roll = roll_params(config, belief)
+        self._noise = (process_noise(config), dataclasses.replace(
+            process_noise(config), jerk_psd_m2ps5=config.accel_commanded_jerk_psd_m2ps5,
+            jerk_relative_psd_1ps=0.0))
+        """The process noise before and after the first acceleration command."""
         self._process = ProcessModel(
-            process_noise(config),
+            self._noise[0],
             BicycleParams.from_vehicle(belief, config.tyre_model, roll),
             config.lateral_residual_time_constant_s,
             sigma_point_count=self._sigma_point_count(),
@@ -127,6 +133,10 @@ class KalmanFusion(ABC):
         )
         self._commands = SteeringCommands()
         """The steering commands told (:meth:`command`), which the predictions run along."""
+        self._accel_commands = AccelCommands(DriveBelief(
+            config.accel_command_time_constant_s, config.accel_command_relative_sigma))
+        """The acceleration commands told (:meth:`accel_command`), an input of the same."""
+        self._ax = state_index("ax_mps2")
         self._models: dict[str, MeasurementModel] = build_measurement_models(
             belief,
             wheel_model_sigma_mps=config.wheel_model_sigma_mps,
@@ -160,6 +170,8 @@ class KalmanFusion(ABC):
         self._gate_failing_since_s: dict[tuple[str, tuple[str, ...]], float] = {}
         self._lookahead: Lookahead | None = None
         self._commands.clear()
+        self._accel_commands.clear()
+        self._process.use_noise(self._noise[0])
 
     # ------------------------------------------------------------------- filter-specific
 
@@ -294,14 +306,17 @@ class KalmanFusion(ABC):
             self._set_covariance(lookahead.covariance)
             self._t_s = lookahead.t_s
             return
+        start_s = self._t_s
         for piece_s, command_rad in self._commands.pieces(self._t_s, float(t_s), interval_s):
             substeps = max(1, math.ceil(piece_s / self._config.max_step_s - 1e-9))
             dt_s = piece_s / substeps
-            for _ in range(substeps):
+            for k in range(substeps):
+                self._follow_accel_command(start_s + k * dt_s, start_s + (k + 1) * dt_s)
                 self._predict_substep(dt_s, command_rad)
                 self._normalise()
+            start_s += piece_s
         self._t_s = float(t_s)
-        if not self._is_finite():
+        if not (np.isfinite(self._x).all() and np.isfinite(self._p).all()):
             raise EstimatorError(f"{self.kind} prediction to t_s = {t_s} s produced a "
                                  "non-finite state or covariance")
 
@@ -313,6 +328,24 @@ class KalmanFusion(ABC):
         nor the last command's."""
         self._commands.add(t_s, steer_rad, not_before_s=self._t_s)
         self._lookahead = None  # a prediction made before it may have run past t_s
+
+    def accel_command(self, t_s: float, accel_mps2: float) -> None:
+        """The acceleration command ``accel_mps2`` acts on the drive from ``t_s`` on (as
+        :meth:`command`): the predictions move the acceleration with it
+        (:mod:`estimation.accel_commands`), unless ``estimator.accel_commands`` is off."""
+        if self._config.accel_commands:
+            if not self._accel_commands.told:  # the jerk is the commands' no longer
+                self._process.use_noise(self._noise[1])
+            self._accel_commands.add(t_s, accel_mps2, not_before_s=self._t_s)
+            self._lookahead = None
+
+    def _follow_accel_command(self, t0_s: float, t1_s: float) -> None:
+        """Move the acceleration's mean and variance by the drive's response to its
+        commands over ``(t0_s, t1_s]`` ((A1)-(A2) of :mod:`estimation.accel_commands`)."""
+        moved = self._accel_commands.moved(self._x, self._p, self._ax, t0_s, t1_s)
+        if moved is not None:
+            self._set_mean(moved[0])
+            self._set_covariance(moved[1])
 
     # ------------------------------------------------------------------------------ update
 
@@ -358,12 +391,7 @@ class KalmanFusion(ABC):
         checked = self._check(measurement)
         if not isinstance(checked, CheckedMeasurement):
             reason, dim = checked
-            if reason == IGNORED:
-                counts.ignored += 1
-            elif reason == NON_FINITE:
-                counts.rejected_nonfinite += 1
-            else:
-                counts.rejected_stale += 1
+            counts.count_refusal(reason)
             return UpdateResult(False, math.nan, dim, reason)
         model, selection, z, t_s = checked.model, checked.selection, checked.z, checked.t_s
         dim = len(selection.model_rows)
@@ -555,22 +583,8 @@ class KalmanFusion(ABC):
             trial = self._trial_update(model, rows, z_group, r_group, residual, angle_rows)
         except np.linalg.LinAlgError:
             return None
-        s_matrix = 0.5 * (trial.innovation_covariance + trial.innovation_covariance.T)
-        innovation = trial.innovation.reshape(-1)
-        if len(group) == 1:
-            if not s_matrix[0, 0] > 0.0:
-                return None
-            nis = float(innovation[0] ** 2 / s_matrix[0, 0])
-        else:
-            try:
-                cholesky = np.linalg.cholesky(s_matrix)
-            except np.linalg.LinAlgError:
-                return None
-            whitened = np.linalg.solve(cholesky, innovation)
-            nis = float(whitened @ whitened)
-        if not math.isfinite(nis):
-            return None
-        return Innovation(rows, nis, trial)
+        nis = normalised_innovation_squared(trial)
+        return Innovation(rows, nis, trial) if math.isfinite(nis) else None
 
     def _apply(self, innovation: Innovation) -> bool:
         """Commit a trial update (:meth:`_commit`)."""
@@ -619,7 +633,8 @@ class KalmanFusion(ABC):
             return GATE, innovation.nis
         released_nis = innovation.nis  # reported: the disagreement that was believed
         _, jacobian = model.evaluate(self._x)
-        self._inflate_for_jump(jacobian[list(innovation.rows), :], innovation.trial.innovation)
+        self._set_covariance(room_for_jump(  # estimation.covariance_room
+            self._p, jacobian[list(innovation.rows), :], innovation.trial.innovation))
         inflated = self._innovation(model, selection, group, z, r_matrix)
         if inflated is None or not self._apply(inflated):
             return INVALID, released_nis
@@ -652,10 +667,6 @@ class KalmanFusion(ABC):
         self._set_covariance(covariance)
         self._awaiting_first_fix = False
 
-    def _inflate_for_jump(self, jacobian: np.ndarray, innovation: np.ndarray) -> None:
-        """:func:`estimation.covariance_room.room_for_jump`."""
-        self._set_covariance(room_for_jump(self._p, jacobian, innovation))
-
     def _inflate_for_surprise(self, jacobian: np.ndarray, innovation: np.ndarray) -> None:
         """:func:`estimation.covariance_room.room_for_surprise`, with the process noise of
         one sub-step at the current mean."""
@@ -668,16 +679,8 @@ class KalmanFusion(ABC):
     def _selection(self, model: MeasurementModel, names: tuple[str, ...]) -> Selection:
         key = (model.sensor, names)
         if key not in self._selections:
-            model_rows, columns = model.select(names)
-            angle_rows = tuple(
-                i for i, row in enumerate(model_rows) if model.channels[row] in model.angle_channels
-            )
-            believed = self._noise_variances.get(model.sensor, {})
-            variance = np.array([
-                model.model_sigma[row] ** 2 + believed.get(model.channels[row], 0.0)
-                for row in model_rows
-            ])
-            self._selections[key] = Selection(model_rows, columns, angle_rows, variance)
+            self._selections[key] = Selection.of(
+                model, names, self._noise_variances.get(model.sensor, {}))
         return self._selections[key]
 
     def _normalise(self) -> None:
@@ -693,7 +696,4 @@ class KalmanFusion(ABC):
             if not -math.pi < angle <= math.pi:  # inside, wrap_angle returns it untouched
                 x[index] = wrap_angle(angle)
         self._set_mean(x)
-
-    def _is_finite(self) -> bool:
-        return bool(np.isfinite(self._x).all() and np.isfinite(self._p).all())
 

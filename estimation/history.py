@@ -73,6 +73,8 @@ class Replayable(Protocol):
 
     def command(self, t_s: float, steer_rad: float) -> None: ...
 
+    def accel_command(self, t_s: float, accel_mps2: float) -> None: ...
+
     def estimate(self) -> Estimate: ...
 
     def estimate_at(self, t_s: float) -> Estimate: ...
@@ -236,6 +238,10 @@ class FilterWithHistory:
         """The filter's own timeline of commands: inputs, not state, so a re-run after a
         late measurement meets them again (:mod:`estimation.steering_commands`)."""
         self.filter.command(t_s, steer_rad)
+
+    def accel_command(self, t_s: float, accel_mps2: float) -> None:
+        """As :meth:`command` (:mod:`estimation.accel_commands`)."""
+        self.filter.accel_command(t_s, accel_mps2)
 
     def estimate(self) -> Estimate:
         return self.filter.estimate()

@@ -6,7 +6,8 @@ innovation ``y = z - h(x)`` and its covariance ``S``)."""
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable
+import math
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,6 +29,19 @@ class Selection:
     def every_column(self) -> bool:
         """Whether the measurement's every channel is fused, in its order (no selection)."""
         return self.measurement_columns == tuple(range(len(self.measurement_columns)))
+
+    @classmethod
+    def of(cls, model: MeasurementModel, names: tuple[str, ...],
+           believed: Mapping[str, float]) -> Selection:
+        """The channels of ``model`` a measurement named ``names`` gives, each with the
+        variance the filter believes: the model's error ``model_sigma^2`` plus the
+        sensor's noise as believed (``believed``: channel to variance)."""
+        model_rows, columns = model.select(names)
+        angle_rows = tuple(i for i, row in enumerate(model_rows)
+                           if model.channels[row] in model.angle_channels)
+        variance = np.array([model.model_sigma[row] ** 2 + believed.get(model.channels[row], 0.0)
+                             for row in model_rows])
+        return cls(model_rows, columns, angle_rows, variance)
 
 
 @dataclass(frozen=True)
@@ -77,3 +91,20 @@ class CheckedMeasurement:
     selection: Selection
     z: np.ndarray
     t_s: float
+
+
+def normalised_innovation_squared(trial: TrialUpdate) -> float:
+    """The NIS ``y' S^-1 y`` of a trial update (``S`` symmetrised; one channel divided,
+    several whitened by ``S``'s Cholesky factor); NaN when ``S`` is not positive definite."""
+    s_matrix = 0.5 * (trial.innovation_covariance + trial.innovation_covariance.T)
+    innovation = trial.innovation.reshape(-1)
+    if innovation.size == 1:
+        if not s_matrix[0, 0] > 0.0:
+            return math.nan
+        return float(innovation[0] ** 2 / s_matrix[0, 0])
+    try:
+        cholesky = np.linalg.cholesky(s_matrix)
+    except np.linalg.LinAlgError:
+        return math.nan
+    whitened = np.linalg.solve(cholesky, innovation)
+    return float(whitened @ whitened)

@@ -506,6 +506,18 @@ class ProcessModel:
         if functions.mapped_mean_step is not None:
             self._mapped_step = DenseFunction(functions.mapped_mean_step, parameters=values)
 
+    def use_noise(self, noise: ProcessNoise) -> None:
+        """From now on, the process noise ``noise`` (the same functions, compiled or not:
+        the noise's numbers are their ``belief`` input)."""
+        values = self.belief_values.copy()
+        for name, value in vars(noise).items():
+            values[self.belief_names.index(f"noise.{name}")] = value
+        self.noise, self.belief_values = noise, values
+        for function in (self._psd_fast, self._derivative_fast, self._step_fast,
+                         self._noise_fast, self._mean_step_fast, self._mapped_step):
+            if function is not None:
+                function.set_parameters(values)
+
     def compiled_functions(self) -> tuple[DenseFunction, ...]:
         """The evaluators worth compiling to C (the EKF's sub-step), for
         :meth:`cosim.core.dense_function.DenseFunction.use_compiled`."""

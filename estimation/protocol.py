@@ -83,6 +83,16 @@ class TakesCommands(Protocol):
 
 
 @runtime_checkable
+class TakesAccelCommands(Protocol):
+    """An estimator told the controller's acceleration commands (the built-in filters move
+    their acceleration with them, :mod:`estimation.accel_commands`)."""
+
+    def accel_command(self, t_s: float, accel_mps2: float) -> None:
+        """The command ``accel_mps2`` acts on the drive from ``t_s`` on, as the software
+        believes (the control instant plus ``tracker.latency_s``)."""
+
+
+@runtime_checkable
 class Restartable(Protocol):
     """An estimator that can start a new run from a new initial belief, keeping what it
     built from its configuration and belief (the built-in filters keep their compiled

@@ -82,3 +82,15 @@ class SensorCounts:
     surprises: int = 0
     """Ungated measurements above the gate, fused after room was made in the directions of
     the process noise (a manoeuvre the model did not predict)."""
+
+    def count_refusal(self, reason: str) -> None:
+        """Count a measurement fused not at all before any gate: ignored (the filter has
+        no model of its sensor), non-finite or stale."""
+        if reason == IGNORED:
+            self.ignored += 1
+        elif reason == NON_FINITE:
+            self.rejected_nonfinite += 1
+        elif reason == STALE:
+            self.rejected_stale += 1
+        else:
+            raise ValueError(f"reason {reason!r}: not a refusal before the gate")

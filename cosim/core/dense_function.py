@@ -63,6 +63,18 @@ class DenseFunction:
         self._rows = tuple(array[0] if array.ndim == 2 and array.shape[0] == 1 else None
                            for array in self._arguments)
 
+    def set_parameters(self, parameters: np.ndarray) -> None:
+        """Give the last input set at construction (:attr:`parameters`) new values, of the
+        same size: the next calls, compiled or not, take them."""
+        if self.parameters is None:
+            raise ValueError(f"{self.function.name()}: built without parameters")
+        values = np.array(parameters, dtype=float).reshape(-1)
+        if values.shape != self.parameters.shape:
+            raise ValueError(f"{self.function.name()}: {values.size} parameters, expected "
+                             f"{self.parameters.size}")
+        self.parameters = values
+        self._inputs[-1].T[...] = np.reshape(values, self._inputs[-1].T.shape)
+
     def fresh(self) -> DenseFunction:
         """The same function and parameters with buffers of its own, evaluated by CasADi's
         virtual machine until :meth:`use_compiled`: for a second user of a function built

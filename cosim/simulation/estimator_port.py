@@ -10,8 +10,9 @@ Three uses, three contracts (:mod:`estimation.protocol`):
   (:class:`ObservableEstimator`); otherwise its latest belief as it stands;
 - :attr:`EstimatorPort.fuse`: the measurements of one instant, together where the filter
   can (:class:`JointUpdater`: one joint update, one gate), else one by one in order;
-- :meth:`EstimatorPort.command`: the controller's steering command, from the time the
-  software believes it acts, to a filter that takes it (:class:`TakesCommands`).
+- :meth:`EstimatorPort.command`: the controller's command, from the time the software
+  believes it acts, to a filter that takes it: the steering (:class:`TakesCommands`) and
+  the acceleration (:class:`TakesAccelCommands`).
 
 The capabilities are checked once, when the port is made: a protocol's ``isinstance``
 costs some 4 us, and the log looks at every instant.
@@ -27,6 +28,7 @@ from estimation.protocol import (
     Estimator,
     JointUpdater,
     ObservableEstimator,
+    TakesAccelCommands,
     TakesCommands,
 )
 from estimation.update_result import UpdateResult
@@ -43,6 +45,7 @@ class EstimatorPort:
         """Fuses the measurements of one instant: their update results, in order."""
         self._observable = estimator if isinstance(estimator, ObservableEstimator) else None
         self._commanded = estimator if isinstance(estimator, TakesCommands) else None
+        self._accelerated = estimator if isinstance(estimator, TakesAccelCommands) else None
         self.localised = True
         """Whether the filter has been given a position fix, or needs none: the runner
         sets it False for a run with a receiver until its first fix is delivered (a fix
@@ -60,10 +63,13 @@ class EstimatorPort:
             return self._observable.estimate_at(t_s)
         return self.estimator.estimate()
 
-    def command(self, t_s: float, steer_rad: float) -> None:
-        """The steering command acting from ``t_s`` on, to a filter that takes commands."""
+    def command(self, t_s: float, steer_rad: float, accel_mps2: float | None = None) -> None:
+        """The command acting from ``t_s`` on, to a filter that takes it: the steering, and
+        the acceleration where given."""
         if self._commanded is not None:
             self._commanded.command(t_s, steer_rad)
+        if self._accelerated is not None and accel_mps2 is not None:
+            self._accelerated.accel_command(t_s, accel_mps2)
 
     def counts(self) -> dict[str, dict[str, int]]:
         """Accepted, gated and ignored updates per sensor, where the filter counts them."""

@@ -319,9 +319,11 @@ class _Run:
         else:  # no fix yet: the controller waits, straight ahead at no acceleration
             command = Command(t_s=t_s, accel_mps2=0.0, steer_rad=0.0)
         self.delay_line.append((k + self.clock.delay_steps, command))
-        # The filter drives its steering with the command from when the software believes
-        # it reaches the actuator (tracker.latency_s, the belief of the plant's delay).
-        self.filter.command(t_s + self.config.tracker.latency_s, command.steer_rad)
+        # The filter drives its steering and its acceleration with the command from when
+        # the software believes it reaches the actuator (tracker.latency_s, the belief of
+        # the plant's delay).
+        self.filter.command(t_s + self.config.tracker.latency_s, command.steer_rad,
+                            command.accel_mps2)
         if self.traffic is not None:
             self.traffic.after_control(t_s)
 

@@ -8,7 +8,7 @@ filter, step by step (:meth:`cosim.simulation.runner._Run.advance`): at a
 log instant the estimate is looked at (``estimate_at``, which changes nothing), then the
 measurements of that instant are fused (together where the filter can,
 :class:`estimation.protocol.JointUpdater`), then at a control instant the filter is
-predicted to it and told the steering command the run's controller gave there
+predicted to it and told the command (steering and acceleration) the run's controller gave there
 (``/control/command``, one per control instant in order, from ``tracker.latency_s`` later;
 with ``plant.actuator_delay_s`` the commands of the run's last delay never reached the
 actuator nor the log, and a replay's filter goes without them). Its initial estimate is
@@ -76,11 +76,11 @@ def logged_stream(path: Path) -> tuple[dict[int, list[Measurement]], dict[int, n
     return dict(by_time), truth
 
 
-def logged_steering_commands(path: Path) -> list[float]:
-    """The steering commands of a log (``/control/command``), in the order the controller
-    gave them: the ``i``-th is the ``i``-th control instant's (the delay line is first in,
-    first out)."""
-    return [float(message["steer_rad"])
+def logged_commands(path: Path) -> list[tuple[float, float]]:
+    """The commands of a log (``/control/command``), ``(steer_rad, accel_mps2)`` in the
+    order the controller gave them: the ``i``-th is the ``i``-th control instant's (the
+    delay line is first in, first out)."""
+    return [(float(message["steer_rad"]), float(message["accel_mps2"]))
             for _, _, message in iter_topics(Path(path), {topics.CONTROL_COMMAND})]
 
 
@@ -101,7 +101,7 @@ def replay(config: ScenarioConfig, path: Path, estimator: EstimatorConfig | None
                         "(estimation.protocol.ObservableEstimator)")
     port = EstimatorPort(filter_)  # fused as the run fuses: together where it can
     stream, truth = logged_stream(path)
-    commands = iter(logged_steering_commands(path))
+    commands = iter(logged_commands(path))
     sim, dt_s = config.sim, config.sim.physics_dt_s
     log_steps = steps_per_period(sim.log_period_s, dt_s, "sim.log_period_s")
     control_steps = steps_per_period(sim.control_period_s, dt_s, "sim.control_period_s")
@@ -143,8 +143,8 @@ def replay(config: ScenarioConfig, path: Path, estimator: EstimatorConfig | None
                     gated[sensor] += result.reason in (GATE, PARTIAL)
         if controls:
             filter_.predict(t_s)
-            steer_rad = next(commands, None)
-            if steer_rad is not None:
-                port.command(t_s + config.tracker.latency_s, steer_rad)
+            command = next(commands, None)
+            if command is not None:
+                port.command(t_s + config.tracker.latency_s, *command)
     return EnsembleMember(config.seed, np.array(times), np.array(nees), dict(nis_sum),
                           dict(nis_dof), {}, dict(settled_sum), dict(settled_dof), dict(gated))
