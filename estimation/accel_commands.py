@@ -31,9 +31,10 @@ over command ``i`` (added in increments as the lag progresses, whatever the sub-
 Before the first command the drive holds the acceleration the filter believes (the lag is
 at 0 and does not move).
 
-Like the steering commands (:mod:`estimation.steering_commands`) the commands are inputs,
-not the filter's state: a re-run after a late measurement (:mod:`estimation.history`)
-meets them again; the lag (A1) is a function of time and the commands only.
+Like the steering commands the commands are inputs, not the filter's state
+(:mod:`estimation.command_timeline`): a re-run after a late measurement
+(:mod:`estimation.history`) meets them again; the lag (A1) is a function of time and the
+commands only.
 """
 
 from __future__ import annotations
@@ -44,10 +45,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimation.timing import instant_tolerance_s, is_stale
-
-KEEP_S = 10.0
-"""How far behind the newest command the timeline keeps the ones before [s]."""
+from estimation.command_timeline import CommandTimeline
 
 
 @dataclass(frozen=True)
@@ -67,56 +65,28 @@ class DriveBelief:
             raise ValueError(f"relative_sigma = {self.relative_sigma!r}: expected >= 0")
 
 
-class AccelCommands:
+class AccelCommands(CommandTimeline):
     """A timeline of acceleration commands and the drive's lag behind them (module
     docstring)."""
 
+    what = "acceleration command"
+    unit = " m/s^2"
+
     def __init__(self, belief: DriveBelief) -> None:
+        super().__init__()
         self.belief = belief
-        self._times_s: list[float] = []
-        self._commands_mps2: list[float] = []
         self._start_levels_mps2: list[float] = []
         """``L_i`` of (A1): the lag's level when each command started."""
 
     def clear(self) -> None:
-        """Forget every command (a new run)."""
-        self._times_s.clear()
-        self._commands_mps2.clear()
+        super().clear()
         self._start_levels_mps2.clear()
 
-    def add(self, t_s: float, accel_mps2: float, not_before_s: float = -math.inf) -> None:
-        """The command ``accel_mps2`` acts from ``t_s`` on (a command at the newest one's
-        time replaces it); raises ``ValueError`` for a non-finite value, a time before
-        ``not_before_s`` (the filter's: the past is predicted already) or before the
-        newest command's."""
-        t_s, accel_mps2 = float(t_s), float(accel_mps2)
-        if not (math.isfinite(t_s) and math.isfinite(accel_mps2)):
-            raise ValueError(f"acceleration command {accel_mps2!r} m/s^2 at t_s = {t_s!r}: "
-                             "expected finite numbers")
-        if is_stale(not_before_s, t_s):
-            raise ValueError(f"acceleration command at t_s = {t_s!r} s: the filter is at "
-                             f"{not_before_s!r} s already")
-        times = self._times_s
-        if times and t_s <= times[-1] + instant_tolerance_s(t_s):
-            if t_s < times[-1] - instant_tolerance_s(t_s):
-                raise ValueError(f"acceleration command at t_s = {t_s!r} s: before the last "
-                                 f"one ({times[-1]!r} s); commands come in time order")
-            self._commands_mps2[-1] = accel_mps2
-            return
-        level = self.level(t_s)
-        times.append(t_s)
-        self._commands_mps2.append(accel_mps2)
-        self._start_levels_mps2.append(level)
-        first = bisect.bisect_left(times, t_s - KEEP_S) - 1
-        if first > 0:
-            del times[:first]
-            del self._commands_mps2[:first]
-            del self._start_levels_mps2[:first]
+    def _appending(self, t_s: float) -> None:
+        self._start_levels_mps2.append(self.level(t_s))
 
-    @property
-    def told(self) -> bool:
-        """Whether a command has been told since the last :meth:`clear`."""
-        return bool(self._times_s)
+    def _dropped(self, count: int) -> None:
+        del self._start_levels_mps2[:count]
 
     def level(self, t_s: float) -> float:
         """``a_lag(t_s)`` of (A1): 0 before the first command."""
@@ -125,7 +95,7 @@ class AccelCommands:
 
     def _level_of(self, i: int, t_s: float) -> float:
         """(A1) under command ``i`` at ``t_s`` (within its time)."""
-        command = self._commands_mps2[i]
+        command = self._values[i]
         elapsed_s = max(t_s - self._times_s[i], 0.0)
         return command + (self._start_levels_mps2[i] - command) * math.exp(
             -elapsed_s / self.belief.time_constant_s)
