@@ -120,8 +120,9 @@ class KalmanFusion(ABC):
             )
         self._config = config
         roll = roll_params(config, belief)
-        self._noise = (process_noise(config), dataclasses.replace(
-            process_noise(config), jerk_psd_m2ps5=config.accel_commanded_jerk_psd_m2ps5,
+        untold = process_noise(config)
+        self._noise = (untold, dataclasses.replace(
+            untold, jerk_psd_m2ps5=config.accel_commanded_jerk_psd_m2ps5,
             jerk_relative_psd_1ps=0.0))
         """The process noise before and after the first acceleration command."""
         self._process = ProcessModel(
