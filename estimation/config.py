@@ -189,6 +189,12 @@ class EstimatorConfig:
         doc="roll-acceleration PSD per squared roll acceleration the tyres' lateral force "
         "commands (omega^2 G a_y): the roll mode's error grows with the force [s]",
     )
+    tyre_load_sensitivity: float = setting(
+        0.7, low=0.0, high=2.0,
+        doc="exponent of each axle's cornering stiffness in its load, which the longitudinal "
+        "acceleration moves between the axles (estimation.process_model, (D3'')); 0: the "
+        "axle loads stay static",
+    )
     lateral_residual_sigma_mps2: float = setting(
         0.005,
         low=1e-6,

@@ -119,7 +119,7 @@ class KalmanFusion(ABC):
                 f"(0, {MAX_STEP_S:g}]"
             )
         self._config = config
-        roll = roll_params(config, belief)
+        roll, load = roll_params(config, belief), config.tyre_load_sensitivity
         untold = process_noise(config)
         self._noise = (untold, dataclasses.replace(
             untold, jerk_psd_m2ps5=config.accel_commanded_jerk_psd_m2ps5,
@@ -127,7 +127,7 @@ class KalmanFusion(ABC):
         """The process noise before and after the first acceleration command."""
         self._process = ProcessModel(
             self._noise[0],
-            BicycleParams.from_vehicle(belief, config.tyre_model, roll),
+            BicycleParams.from_vehicle(belief, config.tyre_model, roll, load),
             config.lateral_residual_time_constant_s,
             sigma_point_count=self._sigma_point_count(),
             steering=SteeringBelief.from_vehicle(belief),
@@ -143,7 +143,7 @@ class KalmanFusion(ABC):
             wheel_model_sigma_mps=config.wheel_model_sigma_mps,
             lateral_accel_model_sigma_mps2=config.lateral_accel_model_sigma_mps2,
             steer_model_sigma_rad=config.steer_model_sigma_rad,
-            tyre_model=config.tyre_model, roll=roll,
+            tyre_model=config.tyre_model, roll=roll, tyre_load_sensitivity=load,
             wheel_slip_per_force_ratio=config.wheel_slip_per_force_ratio,
         )
         if config.compiled:

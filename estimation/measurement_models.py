@@ -247,6 +247,7 @@ def build_measurement_models(
     tyre_model: str = "saturating",
     roll: RollParams | None = None,
     wheel_slip_per_force_ratio: float = 0.0,
+    tyre_load_sensitivity: float = 0.0,
 ) -> dict[str, MeasurementModel]:
     """The measurement models of every sensor the filters fuse, by sensor name.
 
@@ -279,7 +280,8 @@ def build_measurement_models(
     is what the EKF compiles). The functions are built once per process for equal arguments;
     each call returns models with evaluators of their own.
     """
-    numbers = symbolic_twin(_Belief(BicycleParams.from_vehicle(belief, tyre_model, roll),
+    numbers = symbolic_twin(_Belief(BicycleParams.from_vehicle(belief, tyre_model, roll,
+                                                               tyre_load_sensitivity),
                                     WheelGeometry.from_vehicle(belief),
                                     WheelLoads.from_vehicle(belief, wheel_slip_per_force_ratio)))
     bicycle, geometry = numbers.twin.bicycle, numbers.twin.geometry

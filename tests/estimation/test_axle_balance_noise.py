@@ -18,5 +18,7 @@ def test_doubting_the_axles_balance_brings_the_rings_nees_down() -> None:
         config = load_config("track", seed=8700, duration_s=15.0, overrides=[
             f"estimator.yaw_moment_relative_psd_s={relative_s}"])
         nees[relative_s] = run_unlogged(config).metrics["nees_mean"]
-    assert nees[0.0] > 10.0  # about 20: sure of a wrong side slip, so of a wrong heading
-    assert nees[0.3] < 0.5 * nees[0.0]
+    # About 15 (20 before the filter's tyres followed the load transfer, test_load_transfer):
+    # sure of a wrong side slip, so of a wrong heading.
+    assert nees[0.0] > 10.0
+    assert nees[0.3] < 0.6 * nees[0.0]

@@ -38,17 +38,18 @@ ROLL = roll_params(CONFIG, BELIEF)
 SENSORS = ("gnss", "gnss_velocity", "imu", "wheel_speed", "steering", "heading")
 
 
-def _process(tyre_model: str = "saturating", roll: RollParams | None = ROLL) -> ProcessModel:
+def _process(tyre_model: str = "saturating", roll: RollParams | None = ROLL,
+             load_sensitivity: float = 0.0) -> ProcessModel:
     return ProcessModel(
-        NOISE, BicycleParams.from_vehicle(BELIEF, tyre_model, roll),
+        NOISE, BicycleParams.from_vehicle(BELIEF, tyre_model, roll, load_sensitivity),
         CONFIG.lateral_residual_time_constant_s,
     )
 
 
 @pytest.fixture(scope="module", params=TYRE_MODELS)
 def process(request: pytest.FixtureRequest) -> ProcessModel:
-    """The filters' process model with the configured body roll."""
-    return _process(request.param)
+    """The filters' process model with the configured body roll and load transfer."""
+    return _process(request.param, load_sensitivity=CONFIG.tyre_load_sensitivity)
 
 
 @pytest.fixture(scope="module")
@@ -355,6 +356,32 @@ def test_saturating_tyres_limit_the_force_at_the_friction_circle() -> None:
     # Small slips: the same force.
     x = _state(vx_mps=20.0, vy_mps=-0.05)
     assert model.evaluate(x)[0][2] == pytest.approx(linear.evaluate(x)[0][2], rel=1e-3)
+
+
+def test_load_transfer_by_hand() -> None:
+    """(D3''): accelerating at 1.5 m/s^2 moves ``m a_x h / L`` of load from the front axle to
+    the rear; each axle's cornering stiffness follows its load ratio to the power ``eps``.
+    The yaw acceleration of a turn, linear tyres, by hand; coasting, the static model's to
+    the bit."""
+    sensitivity = 0.7
+    moving = _process("linear", roll=None, load_sensitivity=sensitivity)
+    static = _process("linear", roll=None)
+    vx, vy, r, delta, ax = 20.0, -0.3, 0.25, 0.05, 1.5
+    lf, lr = BELIEF.cog_front_m, BELIEF.cog_rear_m
+    wheelbase, weight = lf + lr, BELIEF.mass_kg * 9.81
+    transfer = BELIEF.mass_kg * ax * BELIEF.cog_height_m / wheelbase
+    front = 72550.0 * (delta - (vy + lf * r) / vx) * (
+        1.0 - transfer / (weight * lr / wheelbase)) ** sensitivity
+    rear = 79580.0 * (-(vy - lr * r) / vx) * (
+        1.0 + transfer / (weight * lf / wheelbase)) ** sensitivity
+    x = _state(vx_mps=vx, vy_mps=vy, yaw_rate_radps=r, steer_rad=delta, ax_mps2=ax)
+    yaw_accel = moving.derivative(x)[0][state_index("yaw_rate_radps")]
+    assert yaw_accel == pytest.approx((lf * front - lr * rear) / BELIEF.yaw_inertia_kgm2,
+                                      rel=1e-12)
+    # Accelerating in a left turn, the heavier rear axle turns the car less.
+    assert yaw_accel < static.derivative(x)[0][state_index("yaw_rate_radps")] - 0.05
+    coasting = _state(vx_mps=vx, vy_mps=vy, yaw_rate_radps=r, steer_rad=delta)
+    np.testing.assert_array_equal(moving.derivative(coasting)[0], static.derivative(coasting)[0])
 
 
 def test_sideslip_moves_the_car_sideways(process: ProcessModel) -> None:
