@@ -189,11 +189,17 @@ class EstimatorConfig:
         doc="roll-acceleration PSD per squared roll acceleration the tyres' lateral force "
         "commands (omega^2 G a_y): the roll mode's error grows with the force [s]",
     )
-    tyre_load_sensitivity: float = setting(
-        0.7, low=0.0, high=2.0,
-        doc="exponent of each axle's cornering stiffness in its load, which the longitudinal "
-        "acceleration moves between the axles (estimation.process_model, (D3'')); 0: the "
-        "axle loads stay static",
+    # The elasticities of the sedan's MF 6.1 tyre's cornering stiffness in its load at the
+    # static wheel loads (cosim.plant.tyre_model.cornering_stiffness_load_elasticity):
+    # docs/defaults.md, "The axles' load transfer".
+    tyre_load_sensitivity_front: float = setting(
+        0.58, low=0.0, high=2.0,
+        doc="exponent of the front axle's cornering stiffness in its load, which the "
+        "longitudinal acceleration moves between the axles (estimation.process_model, (D3''))",
+    )
+    tyre_load_sensitivity_rear: float = setting(
+        0.74, low=0.0, high=2.0,
+        doc="the same for the rear axle; both 0: the axle loads stay static",
     )
     lateral_residual_sigma_mps2: float = setting(
         0.005,
@@ -328,6 +334,11 @@ class EstimatorConfig:
     ukf_alpha: float = setting(1.0, low=1e-4, high=1.0, doc="spread of the sigma points")
     ukf_beta: float = setting(2.0, low=0.0, high=10.0, doc="prior knowledge of the distribution")
     ukf_kappa: float = setting(0.0, low=-10.0, high=10.0, doc="secondary scaling")
+
+    @property
+    def tyre_load_sensitivities(self) -> tuple[float, float]:
+        """``(front, rear)``: the exponents of (D3'') of :mod:`estimation.process_model`."""
+        return self.tyre_load_sensitivity_front, self.tyre_load_sensitivity_rear
 
 
 RESIDUAL_SIGMAS: tuple[str, ...] = ("lateral_residual_sigma_mps2", "lateral_residual_relative",

@@ -119,7 +119,7 @@ class KalmanFusion(ABC):
                 f"(0, {MAX_STEP_S:g}]"
             )
         self._config = config
-        roll, load = roll_params(config, belief), config.tyre_load_sensitivity
+        roll, load = roll_params(config, belief), config.tyre_load_sensitivities
         untold = process_noise(config)
         self._noise = (untold, dataclasses.replace(
             untold, jerk_psd_m2ps5=config.accel_commanded_jerk_psd_m2ps5,

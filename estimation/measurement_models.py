@@ -247,7 +247,7 @@ def build_measurement_models(
     tyre_model: str = "saturating",
     roll: RollParams | None = None,
     wheel_slip_per_force_ratio: float = 0.0,
-    tyre_load_sensitivity: float = 0.0,
+    tyre_load_sensitivity: tuple[float, float] = (0.0, 0.0),
 ) -> dict[str, MeasurementModel]:
     """The measurement models of every sensor the filters fuse, by sensor name.
 

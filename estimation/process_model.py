@@ -36,14 +36,17 @@ the static axle loads ``F_z0i``. Accelerating moves load to the rear axle, braki
 front, and a tyre's cornering stiffness grows with its load (Pacejka, "Tyre and Vehicle
 Dynamics", 3rd ed. 2012, eq. 4.E25, ``K_ya = p_Ky1 F_z0 sin(2 atan(F_z / (p_Ky2 F_z0)))``)::
 
-    F_zf = F_z0f - m a_x h / L,  F_zr = F_z0r + m a_x h / L,  C_i = C_i0 (F_zi / F_z0i)^eps  (D3'')
+    F_zf = F_z0f - m a_x h / L,   F_zr = F_z0r + m a_x h / L
+    C_i = C_i0 (F_zi / F_z0i)^eps_i                                               (D3'')
 
-with ``eps`` the belief's load sensitivity (``estimator.tyre_load_sensitivity``; the
-elasticity of ``K_ya`` in ``F_z``, ``(1 - u^2) / (1 + u^2)`` with ``u = F_z / (p_Ky2 F_z0)``,
-0.70 for the sedan's MF 6.1 tyre at its wheel loads). Left out, the axles' balance shifts
-with ``a_x a_y``: on the circuit, accelerating out of a 5 m/s^2 turn at 1 m/s^2, the
-model's yaw acceleration was 0.1 rad/s^2 off (``-0.02 a_x a_y``), a side slip 0.1 m/s off
-and, the course pinned by the receiver, a heading 10 mrad off that the filter was sure of. The
+with ``eps_i`` each axle's load sensitivity (``estimator.tyre_load_sensitivity_front``,
+``_rear``: the elasticity of ``K_ya`` in ``F_z``, ``(1 - u^2) / (1 + u^2)`` with
+``u = F_z / (p_Ky2 F_z0)``, 0.58 and 0.74 for the sedan's MF 6.1 tyres at its static wheel
+loads, :func:`cosim.plant.tyre_model.cornering_stiffness_load_elasticity`). Left out, the
+axles' balance shifts with ``a_x a_y``: on the circuit, accelerating out of a 5 m/s^2 turn
+at 1 m/s^2, the model's yaw acceleration was 0.1 rad/s^2 off (``-0.02 a_x a_y``), a side
+slip 0.1 m/s off and, the course pinned by the receiver, a heading 10 mrad off that the
+filter was sure of. The
 ``saturating`` tyre law (D3'), the default, is (D3) with a smooth limit at the friction force
 ``mu F_z`` of the axle load (of (D3'')) (``mu``: the belief's ``tyre_friction``); it has the same
 cornering stiffness and differs from (D3) only where the tyres saturate: on the Pacejka
@@ -197,8 +200,11 @@ class BicycleParams:
     tyre_friction: float = 1.0
     tyre_model: str = "saturating"
     roll: RollParams = RollParams()
-    load_sensitivity: float = 0.0
-    """``epsilon`` of (D3''): an axle's cornering stiffness grows as its load to this power."""
+    load_sensitivity_front: float = 0.0
+    """``eps_f`` of (D3''): the front axle's cornering stiffness grows as its load to this
+    power."""
+    load_sensitivity_rear: float = 0.0
+    """``eps_r`` of (D3''), the rear axle's."""
     load_transfer_height_m: float = 0.0
     """``h`` of (D3''), the CoG's height over the ground the pitch moment acts at (0: the
     axle loads stay static)."""
@@ -207,7 +213,8 @@ class BicycleParams:
         for name, value in vars(self).items():
             if name in ("tyre_model", "roll"):
                 continue
-            if name in ("load_sensitivity", "load_transfer_height_m"):
+            if name in ("load_sensitivity_front", "load_sensitivity_rear",
+                        "load_transfer_height_m"):
                 if not (math.isfinite(value) and value >= 0.0):
                     raise ValueError(f"{name} = {value!r}: expected a finite number >= 0")
                 continue
@@ -228,11 +235,12 @@ class BicycleParams:
     @classmethod
     def from_vehicle(
         cls, belief: VehicleParams, tyre_model: str = "saturating", roll: RollParams | None = None,
-        load_sensitivity: float = 0.0,
+        load_sensitivity: tuple[float, float] = (0.0, 0.0),
     ) -> BicycleParams:
         """Mass, yaw inertia, CoG position, axle cornering stiffnesses and tyre friction of
         ``belief``; ``roll`` the body roll mode (none by default); ``load_sensitivity`` the
-        ``epsilon`` of (D3''), the load transfer at the belief's CoG height (0: none).
+        ``(eps_f, eps_r)`` of (D3''), the load transfer at the belief's CoG height (both 0:
+        none).
 
         ``VehicleParams`` gains ``cornering_stiffness_front_npr``/``_rear_npr``; a record
         without them gets :data:`DEFAULT_CORNERING_STIFFNESS_FRONT_NPR` and
@@ -252,8 +260,9 @@ class BicycleParams:
             tyre_friction=belief.tyre_friction,
             tyre_model=tyre_model,
             roll=RollParams() if roll is None else roll,
-            load_sensitivity=float(load_sensitivity),
-            load_transfer_height_m=belief.cog_height_m if load_sensitivity > 0.0 else 0.0,
+            load_sensitivity_front=float(load_sensitivity[0]),
+            load_sensitivity_rear=float(load_sensitivity[1]),
+            load_transfer_height_m=belief.cog_height_m if any(load_sensitivity) else 0.0,
         )
 
 
@@ -280,9 +289,9 @@ def axle_forces(s: Mapping[str, ca.SX], bicycle: BicycleParams) -> tuple[ca.SX, 
     ratio_front = ca.fmax(1.0 - transfer / static_front, MIN_LOAD_RATIO)
     ratio_rear = ca.fmax(1.0 + transfer / static_rear, MIN_LOAD_RATIO)
     linear_front = (bicycle.cornering_stiffness_front_npr * alpha_front  # (D3)
-                    * ratio_front**bicycle.load_sensitivity)
+                    * ratio_front**bicycle.load_sensitivity_front)
     linear_rear = (bicycle.cornering_stiffness_rear_npr * alpha_rear
-                   * ratio_rear**bicycle.load_sensitivity)
+                   * ratio_rear**bicycle.load_sensitivity_rear)
     if bicycle.tyre_model == "linear":
         return linear_front, linear_rear
     # (D3'): F = mu F_z tanh(C alpha / (mu F_z)), the linear tyre up to a smooth limit at

@@ -75,7 +75,8 @@ def main() -> None:
 def _add_data_sheet(belief: Path, plant: dict[str, object]) -> None:
     """The belief file with the car's own figures that identification does not fit
     (tracks, CoG height, wheel radius, steering limits): a controller knows them from the
-    car's data sheet."""
+    car's data sheet; and the filter's load sensitivity of each axle's cornering stiffness,
+    from its tyre's data sheet (the Magic Formula's at the static wheel loads)."""
     from cosim.core.vehicle_params import VehicleParams
 
     text = belief.read_text()
@@ -85,8 +86,30 @@ def _add_data_sheet(belief: Path, plant: dict[str, object]) -> None:
     shared = {f.name for f in dataclasses.fields(VehicleParams)}
     sheet = {k: v for k, v in plant.items() if k in shared and k not in model}
     model.update(sheet)
-    belief.write_text(header + f"# From the car's data sheet: {', '.join(sheet)}.\n"
+    data.setdefault("estimator", {}).update(_load_sensitivities(plant))
+    belief.write_text(header + f"# From the car's data sheet: {', '.join(sheet)}; from its "
+                      "tyre's: the estimator's tyre_load_sensitivity_*.\n"
                       + yaml.safe_dump(data, sort_keys=False))
+
+
+def _load_sensitivities(plant: dict[str, object]) -> dict[str, float]:
+    """``estimator.tyre_load_sensitivity_front`` and ``_rear`` of the car whose changed
+    ``plant:`` keys are ``plant``: its tyre's cornering-stiffness elasticity in the load at
+    the static front and rear wheel loads."""
+    from cosim.core.physical_constants import GRAVITY_MPS2
+    from cosim.core.vehicle_params import PlantConfig
+    from cosim.plant.tyre_model import cornering_stiffness_load_elasticity
+
+    base = PlantConfig()
+    tyre = dataclasses.replace(base.tyre, **plant.get("tyre", {}))  # type: ignore[arg-type]
+    car = dataclasses.replace(base, **{k: v for k, v in plant.items() if k != "tyre"})
+    wheelbase_m = car.cog_front_m + car.cog_rear_m
+    weight_n = car.mass_kg * GRAVITY_MPS2
+    loads_n = {"front": weight_n * car.cog_rear_m / wheelbase_m / 2.0,
+               "rear": weight_n * car.cog_front_m / wheelbase_m / 2.0}
+    return {f"tyre_load_sensitivity_{axle}":
+            round(cornering_stiffness_load_elasticity(tyre, load), 2)
+            for axle, load in loads_n.items()}
 
 
 if __name__ == "__main__":

@@ -130,6 +130,16 @@ def cornering_stiffness_nprad(params: TyreParams, load_n: float) -> float:
     )
 
 
+def cornering_stiffness_load_elasticity(params: TyreParams, load_n: float) -> float:
+    """``d ln K_ya / d ln F_z`` of (4.E25) at the wheel load ``load_n``: ``(1 - u^2) / (1 +
+    u^2)`` with ``u = F_z / (p_Ky2 F_z0)`` (1 at no load, 0 where the stiffness is held at
+    its maximum). What a filter's tyres need to follow the axle loads
+    (``estimator.tyre_load_sensitivity``, :mod:`estimation.process_model` (D3''))."""
+    ratio = max(load_n, 0.0) / (params.cornering_stiffness_peak_load_ratio
+                                * params.nominal_load_n)
+    return (1.0 - ratio * ratio) / (1.0 + ratio * ratio) if ratio < 1.0 else 0.0
+
+
 def _magic_formula(slip: float, stiffness: float, shape: float, curvature: float,
                    peak: float) -> float:
     """``D sin(C atan(B s - E (B s - atan(B s))))`` with ``B = K / (C D)`` (4.E9, 4.E19)."""

@@ -3,7 +3,7 @@
 circuit, the error of the model's yaw acceleration no longer grows with ``a_x a_y``.
 
 The plant's tyres are the Magic Formula's, whose cornering stiffness grows with the wheel's
-load; the filter's bicycle is told only how fast (``estimator.tyre_load_sensitivity``). The
+load; the filter's bicycle is told only how fast (``estimator.tyre_load_sensitivity_*``). The
 model is evaluated on the true states of a logged run, so what is measured is the model's
 own error, not the filter's."""
 
@@ -16,9 +16,11 @@ import pytest
 
 from cosim.log.reader import iter_messages
 from cosim.log.topics import VEHICLE_TRUTH
+from cosim.plant.tyre_model import cornering_stiffness_load_elasticity
 from cosim.simulation.runner import run
 from cosim.simulation.scenario_config import load_config
 from estimation.belief_models import process_noise, roll_params
+from estimation.config import EstimatorConfig
 from estimation.process_model import BicycleParams, ProcessModel
 from estimation.state import STATE_NAMES, state_index
 
@@ -37,7 +39,7 @@ def ring_truth(tmp_path_factory: pytest.TempPathFactory) -> list[dict]:
     return [message for _, message in iter_messages(path, VEHICLE_TRUTH)]
 
 
-def _yaw_accel_error_slope(truth: list[dict], load_sensitivity: float) -> float:
+def _yaw_accel_error_slope(truth: list[dict], load_sensitivity: tuple[float, float]) -> float:
     """Least-squares slope of (true yaw acceleration - model's) on ``a_x a_y``
     [rad/s^2 per (m/s^2)^2], the model evaluated at each true state."""
     config = load_config("track")
@@ -70,14 +72,29 @@ def _yaw_accel_error_slope(truth: list[dict], load_sensitivity: float) -> float:
 
 @pytest.mark.slow
 def test_the_axles_balance_follows_the_load_transfer(ring_truth: list[dict]) -> None:
-    static = _yaw_accel_error_slope(ring_truth, 0.0)
-    transferred = _yaw_accel_error_slope(ring_truth, load_config("track").estimator
-                                         .tyre_load_sensitivity)
+    static = _yaw_accel_error_slope(ring_truth, (0.0, 0.0))
+    transferred = _yaw_accel_error_slope(ring_truth,
+                                         load_config("track").estimator.tyre_load_sensitivities)
     print(f"yaw acceleration error per a_x a_y: static loads {static:.4f}, "
           f"transferred {transferred:.4f} rad/s^2 per (m/s^2)^2")
     # Static loads: accelerating out of a 5 m/s^2 turn at 1 m/s^2 the model turns the car
     # some 0.1 rad/s^2 harder than it turns.
     assert static < -0.01
-    # With the transfer, a quarter of that at most (the transfer's sign reversed doubles it,
-    # an exponent of 1.5 overshoots to the other side).
+    # With the transfer, a quarter of that at most (the transfer's sign reversed doubles it;
+    # exponents of 1, as for a stiffness proportional to the load, overshoot to the other
+    # side by half of it).
     assert abs(transferred) < 0.25 * abs(static)
+
+
+def test_the_default_exponents_are_the_sedans_tyres() -> None:
+    """The defaults are not fitted: they are the elasticity of the plant's Magic Formula
+    cornering stiffness (4.E25) in the load, at the sedan's static front and rear wheel
+    loads, to the two digits the configuration states."""
+    config = load_config("lane-change")
+    plant = config.plant
+    wheelbase_m = plant.cog_front_m + plant.cog_rear_m
+    wheel_loads_n = (plant.mass_kg * 9.81 * plant.cog_rear_m / wheelbase_m / 2.0,
+                     plant.mass_kg * 9.81 * plant.cog_front_m / wheelbase_m / 2.0)
+    expected = tuple(cornering_stiffness_load_elasticity(plant.tyre, load)
+                     for load in wheel_loads_n)
+    np.testing.assert_allclose(EstimatorConfig().tyre_load_sensitivities, expected, atol=0.005)

@@ -39,7 +39,7 @@ SENSORS = ("gnss", "gnss_velocity", "imu", "wheel_speed", "steering", "heading")
 
 
 def _process(tyre_model: str = "saturating", roll: RollParams | None = ROLL,
-             load_sensitivity: float = 0.0) -> ProcessModel:
+             load_sensitivity: tuple[float, float] = (0.0, 0.0)) -> ProcessModel:
     return ProcessModel(
         NOISE, BicycleParams.from_vehicle(BELIEF, tyre_model, roll, load_sensitivity),
         CONFIG.lateral_residual_time_constant_s,
@@ -49,7 +49,7 @@ def _process(tyre_model: str = "saturating", roll: RollParams | None = ROLL,
 @pytest.fixture(scope="module", params=TYRE_MODELS)
 def process(request: pytest.FixtureRequest) -> ProcessModel:
     """The filters' process model with the configured body roll and load transfer."""
-    return _process(request.param, load_sensitivity=CONFIG.tyre_load_sensitivity)
+    return _process(request.param, load_sensitivity=CONFIG.tyre_load_sensitivities)
 
 
 @pytest.fixture(scope="module")
@@ -360,20 +360,20 @@ def test_saturating_tyres_limit_the_force_at_the_friction_circle() -> None:
 
 def test_load_transfer_by_hand() -> None:
     """(D3''): accelerating at 1.5 m/s^2 moves ``m a_x h / L`` of load from the front axle to
-    the rear; each axle's cornering stiffness follows its load ratio to the power ``eps``.
+    the rear; each axle's cornering stiffness follows its load ratio to its power ``eps_i``.
     The yaw acceleration of a turn, linear tyres, by hand; coasting, the static model's to
     the bit."""
-    sensitivity = 0.7
-    moving = _process("linear", roll=None, load_sensitivity=sensitivity)
+    front_eps, rear_eps = 0.58, 0.74
+    moving = _process("linear", roll=None, load_sensitivity=(front_eps, rear_eps))
     static = _process("linear", roll=None)
     vx, vy, r, delta, ax = 20.0, -0.3, 0.25, 0.05, 1.5
     lf, lr = BELIEF.cog_front_m, BELIEF.cog_rear_m
     wheelbase, weight = lf + lr, BELIEF.mass_kg * 9.81
     transfer = BELIEF.mass_kg * ax * BELIEF.cog_height_m / wheelbase
     front = 72550.0 * (delta - (vy + lf * r) / vx) * (
-        1.0 - transfer / (weight * lr / wheelbase)) ** sensitivity
+        1.0 - transfer / (weight * lr / wheelbase)) ** front_eps
     rear = 79580.0 * (-(vy - lr * r) / vx) * (
-        1.0 + transfer / (weight * lf / wheelbase)) ** sensitivity
+        1.0 + transfer / (weight * lf / wheelbase)) ** rear_eps
     x = _state(vx_mps=vx, vy_mps=vy, yaw_rate_radps=r, steer_rad=delta, ax_mps2=ax)
     yaw_accel = moving.derivative(x)[0][state_index("yaw_rate_radps")]
     assert yaw_accel == pytest.approx((lf * front - lr * rear) / BELIEF.yaw_inertia_kgm2,
