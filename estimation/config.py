@@ -123,6 +123,11 @@ class EstimatorConfig:
         True, doc="move the acceleration state with the controller's acceleration commands "
         "(estimation.accel_commands); false: the acceleration is a random walk only",
     )
+    accel_command_cornering_drag: bool = setting(
+        True, doc="the acceleration a command gives is the command plus the front tyres' "
+        "lateral force along the car, -F_yf sin(delta) / m, at the estimate when it is told "
+        "(estimation.process_model): in a turn the car slows by it",
+    )
     accel_command_time_constant_s: float = setting(
         0.01, low=1e-3, high=2.0,
         doc="the lag of the car's acceleration behind its command, as the filter believes "

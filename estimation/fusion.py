@@ -126,18 +126,15 @@ class KalmanFusion(ABC):
             jerk_relative_psd_1ps=0.0))
         """The process noise before and after the first acceleration command."""
         self._process = ProcessModel(
-            self._noise[0],
-            BicycleParams.from_vehicle(belief, config.tyre_model, roll, load),
-            config.lateral_residual_time_constant_s,
-            sigma_point_count=self._sigma_point_count(),
-            steering=SteeringBelief.from_vehicle(belief),
-        )
+            self._noise[0], BicycleParams.from_vehicle(belief, config.tyre_model, roll, load),
+            config.lateral_residual_time_constant_s, sigma_point_count=self._sigma_point_count(),
+            steering=SteeringBelief.from_vehicle(belief))
         self._commands = SteeringCommands()
         """The steering commands told (:meth:`command`), which the predictions run along."""
         self._accel_commands = AccelCommands(DriveBelief(
             config.accel_command_time_constant_s, config.accel_command_relative_sigma))
         """The acceleration commands told (:meth:`accel_command`), an input of the same."""
-        self._ax = state_index("ax_mps2")
+        self._ax, self._drag = state_index("ax_mps2"), config.accel_command_cornering_drag
         self._models: dict[str, MeasurementModel] = build_measurement_models(
             belief,
             wheel_model_sigma_mps=config.wheel_model_sigma_mps,
@@ -332,12 +329,14 @@ class KalmanFusion(ABC):
 
     def accel_command(self, t_s: float, accel_mps2: float) -> None:
         """The acceleration command ``accel_mps2`` acts on the drive from ``t_s`` on (as
-        :meth:`command`): the predictions move the acceleration with it
-        (:mod:`estimation.accel_commands`), unless ``estimator.accel_commands`` is off."""
+        :meth:`command`): the predictions move the acceleration with it, plus the cornering
+        drag at the estimate now (``estimator.accel_command_cornering_drag``; the drag is an
+        input, :mod:`estimation.accel_commands`), unless ``estimator.accel_commands`` is off."""
         if self._config.accel_commands:
             if not self._accel_commands.told:  # the jerk is the commands' no longer
                 self._process.use_noise(self._noise[1])
-            self._accel_commands.add(t_s, accel_mps2, not_before_s=self._t_s)
+            drag = self._process.cornering_drag_mps2(self._x) if self._drag else 0.0
+            self._accel_commands.add(t_s, accel_mps2 + drag, not_before_s=self._t_s)
             self._lookahead = None
 
     def _follow_accel_command(self, t0_s: float, t1_s: float) -> None:

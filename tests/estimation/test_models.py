@@ -384,6 +384,18 @@ def test_load_transfer_by_hand() -> None:
     np.testing.assert_array_equal(moving.derivative(coasting)[0], static.derivative(coasting)[0])
 
 
+def test_cornering_drag_by_hand() -> None:
+    """The front tyres' lateral force, perpendicular to the steered wheels, along the car:
+    ``-C_f alpha_f sin(delta) / m`` with linear tyres; none without steering."""
+    model = _process("linear", roll=None)
+    vx, vy, r, delta = 20.0, -0.3, 0.25, 0.05
+    alpha_front = delta - (vy + BELIEF.cog_front_m * r) / vx
+    x = _state(vx_mps=vx, vy_mps=vy, yaw_rate_radps=r, steer_rad=delta)
+    assert model.cornering_drag_mps2(x) == pytest.approx(
+        -72550.0 * alpha_front * math.sin(delta) / BELIEF.mass_kg, rel=1e-12)
+    assert model.cornering_drag_mps2(_state(vx_mps=vx, vy_mps=vy, yaw_rate_radps=r)) == 0.0
+
+
 def test_sideslip_moves_the_car_sideways(process: ProcessModel) -> None:
     """Heading east with vy = 1 m/s to the left: the CoG drifts north while the tyres pull
     vy back (rear slip angle -0.1 rad: a strong force to the right)."""
