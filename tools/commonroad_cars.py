@@ -96,20 +96,15 @@ def _load_sensitivities(plant: dict[str, object]) -> dict[str, float]:
     """``estimator.tyre_load_sensitivity_front`` and ``_rear`` of the car whose changed
     ``plant:`` keys are ``plant``: its tyre's cornering-stiffness elasticity in the load at
     the static front and rear wheel loads."""
-    from cosim.core.physical_constants import GRAVITY_MPS2
     from cosim.core.vehicle_params import PlantConfig
     from cosim.plant.tyre_model import cornering_stiffness_load_elasticity
 
     base = PlantConfig()
     tyre = dataclasses.replace(base.tyre, **plant.get("tyre", {}))  # type: ignore[arg-type]
     car = dataclasses.replace(base, **{k: v for k, v in plant.items() if k != "tyre"})
-    wheelbase_m = car.cog_front_m + car.cog_rear_m
-    weight_n = car.mass_kg * GRAVITY_MPS2
-    loads_n = {"front": weight_n * car.cog_rear_m / wheelbase_m / 2.0,
-               "rear": weight_n * car.cog_front_m / wheelbase_m / 2.0}
     return {f"tyre_load_sensitivity_{axle}":
             round(cornering_stiffness_load_elasticity(tyre, load), 2)
-            for axle, load in loads_n.items()}
+            for axle, load in zip(("front", "rear"), car.static_wheel_loads_n, strict=True)}
 
 
 if __name__ == "__main__":

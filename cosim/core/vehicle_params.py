@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 from cosim.core.config_fields import section, setting
 from cosim.core.exceptions import ConfigError
+from cosim.core.physical_constants import GRAVITY_MPS2
 from cosim.core.slip_control_params import SlipControlParams
 from cosim.core.suspension_params import SuspensionParams
 from cosim.core.tyre_params import TyreParams
@@ -126,6 +127,14 @@ class CarParams:
         """The front axle's share of the brake torque: the axle loads' split at
         :data:`BRAKE_DESIGN_DECEL_G`, ``(l_r + h a/g) / L`` (a fixed brake balance)."""
         return (self.cog_rear_m + self.cog_height_m * BRAKE_DESIGN_DECEL_G) / self.wheelbase_m
+
+    @property
+    def static_wheel_loads_n(self) -> tuple[float, float]:
+        """One front and one rear wheel's load at rest on level ground, ``m g l_r / (2 L)``
+        and ``m g l_f / (2 L)`` [N]."""
+        weight_n = self.mass_kg * GRAVITY_MPS2
+        return (weight_n * self.cog_rear_m / self.wheelbase_m / 2.0,
+                weight_n * self.cog_front_m / self.wheelbase_m / 2.0)
 
     @property
     def axle_tracks_m(self) -> tuple[float, float]:

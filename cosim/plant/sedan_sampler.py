@@ -67,9 +67,7 @@ IDENTIFIED_OVER_STATIC = (0.964, 0.984)
 def axle_cornering_stiffness_npr(plant: PlantConfig, tyre: TyreParams) -> tuple[float, float]:
     """Front and rear axle cornering stiffness of ``plant`` at static load (both tyres,
     each axle's effective-stiffness scale, :data:`IDENTIFIED_OVER_STATIC`) [N/rad]."""
-    weight_n = plant.mass_kg * GRAVITY_MPS2
-    loads = (weight_n * plant.cog_rear_m / plant.wheelbase_m / 2.0,
-             weight_n * plant.cog_front_m / plant.wheelbase_m / 2.0)
+    loads = plant.static_wheel_loads_n
     scales = (plant.front_cornering_stiffness_scale, plant.rear_cornering_stiffness_scale)
     nominal = tyre.nominal_load_n
     stiffness = []

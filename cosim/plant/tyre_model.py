@@ -134,7 +134,8 @@ def cornering_stiffness_load_elasticity(params: TyreParams, load_n: float) -> fl
     """``d ln K_ya / d ln F_z`` of (4.E25) at the wheel load ``load_n``: ``(1 - u^2) / (1 +
     u^2)`` with ``u = F_z / (p_Ky2 F_z0)`` (1 at no load, 0 where the stiffness is held at
     its maximum). What a filter's tyres need to follow the axle loads
-    (``estimator.tyre_load_sensitivity``, :mod:`estimation.process_model` (D3''))."""
+    (``estimator.tyre_load_sensitivity_front``, ``_rear``, :mod:`estimation.process_model`
+    (D3''))."""
     ratio = max(load_n, 0.0) / (params.cornering_stiffness_peak_load_ratio
                                 * params.nominal_load_n)
     return (1.0 - ratio * ratio) / (1.0 + ratio * ratio) if ratio < 1.0 else 0.0

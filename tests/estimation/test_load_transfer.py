@@ -92,9 +92,6 @@ def test_the_default_exponents_are_the_sedans_tyres() -> None:
     loads, to the two digits the configuration states."""
     config = load_config("lane-change")
     plant = config.plant
-    wheelbase_m = plant.cog_front_m + plant.cog_rear_m
-    wheel_loads_n = (plant.mass_kg * 9.81 * plant.cog_rear_m / wheelbase_m / 2.0,
-                     plant.mass_kg * 9.81 * plant.cog_front_m / wheelbase_m / 2.0)
     expected = tuple(cornering_stiffness_load_elasticity(plant.tyre, load)
-                     for load in wheel_loads_n)
+                     for load in plant.static_wheel_loads_n)
     np.testing.assert_allclose(EstimatorConfig().tyre_load_sensitivities, expected, atol=0.005)
