@@ -5,8 +5,9 @@ the process noise's power spectral densities and the body-roll mode
 from __future__ import annotations
 
 from cosim.core.vehicle_params import VehicleParams
+from estimation.bicycle import RollParams
 from estimation.config import EstimatorConfig
-from estimation.process_model import ProcessNoise, RollParams
+from estimation.process_model import ProcessNoise
 
 
 def process_noise(config: EstimatorConfig) -> ProcessNoise:

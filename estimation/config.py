@@ -26,8 +26,8 @@ from typing import Any
 from cosim.core.config_fields import mapping, section, setting
 from cosim.core.exceptions import ConfigError
 from cosim.core.plugins import entry_point_names, is_import_path
+from estimation.bicycle import TYRE_MODELS
 from estimation.noise_config import NoiseBelief
-from estimation.process_model import TYRE_MODELS
 
 ESTIMATOR_NAMES: tuple[str, ...] = ("ekf", "ukf", "truth")
 """Built-in values of ``estimator.name``; :func:`estimation.registry.make_estimator` builds

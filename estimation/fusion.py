@@ -38,6 +38,7 @@ from cosim.core.sensor_names import FUSED_SENSORS, GNSS
 from cosim.core.vehicle_params import VehicleParams
 from estimation.accel_commands import AccelCommands, DriveBelief
 from estimation.belief_models import process_noise, roll_params
+from estimation.bicycle import BicycleParams
 from estimation.compiled_models import use_compiled
 from estimation.config import EstimatorConfig
 from estimation.consistency import chi_square_quantile
@@ -55,11 +56,7 @@ from estimation.innovation import (
 )
 from estimation.joint_update import JointPosterior
 from estimation.measurement_models import MeasurementModel, build_measurement_models
-from estimation.process_model import (
-    MAX_STEP_S,
-    BicycleParams,
-    ProcessModel,
-)
+from estimation.process_model import MAX_STEP_S, ProcessModel
 from estimation.state import ANGLE_STATES, STATE_NAMES, state_index, wrap_angle
 from estimation.steering_commands import SteeringCommands
 from estimation.steering_model import SteeringBelief

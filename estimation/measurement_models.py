@@ -19,7 +19,7 @@ from cosim.core.dense_function import DenseFunction
 from cosim.core.records import WHEEL_NAMES
 from cosim.core.symbolic_record import SymbolicRecord, symbolic_twin
 from cosim.core.vehicle_params import VehicleParams
-from estimation.process_model import (
+from estimation.bicycle import (
     BicycleParams,
     RollParams,
     axle_lateral_velocity,

@@ -24,34 +24,17 @@ mode, and planar rigid-body kinematics::
 The roll mode (R1)-(R2) is a second-order system driven by the tyres' lateral
 acceleration with the steady roll gradient ``G``, natural frequency ``omega`` and damping
 ratio ``zeta`` (Gillespie, "Fundamentals of Vehicle Dynamics", ch. 8, roll gradient;
-:class:`RollParams`); the CoG sits ``h`` (the belief's ``cog_height_m``) above the roll
-axis, so when the body rolls it sways sideways relative to the axles: the tyres see the
-axles' lateral velocity ``vy + h p``, an IMU and a GNSS antenna at the CoG see the sway. On
+:class:`estimation.bicycle.RollParams`); the CoG sits ``h`` (the belief's ``cog_height_m``)
+above the roll axis, so when the body rolls it sways sideways relative to the axles: the
+tyres see the axles' lateral velocity ``vy + h p``, an IMU and a GNSS antenna at the CoG see
+the sway. On
 the MuJoCo sedan the sway is 2.5 cm at 0.5 g and the CoG's lateral acceleration differs
 from the tyres' by up to 1 m/s^2 in a lane change: without (R1)-(R2) the tyre model's
 error in lateral acceleration is 0.13 m/s^2 RMS, with them 0.05 m/s^2.
 
-``C_f``, ``C_r`` are the axle cornering stiffnesses of the *belief* (``VehicleParams``) at
-the static axle loads ``F_z0i``. Accelerating moves load to the rear axle, braking to the
-front, and a tyre's cornering stiffness grows with its load (Pacejka, "Tyre and Vehicle
-Dynamics", 3rd ed. 2012, eq. 4.E25, ``K_ya = p_Ky1 F_z0 sin(2 atan(F_z / (p_Ky2 F_z0)))``)::
-
-    F_zf = F_z0f - m a_x h / L,   F_zr = F_z0r + m a_x h / L
-    C_i = C_i0 (F_zi / F_z0i)^eps_i                                               (D3'')
-
-with ``eps_i`` each axle's load sensitivity (``estimator.tyre_load_sensitivity_front``,
-``_rear``: the elasticity of ``K_ya`` in ``F_z``, ``(1 - u^2) / (1 + u^2)`` with
-``u = F_z / (p_Ky2 F_z0)``, 0.58 and 0.74 for the sedan's MF 6.1 tyres at its static wheel
-loads, :func:`cosim.plant.tyre_model.cornering_stiffness_load_elasticity`). Left out, the
-axles' balance shifts with ``a_x a_y``: on the circuit, accelerating out of a 5 m/s^2 turn
-at 1 m/s^2, the model's yaw acceleration was 0.1 rad/s^2 off (``-0.02 a_x a_y``), a side
-slip 0.1 m/s off and, the course pinned by the receiver, a heading 10 mrad off that the
-filter was sure of. The
-``saturating`` tyre law (D3'), the default, is (D3) with a smooth limit at the friction force
-``mu F_z`` of the axle load (of (D3'')) (``mu``: the belief's ``tyre_friction``); it has the same
-cornering stiffness and differs from (D3) only where the tyres saturate: on the Pacejka
-sedan in a 0.8 g lane change the linear law's lateral acceleration is off by 1.7 m/s^2 RMS
-where ``|a_y| > 4 m/s^2``, (D3') by 0.24 m/s^2.
+The axles' lateral forces (D1)-(D3'), with the load transfer between the axles (D3'') and
+the tyres' relaxation (D3'''), and the bicycle's numbers (:class:`BicycleParams`,
+:class:`RollParams`) are :mod:`estimation.bicycle`'s.
 
 ``d`` is ``lateral_accel_residual_mps2``, a first-order Gauss-Markov process: the tyre model
 is trusted on average, but the IMU's lateral acceleration can pull the force it predicts to
@@ -85,9 +68,9 @@ estimate lagged every steering ramp by a few samples, so the steering sensor's i
 were as large as the ramp's steps, and a process noise large enough for the gnss suite's
 busier steering was four times too large for the rtk suite's (NIS per dof 0.25 to 3).
 
-``v_s`` is the forward speed with a floor at low
-speed (:func:`slip_speed`: equal to ``vx`` above :data:`LOW_SPEED_MPS`, never below half of
-it), where the slip angles of (D1)-(D2) are undefined; below that speed the tyre model
+``v_s`` is the forward speed with a floor at low speed
+(:func:`estimation.bicycle.slip_speed`: equal to ``vx`` above ``LOW_SPEED_MPS``, never below
+half of it), where the slip angles of (D1)-(D2) are undefined; below that speed the tyre model
 quickly pulls the car onto the kinematic bicycle.
 
 Discretisation over a sub-step ``dt``: the mean by one classical Runge-Kutta 4 step, its
@@ -103,7 +86,6 @@ like ``(2 |A| dt)^k / k!``; the largest entries of ``A`` are the roll mode's ``o
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -112,10 +94,15 @@ import numpy as np
 
 from cosim.core.built_once import built_once
 from cosim.core.dense_function import DenseFunction
-from cosim.core.physical_constants import GRAVITY_MPS2
 from cosim.core.symbolic_record import symbolic_twin
-from cosim.core.vehicle_equations import axle_slip_angles, rk4_step
-from cosim.core.vehicle_params import VehicleParams
+from cosim.core.vehicle_equations import rk4_step
+from estimation.bicycle import (
+    BicycleParams,
+    axle_forces,
+    cog_lateral_accel,
+    roll_accel,
+    world_velocity,
+)
 from estimation.state import (
     STATE_NAMES,
     named_states,
@@ -138,207 +125,6 @@ MIN_RESIDUAL_TIME_CONSTANT_S = 0.05
 MAX_STEP_S = 0.02
 """Longest sub-step the noise series is exact for."""
 
-MIN_LOAD_RATIO = 0.1
-"""Smallest axle load over its static load that (D3'') takes (a wheelie is not modelled)."""
-
-LOW_SPEED_MPS = 5.0
-"""Below this forward speed the slip angles use :func:`slip_speed`'s floor, not vx."""
-
-DEFAULT_CORNERING_STIFFNESS_FRONT_NPR = 72550.0
-"""Front-axle cornering stiffness of the Pacejka sedan (``cosim identify``), used when the
-belief (``VehicleParams``) does not carry one [N/rad]."""
-
-DEFAULT_CORNERING_STIFFNESS_REAR_NPR = 79580.0
-"""Rear-axle cornering stiffness of the Pacejka sedan (``cosim identify``) [N/rad]."""
-
-
-TYRE_MODELS: tuple[str, ...] = ("saturating", "linear")
-"""Tyre laws of the filters' bicycle: (D3) with or without the friction limit (D3')."""
-
-
-
-@dataclass(frozen=True)
-class RollParams:
-    """The body roll mode the filters believe (R2): ``gradient_radpmps2`` steady roll per
-    lateral acceleration, ``frequency_hz`` and ``damping_ratio`` of the mode,
-    ``sway_arm_m`` the height of the CoG above the roll axis. A zero gradient and arm
-    switch the mode off (the body then neither rolls nor sways)."""
-
-    gradient_radpmps2: float = 0.0
-    frequency_hz: float = 1.5
-    damping_ratio: float = 0.5
-    sway_arm_m: float = 0.0
-
-    def __post_init__(self) -> None:
-        for name in ("gradient_radpmps2", "sway_arm_m"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0.0):
-                raise ValueError(f"{name} = {value!r}: expected a finite number >= 0")
-        for name in ("frequency_hz", "damping_ratio"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0.0):
-                raise ValueError(f"{name} = {value!r}: expected a positive finite number")
-
-    @property
-    def angular_frequency_radps(self) -> float:
-        """omega = 2 pi f."""
-        return 2.0 * math.pi * self.frequency_hz
-
-
-@dataclass(frozen=True)
-class BicycleParams:
-    """The numbers of the dynamic bicycle the filters believe (SI; cornering stiffnesses per
-    axle, both tyres; ``tyre_friction`` the peak friction coefficient, used by the
-    ``saturating`` tyre law only)."""
-
-    mass_kg: float
-    yaw_inertia_kgm2: float
-    cog_front_m: float
-    cog_rear_m: float
-    cornering_stiffness_front_npr: float
-    cornering_stiffness_rear_npr: float
-    tyre_friction: float = 1.0
-    tyre_model: str = "saturating"
-    roll: RollParams = RollParams()
-    load_sensitivity_front: float = 0.0
-    """``eps_f`` of (D3''): the front axle's cornering stiffness grows as its load to this
-    power."""
-    load_sensitivity_rear: float = 0.0
-    """``eps_r`` of (D3''), the rear axle's."""
-    load_transfer_height_m: float = 0.0
-    """``h`` of (D3''), the CoG's height over the ground the pitch moment acts at (0: the
-    axle loads stay static)."""
-
-    def __post_init__(self) -> None:
-        for name, value in vars(self).items():
-            if name in ("tyre_model", "roll"):
-                continue
-            if name in ("load_sensitivity_front", "load_sensitivity_rear",
-                        "load_transfer_height_m"):
-                if not (math.isfinite(value) and value >= 0.0):
-                    raise ValueError(f"{name} = {value!r}: expected a finite number >= 0")
-                continue
-            if not (math.isfinite(value) and value > 0.0):
-                raise ValueError(f"{name} = {value!r}: expected a positive finite number")
-        if self.tyre_model not in TYRE_MODELS:
-            raise ValueError(
-                f"tyre_model = {self.tyre_model!r}: expected one of {', '.join(TYRE_MODELS)}"
-            )
-
-    @property
-    def axle_loads_n(self) -> tuple[float, float]:
-        """Static vertical loads of the front and rear axle, ``m g l_r / L``, ``m g l_f / L``."""
-        weight_n = self.mass_kg * GRAVITY_MPS2
-        wheelbase_m = self.cog_front_m + self.cog_rear_m
-        return weight_n * self.cog_rear_m / wheelbase_m, weight_n * self.cog_front_m / wheelbase_m
-
-    @classmethod
-    def from_vehicle(
-        cls, belief: VehicleParams, tyre_model: str = "saturating", roll: RollParams | None = None,
-        load_sensitivity: tuple[float, float] = (0.0, 0.0),
-    ) -> BicycleParams:
-        """Mass, yaw inertia, CoG position, axle cornering stiffnesses and tyre friction of
-        ``belief``; ``roll`` the body roll mode (none by default); ``load_sensitivity`` the
-        ``(eps_f, eps_r)`` of (D3''), the load transfer at the belief's CoG height (both 0:
-        none).
-
-        ``VehicleParams`` gains ``cornering_stiffness_front_npr``/``_rear_npr``; a record
-        without them gets :data:`DEFAULT_CORNERING_STIFFNESS_FRONT_NPR` and
-        :data:`DEFAULT_CORNERING_STIFFNESS_REAR_NPR` (the identified Pacejka sedan).
-        """
-        return cls(
-            mass_kg=belief.mass_kg,
-            yaw_inertia_kgm2=belief.yaw_inertia_kgm2,
-            cog_front_m=belief.cog_front_m,
-            cog_rear_m=belief.cog_rear_m,
-            cornering_stiffness_front_npr=float(getattr(
-                belief, "cornering_stiffness_front_npr", DEFAULT_CORNERING_STIFFNESS_FRONT_NPR
-            )),
-            cornering_stiffness_rear_npr=float(getattr(
-                belief, "cornering_stiffness_rear_npr", DEFAULT_CORNERING_STIFFNESS_REAR_NPR
-            )),
-            tyre_friction=belief.tyre_friction,
-            tyre_model=tyre_model,
-            roll=RollParams() if roll is None else roll,
-            load_sensitivity_front=float(load_sensitivity[0]),
-            load_sensitivity_rear=float(load_sensitivity[1]),
-            load_transfer_height_m=belief.cog_height_m if any(load_sensitivity) else 0.0,
-        )
-
-
-def slip_speed(vx_mps: ca.SX | float) -> ca.SX:
-    """The forward speed the slip angles divide by: ``vx`` at and above
-    :data:`LOW_SPEED_MPS` ``= v0``, ``v0/2 + vx^2/(2 v0)`` below (continuous with its first
-    derivative, at least ``v0/2``)."""
-    v0 = LOW_SPEED_MPS
-    return ca.if_else(vx_mps >= v0, vx_mps, 0.5 * v0 + vx_mps**2 / (2.0 * v0))
-
-
-def axle_forces(s: Mapping[str, ca.SX], bicycle: BicycleParams) -> tuple[ca.SX, ca.SX]:
-    """Lateral forces of the front and rear axle, (D1)-(D3) or (D1), (D2), (D3') [N]."""
-    speed = slip_speed(s["vx_mps"])
-    r = s["yaw_rate_radps"]
-    axle_vy = axle_lateral_velocity(s, bicycle)
-    alpha_front, alpha_rear = axle_slip_angles(  # (D1), (D2)
-        axle_vy, r, s["steer_rad"], speed, bicycle.cog_front_m, bicycle.cog_rear_m)
-    # (D3''): the pitch moment m a_x h moves the load m a_x h / L from the front axle to
-    # the rear; each axle's stiffness (and friction force) follows its load ratio.
-    static_front, static_rear = bicycle.axle_loads_n
-    transfer = (bicycle.mass_kg * s["ax_mps2"] * bicycle.load_transfer_height_m
-                / (bicycle.cog_front_m + bicycle.cog_rear_m))
-    ratio_front = ca.fmax(1.0 - transfer / static_front, MIN_LOAD_RATIO)
-    ratio_rear = ca.fmax(1.0 + transfer / static_rear, MIN_LOAD_RATIO)
-    linear_front = (bicycle.cornering_stiffness_front_npr * alpha_front  # (D3)
-                    * ratio_front**bicycle.load_sensitivity_front)
-    linear_rear = (bicycle.cornering_stiffness_rear_npr * alpha_rear
-                   * ratio_rear**bicycle.load_sensitivity_rear)
-    if bicycle.tyre_model == "linear":
-        return linear_front, linear_rear
-    # (D3'): F = mu F_z tanh(C alpha / (mu F_z)), the linear tyre up to a smooth limit at
-    # the friction force of the axle load.
-    limit_front = bicycle.tyre_friction * static_front * ratio_front
-    limit_rear = bicycle.tyre_friction * static_rear * ratio_rear
-    return (
-        limit_front * ca.tanh(linear_front / limit_front),
-        limit_rear * ca.tanh(linear_rear / limit_rear),
-    )
-
-
-def axle_lateral_velocity(s: Mapping[str, ca.SX], bicycle: BicycleParams) -> ca.SX:
-    """Lateral velocity of the roll axis below the CoG, in the vehicle frame, (R1) [m/s]."""
-    return s["vy_mps"] + bicycle.roll.sway_arm_m * s["roll_rate_radps"]
-
-
-def lateral_tyre_accel(s: Mapping[str, ca.SX], bicycle: BicycleParams) -> ca.SX:
-    """Lateral acceleration the tyres give the car, ``a_t``: their force per unit mass plus
-    the residual state [m/s^2]."""
-    force_front, force_rear = axle_forces(s, bicycle)
-    return (force_front + force_rear) / bicycle.mass_kg + s["lateral_accel_residual_mps2"]
-
-
-def roll_accel(s: Mapping[str, ca.SX], bicycle: BicycleParams) -> ca.SX:
-    """Roll acceleration of the body, (R2) without noise [rad/s^2]."""
-    roll = bicycle.roll
-    omega = roll.angular_frequency_radps
-    target = roll.gradient_radpmps2 * lateral_tyre_accel(s, bicycle)
-    return (
-        -omega**2 * (s["roll_rad"] - target)
-        - 2.0 * roll.damping_ratio * omega * s["roll_rate_radps"]
-    )
-
-
-def world_velocity(s: Mapping[str, ca.SX]) -> tuple[ca.SX, ca.SX]:
-    """East and north velocity of the CoG, the vehicle-frame ``(vx, vy)`` turned by the
-    heading, (D6) [m/s]."""
-    cos_yaw, sin_yaw = ca.cos(s["yaw_rad"]), ca.sin(s["yaw_rad"])
-    return (s["vx_mps"] * cos_yaw - s["vy_mps"] * sin_yaw,
-            s["vx_mps"] * sin_yaw + s["vy_mps"] * cos_yaw)
-
-
-def cog_lateral_accel(s: Mapping[str, ca.SX], bicycle: BicycleParams) -> ca.SX:
-    """Kinematic lateral acceleration of the CoG, ``vy' + r vx = a_t - h p'``: what an IMU
-    at the CoG measures [m/s^2]."""
-    return lateral_tyre_accel(s, bicycle) - bicycle.roll.sway_arm_m * roll_accel(s, bicycle)
 
 
 @dataclass(frozen=True)

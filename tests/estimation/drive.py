@@ -25,11 +25,11 @@ from cosim.core.initial_state import InitialState
 from cosim.core.records import WHEEL_NAMES, Measurement
 from cosim.core.vehicle_params import VehicleParams
 from cosim.plant.sedan_model import ackermann_angles
-from estimation.config import EstimatorConfig
-from estimation.process_model import (
+from estimation.bicycle import (
     DEFAULT_CORNERING_STIFFNESS_FRONT_NPR,
     DEFAULT_CORNERING_STIFFNESS_REAR_NPR,
 )
+from estimation.config import EstimatorConfig
 from estimation.registry import make_estimator
 from estimation.state import STATE_NAMES, wrap_angle
 

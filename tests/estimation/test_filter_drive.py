@@ -15,8 +15,9 @@ import pytest
 from cosim.core.initial_state import InitialState
 from cosim.core.vehicle_params import VehicleParams
 from estimation.belief_models import process_noise, roll_params
+from estimation.bicycle import BicycleParams
 from estimation.config import EstimatorConfig
-from estimation.process_model import BicycleParams, ProcessModel
+from estimation.process_model import ProcessModel
 from estimation.state import STATE_NAMES, state_index
 from tests.estimation.drive import (
     NEES_STATES,

@@ -20,8 +20,9 @@ from cosim.plant.tyre_model import cornering_stiffness_load_elasticity
 from cosim.simulation.runner import run
 from cosim.simulation.scenario_config import load_config
 from estimation.belief_models import process_noise, roll_params
+from estimation.bicycle import BicycleParams
 from estimation.config import EstimatorConfig
-from estimation.process_model import BicycleParams, ProcessModel
+from estimation.process_model import ProcessModel
 from estimation.state import STATE_NAMES, state_index
 
 TRUE_STATES = ("x_m", "y_m", "yaw_rad", "vx_mps", "vy_mps", "yaw_rate_radps", "ax_mps2",

@@ -18,16 +18,16 @@ import scipy.linalg
 from cosim.core.vehicle_params import VehicleParams
 from cosim.plant.sedan_model import ackermann_angles
 from estimation.belief_models import process_noise, roll_params
-from estimation.config import EstimatorConfig
-from estimation.measurement_models import build_measurement_models
-from estimation.process_model import (
+from estimation.bicycle import (
     LOW_SPEED_MPS,
     TYRE_MODELS,
     BicycleParams,
-    ProcessModel,
     RollParams,
     slip_speed,
 )
+from estimation.config import EstimatorConfig
+from estimation.measurement_models import build_measurement_models
+from estimation.process_model import ProcessModel
 from estimation.state import STATE_NAMES, state_index, wrap_angle
 from tracker.models.dynamic_bicycle import DynamicBicycleParams
 

@@ -11,8 +11,9 @@ import pytest
 from cosim.simulation.runner import run_unlogged
 from cosim.simulation.scenario_config import load_config
 from cosim.simulation.workshop import Workshop
+from estimation.bicycle import BicycleParams
 from estimation.fusion import KalmanFusion
-from estimation.process_model import BicycleParams, ProcessModel
+from estimation.process_model import ProcessModel
 from estimation.state import STATE_NAMES, state_index
 from estimation.steering_commands import SteeringCommands
 from estimation.steering_model import RATE_RELAXATION_S, SteeringBelief
