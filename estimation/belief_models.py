@@ -1,11 +1,11 @@
 """The filters' process-model parameters from their configuration and the vehicle belief:
-the process noise's power spectral densities and the body-roll mode
-(:mod:`estimation.process_model`)."""
+the process noise's power spectral densities, the body-roll mode and the bicycle
+(:mod:`estimation.process_model`, :mod:`estimation.bicycle`)."""
 
 from __future__ import annotations
 
 from cosim.core.vehicle_params import VehicleParams
-from estimation.bicycle import RollParams
+from estimation.bicycle import BicycleParams, RollParams
 from estimation.config import EstimatorConfig
 from estimation.process_model import ProcessNoise
 
@@ -49,4 +49,14 @@ def roll_params(config: EstimatorConfig, belief: VehicleParams) -> RollParams:
         frequency_hz=config.roll_frequency_hz,
         damping_ratio=config.roll_damping_ratio,
         sway_arm_m=belief.cog_height_m if config.roll_gradient_radpmps2 > 0.0 else 0.0,
+    )
+
+
+def bicycle_params(config: EstimatorConfig, belief: VehicleParams) -> BicycleParams:
+    """The bicycle the filters believe: ``belief``'s numbers with the configured tyre law,
+    roll mode (:func:`roll_params`), load sensitivities and relaxation lengths."""
+    return BicycleParams.from_vehicle(
+        belief, config.tyre_model, roll_params(config, belief),
+        load_sensitivity=config.tyre_load_sensitivities,
+        relaxation_lengths_m=config.tyre_relaxation_lengths_m,
     )

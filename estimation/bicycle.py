@@ -48,11 +48,12 @@ lag is short against the lateral mode's time, ``q_i = tau_i (C_f + C_r) / (m v_s
 low speed, where the explicit form would otherwise overshoot (its product with the mode's
 rate stays below 1/4). The relaxation lengths are the belief's
 (``estimator.tyre_relaxation_length_front_m``, ``_rear_m``: the sedan's MF 6.1 tyres'
-``K_ya / c_y`` at its static wheel loads, 0.23 and 0.25 m,
-:func:`cosim.plant.tyre_model.relaxation_lengths_m`). Left out, the model's lateral
-acceleration along the lane change's truth is 0.039 m/s^2 RMS off (0.15 at most, where
-``a_y`` reverses) and its yaw acceleration 0.0086 rad/s^2; with them 0.024 and 0.0048 (seed
-100). Both lengths 0: the laws at the slip angles themselves, to the bit.
+``K_ya / c_y`` at its static wheel loads, each axle's cornering-stiffness scale applied,
+0.235 and 0.252 m, :func:`cosim.plant.tyre_model.relaxation_lengths_m`). Left out, the
+model's lateral acceleration along a lane change's truth is 0.039 m/s^2 RMS off (0.15 at
+most, where ``a_y`` reverses) and its yaw acceleration 0.0090 rad/s^2; with them 0.026 and
+0.0049 (seed 8720). Both lengths 0: the laws at the slip angles themselves (the forces to
+the bit; their derivatives, which CasADi then takes in another order, to rounding).
 """
 
 from __future__ import annotations
@@ -136,13 +137,19 @@ class BicycleParams:
     load_transfer_height_m: float = 0.0
     """``h`` of (D3''), the CoG's height over the ground the pitch moment acts at (0: the
     axle loads stay static)."""
+    relaxation_length_front_m: float = 0.0
+    """``sigma_f`` of (D3'''): the road the front tyres roll while their force follows
+    their slip angle (0: at once)."""
+    relaxation_length_rear_m: float = 0.0
+    """``sigma_r`` of (D3'''), the rear tyres'."""
 
     def __post_init__(self) -> None:
         for name, value in vars(self).items():
             if name in ("tyre_model", "roll"):
                 continue
             if name in ("load_sensitivity_front", "load_sensitivity_rear",
-                        "load_transfer_height_m"):
+                        "load_transfer_height_m", "relaxation_length_front_m",
+                        "relaxation_length_rear_m"):
                 if not (math.isfinite(value) and value >= 0.0):
                     raise ValueError(f"{name} = {value!r}: expected a finite number >= 0")
                 continue
@@ -164,11 +171,13 @@ class BicycleParams:
     def from_vehicle(
         cls, belief: VehicleParams, tyre_model: str = "saturating", roll: RollParams | None = None,
         load_sensitivity: tuple[float, float] = (0.0, 0.0),
+        relaxation_lengths_m: tuple[float, float] = (0.0, 0.0),
     ) -> BicycleParams:
         """Mass, yaw inertia, CoG position, axle cornering stiffnesses and tyre friction of
         ``belief``; ``roll`` the body roll mode (none by default); ``load_sensitivity`` the
         ``(eps_f, eps_r)`` of (D3''), the load transfer at the belief's CoG height (both 0:
-        none).
+        none); ``relaxation_lengths_m`` the ``(sigma_f, sigma_r)`` of (D3''') (both 0: the
+        forces follow the slip angles at once).
 
         ``VehicleParams`` gains ``cornering_stiffness_front_npr``/``_rear_npr``; a record
         without them gets :data:`DEFAULT_CORNERING_STIFFNESS_FRONT_NPR` and
@@ -191,6 +200,8 @@ class BicycleParams:
             load_sensitivity_front=float(load_sensitivity[0]),
             load_sensitivity_rear=float(load_sensitivity[1]),
             load_transfer_height_m=belief.cog_height_m if any(load_sensitivity) else 0.0,
+            relaxation_length_front_m=float(relaxation_lengths_m[0]),
+            relaxation_length_rear_m=float(relaxation_lengths_m[1]),
         )
 
 
@@ -203,12 +214,46 @@ def slip_speed(vx_mps: ca.SX | float) -> ca.SX:
 
 
 def axle_forces(s: Mapping[str, ca.SX], bicycle: BicycleParams) -> tuple[ca.SX, ca.SX]:
-    """Lateral forces of the front and rear axle, (D1)-(D3) or (D1), (D2), (D3') [N]."""
+    """Lateral forces of the front and rear axle, (D1)-(D3) or (D1), (D2), (D3'), with the
+    load transfer (D3'') and the tyres' relaxation (D3''') [N]."""
     speed = slip_speed(s["vx_mps"])
     r = s["yaw_rate_radps"]
     axle_vy = axle_lateral_velocity(s, bicycle)
     alpha_front, alpha_rear = axle_slip_angles(  # (D1), (D2)
         axle_vy, r, s["steer_rad"], speed, bicycle.cog_front_m, bicycle.cog_rear_m)
+    steady_front, steady_rear = _tyre_laws(alpha_front, alpha_rear, s, bicycle)
+    # (D3'''): the laws at the slip angles a relaxation time ago, to first order, the
+    # angles' rates from the steady forces.
+    tyre_accel = ((steady_front + steady_rear) / bicycle.mass_kg
+                  + s["lateral_accel_residual_mps2"])
+    yaw_accel = (bicycle.cog_front_m * steady_front
+                 - bicycle.cog_rear_m * steady_rear) / bicycle.yaw_inertia_kgm2
+    axle_vy_rate = tyre_accel - r * s["vx_mps"]
+    speed_rate = (ca.if_else(s["vx_mps"] >= LOW_SPEED_MPS, 1.0, s["vx_mps"] / LOW_SPEED_MPS)
+                  * (s["ax_mps2"] + r * s["vy_mps"]))
+    alpha_front_rate = (s["steer_rate_radps"]
+                        - (axle_vy_rate + bicycle.cog_front_m * yaw_accel) / speed
+                        + (axle_vy + bicycle.cog_front_m * r) * speed_rate / speed**2)
+    alpha_rear_rate = (-(axle_vy_rate - bicycle.cog_rear_m * yaw_accel) / speed
+                       + (axle_vy - bicycle.cog_rear_m * r) * speed_rate / speed**2)
+    mode_rate = (bicycle.cornering_stiffness_front_npr
+                 + bicycle.cornering_stiffness_rear_npr) / (bicycle.mass_kg * speed)
+    lag_front = _faded_lag(bicycle.relaxation_length_front_m / speed, mode_rate)
+    lag_rear = _faded_lag(bicycle.relaxation_length_rear_m / speed, mode_rate)
+    return _tyre_laws(alpha_front - lag_front * alpha_front_rate,
+                      alpha_rear - lag_rear * alpha_rear_rate, s, bicycle)
+
+
+def _faded_lag(lag_s: ca.SX, mode_rate_1ps: ca.SX) -> ca.SX:
+    """``tau / (1 + 4 q^2)`` with ``q = tau * mode_rate``: the relaxation time (D3''') takes,
+    faded out where it is not short against the lateral mode's time [s]."""
+    q = lag_s * mode_rate_1ps
+    return lag_s / (1.0 + 4.0 * q * q)
+
+
+def _tyre_laws(alpha_front: ca.SX, alpha_rear: ca.SX, s: Mapping[str, ca.SX],
+               bicycle: BicycleParams) -> tuple[ca.SX, ca.SX]:
+    """Each axle's force at the slip angle it follows, (D3) or (D3'), with (D3'') [N]."""
     # (D3''): the pitch moment m a_x h moves the load m a_x h / L from the front axle to
     # the rear; each axle's stiffness (and friction force) follows its load ratio.
     static_front, static_rear = bicycle.axle_loads_n

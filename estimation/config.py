@@ -105,12 +105,14 @@ class EstimatorConfig:
     # see holding a covariance two to three times their error on the straights; the jerk's
     # share of the manoeuvres (launch, braking) is now ``jerk_relative_psd_1ps``'s. The yaw
     # acceleration's floor stays: a third of it brought the gyro's NIS to 1 on the lane
-    # change but doubled the ring's NEES (docs/defaults.md).
+    # change but doubled the ring's NEES (docs/defaults.md). Then, with the tyres'
+    # relaxation in the model, every PSD here was halved and every model sigma divided by
+    # sqrt(2) (docs/defaults.md, "The tyres' relaxation").
     jerk_psd_m2ps5: float = setting(
-        0.01, low=0.0, high=1e6, doc="longitudinal jerk driving ax_mps2 [m^2/s^5]"
+        0.005, low=0.0, high=1e6, doc="longitudinal jerk driving ax_mps2 [m^2/s^5]"
     )
     jerk_relative_psd_1ps: float = setting(
-        0.3, low=0.0, high=1e4,
+        0.15, low=0.0, high=1e4,
         doc="jerk PSD per squared longitudinal acceleration: ``jerk_psd_m2ps5 + this * "
         "a_x^2``, the drive and brake forces change with the force asked of them (launch, "
         "braking) and rest while the car cruises [1/s]",
@@ -134,18 +136,18 @@ class EstimatorConfig:
         "(the drive's and the tyres' response) [s]",
     )
     accel_commanded_jerk_psd_m2ps5: float = setting(
-        0.0025, low=0.0, high=1e6,
+        0.00125, low=0.0, high=1e6,
         doc="the jerk's PSD once the filter is told acceleration commands, in place of "
         "jerk_psd_m2ps5 and jerk_relative_psd_1ps: what the drive does that its commands "
         "do not explain [m^2/s^5]",
     )
     accel_command_relative_sigma: float = setting(
-        0.3, low=0.0, high=10.0,
+        0.21, low=0.0, high=10.0,
         doc="standard deviation of the fraction of a command's change the car does not "
         "follow (the belief's mass and road loads, the tyres' transient)",
     )
     yaw_accel_psd_rad2ps3: float = setting(
-        5e-4, low=0.0, high=1e6, doc="yaw acceleration the bicycle does not explain [rad^2/s^3]"
+        2.5e-4, low=0.0, high=1e6, doc="yaw acceleration the bicycle does not explain [rad^2/s^3]"
     )
     # A yaw kick (an unmeasured 5 deg heading step) is not process noise: it is handled by
     # ``inflate_on_surprise``. Raising this PSD to 5e-3 to follow the kick spoiled the circuit
@@ -160,14 +162,14 @@ class EstimatorConfig:
     # floors that had hidden it came down (heading 5e-7 -> 3e-8, lateral acceleration
     # 3e-4 -> 2e-5, residual sigma 0.02 -> 0.005, roll 1e-3 -> 3e-4, transient 1e-5 -> 1e-6).
     yaw_transient_psd_s3: float = setting(
-        1e-6,
+        5e-7,
         low=0.0,
         high=1.0,
         doc="heading PSD per squared yaw acceleration of the bicycle: its yaw response is off "
         "while the yaw rate changes (tyre lag, compliance) [s^3]",
     )
     lateral_accel_psd_m2ps3: float = setting(
-        2e-5, low=0.0, high=1e6, doc="white lateral acceleration driving vy_mps [m^2/s^3]"
+        1e-5, low=0.0, high=1e6, doc="white lateral acceleration driving vy_mps [m^2/s^3]"
     )
     yaw_moment_relative_psd_s: float = setting(
         0.0, low=0.0, high=10.0,
@@ -176,19 +178,19 @@ class EstimatorConfig:
         "circuit with rtk: docs/guide.md) [s]",
     )
     steer_psd_rad2ps: float = setting(
-        1e-5,
+        5e-6,
         low=0.0,
         high=100.0,
         doc="white noise on the steering rate: steps the rate state does not follow",
     )
     steer_rate_psd_rad2ps3: float = setting(
-        0.05, low=0.0, high=1e4, doc="random walk of steer_rate_radps (steering acceleration)"
+        0.025, low=0.0, high=1e4, doc="random walk of steer_rate_radps (steering acceleration)"
     )
     roll_accel_psd_rad2ps3: float = setting(
-        3e-4, low=0.0, high=100.0, doc="roll acceleration the roll mode does not explain"
+        1.5e-4, low=0.0, high=100.0, doc="roll acceleration the roll mode does not explain"
     )
     roll_accel_relative_psd_s: float = setting(
-        1e-3,
+        5e-4,
         low=0.0,
         high=1.0,
         doc="roll-acceleration PSD per squared roll acceleration the tyres' lateral force "
@@ -200,20 +202,32 @@ class EstimatorConfig:
     tyre_load_sensitivity_front: float = setting(
         0.58, low=0.0, high=2.0,
         doc="exponent of the front axle's cornering stiffness in its load, which the "
-        "longitudinal acceleration moves between the axles (estimation.process_model, (D3''))",
+        "longitudinal acceleration moves between the axles (estimation.bicycle, (D3''))",
     )
     tyre_load_sensitivity_rear: float = setting(
         0.74, low=0.0, high=2.0,
         doc="the same for the rear axle; both 0: the axle loads stay static",
     )
+    # The sedan's MF 6.1 tyres' relaxation lengths K_ya / c_y at its static wheel loads
+    # (cosim.plant.tyre_model.relaxation_lengths_m), each axle's stiffness scale applied:
+    # docs/defaults.md, "The tyres' relaxation".
+    tyre_relaxation_length_front_m: float = setting(
+        0.235, low=0.0, high=2.0,
+        doc="road the front tyres roll while their lateral force follows their slip angle "
+        "(estimation.bicycle, (D3'''))",
+    )
+    tyre_relaxation_length_rear_m: float = setting(
+        0.252, low=0.0, high=2.0,
+        doc="the same for the rear tyres; both 0: the forces follow the slip angles at once",
+    )
     lateral_residual_sigma_mps2: float = setting(
-        0.005,
+        0.0035,
         low=1e-6,
         high=100.0,
         doc="stationary sigma of the lateral force the tyre model does not explain, per mass",
     )
     lateral_residual_relative: float = setting(
-        0.05,
+        0.035,
         low=0.0,
         high=1.0,
         doc="relative error of the tyre model's lateral force: the residual's stationary sigma "
@@ -223,16 +237,16 @@ class EstimatorConfig:
         0.5, low=0.05, high=1e4, doc="the lateral residual relaxes to zero with this time constant"
     )
     yaw_psd_rad2ps: float = setting(
-        3e-8, low=0.0, high=10.0, doc="heading random walk (unmodelled yaw errors) [rad^2/s]"
+        1.5e-8, low=0.0, high=10.0, doc="heading random walk (unmodelled yaw errors) [rad^2/s]"
     )
     position_psd_m2ps: float = setting(
-        1e-6, low=0.0, high=100.0, doc="position random walk (unmodelled motion) [m^2/s]"
+        5e-7, low=0.0, high=100.0, doc="position random walk (unmodelled motion) [m^2/s]"
     )
     rolling_radius_scale_psd_1ps: float = setting(
-        1e-6, low=0.0, high=1.0, doc="random walk of rolling_radius_scale (drive slip) [1/s]"
+        5e-7, low=0.0, high=1.0, doc="random walk of rolling_radius_scale (drive slip) [1/s]"
     )
     wheel_track_scale_psd_1ps: float = setting(
-        1e-6, low=0.0, high=1.0, doc="random walk of wheel_track_scale (load, camber) [1/s]"
+        5e-7, low=0.0, high=1.0, doc="random walk of wheel_track_scale (load, camber) [1/s]"
     )
     max_step_s: float = setting(
         0.01, low=1e-4, high=0.02, doc="longest sub-step of a prediction interval"
@@ -342,8 +356,13 @@ class EstimatorConfig:
 
     @property
     def tyre_load_sensitivities(self) -> tuple[float, float]:
-        """``(front, rear)``: the exponents of (D3'') of :mod:`estimation.process_model`."""
+        """``(front, rear)``: the exponents of (D3'') of :mod:`estimation.bicycle`."""
         return self.tyre_load_sensitivity_front, self.tyre_load_sensitivity_rear
+
+    @property
+    def tyre_relaxation_lengths_m(self) -> tuple[float, float]:
+        """``(front, rear)``: the relaxation lengths of (D3''') of :mod:`estimation.bicycle`."""
+        return self.tyre_relaxation_length_front_m, self.tyre_relaxation_length_rear_m
 
 
 RESIDUAL_SIGMAS: tuple[str, ...] = ("lateral_residual_sigma_mps2", "lateral_residual_relative",

@@ -37,8 +37,7 @@ from cosim.core.records import Estimate, Measurement
 from cosim.core.sensor_names import FUSED_SENSORS, GNSS
 from cosim.core.vehicle_params import VehicleParams
 from estimation.accel_commands import AccelCommands, DriveBelief
-from estimation.belief_models import process_noise, roll_params
-from estimation.bicycle import BicycleParams
+from estimation.belief_models import bicycle_params, process_noise
 from estimation.compiled_models import use_compiled
 from estimation.config import EstimatorConfig
 from estimation.consistency import chi_square_quantile
@@ -116,14 +115,14 @@ class KalmanFusion(ABC):
                 f"(0, {MAX_STEP_S:g}]"
             )
         self._config = config
-        roll, load = roll_params(config, belief), config.tyre_load_sensitivities
+        bicycle = bicycle_params(config, belief)
         untold = process_noise(config)
         self._noise = (untold, dataclasses.replace(
             untold, jerk_psd_m2ps5=config.accel_commanded_jerk_psd_m2ps5,
             jerk_relative_psd_1ps=0.0))
         """The process noise before and after the first acceleration command."""
         self._process = ProcessModel(
-            self._noise[0], BicycleParams.from_vehicle(belief, config.tyre_model, roll, load),
+            self._noise[0], bicycle,
             config.lateral_residual_time_constant_s, sigma_point_count=self._sigma_point_count(),
             steering=SteeringBelief.from_vehicle(belief))
         self._commands = SteeringCommands()
@@ -137,7 +136,7 @@ class KalmanFusion(ABC):
             wheel_model_sigma_mps=config.wheel_model_sigma_mps,
             lateral_accel_model_sigma_mps2=config.lateral_accel_model_sigma_mps2,
             steer_model_sigma_rad=config.steer_model_sigma_rad,
-            tyre_model=config.tyre_model, roll=roll, tyre_load_sensitivity=load,
+            bicycle=bicycle,
             wheel_slip_per_force_ratio=config.wheel_slip_per_force_ratio,
         )
         if config.compiled:

@@ -21,7 +21,6 @@ from cosim.core.symbolic_record import SymbolicRecord, symbolic_twin
 from cosim.core.vehicle_params import VehicleParams
 from estimation.bicycle import (
     BicycleParams,
-    RollParams,
     axle_lateral_velocity,
     cog_lateral_accel,
     world_velocity,
@@ -244,10 +243,8 @@ def build_measurement_models(
     wheel_model_sigma_mps: float,
     lateral_accel_model_sigma_mps2: float,
     steer_model_sigma_rad: float = 0.0,
-    tyre_model: str = "saturating",
-    roll: RollParams | None = None,
+    bicycle: BicycleParams | None = None,
     wheel_slip_per_force_ratio: float = 0.0,
-    tyre_load_sensitivity: tuple[float, float] = (0.0, 0.0),
 ) -> dict[str, MeasurementModel]:
     """The measurement models of every sensor the filters fuse, by sensor name.
 
@@ -274,15 +271,17 @@ def build_measurement_models(
     - ``steering``: the front road-wheel angle ``steer_rad``.
     - ``heading`` (optional, e.g. a dual-antenna GNSS): ``yaw_rad`` directly.
 
+    ``bicycle`` is the dynamic bicycle the filter believes (None: ``belief``'s with the
+    default tyre law, no roll, load transfer or relaxation;
+    :func:`estimation.belief_models.bicycle_params` builds a filter's from its configuration).
     Every number of the belief (the bicycle's, the wheels' geometry) is an input of the
     models' functions, set once, not a constant: one function, and one compiled library,
     serves every belief (each ``h`` with its Jacobian, :attr:`MeasurementModel.function`,
     is what the EKF compiles). The functions are built once per process for equal arguments;
     each call returns models with evaluators of their own.
     """
-    numbers = symbolic_twin(_Belief(BicycleParams.from_vehicle(belief, tyre_model, roll,
-                                                               tyre_load_sensitivity),
-                                    WheelGeometry.from_vehicle(belief),
+    believed = BicycleParams.from_vehicle(belief) if bicycle is None else bicycle
+    numbers = symbolic_twin(_Belief(believed, WheelGeometry.from_vehicle(belief),
                                     WheelLoads.from_vehicle(belief, wheel_slip_per_force_ratio)))
     bicycle, geometry = numbers.twin.bicycle, numbers.twin.geometry
     loads = numbers.twin.loads if wheel_slip_per_force_ratio > 0.0 else None

@@ -75,8 +75,9 @@ def main() -> None:
 def _add_data_sheet(belief: Path, plant: dict[str, object]) -> None:
     """The belief file with the car's own figures that identification does not fit
     (tracks, CoG height, wheel radius, steering limits): a controller knows them from the
-    car's data sheet; and the filter's load sensitivity of each axle's cornering stiffness,
-    from its tyre's data sheet (the Magic Formula's at the static wheel loads)."""
+    car's data sheet; and the filter's load sensitivity of each axle's cornering stiffness
+    and its tyres' relaxation length, from its tyre's data sheet (the Magic Formula's at the
+    static wheel loads)."""
     from cosim.core.vehicle_params import VehicleParams
 
     text = belief.read_text()
@@ -86,25 +87,35 @@ def _add_data_sheet(belief: Path, plant: dict[str, object]) -> None:
     shared = {f.name for f in dataclasses.fields(VehicleParams)}
     sheet = {k: v for k, v in plant.items() if k in shared and k not in model}
     model.update(sheet)
-    data.setdefault("estimator", {}).update(_load_sensitivities(plant))
+    data.setdefault("estimator", {}).update(tyre_beliefs(plant))
     belief.write_text(header + f"# From the car's data sheet: {', '.join(sheet)}; from its "
-                      "tyre's: the estimator's tyre_load_sensitivity_*.\n"
+                      "tyre's: the estimator's tyre_load_sensitivity_* and "
+                      "tyre_relaxation_length_*.\n"
                       + yaml.safe_dump(data, sort_keys=False))
 
 
-def _load_sensitivities(plant: dict[str, object]) -> dict[str, float]:
-    """``estimator.tyre_load_sensitivity_front`` and ``_rear`` of the car whose changed
-    ``plant:`` keys are ``plant``: its tyre's cornering-stiffness elasticity in the load at
-    the static front and rear wheel loads."""
+def tyre_beliefs(plant: dict[str, object]) -> dict[str, float]:
+    """``estimator.tyre_load_sensitivity_front``, ``_rear`` and
+    ``estimator.tyre_relaxation_length_front_m``, ``_rear_m`` of the car whose changed
+    ``plant:`` keys are ``plant``: its tyre's cornering-stiffness elasticity in the load, and
+    its relaxation length ``K_ya / c_y`` (with the axle's cornering-stiffness scale), at the
+    static front and rear wheel loads."""
     from cosim.core.vehicle_params import PlantConfig
-    from cosim.plant.tyre_model import cornering_stiffness_load_elasticity
+    from cosim.plant.tyre_model import cornering_stiffness_load_elasticity, relaxation_lengths_m
 
     base = PlantConfig()
     tyre = dataclasses.replace(base.tyre, **plant.get("tyre", {}))  # type: ignore[arg-type]
     car = dataclasses.replace(base, **{k: v for k, v in plant.items() if k != "tyre"})
-    return {f"tyre_load_sensitivity_{axle}":
-            round(cornering_stiffness_load_elasticity(tyre, load), 2)
-            for axle, load in zip(("front", "rear"), car.static_wheel_loads_n, strict=True)}
+    axles = tuple(zip(("front", "rear"), car.static_wheel_loads_n,
+                      (car.front_cornering_stiffness_scale, car.rear_cornering_stiffness_scale),
+                      strict=True))
+    beliefs = {f"tyre_load_sensitivity_{axle}":
+               round(cornering_stiffness_load_elasticity(tyre, load), 2)
+               for axle, load, _ in axles}
+    beliefs.update({f"tyre_relaxation_length_{axle}_m":
+                    round(relaxation_lengths_m(tyre, load)[1] * scale, 3)
+                    for axle, load, scale in axles})
+    return beliefs
 
 
 if __name__ == "__main__":

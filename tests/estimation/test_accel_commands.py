@@ -69,8 +69,9 @@ def test_the_variance_is_the_gain_error_of_each_command_whatever_the_sub_steps()
 
 def _filter(accel_commands: bool) -> Ekf:
     # the same jerk noise told or not: the variance added is the command's
+    jerk = EstimatorConfig().jerk_psd_m2ps5
     config = EstimatorConfig(accel_commands=accel_commands, initial="truth",
-                             jerk_relative_psd_1ps=0.0, accel_commanded_jerk_psd_m2ps5=0.01)
+                             jerk_relative_psd_1ps=0.0, accel_commanded_jerk_psd_m2ps5=jerk)
     initial = InitialState(x_m=0.0, y_m=0.0, yaw_rad=0.0, speed_mps=15.0)
     return Ekf(config, initial, BELIEF)
 

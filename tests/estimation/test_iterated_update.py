@@ -130,14 +130,17 @@ def test_a_start_two_sigma_off_in_steering_gates_nothing(
             measurements.append(Measurement(sensor, 0.01 * k, model.channels, h.ravel().copy(),
                                             np.eye(len(model.channels))))
         results = fuse(measurements)
-        # One result per measurement, in the order given (3, 2 and 1 channels).
-        assert [r.dim for r in results] == [3, 2, 1]
+        # One result per measurement, in the order given (3, 2 and 1 channels; done wrong,
+        # a channel may be gated out of its measurement).
+        assert len(results) == 3
+        if not wrong:
+            assert [r.dim for r in results] == [3, 2, 1]
         reasons += [r.reason for r in results]
         if k > 0:
             nis += [r.joint_nis / r.joint_dim for r in results if r.joint_dim]
         truth = filter_._process.step(truth, 0.01)[0].reshape(-1)
     if wrong:  # the first instant left an error: gated, or a NIS well above the truth's 0
-        assert "gate" in reasons or max(nis) > 0.3
+        assert {"gate", "partial"} & set(reasons) or max(nis) > 0.3
     else:
         assert set(reasons) == {"accepted"}
         assert max(nis) < 0.1

@@ -1,5 +1,5 @@
 """The filter's tyres follow the load the longitudinal acceleration moves between the axles
-((D3'') of :mod:`estimation.process_model`): along the true motion of the MuJoCo sedan on the
+((D3'') of :mod:`estimation.bicycle`): along the true motion of the MuJoCo sedan on the
 circuit, the error of the model's yaw acceleration no longer grows with ``a_x a_y``.
 
 The plant's tyres are the Magic Formula's, whose cornering stiffness grows with the wheel's

@@ -39,17 +39,21 @@ SENSORS = ("gnss", "gnss_velocity", "imu", "wheel_speed", "steering", "heading")
 
 
 def _process(tyre_model: str = "saturating", roll: RollParams | None = ROLL,
-             load_sensitivity: tuple[float, float] = (0.0, 0.0)) -> ProcessModel:
+             load_sensitivity: tuple[float, float] = (0.0, 0.0),
+             relaxation_lengths_m: tuple[float, float] = (0.0, 0.0)) -> ProcessModel:
     return ProcessModel(
-        NOISE, BicycleParams.from_vehicle(BELIEF, tyre_model, roll, load_sensitivity),
+        NOISE, BicycleParams.from_vehicle(BELIEF, tyre_model, roll, load_sensitivity,
+                                          relaxation_lengths_m),
         CONFIG.lateral_residual_time_constant_s,
     )
 
 
 @pytest.fixture(scope="module", params=TYRE_MODELS)
 def process(request: pytest.FixtureRequest) -> ProcessModel:
-    """The filters' process model with the configured body roll and load transfer."""
-    return _process(request.param, load_sensitivity=CONFIG.tyre_load_sensitivities)
+    """The filters' process model with the configured body roll, load transfer and tyre
+    relaxation."""
+    return _process(request.param, load_sensitivity=CONFIG.tyre_load_sensitivities,
+                    relaxation_lengths_m=CONFIG.tyre_relaxation_lengths_m)
 
 
 @pytest.fixture(scope="module")
@@ -333,7 +337,8 @@ def test_roll_mode_by_hand() -> None:
     # d(roll acceleration)/d(roll) = -omega^2; d/d(roll rate) includes -2 zeta omega.
     assert a[state_index("roll_rate_radps"), state_index("roll_rad")] == pytest.approx(-omega**2)
     # The IMU at the CoG sees the tyres' 5 m/s^2 (no sway acceleration in a steady roll).
-    imu = build_measurement_models(BELIEF, 0.05, 0.5, tyre_model="linear", roll=ROLL)["imu"]
+    imu = build_measurement_models(
+        BELIEF, 0.05, 0.5, bicycle=BicycleParams.from_vehicle(BELIEF, "linear", ROLL))["imu"]
     assert imu.evaluate(x)[0][2] == pytest.approx(5.0, rel=1e-12)
     # Rolling at 0.1 rad/s: the CoG moves 0.055 m/s sideways relative to the axles, so
     # the same tyre forces need vy 0.055 m/s lower.
@@ -347,7 +352,8 @@ def test_saturating_tyres_limit_the_force_at_the_friction_circle() -> None:
     """A car sliding sideways at 20 m/s with vy = -6 m/s (17 deg): the linear tyres would
     push at 1.4 g; the saturating ones stay below mu g = 1 g."""
     model = build_measurement_models(BELIEF, 0.05, 0.5)["imu"]
-    linear = build_measurement_models(BELIEF, 0.05, 0.5, tyre_model="linear")["imu"]
+    linear = build_measurement_models(
+        BELIEF, 0.05, 0.5, bicycle=BicycleParams.from_vehicle(BELIEF, "linear"))["imu"]
     x = _state(vx_mps=20.0, vy_mps=-6.0)
     ay_linear = linear.evaluate(x)[0][2]
     ay = model.evaluate(x)[0][2]
@@ -422,7 +428,8 @@ def test_step_refuses_long_substeps(process: ProcessModel) -> None:
 @pytest.mark.parametrize("tyre_model", TYRE_MODELS)
 @pytest.mark.parametrize("sensor", SENSORS)
 def test_measurement_jacobians_match_finite_differences(sensor: str, tyre_model: str) -> None:
-    model = build_measurement_models(BELIEF, 0.05, 0.5, tyre_model=tyre_model, roll=ROLL)[sensor]
+    model = build_measurement_models(
+        BELIEF, 0.05, 0.5, bicycle=BicycleParams.from_vehicle(BELIEF, tyre_model, ROLL))[sensor]
     for x in _random_states(20, seed=4):
         h, jacobian = model.evaluate(x)
         np.testing.assert_array_equal(model.value(x), h)
@@ -496,7 +503,8 @@ def test_imu_model_by_hand() -> None:
     Linear tyres at 20 m/s, vy = -0.1, r = 0.25, delta = 0.05: alpha_f = 0.05 - (-0.1 +
     0.3) / 20 = 0.04, alpha_r = -(-0.1 - 0.4) / 20 = 0.025.
     """
-    model = build_measurement_models(BELIEF, 0.05, 0.5, tyre_model="linear")["imu"]
+    model = build_measurement_models(
+        BELIEF, 0.05, 0.5, bicycle=BicycleParams.from_vehicle(BELIEF, "linear"))["imu"]
     x = _state(vx_mps=20.0, vy_mps=-0.1, yaw_rate_radps=0.25, steer_rad=0.05, ax_mps2=-1.0,
                gyro_bias_radps=0.002, ax_bias_mps2=0.03, lateral_accel_residual_mps2=0.2)
     ay = (72550.0 * 0.04 + 79580.0 * 0.025) / BELIEF.mass_kg + 0.2
