@@ -26,22 +26,14 @@ from estimation.belief_models import process_noise, roll_params
 from estimation.bicycle import BicycleParams, slip_speed
 from estimation.config import EstimatorConfig
 from estimation.process_model import ProcessModel
-from estimation.state import STATE_NAMES, state_index
+from estimation.state import state_index
+from tests.estimation.test_models import _state
 
 TRUE_STATES = ("x_m", "y_m", "yaw_rad", "vx_mps", "vy_mps", "yaw_rate_radps", "ax_mps2",
                "steer_rad", "roll_rad")
 """The filter's states that the truth carries by the same name."""
 
 LATERAL, YAW = state_index("vy_mps"), state_index("yaw_rate_radps")
-
-
-def _state(**values: float) -> np.ndarray:
-    x = np.zeros(len(STATE_NAMES))
-    x[state_index("rolling_radius_scale")] = 1.0
-    x[state_index("wheel_track_scale")] = 1.0
-    for name, value in values.items():
-        x[state_index(name)] = value
-    return x
 
 
 def _linear_model(belief: VehicleParams, lengths_m: tuple[float, float]) -> ProcessModel:
