@@ -282,18 +282,24 @@ def axle_lateral_velocity(s: Mapping[str, ca.SX], bicycle: BicycleParams) -> ca.
     return s["vy_mps"] + bicycle.roll.sway_arm_m * s["roll_rate_radps"]
 
 
-def lateral_tyre_accel(s: Mapping[str, ca.SX], bicycle: BicycleParams) -> ca.SX:
+Forces = tuple[ca.SX, ca.SX]
+"""The front and the rear axle's lateral force of :func:`axle_forces` [N]."""
+
+
+def lateral_tyre_accel(s: Mapping[str, ca.SX], bicycle: BicycleParams,
+                       forces: Forces | None = None) -> ca.SX:
     """Lateral acceleration the tyres give the car, ``a_t``: their force per unit mass plus
-    the residual state [m/s^2]."""
-    force_front, force_rear = axle_forces(s, bicycle)
+    the residual state [m/s^2] (``forces``: the axles' forces at ``s``, if already built)."""
+    force_front, force_rear = axle_forces(s, bicycle) if forces is None else forces
     return (force_front + force_rear) / bicycle.mass_kg + s["lateral_accel_residual_mps2"]
 
 
-def roll_accel(s: Mapping[str, ca.SX], bicycle: BicycleParams) -> ca.SX:
+def roll_accel(s: Mapping[str, ca.SX], bicycle: BicycleParams,
+               forces: Forces | None = None) -> ca.SX:
     """Roll acceleration of the body, (R2) without noise [rad/s^2]."""
     roll = bicycle.roll
     omega = roll.angular_frequency_radps
-    target = roll.gradient_radpmps2 * lateral_tyre_accel(s, bicycle)
+    target = roll.gradient_radpmps2 * lateral_tyre_accel(s, bicycle, forces)
     return (
         -omega**2 * (s["roll_rad"] - target)
         - 2.0 * roll.damping_ratio * omega * s["roll_rate_radps"]
@@ -308,7 +314,10 @@ def world_velocity(s: Mapping[str, ca.SX]) -> tuple[ca.SX, ca.SX]:
             s["vx_mps"] * sin_yaw + s["vy_mps"] * cos_yaw)
 
 
-def cog_lateral_accel(s: Mapping[str, ca.SX], bicycle: BicycleParams) -> ca.SX:
+def cog_lateral_accel(s: Mapping[str, ca.SX], bicycle: BicycleParams,
+                      forces: Forces | None = None) -> ca.SX:
     """Kinematic lateral acceleration of the CoG, ``vy' + r vx = a_t - h p'``: what an IMU
-    at the CoG measures [m/s^2]."""
-    return lateral_tyre_accel(s, bicycle) - bicycle.roll.sway_arm_m * roll_accel(s, bicycle)
+    at the CoG measures [m/s^2]. The axles' forces are built once for both terms."""
+    forces = axle_forces(s, bicycle) if forces is None else forces
+    return (lateral_tyre_accel(s, bicycle, forces)
+            - bicycle.roll.sway_arm_m * roll_accel(s, bicycle, forces))

@@ -479,7 +479,8 @@ def _derivative(x: ca.SX, command: ca.SX, bicycle: BicycleParams,
     s = named_states(x)
     velocity_east, velocity_north = world_velocity(s)
     r = s["yaw_rate_radps"]
-    force_front, force_rear = axle_forces(s, bicycle)
+    forces = axle_forces(s, bicycle)
+    force_front, force_rear = forces
     steer_change, steer_rate_change = steering_derivatives(
         s["steer_rad"], s["steer_rate_radps"], command, steering)
     return stacked_states(
@@ -488,7 +489,7 @@ def _derivative(x: ca.SX, command: ca.SX, bicycle: BicycleParams,
             "y_m": velocity_north,
             "yaw_rad": r,
             "vx_mps": s["ax_mps2"] + r * s["vy_mps"],
-            "vy_mps": cog_lateral_accel(s, bicycle) - r * s["vx_mps"],  # (D4)
+            "vy_mps": cog_lateral_accel(s, bicycle, forces) - r * s["vx_mps"],  # (D4)
             "yaw_rate_radps": (
                 bicycle.cog_front_m * force_front - bicycle.cog_rear_m * force_rear
             ) / bicycle.yaw_inertia_kgm2,  # (D5)
@@ -496,7 +497,7 @@ def _derivative(x: ca.SX, command: ca.SX, bicycle: BicycleParams,
             "steer_rad": steer_change,
             "steer_rate_radps": steer_rate_change,
             "roll_rad": s["roll_rate_radps"],
-            "roll_rate_radps": roll_accel(s, bicycle),  # (R2)
+            "roll_rate_radps": roll_accel(s, bicycle, forces),  # (R2)
             "lateral_accel_residual_mps2": (
                 -s["lateral_accel_residual_mps2"] / residual_time_constant_s
             ),
