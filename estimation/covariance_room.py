@@ -30,26 +30,40 @@ def room_for_jump(p: np.ndarray, jacobian: np.ndarray, innovation: np.ndarray) -
 
 
 def room_for_surprise(p: np.ndarray, process_noise: np.ndarray, jacobian: np.ndarray,
-                      innovation: np.ndarray) -> np.ndarray | None:
+                      innovation: np.ndarray, nis: float,
+                      threshold: float) -> np.ndarray | None:
     """The covariance with room for a manoeuvre an ungated sensor saw and the model did not
     predict (None: ``H Q H'`` singular, no room made).
 
     The IMU is never gated: it is the filter's one direct view of sudden motion (a yaw
-    kick, a kerb strike). When its NIS is above the gate, the innovation is taken as a jump
-    of the states the process noise drives, the adjustable process noise of Bar-Shalom, Li,
-    Kirubarajan, "Estimation with Applications to Tracking and Navigation" (Wiley 2001),
-    section 11.2: the covariance grows by ``G y y' G'`` with ``G = Q H' (H Q H')^-1`` and
-    ``Q`` the process noise of one sub-step at the current mean, so a gyro's surprise moves
-    the yaw rate (driven by the yaw-acceleration noise) and not the gyro bias (driven by a
-    slow random walk).
+    kick, a kerb strike). When its NIS ``n`` is above the gate ``threshold``, the innovation
+    is taken as a jump of the states the process noise drives, the adjustable process noise
+    of Bar-Shalom, Li, Kirubarajan, "Estimation with Applications to Tracking and
+    Navigation" (Wiley 2001), section 11.2: the covariance grows by ``a G y y' G'`` with
+    ``G = Q H' (H Q H')^-1`` and ``Q`` the process noise of one sub-step at the current
+    mean, so a gyro's surprise moves the yaw rate (driven by the yaw-acceleration noise) and
+    not the gyro bias (driven by a slow random walk).
+
+    The room is the least that makes the innovation pass the gate: since ``H G = I`` the
+    innovation's covariance becomes ``S + a y y'``, whose NIS is ``n / (1 + a n)``
+    (Sherman-Morrison), equal to the threshold for ``a = 1 / threshold - 1 / n``. A kick's
+    innovation (``n`` in the thousands) gets ``a`` near ``1 / threshold`` and is still
+    followed almost at once (the update moves ``H x`` by ``a y y' S'^-1 y = a threshold y``);
+    the sensor's own noise far in its tail (``n`` just above the gate, some 1 update in
+    10^4 for the IMU at the default gate) gets little room, instead of the whole innovation
+    taken as motion (``a = 1``), which let one 4-sigma accelerometer sample move the
+    steering by several of its sigmas.
     """
+    room = 1.0 / threshold - 1.0 / nis
+    if not room > 0.0:
+        return None
     spread = process_noise @ jacobian.T
     try:
         gain = spread @ np.linalg.inv(jacobian @ spread)
     except np.linalg.LinAlgError:
         return None
     jump = gain @ np.asarray(innovation, dtype=float).reshape(-1)
-    return p + np.outer(jump, jump)
+    return p + room * np.outer(jump, jump)
 
 
 def first_fix(x: np.ndarray, p: np.ndarray, rows: list[int], z: np.ndarray,

@@ -410,7 +410,8 @@ class KalmanFusion(ABC):
             # A sensor exempt from the gate far outside it: a manoeuvre the model did not
             # predict.
             _, jacobian = model.evaluate(self._x)
-            self._inflate_for_surprise(jacobian[list(joint.rows), :], joint.trial.innovation)
+            self._inflate_for_surprise(jacobian[list(joint.rows), :], joint.trial.innovation,
+                                       joint.nis, self.gate_threshold(dim))
             counts.surprises += 1
             inflated = self._innovation(model, selection, everything, z, r_matrix)
             joint = inflated if inflated is not None else joint
@@ -663,12 +664,13 @@ class KalmanFusion(ABC):
         self._set_covariance(covariance)
         self._awaiting_first_fix = False
 
-    def _inflate_for_surprise(self, jacobian: np.ndarray, innovation: np.ndarray) -> None:
+    def _inflate_for_surprise(self, jacobian: np.ndarray, innovation: np.ndarray, nis: float,
+                              threshold: float) -> None:
         """:func:`estimation.covariance_room.room_for_surprise`, with the process noise of
         one sub-step at the current mean."""
         shape = self._process.process_noise(self._x, self._config.max_step_s,
                                             self._commands.at(self._t_s))
-        covariance = room_for_surprise(self._p, shape, jacobian, innovation)
+        covariance = room_for_surprise(self._p, shape, jacobian, innovation, nis, threshold)
         if covariance is not None:
             self._set_covariance(covariance)
 

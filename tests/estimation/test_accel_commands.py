@@ -12,12 +12,13 @@ import pytest
 
 from cosim.core.initial_state import InitialState
 from cosim.log.reader import iter_messages
-from cosim.log.topics import VEHICLE_ESTIMATE, VEHICLE_TRUTH
+from cosim.log.topics import ESTIMATOR_UPDATES, VEHICLE_ESTIMATE, VEHICLE_TRUTH
 from cosim.simulation.runner import run
 from cosim.simulation.scenario_config import load_config
 from cosim.sweeps.ensemble import run_member
 from estimation.accel_commands import AccelCommands, DriveBelief
 from estimation.config import EstimatorConfig
+from estimation.consistency import chi_square_quantile
 from estimation.ekf import Ekf
 from estimation.state import state_index
 from tests.estimation.test_models import BELIEF
@@ -91,19 +92,25 @@ def test_told_a_launch_the_filter_accelerates_with_it() -> None:
     assert added == pytest.approx((config.accel_command_relative_sigma * lag) ** 2, rel=1e-6)
 
 
-def test_a_launch_the_filter_is_told_gates_no_wheel_speed(tmp_path: Path) -> None:
-    """RTK seed 102 launches at 3 m/s^2 from its first command: untold, the IMU's NIS at
-    10 ms is in the hundreds, and the room made for it lets the wheel speeds be gated
-    for the whole first second."""
+def test_a_launch_the_filter_is_told_surprises_no_accelerometer(tmp_path: Path) -> None:
+    """RTK seed 103 launches at 1 m/s^2 from its first command: untold, the IMU's NIS at
+    10 ms is in the hundreds (a surprise; when its room took the whole innovation as motion,
+    the wheel speeds were gated for the whole first second); told, it is inside the gate,
+    and no wheel speed is gated either way."""
     config = load_config("lane-change", overrides=["sensors.suite=rtk"], duration_s=1.5,
                          estimator="ekf")
     untold = dataclasses.replace(config, estimator=dataclasses.replace(
         config.estimator, accel_commands=False))
-    gated = {}
+    first_nis, gated = {}, {}
     for name, c in (("told", config), ("untold", untold)):
-        member = run_member(c, 102, tmp_path, keep_log=False)
+        member = run_member(c, 103, tmp_path / name, keep_log=True)
         gated[name] = member.gated_first_s.get("wheel_speed", 0)
-    assert gated["told"] <= 5 and gated["untold"] >= 50, gated
+        log = next((tmp_path / name).glob("*.mcap"))
+        first_nis[name] = next(u["nis"] for _, u in iter_messages(log, ESTIMATOR_UPDATES)
+                               if u["sensor"] == "imu" and u["t_s"] > 0.005)
+    threshold = chi_square_quantile(config.estimator.gate_probability, 3)
+    assert first_nis["told"] < threshold < 100.0 < first_nis["untold"], first_nis
+    assert gated == {"told": 0, "untold": 0}
 
 
 def test_told_commands_the_jerk_noise_is_what_they_do_not_explain() -> None:
