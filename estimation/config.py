@@ -220,6 +220,16 @@ class EstimatorConfig:
         0.252, low=0.0, high=2.0,
         doc="the same for the rear tyres; both 0: the forces follow the slip angles at once",
     )
+    # The sedan's steering servo gain (cosim.plant.sedan_model: k = I_d omega_s^2, the
+    # wheel's diametral inertia 0.570 kg m^2 at 100 rad/s): docs/defaults.md, "The road
+    # wheels' gyroscopic deflection".
+    steering_compliance_radpnm: float = setting(
+        1.0 / 5700.417, low=0.0, high=1.0,
+        doc="each front wheel's deflection about its steering axis per newton metre (1 / the "
+        "steering's stiffness): with the wheels' spin inertia the road wheels lag the "
+        "actuator by I_s (v_x / R) p / k while the body rolls at p (estimation."
+        "steering_model, (S4)); 0: rigid",
+    )
     lateral_residual_sigma_mps2: float = setting(
         0.0035,
         low=1e-6,

@@ -124,7 +124,7 @@ class KalmanFusion(ABC):
         self._process = ProcessModel(
             self._noise[0], bicycle,
             config.lateral_residual_time_constant_s, sigma_point_count=self._sigma_point_count(),
-            steering=SteeringBelief.from_vehicle(belief))
+            steering=SteeringBelief.from_vehicle(belief, config.steering_compliance_radpnm))
         self._commands = SteeringCommands()
         """The steering commands told (:meth:`command`), which the predictions run along."""
         self._accel_commands = AccelCommands(DriveBelief(

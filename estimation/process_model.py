@@ -113,6 +113,7 @@ from estimation.steering_model import (
     COMMAND_INPUTS,
     SteeringBelief,
     command_input,
+    gyro_deflection,
     steering_derivatives,
 )
 
@@ -481,14 +482,19 @@ def _derivative(x: ca.SX, command: ca.SX, bicycle: BicycleParams,
     r = s["yaw_rate_radps"]
     forces = axle_forces(s, bicycle)
     force_front, force_rear = forces
+    vx_change = s["ax_mps2"] + r * s["vy_mps"]
+    roll_change = roll_accel(s, bicycle, forces)  # (R2)
+    deflection_rate = steering.gyro_deflection_s2 / steering.wheel_radius_m * (
+        vx_change * s["roll_rate_radps"] + s["vx_mps"] * roll_change)  # D' of (S4)
     steer_change, steer_rate_change = steering_derivatives(
-        s["steer_rad"], s["steer_rate_radps"], command, steering)
+        s["steer_rad"], s["steer_rate_radps"], command, steering,
+        gyro_deflection(s["vx_mps"], s["roll_rate_radps"], steering), deflection_rate)
     return stacked_states(
         {
             "x_m": velocity_east,  # (D6)
             "y_m": velocity_north,
             "yaw_rad": r,
-            "vx_mps": s["ax_mps2"] + r * s["vy_mps"],
+            "vx_mps": vx_change,
             "vy_mps": cog_lateral_accel(s, bicycle, forces) - r * s["vx_mps"],  # (D4)
             "yaw_rate_radps": (
                 bicycle.cog_front_m * force_front - bicycle.cog_rear_m * force_rear
@@ -497,7 +503,7 @@ def _derivative(x: ca.SX, command: ca.SX, bicycle: BicycleParams,
             "steer_rad": steer_change,
             "steer_rate_radps": steer_rate_change,
             "roll_rad": s["roll_rate_radps"],
-            "roll_rate_radps": roll_accel(s, bicycle, forces),  # (R2)
+            "roll_rate_radps": roll_change,
             "lateral_accel_residual_mps2": (
                 -s["lateral_accel_residual_mps2"] / residual_time_constant_s
             ),

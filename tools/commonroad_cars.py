@@ -77,21 +77,41 @@ def _add_data_sheet(belief: Path, plant: dict[str, object]) -> None:
     (tracks, CoG height, wheel radius, steering limits): a controller knows them from the
     car's data sheet; and the filter's load sensitivity of each axle's cornering stiffness
     and its tyres' relaxation length, from its tyre's data sheet (the Magic Formula's at the
-    static wheel loads)."""
+    static wheel loads); and its steering's compliance (:func:`steering_belief`)."""
     from cosim.core.vehicle_params import VehicleParams
 
     text = belief.read_text()
-    header = "".join(line + "\n" for line in text.splitlines() if line.startswith("#"))
+    header = "".join(line + "\n" for line in text.splitlines()
+                     if line.startswith("#") and not line.startswith(DATA_SHEET_LINE))
     data = yaml.safe_load(text)
     model = data["tracker"]["model"]
     shared = {f.name for f in dataclasses.fields(VehicleParams)}
     sheet = {k: v for k, v in plant.items() if k in shared and k not in model}
     model.update(sheet)
     data.setdefault("estimator", {}).update(tyre_beliefs(plant))
-    belief.write_text(header + f"# From the car's data sheet: {', '.join(sheet)}; from its "
+    data["estimator"].update(steering_belief(plant))
+    belief.write_text(header + f"{DATA_SHEET_LINE} {', '.join(sheet)}; from its "
                       "tyre's: the estimator's tyre_load_sensitivity_* and "
-                      "tyre_relaxation_length_*.\n"
+                      "tyre_relaxation_length_*; from its steering's: "
+                      "steering_compliance_radpnm.\n"
                       + yaml.safe_dump(data, sort_keys=False))
+
+
+DATA_SHEET_LINE = "# From the car's data sheet:"
+"""How the belief file's line naming the data sheet's figures begins (rewritten each time)."""
+
+
+def steering_belief(plant: dict[str, object]) -> dict[str, float]:
+    """``estimator.steering_compliance_radpnm`` of the car whose changed ``plant:`` keys are
+    ``plant``: one over the gain of its steering servo (its front wheels' stiffness about
+    the steering axis, :func:`cosim.plant.sedan_model.sedan_layout`)."""
+    from cosim.core.vehicle_params import PlantConfig
+    from cosim.plant.sedan_model import sedan_layout
+
+    base = PlantConfig()
+    car = dataclasses.replace(base, **{k: v for k, v in plant.items() if k != "tyre"})
+    return {"steering_compliance_radpnm":
+            float(f"{1.0 / sedan_layout(car).steer_servo_kp_nmprad:.4g}")}
 
 
 def tyre_beliefs(plant: dict[str, object]) -> dict[str, float]:

@@ -76,6 +76,7 @@ def test_config_fields_carry_units_or_are_flags() -> None:
         "scale_sigma",
         "_radpmps2",
         "_hz",
+        "_radpnm",
     )
     dimensionless = ("gate_probability", "roll_damping_ratio", "ukf_alpha", "ukf_beta",
                      "ukf_kappa", "lateral_residual_relative", "wheel_slip_per_force_ratio",
