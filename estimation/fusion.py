@@ -60,6 +60,7 @@ from estimation.state import ANGLE_STATES, STATE_NAMES, state_index, wrap_angle
 from estimation.steering_commands import SteeringCommands
 from estimation.steering_model import SteeringBelief
 from estimation.timing import forward_interval_s, is_stale
+from estimation.update_order import linear_first
 from estimation.update_result import (
     ACCEPTED,
     GATE,
@@ -410,8 +411,12 @@ class KalmanFusion(ABC):
             # A sensor exempt from the gate far outside it: a manoeuvre the model did not
             # predict.
             _, jacobian = model.evaluate(self._x)
-            self._inflate_for_surprise(jacobian[list(joint.rows), :], joint.trial.innovation,
-                                       joint.nis, self.gate_threshold(dim))
+            shape = self._process.process_noise(self._x, self._config.max_step_s,
+                                                self._commands.at(self._t_s))
+            room = room_for_surprise(self._p, shape, jacobian[list(joint.rows), :],
+                                     joint.trial.innovation, joint.nis, self.gate_threshold(dim))
+            if room is not None:  # along the process noise of one sub-step at the mean
+                self._set_covariance(room)
             counts.surprises += 1
             inflated = self._innovation(model, selection, everything, z, r_matrix)
             joint = inflated if inflated is not None else joint
@@ -435,25 +440,25 @@ class KalmanFusion(ABC):
         section 3.3.2, at a third of the cost for the IMU, wheel speeds and steering every
         10 ms); each measurement's NIS is its own block of the joint innovation against the
         prior, as :meth:`update` reports it. Otherwise (a gate, a rejection, a first fix,
-        a filter without a joint update) they are fused one after another with
-        :meth:`update`.
+        a filter without a joint update) they are fused one after another
+        (:meth:`_one_by_one`).
         """
         checked = [self._check(m) for m in measurements]
         if (len(measurements) < 2 or self._awaiting_first_fix
                 or not all(isinstance(c, CheckedMeasurement) for c in checked)
                 or len({c.t_s for c in checked}) != 1):
-            return [self.update(m) for m in measurements]
+            return self._one_by_one(measurements)
         self.predict(checked[0].t_s)
         joint = self._joint_update(checked)
         if joint is None:
-            return [self.update(m) for m in measurements]
+            return self._one_by_one(measurements)
         for c, value in zip(checked, joint.nis, strict=True):
             # Above the gate, gated or not: one by one (a gate, or a surprise's room).
             if not math.isfinite(value) or (
                     self._config.gate and value > self.gate_threshold(len(c.selection.model_rows))):
-                return [self.update(m) for m in measurements]
+                return self._one_by_one(measurements)
         if not self._commit(joint.mean, joint.covariance, symmetric=joint.symmetric):
-            return [self.update(m) for m in measurements]
+            return self._one_by_one(measurements)
         results = []
         counts = self._counts
         for c, value in zip(checked, joint.nis, strict=True):
@@ -466,6 +471,13 @@ class KalmanFusion(ABC):
             counts[sensor].accepted += 1
             results.append(UpdateResult(True, value, dim, ACCEPTED, value, dim))
         return results
+
+    def _one_by_one(self, measurements: list[Measurement]) -> list[UpdateResult]:
+        """:meth:`update` of each, in :func:`estimation.update_order.linear_first`'s order;
+        the results in the order given."""
+        results = {i: self.update(measurements[i])
+                   for i in linear_first(measurements, self._models)}
+        return [results[i] for i in range(len(measurements))]
 
     def _joint_update(self, checked: list[CheckedMeasurement],
                       at: np.ndarray | None = None) -> JointPosterior | None:
@@ -663,16 +675,6 @@ class KalmanFusion(ABC):
         self._set_mean(mean)
         self._set_covariance(covariance)
         self._awaiting_first_fix = False
-
-    def _inflate_for_surprise(self, jacobian: np.ndarray, innovation: np.ndarray, nis: float,
-                              threshold: float) -> None:
-        """:func:`estimation.covariance_room.room_for_surprise`, with the process noise of
-        one sub-step at the current mean."""
-        shape = self._process.process_noise(self._x, self._config.max_step_s,
-                                            self._commands.at(self._t_s))
-        covariance = room_for_surprise(self._p, shape, jacobian, innovation, nis, threshold)
-        if covariance is not None:
-            self._set_covariance(covariance)
 
     def _selection(self, model: MeasurementModel, names: tuple[str, ...]) -> Selection:
         key = (model.sensor, names)

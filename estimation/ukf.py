@@ -30,13 +30,11 @@ from collections.abc import Callable
 import numpy as np
 from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
 
-from cosim.core.records import Measurement
 from estimation.fusion import KalmanFusion
 from estimation.innovation import TrialUpdate
 from estimation.measurement_models import MeasurementModel
 from estimation.process_model import ProcessModel
 from estimation.state import ANGLE_STATES, STATE_NAMES, state_index
-from estimation.update_result import UpdateResult
 
 
 def _circular_mean_function(
@@ -151,28 +149,6 @@ class Ukf(KalmanFusion):
 
     def _set_covariance(self, covariance: np.ndarray) -> None:
         self._kf.P = covariance
-
-    def update_many(self, measurements: list[Measurement]) -> list[UpdateResult]:
-        """The measurements of one instant one after another, those whose model is linear
-        in the state first (:attr:`estimation.measurement_models.MeasurementModel.linear`:
-        the steering angle, the GNSS position, the heading), then the others in their
-        order; the results in the order given.
-
-        For linear models the order of sequential updates does not matter; for the others
-        it does: each is transformed through sigma points drawn from the belief the updates
-        before it left. Fused first, the sensors that measure states themselves narrow the
-        spread of the states the nonlinear models depend on. At a run's first instant, the
-        prior's road-wheel angle drawn a few degrees off, the IMU's lateral acceleration
-        went through the bicycle's tyres at that spread before the steering sensor had
-        spoken, and the steering was gated for the next tenth of a second."""
-        rank = [0 if (m := self._models.get(x.sensor)) is not None and m.linear else 1
-                for x in measurements]
-        order = sorted(range(len(measurements)), key=rank.__getitem__)
-        results = super().update_many([measurements[i] for i in order])
-        given: list[UpdateResult | None] = [None] * len(measurements)
-        for i, result in zip(order, results, strict=True):
-            given[i] = result
-        return given  # type: ignore[return-value]
 
     def _predict_substep(self, dt_s: float, command_rad: float | None) -> None:
         self._kf.Q = self._process.process_noise(self._kf.x, dt_s, command_rad)

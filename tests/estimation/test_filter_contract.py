@@ -20,7 +20,6 @@ from estimation.fusion import KalmanFusion
 from estimation.noise_config import NoiseBelief
 from estimation.registry import make_estimator
 from estimation.state import STATE_NAMES
-from estimation.ukf import Ukf
 from estimation.update_result import REASONS
 
 FILTERS = ("ekf", "ukf")
@@ -450,11 +449,10 @@ def _same_instant(t_s: float, yaw_rate: float) -> list[Measurement]:
 
 
 def _one_by_one(filter_: object, batch: list[Measurement]) -> list[object]:
-    """``update`` of each measurement of ``batch`` in the order the filter fuses an instant
-    (the UKF: the models linear in the state first), the results in the order given."""
-    linear_first = isinstance(filter_, Ukf)
+    """``update`` of each measurement of ``batch`` in the order a filter fuses an instant one
+    after another (the models linear in the state first), the results in the order given."""
     order = sorted(range(len(batch)), key=lambda i: not (
-        linear_first and filter_._models[batch[i].sensor].linear))  # type: ignore[attr-defined]
+        filter_._models[batch[i].sensor].linear))  # type: ignore[attr-defined]
     results: dict[int, object] = {i: filter_.update(batch[i]) for i in order}  # type: ignore[attr-defined]
     return [results[i] for i in range(len(batch))]
 
@@ -472,12 +470,14 @@ def test_measurements_of_one_instant_fused_together_equal_one_after_another(
         assert [r.reason for r in results] == [r.reason for r in expected] == ["accepted"] * 3
         assert [r.dim for r in results] == [2, 3, 1]
         # The first measurement's NIS is against the prior in both (the same prior at the
-        # first instant; later ones differ by the linearisation points, ~1e-5); the others'
-        # are against the prior only in the joint update.
-        assert results[0].nis == pytest.approx(expected[0].nis, rel=1e-9 if step == 1 else 1e-3)
+        # first instant; later ones differ by the linearisation points: one after another,
+        # the steering is fused before the IMU, whose lateral acceleration is linearised at
+        # the mean the GNSS and the steering left, 2e-3 of a NIS of 0.04); the others' are
+        # against the prior only in the joint update.
+        assert results[0].nis == pytest.approx(expected[0].nis, rel=1e-9 if step == 1 else 5e-3)
         assert all(math.isfinite(r.nis) and r.nis == r.joint_nis for r in results)
-    # The EKF's sequential updates relinearise the IMU's lateral acceleration at the
-    # GNSS-updated mean; the difference is a hair of the uncertainty.
+    # The EKF's sequential updates relinearise the IMU's lateral acceleration at the mean
+    # the GNSS and the steering updated; the difference is a hair of the uncertainty.
     joint, sequential = together.estimate(), apart.estimate()
     sigma = np.sqrt(np.diag(sequential.covariance))
     assert np.all(np.abs(joint.mean - sequential.mean) <= 1e-3 * sigma)
@@ -497,3 +497,16 @@ def test_a_gated_measurement_sends_its_instant_one_by_one(name: str) -> None:
     assert results == expected
     assert results[0].reason == "gate"
     np.testing.assert_array_equal(together.estimate().mean, apart.estimate().mean)
+
+
+def test_one_after_another_the_linear_models_go_first(name: str) -> None:
+    """estimation.update_order.linear_first: the steering angle and the GNSS position (their
+    models linear in the state) before the IMU and the wheel speeds, each group in the order
+    given; a sensor without a model counts as nonlinear."""
+    from estimation.update_order import linear_first
+
+    kf = _filter(name)
+    batch = [_imu(0.1, 0.0), Measurement("radar", 0.1, ("range_m",), np.ones(1), np.eye(1)),
+             *_same_instant(0.1, 0.0)[::2]]  # imu, radar, gnss, steering
+    assert [m.sensor for m in batch] == ["imu", "radar", "gnss", "steering"]
+    assert linear_first(batch, kf._models) == [2, 3, 0, 1]
