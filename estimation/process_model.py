@@ -114,6 +114,7 @@ from estimation.steering_model import (
     SteeringBelief,
     command_input,
     gyro_deflection,
+    gyro_deflection_rate,
     steering_derivatives,
 )
 
@@ -484,8 +485,8 @@ def _derivative(x: ca.SX, command: ca.SX, bicycle: BicycleParams,
     force_front, force_rear = forces
     vx_change = s["ax_mps2"] + r * s["vy_mps"]
     roll_change = roll_accel(s, bicycle, forces)  # (R2)
-    deflection_rate = steering.gyro_deflection_s2 / steering.wheel_radius_m * (
-        vx_change * s["roll_rate_radps"] + s["vx_mps"] * roll_change)  # D' of (S4)
+    deflection_rate = gyro_deflection_rate(s["vx_mps"], vx_change, s["roll_rate_radps"],
+                                           roll_change, steering)
     steer_change, steer_rate_change = steering_derivatives(
         s["steer_rad"], s["steer_rate_radps"], command, steering,
         gyro_deflection(s["vx_mps"], s["roll_rate_radps"], steering), deflection_rate)

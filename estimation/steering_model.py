@@ -105,6 +105,14 @@ def gyro_deflection(vx_mps: ca.SX, roll_rate_radps: ca.SX,
     return steering.gyro_deflection_s2 * vx_mps / steering.wheel_radius_m * roll_rate_radps
 
 
+def gyro_deflection_rate(vx_mps: ca.SX, vx_change_mps2: ca.SX, roll_rate_radps: ca.SX,
+                         roll_accel_radps2: ca.SX, steering: SteeringBelief) -> ca.SX:
+    """``D' = c (v_x' p + v_x p') / R`` of (S4), from the speed's and the roll rate's
+    derivatives."""
+    return steering.gyro_deflection_s2 / steering.wheel_radius_m * (
+        vx_change_mps2 * roll_rate_radps + vx_mps * roll_accel_radps2)
+
+
 def steering_derivatives(steer_rad: ca.SX, steer_rate_radps: ca.SX, command: ca.SX,
                          steering: SteeringBelief, deflection: ca.SX = 0.0,
                          deflection_rate: ca.SX = 0.0) -> tuple[ca.SX, ca.SX]:
