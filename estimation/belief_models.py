@@ -4,6 +4,8 @@ the process noise's power spectral densities, the body-roll mode and the bicycle
 
 from __future__ import annotations
 
+import dataclasses
+
 from cosim.core.vehicle_params import VehicleParams
 from estimation.bicycle import BicycleParams, RollParams
 from estimation.config import EstimatorConfig
@@ -39,6 +41,24 @@ def process_noise(config: EstimatorConfig) -> ProcessNoise:
         yaw_moment_relative_psd_s=config.yaw_moment_relative_psd_s,
         jerk_relative_psd_1ps=config.jerk_relative_psd_1ps,
     )
+
+
+def told_process_noise(config: EstimatorConfig, untold: ProcessNoise, *, steering: bool,
+                       accel: bool) -> ProcessNoise:
+    """``untold`` (:func:`process_noise`) once the filter is told the controller's commands:
+    told the steering commands, the steering's PSD is what the actuator does that its
+    commands do not explain (``steer_commanded_psd_rad2ps``: :mod:`estimation.steering_model`
+    follows the rest); told the acceleration commands, the jerk's is what the drive does
+    that they do not (``accel_commanded_jerk_psd_m2ps5``, with no part relative to the
+    acceleration: :mod:`estimation.accel_commands` moves it). A filter told nothing keeps
+    the random walks' larger PSDs, which must follow the whole motion alone."""
+    changes: dict[str, float] = {}
+    if steering:
+        changes["steer_psd_rad2ps"] = config.steer_commanded_psd_rad2ps
+    if accel:
+        changes.update(jerk_psd_m2ps5=config.accel_commanded_jerk_psd_m2ps5,
+                       jerk_relative_psd_1ps=0.0)
+    return dataclasses.replace(untold, **changes)
 
 
 def roll_params(config: EstimatorConfig, belief: VehicleParams) -> RollParams:

@@ -183,6 +183,12 @@ class EstimatorConfig:
         high=100.0,
         doc="white noise on the steering rate: steps the rate state does not follow",
     )
+    steer_commanded_psd_rad2ps: float = setting(
+        1.25e-6, low=0.0, high=100.0,
+        doc="steer_psd_rad2ps once the filter is told steering commands: what the actuator "
+        "does that its commands, its lag and the road wheels' gyroscopic deflection do not "
+        "explain (estimation.steering_model) [rad^2/s]",
+    )
     steer_rate_psd_rad2ps3: float = setting(
         0.025, low=0.0, high=1e4, doc="random walk of steer_rate_radps (steering acceleration)"
     )

@@ -37,7 +37,7 @@ from cosim.core.records import Estimate, Measurement
 from cosim.core.sensor_names import FUSED_SENSORS, GNSS
 from cosim.core.vehicle_params import VehicleParams
 from estimation.accel_commands import AccelCommands, DriveBelief
-from estimation.belief_models import bicycle_params, process_noise
+from estimation.belief_models import bicycle_params, process_noise, told_process_noise
 from estimation.compiled_models import use_compiled
 from estimation.config import EstimatorConfig
 from estimation.consistency import chi_square_quantile
@@ -117,13 +117,10 @@ class KalmanFusion(ABC):
             )
         self._config = config
         bicycle = bicycle_params(config, belief)
-        untold = process_noise(config)
-        self._noise = (untold, dataclasses.replace(
-            untold, jerk_psd_m2ps5=config.accel_commanded_jerk_psd_m2ps5,
-            jerk_relative_psd_1ps=0.0))
-        """The process noise before and after the first acceleration command."""
+        self._untold_noise = process_noise(config)
+        """The process noise before the first command (:func:`told_process_noise`)."""
         self._process = ProcessModel(
-            self._noise[0], bicycle,
+            self._untold_noise, bicycle,
             config.lateral_residual_time_constant_s, sigma_point_count=self._sigma_point_count(),
             steering=SteeringBelief.from_vehicle(belief, config.steering_compliance_radpnm))
         self._commands = SteeringCommands()
@@ -166,7 +163,7 @@ class KalmanFusion(ABC):
         self._lookahead: Lookahead | None = None
         self._commands.clear()
         self._accel_commands.clear()
-        self._process.use_noise(self._noise[0])
+        self._process.use_noise(self._untold_noise)
 
     # ------------------------------------------------------------------- filter-specific
 
@@ -321,7 +318,10 @@ class KalmanFusion(ABC):
         from then on the predictions drive the steering states with it
         (:mod:`estimation.steering_model`). ``t_s`` must not be before the filter's time
         nor the last command's."""
+        first = not self._commands.told
         self._commands.add(t_s, steer_rad, not_before_s=self._t_s)
+        if first:  # the steering's noise is what the commands do not explain
+            self._use_told_noise()
         self._lookahead = None  # a prediction made before it may have run past t_s
 
     def accel_command(self, t_s: float, accel_mps2: float) -> None:
@@ -330,11 +330,18 @@ class KalmanFusion(ABC):
         drag at the estimate now (``estimator.accel_command_cornering_drag``; the drag is an
         input, :mod:`estimation.accel_commands`), unless ``estimator.accel_commands`` is off."""
         if self._config.accel_commands:
-            if not self._accel_commands.told:  # the jerk is the commands' no longer
-                self._process.use_noise(self._noise[1])
+            first = not self._accel_commands.told
             drag = self._process.cornering_drag_mps2(self._x) if self._drag else 0.0
             self._accel_commands.add(t_s, accel_mps2 + drag, not_before_s=self._t_s)
+            if first:  # the jerk is the commands' no longer
+                self._use_told_noise()
             self._lookahead = None
+
+    def _use_told_noise(self) -> None:
+        """The process noise for the commands told so far (:func:`told_process_noise`)."""
+        self._process.use_noise(told_process_noise(
+            self._config, self._untold_noise, steering=self._commands.told,
+            accel=self._accel_commands.told))
 
     def _follow_accel_command(self, t0_s: float, t1_s: float) -> None:
         """Move the acceleration's mean and variance by the drive's response to its
@@ -631,7 +638,7 @@ class KalmanFusion(ABC):
         innovation = self._innovation(model, selection, group, z, r_matrix)
         if innovation is None:
             return INVALID, math.nan
-        key = self._gate_key(model, selection, group)
+        key = selection.gate_key(model, group)
         if innovation.nis <= self.gate_threshold(len(group)):
             self._gate_failing_since_s.pop(key, None)
             if not self._apply(innovation):
@@ -649,20 +656,13 @@ class KalmanFusion(ABC):
             return INVALID, released_nis
         return GATE_RELEASED, released_nis
 
-    @staticmethod
-    def _gate_key(
-        model: MeasurementModel, selection: Selection, group: tuple[int, ...]
-    ) -> tuple[str, tuple[str, ...]]:
-        """Which channels a run of gate failures belongs to (for ``gate_release_s``)."""
-        return model.sensor, tuple(model.channels[selection.model_rows[i]] for i in group)
-
     def _forget_gate_failures(
         self, model: MeasurementModel, selection: Selection, group: tuple[int, ...]
     ) -> None:
         if self._gate_failing_since_s:
-            self._gate_failing_since_s.pop(self._gate_key(model, selection, group), None)
+            self._gate_failing_since_s.pop(selection.gate_key(model, group), None)
             for i in group:
-                self._gate_failing_since_s.pop(self._gate_key(model, selection, (i,)), None)
+                self._gate_failing_since_s.pop(selection.gate_key(model, (i,)), None)
 
     # ----------------------------------------------------------------------------- helpers
 

@@ -43,6 +43,12 @@ class Selection:
                              for row in model_rows])
         return cls(model_rows, columns, angle_rows, variance)
 
+    def gate_key(self, model: MeasurementModel,
+                 group: tuple[int, ...]) -> tuple[str, tuple[str, ...]]:
+        """Which channels (this selection's rows ``group`` of ``model``) a run of gate
+        failures belongs to, for ``gate_release_s``."""
+        return model.sensor, tuple(model.channels[self.model_rows[i]] for i in group)
+
 
 @dataclass(frozen=True)
 class TrialUpdate:
