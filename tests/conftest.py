@@ -20,18 +20,29 @@ def run_scenario(tmp_dir: Path, name: str, *overrides: str, seed: int = 0,
 
 
 @pytest.fixture(scope="session", autouse=True)
-def compiled_libraries() -> None:
+def compiled_libraries(worker_id: str) -> None:
     """The default run's compiled libraries (NLP, filter, tyres, physics step) built before
     any test, so that on a machine with an empty cache (CI) no test's output depends on
-    whether it happened to be the first to build one (a build prints a one-line note)."""
+    whether it happened to be the first to build one (a build prints a one-line note).
+
+    Every pytest-xdist worker builds them, each library under its build lock: the second
+    worker takes them in the opposite order, so that the two compile different libraries
+    at the same time (the NLP on one core, the physics step, tyres and filter on the
+    other) instead of one waiting for the other's every build."""
     from cosim.plant.car import MujocoPlant
     from estimation.registry import make_estimator
     from tracker.registry import make_tracker
 
     config = load_config("lane-change")
-    MujocoPlant(config.plant, config.sim.physics_dt_s, config.initial)
-    make_estimator(config.estimator, config.initial, config.tracker.model)
-    make_tracker(config.tracker, config.manoeuvre, config.sim.control_period_s)
+    builds = [
+        lambda: MujocoPlant(config.plant, config.sim.physics_dt_s, config.initial),
+        lambda: make_estimator(config.estimator, config.initial, config.tracker.model),
+        lambda: make_tracker(config.tracker, config.manoeuvre, config.sim.control_period_s),
+    ]
+    if worker_id.removeprefix("gw").isdigit() and int(worker_id.removeprefix("gw")) % 2:
+        builds.reverse()
+    for build in builds:
+        build()
 
 
 @pytest.fixture(scope="session")
