@@ -39,7 +39,8 @@ def compiled_libraries(worker_id: str) -> None:
         lambda: make_estimator(config.estimator, config.initial, config.tracker.model),
         lambda: make_tracker(config.tracker, config.manoeuvre, config.sim.control_period_s),
     ]
-    if worker_id.removeprefix("gw").isdigit() and int(worker_id.removeprefix("gw")) % 2:
+    number = worker_id.removeprefix("gw")  # "gw0", "gw1", ...; "master" without xdist
+    if number.isdigit() and int(number) % 2:
         builds.reverse()
     for build in builds:
         build()
