@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 from collections import defaultdict
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -50,17 +51,37 @@ _NOT_VALUES = ("t_s", "sensor", "sigma")
 """Fields of a logged measurement that are not its channels."""
 
 
-def logged_stream(path: Path) -> tuple[dict[int, list[Measurement]], dict[int, np.ndarray]]:
-    """The fused sensors' measurements of a log by physics step (each instant's in the
-    order the runner delivered them: its sensors' order) and the truth of
-    :data:`NEES_STATES` by log time in nanoseconds. Null values (a non-finite channel) are
-    NaN again; the covariance is diagonal from the logged sigmas."""
-    wanted = {topics.sensor_topic(name) for name in FUSED_SENSORS} | {topics.VEHICLE_TRUTH}
+@dataclass(frozen=True)
+class LoggedRun:
+    """What a replay feeds a filter, read from a run's log in one pass
+    (:func:`logged_run`)."""
+
+    stream: dict[int, list[Measurement]]
+    """The fused sensors' measurements by log time in nanoseconds, each instant's in the
+    order the runner delivered them (its sensors' order). Null values (a non-finite
+    channel) are NaN again; the covariance is diagonal from the logged sigmas."""
+    truth: dict[int, np.ndarray]
+    """The truth of :data:`NEES_STATES` by log time in nanoseconds."""
+    commands: list[tuple[float, float]]
+    """The commands (``/control/command``), ``(steer_rad, accel_mps2)`` in the order the
+    controller gave them: the ``i``-th is the ``i``-th control instant's (the delay line is
+    first in, first out)."""
+
+
+def logged_run(path: Path) -> LoggedRun:
+    """The sensor stream, the truth and the commands of the log at ``path``, in one pass
+    over its records (reading a log is most of a replay's time that is not the filter's)."""
+    wanted = ({topics.sensor_topic(name) for name in FUSED_SENSORS}
+              | {topics.VEHICLE_TRUTH, topics.CONTROL_COMMAND})
     measurements: list[tuple[int, int, Measurement]] = []
     truth: dict[int, np.ndarray] = {}
+    commands: list[tuple[float, float]] = []
     for topic, log_time_ns, message in iter_topics(Path(path), wanted):
         if topic == topics.VEHICLE_TRUTH:
             truth[log_time_ns] = np.array([message[name] for name in NEES_STATES], dtype=float)
+            continue
+        if topic == topics.CONTROL_COMMAND:
+            commands.append((float(message["steer_rad"]), float(message["accel_mps2"])))
             continue
         names = tuple(k for k in message if k not in _NOT_VALUES)
         values = np.array([math.nan if message[n] is None else message[n] for n in names])
@@ -73,15 +94,7 @@ def logged_stream(path: Path) -> tuple[dict[int, list[Measurement]], dict[int, n
     by_time: dict[int, list[Measurement]] = defaultdict(list)
     for log_time_ns, _, measurement in measurements:
         by_time[log_time_ns].append(measurement)
-    return dict(by_time), truth
-
-
-def logged_commands(path: Path) -> list[tuple[float, float]]:
-    """The commands of a log (``/control/command``), ``(steer_rad, accel_mps2)`` in the
-    order the controller gave them: the ``i``-th is the ``i``-th control instant's (the
-    delay line is first in, first out)."""
-    return [(float(message["steer_rad"]), float(message["accel_mps2"]))
-            for _, _, message in iter_topics(Path(path), {topics.CONTROL_COMMAND})]
+    return LoggedRun(dict(by_time), truth, commands)
 
 
 def replay(config: ScenarioConfig, path: Path, estimator: EstimatorConfig | None = None,
@@ -100,8 +113,8 @@ def replay(config: ScenarioConfig, path: Path, estimator: EstimatorConfig | None
         raise TypeError(f"estimator {estimator.name!r}: a replay needs estimate_at "
                         "(estimation.protocol.ObservableEstimator)")
     port = EstimatorPort(filter_)  # fused as the run fuses: together where it can
-    stream, truth = logged_stream(path)
-    commands = iter(logged_commands(path))
+    logged = logged_run(path)
+    stream, truth, commands = logged.stream, logged.truth, iter(logged.commands)
     sim, dt_s = config.sim, config.sim.physics_dt_s
     log_steps = steps_per_period(sim.log_period_s, dt_s, "sim.log_period_s")
     control_steps = steps_per_period(sim.control_period_s, dt_s, "sim.control_period_s")
