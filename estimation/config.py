@@ -370,6 +370,11 @@ class EstimatorConfig:
     ukf_beta: float = setting(2.0, low=0.0, high=10.0, doc="prior knowledge of the distribution")
     ukf_kappa: float = setting(0.0, low=-10.0, high=10.0, doc="secondary scaling")
 
+    def gates(self, sensor: str) -> bool:
+        """Whether the NIS gate (``gate``, at ``gate_probability``) tests ``sensor``'s
+        updates: every sensor's, the IMU's only with ``gate_imu``."""
+        return self.gate and (sensor != "imu" or self.gate_imu)
+
     @property
     def tyre_load_sensitivities(self) -> tuple[float, float]:
         """``(front, rear)``: the exponents of (D3'') of :mod:`estimation.bicycle`."""

@@ -302,3 +302,43 @@ def anees_standard_error(t_s: np.ndarray, nees: np.ndarray, *,
     run_means = judged.mean(axis=1)
     return (float(np.std(run_means, ddof=1) / math.sqrt(runs)),
             math.sqrt(2.0 * NEES_DOF / (steps * runs)))
+
+
+@dataclass(frozen=True)
+class FalseAlarms:
+    """What a consistent filter's gate refuses by chance among ``tested`` updates
+    (:func:`false_alarms`)."""
+
+    tested: int
+    expected: float
+    """``tested (1 - gate_probability)``."""
+    at_most: int
+    """The count a consistent filter stays at or below with the probability asked for."""
+
+
+def false_alarms(tested: int, gate_probability: float,
+                 probability: float = 0.95) -> FalseAlarms:
+    """How many of ``tested`` updates a *consistent* filter's NIS gate refuses.
+
+    Each update's NIS is chi-square with its channels as degrees of freedom, and the gate is
+    that distribution's ``gate_probability`` quantile, so each update is refused with
+    probability ``q = 1 - gate_probability`` whatever its dimension; independent innovations
+    (white, Bar-Shalom, Li, Kirubarajan 2001, section 5.4.2) make the count binomial
+    ``B(tested, q)``. ``at_most`` is its ``probability`` quantile: a count above it says the
+    filter is wrong where it was gated, a count at or below it is what the gate does to a
+    right one. (With the default gate, 0.9999, a hundred lane changes test some 22,000
+    updates in their first second: a consistent filter has some 2 refused.)"""
+    if tested < 0:
+        raise ValueError(f"tested = {tested}: expected a count >= 0")
+    if not 0.0 < gate_probability < 1.0:
+        raise ValueError(f"gate_probability = {gate_probability!r}: expected in (0, 1)")
+    if not 0.0 < probability < 1.0:
+        raise ValueError(f"probability = {probability!r}: expected in (0, 1)")
+    q = 1.0 - gate_probability
+    term = math.exp(tested * math.log1p(-q))  # P(count = 0)
+    cumulative, count = term, 0
+    while cumulative < probability and count < tested:
+        term *= (tested - count) / (count + 1) * q / (1.0 - q)
+        count += 1
+        cumulative += term
+    return FalseAlarms(tested, tested * q, count)

@@ -524,7 +524,7 @@ class KalmanFusion(ABC):
         return None
 
     def _uses_gate(self, sensor: str) -> bool:
-        return self._config.gate and (sensor != "imu" or self._config.gate_imu)
+        return self._config.gates(sensor)
 
     def _gated_update(
         self,

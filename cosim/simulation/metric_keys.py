@@ -188,6 +188,9 @@ ESTIMATION = (
               "`nis_settled_<sensor>`", "", _METRICS),
     MetricKey("gated_first_s_<sensor>", "count", "the sensor's updates before the settling "
               "time that the gate refused in whole or in part", "0", _METRICS),
+    MetricKey("tested_first_s_<sensor>", "count", "the sensor's updates before the settling "
+              "time with a NIS, gated or not: of these a consistent filter's gate refuses a "
+              "fraction `1 - estimator.gate_probability` by chance", "", _METRICS),
     MetricKey("rejected_measurements", "count", "whole measurements the estimator refused, "
               "all causes", "0", _METRICS),
     MetricKey("rejected_gate", "count", "measurements the innovation gate refused", "0",

@@ -154,6 +154,10 @@ class MetricsAccumulator:
     """Per sensor, the summed dimension of those updates."""
     gated_first_s: dict[str, int] = field(default_factory=dict)
     """Per sensor, the updates before :attr:`settle_s` the gate refused in whole or in part."""
+    tested_first_s: dict[str, int] = field(default_factory=dict)
+    """Per sensor, the updates before :attr:`settle_s` with a NIS (what a gate tested): a
+    consistent filter's gate refuses a fraction ``1 - estimator.gate_probability`` of them
+    (:func:`estimation.consistency.false_alarms`)."""
     estimator_counts: dict[str, dict[str, int]] = field(default_factory=dict)
     """Per sensor, the estimator's own counters (set at the end of the run)."""
     last_t_s: float = 0.0
@@ -239,6 +243,7 @@ class MetricsAccumulator:
             else:
                 self.gated_first_s[sensor] = (self.gated_first_s.get(sensor, 0)
                                               + (update.reason in (GATE, PARTIAL)))
+                self.tested_first_s[sensor] = self.tested_first_s.get(sensor, 0) + 1
 
     def add_plan(self, plan: Plan, step_time_s: float = float("nan")) -> None:
         self.solve_time_s.add(plan.solve_time_s)
@@ -321,6 +326,8 @@ class MetricsAccumulator:
                for sensor in sorted(self.nis_settled_dof)},
             **{f"gated_first_s_{sensor}": self.gated_first_s[sensor]
                for sensor in sorted(self.gated_first_s)},
+            **{f"tested_first_s_{sensor}": self.tested_first_s[sensor]
+               for sensor in sorted(self.tested_first_s)},
             **rejection_counts(self.estimator_counts),
             "sim_duration_s": sim_duration_s,
             "wall_time_s": wall_time_s,

@@ -32,6 +32,7 @@ from estimation.consistency import (
     chi_square_band,
     chi_square_quantile,
     ensemble_consistency,
+    false_alarms,
     nees_band,
 )
 
@@ -157,6 +158,45 @@ def test_the_mean_anees_moves_with_the_runs_drawn_when_their_steps_are_correlate
     assert error > 5.0 * if_independent
     with pytest.raises(ValueError, match="two runs"):
         anees_standard_error(t_s, independent[:1])
+
+
+@pytest.mark.parametrize("tested, gate_probability", [
+    (22_000, 0.9999), (100, 0.9999), (0, 0.9999), (5_000, 0.99), (1, 0.5), (300, 0.999)])
+def test_a_consistent_filters_gating_is_the_binomial_quantile(
+        tested: int, gate_probability: float) -> None:
+    """Each tested update is refused with probability 1 - gate_probability: the count's
+    mean and its 95 % quantile are the binomial's (scipy's, the reference)."""
+    from scipy.stats import binom
+
+    chance = false_alarms(tested, gate_probability)
+    assert chance.tested == tested
+    assert chance.expected == pytest.approx(tested * (1.0 - gate_probability), rel=1e-9)
+    assert chance.at_most == int(binom.ppf(0.95, tested, 1.0 - gate_probability))
+    assert false_alarms(tested, gate_probability, 0.5).at_most == int(
+        binom.ppf(0.5, tested, 1.0 - gate_probability))
+
+
+def test_the_start_of_a_hundred_lane_changes_gates_some_by_chance() -> None:
+    """Simulated: 100 runs of 220 gated updates in their first second (steering and wheel
+    speeds at 100 Hz, GNSS position and velocity at 10 Hz), each NIS a chi-square draw
+    (a consistent filter) against the gate's quantile: the refused count is the gate's false
+    alarms, rarely zero, and within the bound in most of 400 such ensembles."""
+    rng = np.random.default_rng(8)
+    gate = 0.9999
+    thresholds = {dof: chi_square_quantile(gate, dof) for dof in (1, 2, 4)}
+    dofs = np.repeat([1, 4, 2, 2], [100, 100, 10, 10])
+    counts = []
+    for _ in range(400):
+        nis = rng.chisquare(np.tile(dofs, 100))
+        counts.append(int(np.sum(nis > np.array([thresholds[d] for d in np.tile(dofs, 100)]))))
+    chance = false_alarms(100 * dofs.size, gate)
+    assert np.mean(counts) == pytest.approx(chance.expected, rel=0.15)
+    assert np.mean(np.array(counts) == 0) < 0.2
+    assert 0.9 <= np.mean(np.array(counts) <= chance.at_most) <= 1.0
+    with pytest.raises(ValueError, match="tested"):
+        false_alarms(-1, gate)
+    with pytest.raises(ValueError, match="gate_probability"):
+        false_alarms(10, 1.0)
 
 
 def test_bad_input_is_refused() -> None:

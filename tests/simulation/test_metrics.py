@@ -21,8 +21,8 @@ def _accumulator() -> MetricsAccumulator:
 def test_settled_nis_leaves_out_the_first_second_and_counts_its_gating() -> None:
     """Two-channel updates of NIS 8 (4 per dof, two gated) before the settling time and of
     NIS 2 (1 per dof) after it: ``nis_<sensor>`` mixes them, ``nis_settled_<sensor>`` is 1,
-    and the two gated start-up updates are counted; a sensor gated only after settling
-    counts 0."""
+    and the two gated start-up updates are counted among the three tested then; a sensor
+    gated only after settling counts 0 gated of its one tested start-up update."""
     metrics = _accumulator()
     early = [UpdateResult(False, 8.0, 2, GATE, 8.0, 2), UpdateResult(True, 4.0, 1, PARTIAL, 8.0, 2),
              UpdateResult(True, 8.0, 2, ACCEPTED, 8.0, 2)]
@@ -38,8 +38,10 @@ def test_settled_nis_leaves_out_the_first_second_and_counts_its_gating() -> None
     assert result["nis_settled_gnss"] == pytest.approx(1.0)
     assert result["nis_settled_dof_gnss"] == 18
     assert result["gated_first_s_gnss"] == 2
+    assert result["tested_first_s_gnss"] == 3
     assert result["nis_settled_imu"] == pytest.approx(10.0)
     assert result["gated_first_s_imu"] == 0
+    assert result["tested_first_s_imu"] == 1
     assert undocumented(result) == []
 
 
