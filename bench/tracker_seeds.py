@@ -16,6 +16,11 @@ within 3 m/s^2. Here each tracker drives the MuJoCo sedan with the ``rtk`` suite
 (the ``lane-change`` scenario) once per seed; the table prints one row per run and the worst
 case per tracker. Accuracy figures are deterministic per seed; solve times are this
 machine's, measured in this invocation (runs go one after another, never in parallel).
+Each row also says when the run's largest CTE happened (``t_max_s``), that CTE with its sign
+(``cte_at_max_m``, the path's left positive) and the estimate's own error across the path
+then (``est_across_m``, the same sign convention): the controller sees the sum of the two,
+so an error across near minus the CTE says the filter put the car there, one near 0 that the
+controller did.
 """
 
 from __future__ import annotations
@@ -28,10 +33,30 @@ from pathlib import Path
 from cosim.core.exceptions import CosimError
 from cosim.log import topics
 from cosim.log.reader import iter_messages
-from cosim.simulation.runner import run
+from cosim.simulation.runner import run, scenario_course
 from cosim.simulation.scenario_config import load_config
+from tracker.paths.reference_path import ReferencePath
 
 DEFAULT_TRACKERS: tuple[str, ...] = ("dynamic-nmpc", "ltv-mpc", "dynamic-mpc", "kinematic-nmpc")
+
+
+def _worst_instant(log_path: Path, reference: ReferencePath) -> tuple[float, float, float]:
+    """When the run's largest cross-track error happened [s], that error with its sign (the
+    path's left positive) [m], and the estimate's own error across the path then [m]: the
+    estimate's position minus the truth's, along the path's left normal at the truth's
+    projection. The controller sees the sum of the two: an error across near minus the CTE
+    says the filter put the car there, one near 0 that the controller did."""
+    errors = [(m["t_s"], m["cte_m"]) for _, m in iter_messages(log_path, topics.CONTROL_ERRORS)]
+    t_worst, cte_m = max(errors, key=lambda e: abs(e[1]))
+    key = round(t_worst, 6)
+    truth = next(m for _, m in iter_messages(log_path, topics.VEHICLE_TRUTH)
+                 if round(m["t_s"], 6) == key)
+    estimate = next(m for _, m in iter_messages(log_path, topics.VEHICLE_ESTIMATE)
+                    if round(m["t_s"], 6) == key)
+    yaw = reference.project(truth["x_m"], truth["y_m"]).path_yaw_rad
+    across = (-math.sin(yaw) * (estimate["x_m"] - truth["x_m"])
+              + math.cos(yaw) * (estimate["y_m"] - truth["y_m"]))
+    return float(t_worst), float(cte_m), float(across)
 
 
 def _time_to_speed_s(log_path: Path, speed_mps: float) -> float:
@@ -112,7 +137,8 @@ def main() -> None:
         write_page(Path(args.write), trackers, args.overrides)
         return
     header = (f"{'tracker':<15}{'seed':>5}{'cte_max_m':>11}{'head_deg':>10}{'steer_deg':>10}"
-              f"{'accel':>14}{'t20_s':>7}{'p50_ms':>8}{'p99_ms':>8}{'fail':>6}")
+              f"{'accel':>14}{'t20_s':>7}{'p50_ms':>8}{'p99_ms':>8}{'fail':>6}"
+              f"{'t_max_s':>8}{'cte_at_max_m':>13}{'est_across_m':>13}")
     print(header)
     with tempfile.TemporaryDirectory() as tmp:
         for tracker in trackers:
@@ -132,7 +158,9 @@ def main() -> None:
                       f"{math.degrees(m['heading_err_max_rad']):>10.2f}"
                       f"{math.degrees(m['steer_max_rad']):>10.2f}{accel:>14}"
                       f"{_time_to_speed_s(log_path, 20.0):>7.2f}{m['solve_ms_p50']:>8.2f}"
-                      f"{m['solve_ms_p99']:>8.2f}{m['solver_failures']:>6}", flush=True)
+                      f"{m['solve_ms_p99']:>8.2f}{m['solver_failures']:>6}"
+                      + "{:>8.2f}{:>13.4f}{:>13.4f}".format(*_worst_instant(
+                          log_path, scenario_course(config).reference)), flush=True)
             else:
                 print(f"{tracker:<15} worst cte_max_m over {args.seeds} seeds: {worst:.4f}")
 
