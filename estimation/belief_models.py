@@ -10,6 +10,7 @@ from cosim.core.vehicle_params import VehicleParams
 from estimation.bicycle import BicycleParams, RollParams
 from estimation.config import EstimatorConfig
 from estimation.process_model import ProcessNoise
+from estimation.steering_model import MIN_TIME_CONSTANT_S
 
 
 def process_noise(config: EstimatorConfig) -> ProcessNoise:
@@ -44,17 +45,22 @@ def process_noise(config: EstimatorConfig) -> ProcessNoise:
 
 
 def told_process_noise(config: EstimatorConfig, untold: ProcessNoise, *, steering: bool,
-                       accel: bool) -> ProcessNoise:
+                       accel: bool, steer_lag_s: float = MIN_TIME_CONSTANT_S) -> ProcessNoise:
     """``untold`` (:func:`process_noise`) once the filter is told the controller's commands:
     told the steering commands, the steering's PSD is what the actuator does that its
     commands do not explain (``steer_commanded_psd_rad2ps``: :mod:`estimation.steering_model`
-    follows the rest); told the acceleration commands, the jerk's is what the drive does
+    follows the rest), growing with the steering rate by ``2 t^2 / tau`` for an actuator
+    whose timing is known to ``t`` (``steer_commanded_timing_s``) and whose lag is
+    ``steer_lag_s``; told the acceleration commands, the jerk's is what the drive does
     that they do not (``accel_commanded_jerk_psd_m2ps5``, with no part relative to the
     acceleration: :mod:`estimation.accel_commands` moves it). A filter told nothing keeps
     the random walks' larger PSDs, which must follow the whole motion alone."""
     changes: dict[str, float] = {}
     if steering:
-        changes["steer_psd_rad2ps"] = config.steer_commanded_psd_rad2ps
+        lag_s = max(steer_lag_s, MIN_TIME_CONSTANT_S)
+        changes.update(steer_psd_rad2ps=config.steer_commanded_psd_rad2ps,
+                       steer_rate_relative_psd_s=2.0 * config.steer_commanded_timing_s**2
+                       / lag_s)
     if accel:
         changes.update(jerk_psd_m2ps5=config.accel_commanded_jerk_psd_m2ps5,
                        jerk_relative_psd_1ps=0.0)

@@ -189,6 +189,13 @@ class EstimatorConfig:
         "does that its commands, its lag and the road wheels' gyroscopic deflection do not "
         "explain (estimation.steering_model) [rad^2/s]",
     )
+    steer_commanded_timing_s: float = setting(
+        0.002, low=0.0, high=1.0,
+        doc="once told steering commands, how well the filter knows when the actuator moves "
+        "(the plant's physics step: its wheels reach a step's end angle during the step): "
+        "the steering's PSD grows by 2 timing^2 / tau per squared steering rate, tau the "
+        "belief's steer_time_constant_s (estimation.process_model.ProcessNoise) [s]",
+    )
     steer_rate_psd_rad2ps3: float = setting(
         0.025, low=0.0, high=1e4, doc="random walk of steer_rate_radps (steering acceleration)"
     )

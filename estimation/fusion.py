@@ -119,10 +119,10 @@ class KalmanFusion(ABC):
         bicycle = bicycle_params(config, belief)
         self._untold_noise = process_noise(config)
         """The process noise before the first command (:func:`told_process_noise`)."""
+        self._steering = SteeringBelief.from_vehicle(belief, config.steering_compliance_radpnm)
         self._process = ProcessModel(
-            self._untold_noise, bicycle,
-            config.lateral_residual_time_constant_s, sigma_point_count=self._sigma_point_count(),
-            steering=SteeringBelief.from_vehicle(belief, config.steering_compliance_radpnm))
+            self._untold_noise, bicycle, config.lateral_residual_time_constant_s,
+            sigma_point_count=self._sigma_point_count(), steering=self._steering)
         self._commands = SteeringCommands()
         """The steering commands told (:meth:`command`), which the predictions run along."""
         self._accel_commands = AccelCommands(DriveBelief(
@@ -341,7 +341,7 @@ class KalmanFusion(ABC):
         """The process noise for the commands told so far (:func:`told_process_noise`)."""
         self._process.use_noise(told_process_noise(
             self._config, self._untold_noise, steering=self._commands.told,
-            accel=self._accel_commands.told))
+            accel=self._accel_commands.told, steer_lag_s=self._steering.time_constant_s))
 
     def _follow_accel_command(self, t0_s: float, t1_s: float) -> None:
         """Move the acceleration's mean and variance by the drive's response to its

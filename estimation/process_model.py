@@ -167,6 +167,14 @@ class ProcessNoise:
     """The roll acceleration's PSD per squared roll acceleration the tyres' force commands,
     ``roll_accel_psd_rad2ps3 + roll_accel_relative_psd_s * (omega^2 G a_y)^2`` (the roll
     mode's steady gain and dynamics are known to a fraction)."""
+    steer_rate_relative_psd_s: float = 0.0
+    """The steering angle's PSD per squared steering rate: ``steer_psd_rad2ps +
+    steer_rate_relative_psd_s * delta_r^2``. An actuator the filter follows from its commands
+    (:mod:`estimation.steering_model`) but whose timing it knows only to some ``dt`` (the
+    plant's own steps, its servo) is off by ``delta_r dt`` while it moves; the lag pulls an
+    error back within ``tau``, so a PSD ``2 (delta_r dt)^2 / tau`` holds that error's
+    variance: ``2 dt^2 / tau`` per squared rate. Only once told the commands
+    (:func:`estimation.belief_models.told_process_noise`)."""
     jerk_relative_psd_1ps: float = 0.0
     """The longitudinal jerk's PSD per squared longitudinal acceleration:
     ``jerk_psd_m2ps5 + jerk_relative_psd_1ps * a_x^2``. The drive and brake forces change
@@ -470,6 +478,8 @@ def _force_noise(x: ca.SX, noise: ProcessNoise, bicycle: BicycleParams) -> ca.SX
         noise.roll_accel_relative_psd_s * commanded_roll_accel**2
     )
     extra[state_index("ax_mps2")] = noise.jerk_relative_psd_1ps * s["ax_mps2"] ** 2
+    extra[state_index("steer_rad")] = (noise.steer_rate_relative_psd_s
+                                       * s["steer_rate_radps"] ** 2)
     return extra
 
 
