@@ -57,13 +57,16 @@ from cosim.core.records import Measurement
 from cosim.log.reader import iter_messages
 from cosim.simulation.runner import run
 from cosim.simulation.scenario_config import ScenarioConfig, load_config
-from cosim.sweeps.ensemble import EnsembleMember, anees_error, judge, run_member
+from cosim.sweeps.ensemble import (
+    TESTED_PREFIX,
+    EnsembleMember,
+    anees_error,
+    judge,
+    run_member,
+)
 from estimation.config import EstimatorConfig
 from estimation.consistency import SETTLE_S, false_alarms
 from estimation.registry import make_estimator
-
-TESTED_PREFIX = "tested_first_s_"
-"""Metrics: a sensor's updates in the first second with a NIS (what its gate tested)."""
 
 _FIGURES = ("est_pos_rmse_m", "est_yaw_rmse_rad", "est_speed_rmse_mps", "cte_max_m",
             "nees_mean", "rejected_measurements", "channels_gated")

@@ -45,7 +45,7 @@ def process_noise(config: EstimatorConfig) -> ProcessNoise:
 
 
 def told_process_noise(config: EstimatorConfig, untold: ProcessNoise, *, steering: bool,
-                       accel: bool, steer_lag_s: float = MIN_TIME_CONSTANT_S) -> ProcessNoise:
+                       accel: bool, steer_lag_s: float) -> ProcessNoise:
     """``untold`` (:func:`process_noise`) once the filter is told the controller's commands:
     told the steering commands, the steering's PSD is what the actuator does that its
     commands do not explain (``steer_commanded_psd_rad2ps``: :mod:`estimation.steering_model`

@@ -412,7 +412,7 @@ class KalmanFusion(ABC):
             counts.rejected_invalid += 1
             return UpdateResult(False, math.nan, dim, INVALID)
         surprise = (self._config.gate and self._config.inflate_on_surprise
-                    and not self._uses_gate(sensor) and joint.nis > self.gate_threshold(dim))
+                    and not self._config.gates(sensor) and joint.nis > self.gate_threshold(dim))
         nis = joint.nis  # reported: a surprise's NIS is the one before the room was made
         if surprise:
             # A sensor exempt from the gate far outside it: a manoeuvre the model did not
@@ -427,7 +427,7 @@ class KalmanFusion(ABC):
             counts.surprises += 1
             inflated = self._innovation(model, selection, everything, z, r_matrix)
             joint = inflated if inflated is not None else joint
-        if not self._uses_gate(sensor) or joint.nis <= self.gate_threshold(dim):
+        if not self._config.gates(sensor) or joint.nis <= self.gate_threshold(dim):
             # The common case: one joint update.
             self._forget_gate_failures(model, selection, everything)
             if not self._apply(joint):
@@ -522,9 +522,6 @@ class KalmanFusion(ABC):
         mean), the belief unchanged; None without one (:meth:`update_many`: one by one)."""
         del blocks, at
         return None
-
-    def _uses_gate(self, sensor: str) -> bool:
-        return self._config.gates(sensor)
 
     def _gated_update(
         self,

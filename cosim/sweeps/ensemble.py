@@ -33,6 +33,8 @@ from estimation.consistency import (
 NIS_PREFIX = "nis_dof_"
 SETTLED_NIS_PREFIX = "nis_settled_dof_"
 GATED_PREFIX = "gated_first_s_"
+TESTED_PREFIX = "tested_first_s_"
+"""Metrics: a sensor's updates in the first second with a NIS (what its gate tested)."""
 
 
 @dataclass(frozen=True)
