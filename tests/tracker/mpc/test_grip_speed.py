@@ -9,7 +9,12 @@ import numpy as np
 import pytest
 
 from tracker.mpc.grip_config import GripConfig
-from tracker.mpc.grip_speed import CurvatureTable, capped_reference_speed, cornering_speed_cap
+from tracker.mpc.grip_speed import (
+    CurvatureTable,
+    cannot_bind,
+    capped_reference_speed,
+    cornering_speed_cap,
+)
 from tracker.paths.double_lane_change import double_lane_change
 from tracker.paths.reference_path import ReferencePath
 from tracker.paths.shapes import circle, from_curvature
@@ -83,3 +88,51 @@ def test_the_curvature_table_matches_the_spline_between_its_points() -> None:
     ring = ReferencePath(shape.x_m, shape.y_m, 20.0, closed=True)
     beyond = np.array([ring.length_m + 3.3, -2.5])
     np.testing.assert_allclose(CurvatureTable(ring)(beyond), 1.0 / 50.0, rtol=1e-2)
+
+
+def _full_cap(path: ReferencePath, stages: np.ndarray, reference: np.ndarray,
+              speed_now: float, friction: float) -> np.ndarray:
+    """(V3) evaluated in full, without the shortcut."""
+    return np.minimum(reference, cornering_speed_cap(path, stages, speed_now, friction, GRIP))
+
+
+@pytest.mark.parametrize("closed", [False, True])
+def test_the_shortcut_gives_the_full_caps_speeds_to_the_bit(closed: bool) -> None:
+    """Where (V2) cannot bind the speeds are returned unevaluated: on 400 horizons along
+    the lane change (open) and a 50 m circle with a straight (closed), at frictions 0.2-1.1
+    and speeds 5-30 m/s, the shortcut is taken and not taken (both counted) and the speeds
+    and the verdict are always those of (V2)-(V3) evaluated in full, bit for bit."""
+    rng = np.random.default_rng(7)
+    if closed:
+        s = np.arange(0.0, 500.0, 0.5)
+        x, y = from_curvature(s, np.where((s > 100.0) & (s < 100.0 + 100.0 * math.pi),
+                                          1.0 / 50.0, 0.0))
+        path = ReferencePath(x, y, 20.0, closed=True)
+    else:
+        path = double_lane_change(20.0, 1.5)
+    table = CurvatureTable(path)
+    taken = 0
+    for _ in range(400):
+        friction, speed = rng.uniform(0.2, 1.1), rng.uniform(5.0, 30.0)
+        first = rng.uniform(-10.0, path.length_m + (20.0 if closed else 10.0))
+        stages = first + np.cumsum(np.full(25, speed * 0.05))
+        reference = speed + rng.uniform(-1.0, 1.0, 25)
+        capped = capped_reference_speed(table, stages, reference, speed, friction, GRIP)
+        full = _full_cap(path, stages, reference, speed, friction)
+        taken += cannot_bind(table, stages, reference, speed, friction, GRIP)
+        assert np.array_equal(capped.speed_mps, full)
+        assert capped.reduced == bool(np.any(full < reference))
+    assert taken >= 20 and 400 - taken >= 20  # both ways tried
+
+
+def test_the_shortcut_is_taken_on_the_dry_lane_change() -> None:
+    """The default lane change at 20 m/s on a dry road never binds the cap (module
+    docstring), and every horizon along it skips (V2); at friction 0.5 the bends bind it
+    and the horizons before them evaluate it."""
+    path = double_lane_change(20.0, 1.5)
+    table = CurvatureTable(path)
+    starts = np.arange(0.0, path.length_m - 30.0, 2.0)
+    horizons = [start + np.arange(1, 26) * 1.0 for start in starts]
+    reference = np.full(25, 20.0)
+    assert all(cannot_bind(table, s, reference, 20.0, 1.0, GRIP) for s in horizons)
+    assert not all(cannot_bind(table, s, reference, 20.0, 0.5, GRIP) for s in horizons)
