@@ -352,12 +352,14 @@ class EstimatorConfig:
 
     compiled: bool = setting(
         True,
-        doc="ekf: evaluate the process model's sub-step, the measurement models and the joint "
-        "update of an instant's measurements as C "
-        "compiled with gcc (one library, built once per machine with a note and cached "
-        "under ~/.cache/cosim; the belief's numbers are its parameters, so one build serves "
-        "every belief) instead of CasADi's virtual machine: the same estimates, the filter "
-        "about 2x faster. Without a C compiler: the virtual machine, with a warning",
+        doc="evaluate the filter's models as C compiled with gcc instead of CasADi's virtual "
+        "machine (ekf: the process model's sub-step, the measurement models and the joint "
+        "update of an instant's measurements; ukf: the process noise, the sub-step of every "
+        "sigma point and every measurement model at every sigma point; one library per "
+        "filter, built once per machine with a note and cached under ~/.cache/cosim; the "
+        "belief's numbers are its parameters, so one build serves every belief): the same "
+        "estimates, the filter about 2x faster. Without a C compiler: the virtual machine, "
+        "with a warning",
     )
 
     # Iterated update (ekf only): estimation.ekf.Ekf._joint_update.

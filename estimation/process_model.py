@@ -371,6 +371,12 @@ class ProcessModel:
         :meth:`cosim.core.dense_function.DenseFunction.use_compiled`."""
         return (self._step_fast,)
 
+    def sigma_point_functions(self) -> tuple[DenseFunction, ...]:
+        """The UKF's evaluators worth compiling to C: the process noise and the sub-step of
+        every sigma point (:meth:`propagate`)."""
+        mapped = () if self._mapped_step is None else (self._mapped_step,)
+        return (self._noise_fast, *mapped)
+
     def derivative(self, x: np.ndarray,
                    command_rad: float | None = None) -> tuple[np.ndarray, np.ndarray]:
         """The noise-free time derivative of the state and its Jacobian ``A`` at ``x``, the

@@ -5,9 +5,12 @@ scaled sigma points (:class:`~filterpy.kalman.MerweScaledSigmaPoints`; Van der M
 Point Kalman Filters for Probabilistic Inference in Dynamic State-Space Models", PhD thesis,
 2004, section 3.2.2). It shares with :class:`estimation.ekf.Ekf` the state, the CasADi
 process and measurement models of :mod:`estimation.process_model` and
-:mod:`estimation.measurement_models` (evaluated numerically at the
-sigma points; the process step mapped over all of them in one call) and everything about
-when and whether a measurement is fused (:class:`estimation.fusion.KalmanFusion`).
+:mod:`estimation.measurement_models` (evaluated numerically at the sigma points, each model
+mapped over all of them in one call, as C with ``estimator.compiled``) and everything about
+when and whether a measurement is fused (:class:`estimation.fusion.KalmanFusion`). The
+sigma points and the update are filterpy's algorithms written out on arrays
+(:class:`ScaledSigmaPoints`, :meth:`Ukf._trial_update`): the same numbers to the bit,
+without filterpy's loops over the points in Python.
 
 Differences from the EKF, all about the unscented transform:
 
@@ -25,11 +28,15 @@ Differences from the EKF, all about the unscented transform:
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 
+import casadi as ca
 import numpy as np
-from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
+from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter, unscented_transform
+from scipy.linalg.lapack import dpotrf as _potrf
 
+from cosim.core.dense_function import DenseFunction
 from estimation.fusion import KalmanFusion
 from estimation.innovation import TrialUpdate
 from estimation.measurement_models import MeasurementModel
@@ -69,6 +76,37 @@ def _wrapped_difference_function(
     return difference
 
 
+class ScaledSigmaPoints(MerweScaledSigmaPoints):
+    """filterpy's :class:`~filterpy.kalman.MerweScaledSigmaPoints` with its points drawn in
+    a few array operations: the same Cholesky factor (LAPACK's ``potrf`` of the upper
+    triangle, as ``scipy.linalg.cholesky`` calls it) and the same subtractions ``x - (-U_k)``
+    and ``x - U_k``, without filterpy's loop over the rows nor scipy's checks around the
+    factorisation (a non-finite or indefinite covariance raises as there), so the same
+    points to the bit (``tests/estimation/test_ukf_update.py``)."""
+
+    def sigma_points(self, x: np.ndarray, P: np.ndarray) -> np.ndarray:  # noqa: N803
+        n = self.n
+        x = np.asarray(x, dtype=float).reshape(-1)
+        if x.size != n:
+            raise ValueError(f"expected size(x) {n}, but size is {x.size}")
+        lambda_ = self.alpha**2 * (n + self.kappa) - n
+        scaled = (lambda_ + n) * np.asarray(P, dtype=float)
+        if not np.isfinite(scaled).all():
+            raise ValueError("array must not contain infs or NaNs")
+        root, info = _potrf(scaled, lower=0, clean=1)
+        if info > 0:
+            raise np.linalg.LinAlgError(
+                f"{info}-th leading minor of the array is not positive definite")
+        if info < 0:
+            raise ValueError(f"LAPACK reported an illegal value in {-info}-th argument "
+                             'on entry to "POTRF".')
+        sigmas = np.empty((2 * n + 1, n))
+        sigmas[0] = x
+        np.subtract(x, -root, out=sigmas[1:n + 1])
+        np.subtract(x, root, out=sigmas[n + 1:])
+        return sigmas
+
+
 class _BicycleUnscentedFilter(UnscentedKalmanFilter):
     """filterpy's UKF whose sigma points go through the process model in one mapped call,
     with angles unwrapped around the first sigma point and a vectorised cross covariance."""
@@ -105,6 +143,15 @@ class _BicycleUnscentedFilter(UnscentedKalmanFilter):
         return (dx * self.Wc[:, None]).T @ dz
 
 
+@functools.lru_cache(maxsize=32)
+def at_points(function: ca.Function, count: int) -> ca.Function:
+    """``function(x, belief)`` (a measurement model's ``h``) of ``count`` points at once:
+    ``(x: n x count, belief) -> h: m x count``, CasADi's map of the function over the
+    points (the belief shared), each column evaluated as one call is, so the same numbers;
+    built once per process per model and count."""
+    return function.map(f"{function.name()}_at_{count}", "serial", count, [1], [])
+
+
 def _wrap(angle_rad: np.ndarray) -> np.ndarray:
     """Angles wrapped to [-pi, pi) (vectorised; for differences, where the end is moot)."""
     return (angle_rad + np.pi) % (2.0 * np.pi) - np.pi
@@ -126,7 +173,7 @@ class Ukf(KalmanFusion):
         return 2 * len(STATE_NAMES) + 1
 
     def _setup_filter(self, mean: np.ndarray, covariance: np.ndarray) -> None:
-        self._points = MerweScaledSigmaPoints(
+        self._points = ScaledSigmaPoints(
             n=len(STATE_NAMES),
             alpha=self._config.ukf_alpha,
             beta=self._config.ukf_beta,
@@ -163,28 +210,46 @@ class Ukf(KalmanFusion):
         residual: Callable[[np.ndarray, np.ndarray], np.ndarray],
         angle_rows: tuple[int, ...],
     ) -> TrialUpdate:
-        """filterpy's UKF update through sigma points drawn from the current belief."""
+        """filterpy's UKF update (``UnscentedKalmanFilter.update``) through sigma points
+        drawn from the current belief, written out on arrays: the measurement model at
+        every sigma point in one call (:func:`_at_points`), then filterpy's unscented
+        transform and its gain, step by step as filterpy takes them (the same numbers,
+        ``tests/estimation/test_ukf_update.py``), without changing the belief."""
         del residual  # the same, vectorised: _wrapped_difference_function
         kf = self._kf
-        x_before, p_before = kf.x, kf.P
-        index = list(rows)
-        kf.sigmas_f = self._points.sigma_points(kf.x, kf.P)
+        kf.sigmas_f = sigmas = self._points.sigma_points(kf.x, kf.P)
+        # C-ordered as filterpy's list of points is: numpy's products then sum alike
+        sigmas_h = np.ascontiguousarray(self._at_points(model).rows(sigmas)[0][:, list(rows)])
         if angle_rows:
             kf.z_mean = _circular_mean_function(angle_rows)
             kf.residual_z = _wrapped_difference_function(angle_rows)
         else:
             kf.z_mean, kf.residual_z = None, np.subtract
-        try:
-            kf.update(
-                np.asarray(z, dtype=float).reshape(-1),
-                R=r_matrix,
-                hx=lambda point: model.value(point)[index],
-            )
-            return TrialUpdate(
-                innovation=np.asarray(kf.y, dtype=float).reshape(-1).copy(),
-                innovation_covariance=np.array(kf.S, dtype=float),
-                mean=kf.x.copy(),
-                covariance=kf.P.copy(),
-            )
-        finally:
-            kf.x, kf.P = x_before, p_before
+        zp, s = unscented_transform(sigmas_h, kf.Wm, kf.Wc, r_matrix, kf.z_mean,
+                                    kf.residual_z)
+        gain = np.dot(kf.cross_variance(kf.x, zp, sigmas, sigmas_h), np.linalg.inv(s))
+        innovation = kf.residual_z(np.asarray(z, dtype=float).reshape(-1), zp)
+        return TrialUpdate(
+            innovation=np.asarray(innovation, dtype=float).reshape(-1),
+            innovation_covariance=s,
+            mean=np.add(kf.x, np.dot(gain, innovation)),
+            covariance=kf.P - np.dot(gain, np.dot(s, gain.T)),
+        )
+
+    def _at_points(self, model: MeasurementModel) -> DenseFunction:
+        """``model``'s ``h`` at all the sigma points in one call (:func:`at_points`)."""
+        return self._sigma_models[model.sensor]
+
+    @functools.cached_property
+    def _sigma_models(self) -> dict[str, DenseFunction]:
+        """Each measurement model's :func:`at_points` on buffers of this filter's own, the
+        model's belief set once."""
+        count = self._sigma_point_count()
+        return {sensor: DenseFunction(at_points(model.value_function.function, count),
+                                      parameters=model.value_function.parameters)
+                for sensor, model in self._models.items()}
+
+    def _hot_functions(self) -> tuple[DenseFunction, ...]:
+        """The process noise and the sub-step of every sigma point, and every measurement
+        model at every sigma point: what the UKF evaluates at every step."""
+        return (*self._process.sigma_point_functions(), *self._sigma_models.values())
