@@ -97,10 +97,12 @@ def logged_run(path: Path) -> LoggedRun:
     return LoggedRun(dict(by_time), truth, commands)
 
 
-def replay(config: ScenarioConfig, path: Path, estimator: EstimatorConfig | None = None,
+def replay(config: ScenarioConfig, log: Path | LoggedRun,
+           estimator: EstimatorConfig | None = None,
            workshop: Workshop | None = None) -> EnsembleMember:
     """The filter ``estimator`` (default: the run's own, ``config.estimator``) fed the
-    sensor stream of the run of ``config`` logged at ``path``; its NEES at the run's log
+    sensor stream of the run of ``config`` logged at ``log`` (its path, or what
+    :func:`logged_run` read from it, for many filters fed one log); its NEES at the run's log
     instants and its NIS per sensor, as :func:`cosim.sweeps.ensemble.run_member` gives them
     for the run's own filter (``metrics`` is empty: no car was driven). ``workshop`` lends
     the filter an earlier replay built, restarted (the same numbers as one built afresh)."""
@@ -113,7 +115,7 @@ def replay(config: ScenarioConfig, path: Path, estimator: EstimatorConfig | None
         raise TypeError(f"estimator {estimator.name!r}: a replay needs estimate_at "
                         "(estimation.protocol.ObservableEstimator)")
     port = EstimatorPort(filter_)  # fused as the run fuses: together where it can
-    logged = logged_run(path)
+    logged = log if isinstance(log, LoggedRun) else logged_run(log)
     stream, truth, commands = logged.stream, logged.truth, iter(logged.commands)
     sim, dt_s = config.sim, config.sim.physics_dt_s
     log_steps = steps_per_period(sim.log_period_s, dt_s, "sim.log_period_s")

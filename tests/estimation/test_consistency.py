@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -25,7 +24,7 @@ import pytest
 from cosim.simulation.scenario_config import ScenarioConfig, load_config
 from cosim.simulation.workshop import Workshop
 from cosim.sweeps.ensemble import EnsembleMember, judge, run_member
-from cosim.sweeps.replay import replay
+from cosim.sweeps.replay import LoggedRun, logged_run, replay
 from estimation.config import scaled_process_noise
 from estimation.consistency import (
     anees_standard_error,
@@ -220,7 +219,7 @@ DURATION_S = 15.0
 
 @pytest.fixture(scope="module", params=[("gnss", "ekf")])
 def logged_ensemble(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
-                    ) -> tuple[ScenarioConfig, list[EnsembleMember], list[Path]]:
+                    ) -> tuple[ScenarioConfig, list[EnsembleMember], list[LoggedRun]]:
     """Twenty closed-loop lane changes (the real plant and runner, a sampled initial
     estimate), their ensemble members and their logs."""
     suite, estimator = request.param
@@ -230,13 +229,13 @@ def logged_ensemble(request: pytest.FixtureRequest, tmp_path_factory: pytest.Tem
     workshop = Workshop()  # the runs share their built parts (the same numbers)
     members = [run_member(config, seed, out, keep_log=True, workshop=workshop)
                for seed in SEEDS]
-    paths = [out / f"{config.name}-{estimator}-{seed}.mcap" for seed in SEEDS]
-    return config, members, paths
+    logs = [logged_run(out / f"{config.name}-{estimator}-{seed}.mcap") for seed in SEEDS]
+    return config, members, logs  # each log read once, replayed by every mistuned filter
 
 
 @pytest.mark.slow
 def test_closed_loop_ensemble_is_consistent(
-        logged_ensemble: tuple[ScenarioConfig, list[EnsembleMember], list[Path]]) -> None:
+        logged_ensemble: tuple[ScenarioConfig, list[EnsembleMember], list[LoggedRun]]) -> None:
     """Twenty runs of the lane change: ANEES inside its band at >= 90 % of the steps after
     1 s, every sensor's NIS per dof after 1 s in [0.85, 1.15] (both judged once the prior has
     converged; the start-up has its own figure, ``gated_first_s_<sensor>``).
@@ -251,7 +250,7 @@ def test_closed_loop_ensemble_is_consistent(
 @pytest.mark.slow
 @pytest.mark.parametrize("q_factor", [0.3, 3.0, 0.01, 100.0])
 def test_mistuned_process_noise_fails_the_check(
-        logged_ensemble: tuple[ScenarioConfig, list[EnsembleMember], list[Path]],
+        logged_ensemble: tuple[ScenarioConfig, list[EnsembleMember], list[LoggedRun]],
         q_factor: float) -> None:
     """The same check fails the same filter with all its process noise x0.3 and x3 (and
     x0.01, x100), replayed over the runs' sensor streams, and on the side the error says:
@@ -259,11 +258,11 @@ def test_mistuned_process_noise_fails_the_check(
     below); too much is under-confident (below more than above, or a sensor's innovations
     smaller than the filter expects: its NIS per dof under 0.85; with x3 the IMU's and the
     steering's, while the ANEES, pinned by the sensors, hardly leaves its band)."""
-    config, _, paths = logged_ensemble
+    config, _, logs = logged_ensemble
     estimator = scaled_process_noise(config.estimator, q_factor)
     workshop = Workshop()  # one filter, restarted for each run's stream
-    members = [replay(dataclasses.replace(config, seed=seed), path, estimator, workshop)
-               for seed, path in zip(SEEDS, paths, strict=True)]
+    members = [replay(dataclasses.replace(config, seed=seed), log, estimator, workshop)
+               for seed, log in zip(SEEDS, logs, strict=True)]
     result = judge(members, settled_nis=True)
     print("\n".join(result.lines()))
     assert not result.consistent()
