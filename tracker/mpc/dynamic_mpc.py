@@ -69,6 +69,7 @@ behind them: docs/defaults.md, ``dynamic-mpc``; today's accuracy: ``docs/tracker
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections.abc import Callable, Mapping
@@ -86,6 +87,7 @@ from tracker.models import steered_dynamic_bicycle as steered
 from tracker.mpc.base import MpcTracker, Solved, Start, Trajectory
 from tracker.mpc.dynamic_mpc_config import DynamicMpcConfig
 from tracker.mpc.fallback import INPUT, INPUT_NAMES
+from tracker.mpc.nlp import BufferedNlpCall
 from tracker.mpc.vector_layout import VectorLayout
 from tracker.paths.reference_path import Projection, ReferencePath, wrap_angle
 
@@ -165,6 +167,12 @@ class _Qp:
     constraints: VectorLayout
     lbg: np.ndarray
     ubg: np.ndarray
+
+    @functools.cached_property
+    def call(self) -> BufferedNlpCall:
+        """The solver on numpy arrays bound once, the constant constraint bounds set
+        (:class:`tracker.mpc.nlp.BufferedNlpCall`): the same solves, nothing converted."""
+        return BufferedNlpCall(self.solver, {"lbg": self.lbg, "ubg": self.ubg})
 
 
 class DynamicMpc(MpcTracker):
@@ -316,14 +324,12 @@ class DynamicMpc(MpcTracker):
         })
         lbx, ubx = self._variable_bounds(t_s)
         began = time.perf_counter()
-        solution = self._qp.solver(x0=np.zeros(self._qp.variables.size), p=params,
-                                   lbx=lbx, ubx=ubx, lbg=self._qp.lbg, ubg=self._qp.ubg)
+        z, cost = self._qp.call(0.0, params, lbx=lbx, ubx=ubx)
         solve_time_s = time.perf_counter() - began
-        stats = self._qp.solver.stats()
-        z = np.asarray(solution["x"], dtype=float).ravel()
+        stats = self._qp.call.stats()
         status, iterations = self._status(stats)
         states, inputs = (np.asarray(m, dtype=float) for m in self._qp.trajectory(z, params))
-        return Solved(states, inputs, float(solution["f"]), status, iterations,
+        return Solved(states, inputs, cost, status, iterations,
                       bool(stats.get("success", False)), solve_time_s)
 
     # ------------------------------------------------------------------ starting point

@@ -82,6 +82,7 @@ from cosim.core.exceptions import ConfigError
 from tracker.config import TrackerConfig
 from tracker.mpc.fallback import INPUT, INPUT_NAMES
 from tracker.mpc.ltv_mpc_config import QP_SOLVERS
+from tracker.mpc.nlp import BufferedNlpCall
 from tracker.mpc.tracking_cost import input_terms, tracking_terms, weighted_squares
 from tracker.mpc.vector_layout import VectorLayout
 
@@ -369,6 +370,7 @@ class LtvQp:
         p, cost = stages.p, stages.cost
         self._solver = ca.qpsol("ltv_mpc_qp", self.plugin, {"x": x, "p": p, "f": cost, "g": g},
                                 options)
+        self._call = BufferedNlpCall(self._solver, {})  # numpy arrays bound once
         self._cost = ca.Function("ltv_mpc_cost", [x, p], [cost])
         self._deviations = ca.Function("ltv_mpc_deviations", [x, p],
                                        [ca.horzcat(*stages.z[1:])[:n_x, :].T])
@@ -508,13 +510,12 @@ class LtvQp:
 
         start = time.perf_counter()
         try:
-            solution = self._solver(x0=0.0, p=params, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
-            stats = self._solver.stats()
+            solution_x, _ = self._call(0.0, params, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+            stats = self._call.stats()
         except RuntimeError as error:  # CasADi evaluation errors: a failed solve.
             return self._failed(f"error: {error}", time.perf_counter() - start)
         solve_time_s = time.perf_counter() - start
 
-        solution_x = np.asarray(solution["x"], dtype=float).ravel()
         if not np.all(np.isfinite(solution_x)):
             return self._failed("non-finite solution", solve_time_s)
         states = problem.state_bar.copy()

@@ -211,12 +211,12 @@ class Nlp:
 
 
 class BufferedNlpCall:
-    """A CasADi ``nlpsol`` evaluated through its buffer (``Function.buffer``): every input
-    and output is a numpy array bound to the solver once, so a solve converts nothing
-    (called with a dict, each solve turned the guess and the parameters into CasADi
-    matrices and every output back, some 100 us). The same solver, so the same iterates.
-    Inputs not set here (the multipliers' initial guesses) stay zero, as in a call that
-    does not give them."""
+    """A CasADi ``nlpsol`` (or a ``qpsol``, which takes and gives the same) evaluated
+    through its buffer (``Function.buffer``): every input and output is a numpy array bound
+    to the solver once, so a solve converts nothing (called with a dict, each solve turned
+    the guess, the parameters and the bounds into CasADi matrices and every output back,
+    some 100 us). The same solver, so the same iterates. Inputs not set here (the
+    multipliers' initial guesses) stay zero, as in a call that does not give them."""
 
     def __init__(self, solver: ca.Function, fixed: Mapping[str, np.ndarray]) -> None:
         self._inputs = {name: np.zeros(solver.nnz_in(i))
@@ -231,12 +231,17 @@ class BufferedNlpCall:
         for i, name in enumerate(solver.name_out()):
             self._buffer.set_res(i, memoryview(self._outputs[name]))
 
-    def __call__(self, w0: np.ndarray, params: np.ndarray) -> tuple[np.ndarray, float]:
-        """Solve from the guess ``w0`` with the parameters ``params``: the solution and
-        its cost; a solver that reports an error (not a failed solve: an evaluation that
-        could not run) raises ``RuntimeError``, as a call with a dict does."""
+    def __call__(self, w0: np.ndarray | float, params: np.ndarray,
+                 **bounds: np.ndarray) -> tuple[np.ndarray, float]:
+        """Solve from the guess ``w0`` with the parameters ``params`` (and, for a problem
+        whose bounds move, this solve's ``lbx``, ``ubx``, ``lbg`` or ``ubg``; the others
+        stay as they were): the solution and its cost; a solver that reports an error (not
+        a failed solve: an evaluation that could not run) raises ``RuntimeError``, as a call
+        with a dict does."""
         self._inputs["x0"][:] = w0
         self._inputs["p"][:] = params
+        for name, values in bounds.items():
+            self._inputs[name][:] = values
         self._evaluate()
         if self._buffer.ret():
             raise RuntimeError(f"the NLP solver returned {self._buffer.ret()}")
