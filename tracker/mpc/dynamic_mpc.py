@@ -79,6 +79,7 @@ from types import MappingProxyType
 import casadi as ca
 import numpy as np
 
+from cosim.core.dense_function import DenseFunction, densified
 from cosim.core.exceptions import ConfigError
 from cosim.core.records import Estimate
 from tracker.config import TrackerConfig
@@ -167,6 +168,11 @@ class _Qp:
     constraints: VectorLayout
     lbg: np.ndarray
     ubg: np.ndarray
+
+    @functools.cached_property
+    def plan(self) -> DenseFunction:
+        """:attr:`trajectory` on buffers bound once (the same numbers, nothing converted)."""
+        return DenseFunction(densified(self.trajectory))
 
     @functools.cached_property
     def call(self) -> BufferedNlpCall:
@@ -328,7 +334,7 @@ class DynamicMpc(MpcTracker):
         solve_time_s = time.perf_counter() - began
         stats = self._qp.call.stats()
         status, iterations = self._status(stats)
-        states, inputs = (np.asarray(m, dtype=float) for m in self._qp.trajectory(z, params))
+        states, inputs = self._qp.plan(z, params)
         return Solved(states, inputs, cost, status, iterations,
                       bool(stats.get("success", False)), solve_time_s)
 

@@ -78,6 +78,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from cosim.core.dense_function import DenseFunction, densified
 from cosim.core.exceptions import ConfigError
 from tracker.config import TrackerConfig
 from tracker.mpc.fallback import INPUT, INPUT_NAMES
@@ -159,7 +160,7 @@ class Linearisation:
             ["state", "inputs", "next_state_bar"],
             ["a_nonzeros", "b_nonzeros", "defect", "limits", "limit_jacobian_nonzeros"],
         )
-        self._along_horizon = stage.map(horizon)
+        self._along_horizon = DenseFunction(densified(stage.map(horizon)))  # buffers bound once
 
     def __call__(self, states: np.ndarray, inputs: np.ndarray) -> StageLinearisation:
         """Along ``states`` (N+1, n_x) and ``inputs`` (N, n_u)."""
@@ -371,9 +372,10 @@ class LtvQp:
         self._solver = ca.qpsol("ltv_mpc_qp", self.plugin, {"x": x, "p": p, "f": cost, "g": g},
                                 options)
         self._call = BufferedNlpCall(self._solver, {})  # numpy arrays bound once
-        self._cost = ca.Function("ltv_mpc_cost", [x, p], [cost])
-        self._deviations = ca.Function("ltv_mpc_deviations", [x, p],
-                                       [ca.horzcat(*stages.z[1:])[:n_x, :].T])
+        # Evaluated on buffers bound once (cosim.core.dense_function): the same numbers.
+        self._cost = DenseFunction(densified(ca.Function("ltv_mpc_cost", [x, p], [cost])))
+        self._deviations = DenseFunction(densified(ca.Function(
+            "ltv_mpc_deviations", [x, p], [ca.horzcat(*stages.z[1:])[:n_x, :].T])))
 
     def _stages(self) -> _Stages:
         """Each stage's deviation variables, (L1) and (L4), the steering rate, the cost at
@@ -520,9 +522,9 @@ class LtvQp:
             return self._failed("non-finite solution", solve_time_s)
         states = problem.state_bar.copy()
         states[0] = problem.state0
-        states[1:] += np.asarray(self._deviations(solution_x, params), dtype=float)
+        states[1:] += self._deviations(solution_x, params)[0]
         inputs = problem.input_bar + solution_x[self._input_index]
-        cost = float(self._cost(solution_x, params))
+        cost = float(self._cost(solution_x, params)[0][0, 0])
         status = str(stats.get("return_status", "unknown"))
         if self.plugin == "hpipm":
             status = _HPIPM_STATUS.get(status, f"HPIPM status {status}")
