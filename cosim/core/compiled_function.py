@@ -273,8 +273,7 @@ def compiled_library(name: str, functions: Functions,
     hashed_flags = (*flags, *link_flags)
     entry = None
     if key is not None:  # found without generating anything, nor a temporary folder
-        digest = _source_digest(f"{key}\ncasadi {ca.__version__}".encode() + own,
-                                hashed_flags)
+        digest = _keyed_digest(key, own, hashed_flags)
         entry = cache_dir() / f"{name}-{digest[:16]}"
         found = _cached(entry, name)
         if found is not None:
@@ -347,6 +346,22 @@ def _source_digest(content: bytes, flags: Sequence[str]) -> str:
     return hashlib.sha256(content + " ".join(flags).encode()).hexdigest()
 
 
+@functools.lru_cache(maxsize=8)
+def _keyed_digest(key: str, own: bytes, flags: tuple[str, ...]) -> str:
+    """:func:`_source_digest` of a ``key`` (with CasADi's version and the caller's own
+    sources), once per process for an equal key: a key of serialised functions runs to
+    megabytes (the default NLP's 7.5 MB), and hashing it again cost every run's set-up some
+    milliseconds. Eight kept (a process's libraries), so at most some tens of MB."""
+    return _source_digest(f"{key}\ncasadi {ca.__version__}".encode() + own, flags)
+
+
+@functools.lru_cache(maxsize=16)
+def _functions_key(functions: tuple[ca.Function, ...]) -> str:
+    """The functions serialised and joined, the key of their library: one string object
+    per tuple of functions (CasADi functions are immutable), whose hash Python keeps."""
+    return "\n".join(serialized(function) for function in functions)
+
+
 def compile_function(function: ca.Function, fallback: str = "") -> ctypes.CDLL | None:
     """The shared library of ``function`` (compiled or from the cache), or None when no C
     compiler is available or compiling fails (:func:`load_library` of one function)."""
@@ -370,7 +385,7 @@ def load_library(name: str, functions: Sequence[ca.Function],
 
     The cache entry is found by a hash of the serialised functions (about a millisecond),
     so their C is generated only to build it."""
-    key = "\n".join(serialized(function) for function in functions)
+    key = _functions_key(tuple(functions))
     library = compiled_library(name, functions, flags=flags, note=note, key=key,
                                fallback=fallback)
     if library is None:
