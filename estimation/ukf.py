@@ -212,14 +212,15 @@ class Ukf(KalmanFusion):
     ) -> TrialUpdate:
         """filterpy's UKF update (``UnscentedKalmanFilter.update``) through sigma points
         drawn from the current belief, written out on arrays: the measurement model at
-        every sigma point in one call (:func:`_at_points`), then filterpy's unscented
+        every sigma point in one call (:func:`at_points`), then filterpy's unscented
         transform and its gain, step by step as filterpy takes them (the same numbers,
         ``tests/estimation/test_ukf_update.py``), without changing the belief."""
         del residual  # the same, vectorised: _wrapped_difference_function
         kf = self._kf
         kf.sigmas_f = sigmas = self._points.sigma_points(kf.x, kf.P)
         # C-ordered as filterpy's list of points is: numpy's products then sum alike
-        sigmas_h = np.ascontiguousarray(self._at_points(model).rows(sigmas)[0][:, list(rows)])
+        at_sigmas = self._sigma_models[model.sensor].rows(sigmas)[0]
+        sigmas_h = np.ascontiguousarray(at_sigmas[:, list(rows)])
         if angle_rows:
             kf.z_mean = _circular_mean_function(angle_rows)
             kf.residual_z = _wrapped_difference_function(angle_rows)
@@ -235,10 +236,6 @@ class Ukf(KalmanFusion):
             mean=np.add(kf.x, np.dot(gain, innovation)),
             covariance=kf.P - np.dot(gain, np.dot(s, gain.T)),
         )
-
-    def _at_points(self, model: MeasurementModel) -> DenseFunction:
-        """``model``'s ``h`` at all the sigma points in one call (:func:`at_points`)."""
-        return self._sigma_models[model.sensor]
 
     @functools.cached_property
     def _sigma_models(self) -> dict[str, DenseFunction]:

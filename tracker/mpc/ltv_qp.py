@@ -369,9 +369,9 @@ class LtvQp:
         if self.plugin == "hpipm":
             options |= {"N": n, "nx": [0] + [n_x + n_u] * n, "nu": stage_nu, "ng": stage_ng}
         p, cost = stages.p, stages.cost
-        self._solver = ca.qpsol("ltv_mpc_qp", self.plugin, {"x": x, "p": p, "f": cost, "g": g},
-                                options)
-        self._call = BufferedNlpCall(self._solver, {})  # numpy arrays bound once
+        solver = ca.qpsol("ltv_mpc_qp", self.plugin, {"x": x, "p": p, "f": cost, "g": g},
+                          options)
+        self._call = BufferedNlpCall(solver, {})  # numpy arrays bound once
         # Evaluated on buffers bound once (cosim.core.dense_function): the same numbers.
         self._cost = DenseFunction(densified(ca.Function("ltv_mpc_cost", [x, p], [cost])))
         self._deviations = DenseFunction(densified(ca.Function(
