@@ -107,7 +107,7 @@ class Ekf(KalmanFusion):
         if best is first:
             return first
         return JointPosterior(best.mean, best.covariance, first.nis, best.linearisation_error,
-                              best.symmetric)
+                              best.symmetric, best.positive_definite)
 
     def _linearised_update(self, checked: list[CheckedMeasurement],
                            at: np.ndarray | None) -> JointPosterior | None:

@@ -464,7 +464,8 @@ class KalmanFusion(ABC):
             if not math.isfinite(value) or (
                     self._config.gate and value > self.gate_threshold(len(c.selection.model_rows))):
                 return self._one_by_one(measurements)
-        if not self._commit(joint.mean, joint.covariance, symmetric=joint.symmetric):
+        if not self._commit(joint.mean, joint.covariance, symmetric=joint.symmetric,
+                            checked=joint.positive_definite):
             return self._one_by_one(measurements)
         results = []
         counts = self._counts
@@ -604,20 +605,22 @@ class KalmanFusion(ABC):
         return self._commit(innovation.trial.mean, innovation.trial.covariance)
 
     def _commit(self, mean: np.ndarray, covariance: np.ndarray,
-                symmetric: bool = False) -> bool:
+                symmetric: bool = False, checked: bool = False) -> bool:
         """Make ``mean`` and ``covariance`` (symmetrised, unless the caller's is
         ``symmetric`` to the bit, as the joint update's is) the belief; refuse (False, the
-        belief unchanged) if they are non-finite or the covariance not positive definite."""
+        belief unchanged) if they are non-finite or the covariance not positive definite
+        (``checked``: the caller knows they are not, as the compiled joint update does)."""
         mean = np.asarray(mean, dtype=float).reshape(-1)
         covariance = np.asarray(covariance, dtype=float)
         if not symmetric:
             covariance = 0.5 * (covariance + covariance.T)
-        if not (np.isfinite(mean).all() and np.isfinite(covariance).all()):
-            return False
-        try:
-            np.linalg.cholesky(covariance)
-        except np.linalg.LinAlgError:
-            return False
+        if not checked:
+            if not (np.isfinite(mean).all() and np.isfinite(covariance).all()):
+                return False
+            try:
+                np.linalg.cholesky(covariance)
+            except np.linalg.LinAlgError:
+                return False
         self._set_covariance(covariance)  # symmetric already: _normalise's mean only
         self._set_wrapped_mean(mean)
         return True

@@ -69,6 +69,9 @@ class JointPosterior:
     symmetric: bool = False
     """Whether :attr:`covariance` is symmetric to the bit (this module's function mirrors
     its upper triangle; a numpy product is symmetric only to rounding)."""
+    positive_definite: bool = False
+    """Whether :attr:`covariance` is known finite and positive definite (this module's
+    function factorises it, :func:`_cholesky_pivots_positive`); False: not checked."""
 
 
 def _wrapped(angle: ca.SX) -> ca.SX:
@@ -93,13 +96,34 @@ def _symmetric_product(left: ca.SX, right: ca.SX) -> ca.SX:
     return ca.blockcat(entries)
 
 
+def _cholesky_pivots_positive(matrix: ca.SX) -> ca.SX:
+    """1 where the symmetric ``matrix`` is finite and positive definite, else 0: every
+    pivot of its Cholesky factorisation ``A = L L'`` positive and finite (the test LAPACK's
+    ``potrf`` makes, which ``numpy.linalg.cholesky`` raises on), in the order of the
+    unblocked algorithm (Golub and Van Loan, "Matrix Computations", 4th ed. 2013, alg.
+    4.2.1): ``d_j = a_jj - sum_k<j l_jk^2``, ``l_jj = sqrt(d_j)``, ``l_ij = (a_ij - sum_k<j
+    l_ik l_jk) / l_jj``. A non-finite entry makes some pivot NaN or infinite; a comparison
+    with NaN is false."""
+    n = matrix.shape[0]
+    lower: list[list[ca.SX]] = [[ca.SX(0.0)] * n for _ in range(n)]
+    positive = ca.SX(1.0)
+    for j in range(n):
+        pivot = matrix[j, j] - sum((lower[j][k] ** 2 for k in range(j)), ca.SX(0.0))
+        positive = positive * (pivot > 0.0) * (pivot < ca.inf)
+        root = ca.sqrt(pivot)
+        for i in range(j + 1, n):
+            lower[i][j] = (matrix[i, j] - sum((lower[i][k] * lower[j][k] for k in range(j)),
+                                              ca.SX(0.0))) / root
+    return positive
+
+
 @built_once
 def _joint_function(parts: tuple[tuple[ca.Function, int, tuple[int, ...]], ...],
                     belief_size: int) -> ca.Function:
-    """``(x, x_l, P, z, r, mask, belief) -> (x+, P+, NIS per model, linearisation error)``
-    (module docstring) over the models ``parts`` (each: its ``h`` with Jacobian, its channel
-    count, the rows of its angle channels), built once per process for the same model
-    functions."""
+    """``(x, x_l, P, z, r, mask, belief) -> (x+, P+, NIS per model, linearisation error,
+    whether P+ is finite and positive definite)`` (module docstring) over the models
+    ``parts`` (each: its ``h`` with Jacobian, its channel count, the rows of its angle
+    channels), built once per process for the same model functions."""
     size = sum(count for _, count, _ in parts)
     n = len(STATE_NAMES)
     x = ca.SX.sym("x", n)
@@ -145,7 +169,8 @@ def _joint_function(parts: tuple[tuple[ca.Function, int, tuple[int, ...]], ...],
     miss = ca.vertcat(*[_wrapped(miss[i]) if i in angle_rows else miss[i] for i in range(size)])
     error = ca.mmax(ca.fabs(mask * miss / ca.sqrt(variance)))
     return ca.Function("ekf_joint_update", [x, at, p, z, r, mask, numbers],
-                       [posterior, ca.densify(covariance), ca.vertcat(*nis), error])
+                       [posterior, ca.densify(covariance), ca.vertcat(*nis), error,
+                        _cholesky_pivots_positive(covariance)])
 
 
 class JointUpdate:
@@ -210,14 +235,15 @@ class JointUpdate:
         z = self._z
         z.fill(0.0)
         z[layout.rows] = np.concatenate([values for _, _, values in blocks])
-        posterior, posterior_covariance, nis, error = self.function(
+        posterior, posterior_covariance, nis, error, positive = self.function(
             mean, mean if linearise_at is None else linearise_at, covariance, z,
             layout.variance, layout.mask)
         nis = nis.reshape(-1)[layout.blocks]
         if not (np.isfinite(posterior).all() and np.isfinite(nis).all()):
             return None
         return JointPosterior(posterior.reshape(-1), posterior_covariance,
-                              tuple(nis.tolist()), float(error[0, 0]), symmetric=True)
+                              tuple(nis.tolist()), float(error[0, 0]), symmetric=True,
+                              positive_definite=positive[0, 0] == 1.0)
 
 
 @dataclass(frozen=True)

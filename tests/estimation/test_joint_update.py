@@ -166,3 +166,62 @@ def test_update_many_commits_an_exactly_symmetric_covariance(compiled: bool) -> 
         assert np.array_equal(filter_._x, joint.mean), case  # the joint update, committed
         covariance = filter_._p
         assert np.array_equal(covariance, covariance.T), case
+
+
+def _factorises(matrix: np.ndarray) -> bool:
+    """numpy's (LAPACK's) verdict: finite and positive definite."""
+    if not np.isfinite(matrix).all():
+        return False
+    try:
+        np.linalg.cholesky(matrix)
+    except np.linalg.LinAlgError:
+        return False
+    return True
+
+
+def test_the_compiled_positive_definiteness_is_lapacks_verdict() -> None:
+    """The joint update says whether its covariance is finite and positive definite, so the
+    commit need not factorise it again: the flag agrees with ``numpy.linalg.cholesky`` on
+    well- and ill-conditioned, semi-definite, indefinite and non-finite matrices."""
+    import casadi as ca
+
+    from estimation.joint_update import _cholesky_pivots_positive
+
+    n = 17
+    symbol = ca.SX.sym("a", n, n)
+    flag = ca.Function("flag", [symbol], [_cholesky_pivots_positive(symbol)])
+    rng = np.random.default_rng(3)
+    cases = []
+    for scale in (1.0, 1e-8, 1e6):
+        root = rng.normal(size=(n, n))
+        cases.append(scale * (root @ root.T + 0.1 * np.eye(n)))
+    graded = np.diag(np.logspace(-14, 2, n))
+    cases.append(graded)
+    rank_short = rng.normal(size=(n, n - 2))
+    cases.append(rank_short @ rank_short.T)  # semi-definite
+    indefinite = cases[0].copy()
+    indefinite[5, 5] = -1.0
+    cases.append(indefinite)
+    last_negative = cases[0].copy()
+    last_negative[-1, -1] -= 1e3
+    cases.append(last_negative)
+    cases.append(np.diag([1.0] * (n - 1) + [0.0]))  # a pivot of exactly zero
+    for bad in (np.nan, np.inf):
+        for where in ((0, 0), (3, 7), (n - 1, n - 1)):
+            broken = cases[0].copy()
+            broken[where] = broken[where[::-1]] = bad
+            cases.append(broken)
+    verdicts = [float(flag(case)) == 1.0 for case in cases]
+    assert verdicts == [_factorises(case) for case in cases]
+    # positive definite (however scaled or graded) yes; indefinite or non-finite no (the
+    # semi-definite one is rounding's to decide: both decide alike)
+    assert verdicts[:4] == [True] * 4 and not any(verdicts[5:])
+
+
+def test_a_committed_joint_update_was_found_positive_definite() -> None:
+    filter_ = _filter()
+    for case in ("imu, wheels, steering", "some channels only"):
+        joint = filter_._joint_update(_checked(filter_, _cases(filter_)[case]))
+        assert joint is not None and joint.positive_definite, case
+    plain = KalmanFusion._joint_update(filter_, _checked(filter_, _cases(filter_)[case]))
+    assert plain is not None and not plain.positive_definite  # unchecked: _commit factorises
