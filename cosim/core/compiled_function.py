@@ -62,9 +62,9 @@ FMA, :data:`NATIVE_FLAGS`), whose single rounding would change the numbers."""
 
 NATIVE_FLAGS = ("-march=native",)
 """Flags for the processor of the machine that builds: the compiler uses its vector
-instructions (AVX, AVX-512 ...) on the long straight-line code CasADi generates, which runs
-the filter's models and joint update about twice as fast and the NLP's functions faster
-too, with the same numbers (each operation still rounded alone: :data:`ALWAYS_FLAGS`). A
+instructions (AVX, AVX-512 ...) on the long straight-line code CasADi generates, so the
+filter's models, its joint update and the NLP's functions run faster, with the same
+numbers (each operation still rounded alone: :data:`ALWAYS_FLAGS`). A
 library so built runs only on a processor like it: the cache key holds the processor
 (:func:`host_processor`), so machines sharing a cache (a home folder on the network) each
 build their own. A compiler that does not take the flags builds without them
