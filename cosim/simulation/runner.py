@@ -145,6 +145,7 @@ class _Run:
         workshop = workshop if workshop is not None else Workshop()
         self.clock = _Clock.from_config(config)
         self.course = scenario_course(config)
+        self.course.reference.prepare_projection()  # built, if ever, before the clock starts
         config = start_speed_resolved(config, self.course.reference)
         self.config = config
         """The run's configuration, the start speed resolved (what the log records)."""

@@ -1,0 +1,94 @@
+"""The projection onto a reference path as one C call (``path_projection.c``).
+
+:meth:`tracker.paths.reference_path.ReferencePath.project` finds the nearest point of a
+table (a few hundred to a few thousand points) with numpy, then takes three Newton steps
+on the spline in plain floats: some 25 us a call, and a run calls it at every log instant
+(the metrics' cross-track error) and every control step (the MPC's reference). The C does
+the same operations in the same order (Python's remainder, ``min``/``max`` and numpy's
+``argmin`` kept where C's differ), so it gives the same numbers to the bit in a few
+microseconds; ``tests/tracker/paths/test_compiled_projection.py`` holds it to the Python
+on open and closed paths, near and far, inside and beyond a window, and at NaN.
+
+The library is compiled once per machine (a fraction of a second; cached as every library
+is, :mod:`cosim.core.compiled_function`) and loaded once per process. Without a working C
+compiler the Python projection serves: the other libraries of a run say so already.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import functools
+import math
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from cosim.core.compiled_function import CompileFailedWarning, compiled_library
+
+SOURCE = Path(__file__).with_name("path_projection.c")
+
+FALLBACK = "paths are projected in Python, about 25 us a call instead of a few"
+"""What a run does without the library (said in its one warning line)."""
+
+
+@functools.lru_cache(maxsize=1)
+def projection_library() -> ctypes.CDLL | None:
+    """``path_projection.c`` compiled (or from the cache) and loaded, once per process; None
+    without a working compiler or when the library does not load (with a warning)."""
+    built = compiled_library("cosim_path_projection", [], key="path projection",
+                             extra_sources=(SOURCE,), fallback=FALLBACK)
+    if built is None:
+        return None
+    try:
+        library = ctypes.CDLL(str(built))
+        entry = library.cosim_path_project
+    except (OSError, AttributeError) as error:
+        warnings.warn(f"cannot load the compiled path projection {str(built)!r} ({error}): "
+                      f"{FALLBACK}", CompileFailedWarning, stacklevel=2)
+        return None
+    pointer, double, long = ctypes.c_void_p, ctypes.c_double, ctypes.c_long
+    entry.argtypes = (pointer, long, pointer, pointer, long, pointer, double, double,
+                      ctypes.c_int, double, double, pointer)
+    entry.restype = ctypes.c_int
+    return library
+
+
+class CompiledProjection:
+    """One path's projection bound to its arrays: ``projector(x_m, y_m, near_s_m,
+    window_m)`` gives ``(s_m, lateral_error_m, path_yaw_rad, curvature_1pm)`` as
+    :meth:`~tracker.paths.reference_path.ReferencePath.project` computes them."""
+
+    def __init__(self, library: ctypes.CDLL, table_s: np.ndarray, table_x: np.ndarray,
+                 table_y: np.ndarray, knots: np.ndarray, pieces: np.ndarray,
+                 length_m: float, table_step_m: float, closed: bool) -> None:
+        self._table = np.ascontiguousarray(np.vstack((table_s, table_x, table_y)),
+                                           dtype=float)
+        self._knots = np.ascontiguousarray(knots, dtype=float)
+        self._pieces = np.ascontiguousarray(pieces, dtype=float)
+        if self._pieces.ndim != 2 or self._pieces.shape[1] != 8 \
+                or self._knots.size != self._pieces.shape[0] + 1:
+            raise ValueError("pieces must be (n, 8) with n + 1 knots")
+        self._geometry = np.array([length_m, table_step_m, 1.0 if closed else 0.0])
+        self._out = np.zeros(4)
+        self._entry = library.cosim_path_project
+        self._library = library  # kept alive while its entry is used
+        self._fixed = (self._table.ctypes.data, self._table.shape[1], self._knots.ctypes.data,
+                       self._pieces.ctypes.data, self._pieces.shape[0],
+                       self._geometry.ctypes.data)
+        self._out_address = self._out.ctypes.data
+
+    def __call__(self, x_m: float, y_m: float, near_s_m: float | None,
+                 window_m: float) -> tuple[float, float, float, float]:
+        windowed = near_s_m is not None
+        if self._entry(*self._fixed, x_m, y_m, windowed, near_s_m if windowed else 0.0,
+                       window_m, self._out_address):
+            raise ValueError("an empty path table")
+        s_m, lateral_m, yaw_rad, curvature = self._out.tolist()
+        return s_m, lateral_m, yaw_rad, curvature
+
+
+def usable_near(near_s_m: float | None) -> bool:
+    """Whether the C takes ``near_s_m`` (None or finite; Python raises on the others as it
+    always did)."""
+    return near_s_m is None or math.isfinite(near_s_m)
