@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cosim.core.exceptions import ConfigError
-from tracker.paths.reference_path import ReferencePath
+from tracker.paths.reference_path import ReferencePath, path_curvature
 
 REFERENCE_KINDS: tuple[str, ...] = ("spline", "cubic-polynomial")
 """Values of ``tracker.reference``."""
@@ -135,6 +135,13 @@ def horizon_reference(kind: str, path: ReferencePath, x_m: float, y_m: float, ya
     if kind not in REFERENCE_KINDS:
         raise ConfigError(f"tracker.reference = {kind!r}: expected one of "
                           f"{', '.join(REFERENCE_KINDS)}")
+    if kind == "spline":  # one C call where a compiler works (tracker.paths.compiled_path)
+        compiled = path.compiled_horizon(x_m, y_m, speeds_mps, dt_s)
+        if compiled is not None:
+            projection, (s_m, x_ref, y_ref, dx, dy, ddx, ddy) = compiled
+            return HorizonReference(
+                x_ref, y_ref, _rebased_yaw(np.arctan2(dy, dx), projection.path_yaw_rad, yaw_rad),
+                path_curvature(dx, dy, ddx, ddy), s_m)
     projection = path.project(x_m, y_m)
     speed = np.maximum(np.asarray(speeds_mps, dtype=float), 0.0)
     distances = np.cumsum(0.5 * (speed[:-1] + speed[1:]) * dt_s)

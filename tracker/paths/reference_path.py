@@ -26,11 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cosim.core.exceptions import ConfigError
-from tracker.paths.compiled_projection import (
-    CompiledProjection,
-    projection_library,
-    usable_near,
-)
+from tracker.paths.compiled_path import CompiledPath, projection_library, usable_near
 from tracker.paths.cubic_spline import CubicSpline
 from tracker.paths.speed_profile import ConstantSpeed, SpeedProfile
 
@@ -60,6 +56,13 @@ class Projection:
 def wrap_angle(angle_rad: np.ndarray | float) -> np.ndarray | float:
     """Wrap to (-pi, pi]."""
     return np.pi - np.mod(np.pi - np.asarray(angle_rad), 2.0 * np.pi)
+
+
+def path_curvature(dx: np.ndarray, dy: np.ndarray, ddx: np.ndarray,
+                   ddy: np.ndarray) -> np.ndarray:
+    """The signed curvature of a plane curve from its first and second derivatives,
+    ``(x' y'' - y' x'') / (x'^2 + y'^2)^(3/2)`` (positive turning left)."""
+    return (dx * ddy - dy * ddx) / (dx * dx + dy * dy) ** 1.5
 
 
 class ReferencePath:
@@ -152,7 +155,7 @@ class ReferencePath:
             "x_m": ((ax * h + bx) * h + cx) * h + d_x,
             "y_m": ((ay * h + by) * h + cy) * h + d_y,
             "yaw_rad": np.arctan2(dy, dx),
-            "curvature_1pm": (dx * ddy - dy * ddx) / (dx * dx + dy * dy) ** 1.5,
+            "curvature_1pm": path_curvature(dx, dy, ddx, ddy),
         }
 
     def _evaluate(self, s_m: float) -> tuple[float, float, float, float, float, float]:
@@ -178,29 +181,42 @@ class ReferencePath:
         within ``window_m`` of it is searched, so a path that passes near itself (a loop)
         cannot make the point jump to its other branch, and the search costs the window,
         not the path's length. Computed in C where a compiler works
-        (:mod:`tracker.paths.compiled_projection`: the same numbers to the bit, a few
+        (:mod:`tracker.paths.compiled_path`: the same numbers to the bit, a few
         microseconds instead of some 25), else by :meth:`project_in_python`.
         """
-        projector = self._compiled_projection
+        projector = self._compiled
         if projector is not None and usable_near(near_s_m):
             return Projection(*projector(float(x_m), float(y_m), near_s_m, float(window_m)))
         return self.project_in_python(x_m, y_m, near_s_m, window_m)
 
     def prepare_projection(self) -> None:
-        """Load the compiled projection now (on a machine's first run, build it: a fraction
-        of a second), e.g. before a run's clock starts; else the first :meth:`project`
-        does."""
-        _ = self._compiled_projection  # a cached property: computed once, kept
+        """Load the compiled projection and horizon now (on a machine's first run, build
+        them: a fraction of a second), e.g. before a run's clock starts; else the first
+        :meth:`project` does."""
+        _ = self._compiled  # a cached property: computed once, kept
 
     @functools.cached_property
-    def _compiled_projection(self) -> CompiledProjection | None:
-        """This path's projection in C (None without a working compiler)."""
+    def _compiled(self) -> CompiledPath | None:
+        """This path's projection and horizon in C (None without a working compiler)."""
         library = projection_library()
         if library is None:
             return None
-        return CompiledProjection(library, self._table_s, self._table_x, self._table_y,
+        return CompiledPath(library, self._table_s, self._table_x, self._table_y,
                                   self._knots, self._coefficients, self.length_m,
                                   self._table_step_m, self.closed)
+
+    def compiled_horizon(self, x_m: float, y_m: float, speeds_mps: np.ndarray, dt_s: float
+                         ) -> tuple[Projection, np.ndarray] | None:
+        """:meth:`tracker.paths.compiled_path.CompiledPath.horizon` of this path (the
+        projection and the spline at a horizon's stages); None without a working
+        compiler, or where a subclass projects in its own way (its :meth:`project`
+        serves)."""
+        compiled = self._compiled
+        if compiled is None or type(self).project is not ReferencePath.project:
+            return None
+        projection, stages = compiled.horizon(float(x_m), float(y_m), speeds_mps,
+                                              float(dt_s))
+        return Projection(*projection), stages
 
     def project_in_python(self, x_m: float, y_m: float, near_s_m: float | None = None,
                           window_m: float = 25.0) -> Projection:

@@ -30,6 +30,11 @@ static double py_mod(double x, double y) {
 
 static double py_max(double a, double b) { return b > a ? b : a; }
 
+/* numpy.maximum: a NaN in either wins. */
+static double np_maximum(double a, double b) {
+    return (isnan(a) || isnan(b)) ? NAN : (b > a ? b : a);
+}
+
 static double py_min(double a, double b) { return b < a ? b : a; }
 
 static long py_imod(long a, long b) {
@@ -80,10 +85,9 @@ static long nearest(const double *tx, const double *ty, long n_table, long first
     return best;
 }
 
-int cosim_path_project(const double *table, long n_table, const double *knots,
-                       const double *pieces, long n_pieces, const double *geometry,
-                       double x, double y, int windowed, double near_s, double window_m,
-                       double *out) {
+static int project(const double *table, long n_table, const double *knots,
+                   const double *pieces, long n_pieces, const double *geometry, double x,
+                   double y, int windowed, double near_s, double window_m, double *out) {
     const double *ts = table, *tx = table + n_table, *ty = table + 2 * n_table;
     double length = geometry[0], step = geometry[1];
     int closed = geometry[2] != 0.0;
@@ -124,5 +128,47 @@ int cosim_path_project(const double *table, long n_table, const double *knots,
     out[1] = -sin(yaw) * (x - v[0]) + cos(yaw) * (y - v[1]);
     out[2] = yaw;
     out[3] = (v[2] * v[5] - v[3] * v[4]) / pow(v[2] * v[2] + v[3] * v[3], 1.5);
+    return 0;
+}
+
+int cosim_path_project(const double *table, long n_table, const double *knots,
+                       const double *pieces, long n_pieces, const double *geometry,
+                       double x, double y, int windowed, double near_s, double window_m,
+                       double *out) {
+    return project(table, n_table, knots, pieces, n_pieces, geometry, x, y, windowed, near_s,
+                   window_m, out);
+}
+
+/* The arc lengths and spline values of tracker.mpc.horizon_reference's spline reference:
+ * the car at (x, y) projected onto the whole path (projection: s_m, lateral_error_m,
+ * path_yaw_rad, curvature_1pm), stage k's arc length s_k = s_0 + sum_{j<=k} (v_j + v_{j+1})
+ * / 2 * dt (n + 1 speeds, negative ones counted as zero, numpy.maximum's NaN kept), and the
+ * spline there (wrapped as ReferencePath.wrap does): the same operations in the same order
+ * as numpy's, so the same numbers to the bit. The headings and curvature (arctan2 and a
+ * power, which numpy evaluates with SIMD routines of its own) are the caller's.
+ *
+ * stages: 7 x n (rows s_m, x, y, dx/ds, dy/ds, d2x/ds2, d2y/ds2). Returns 0; 1 for an empty
+ * path. */
+int cosim_path_horizon(const double *table, long n_table, const double *knots,
+                       const double *pieces, long n_pieces, const double *geometry,
+                       double x, double y, const double *speeds, long n, double dt,
+                       double *projection, double *stages) {
+    if (project(table, n_table, knots, pieces, n_pieces, geometry, x, y, 0, 0.0, 0.0,
+                projection))
+        return 1;
+    double length = geometry[0];
+    int closed = geometry[2] != 0.0;
+    double distance = 0.0, previous_speed = np_maximum(speeds[0], 0.0);
+    double v[6];
+    for (long k = 0; k < n; k++) {
+        double speed = np_maximum(speeds[k + 1], 0.0);
+        distance += 0.5 * (previous_speed + speed) * dt;
+        previous_speed = speed;
+        double s = projection[0] + distance;
+        double wrapped = closed ? py_mod(s, length) : py_min(py_max(s, 0.0), length);
+        evaluate(knots, pieces, n_pieces, wrapped, v);
+        stages[k] = s;
+        for (int row = 0; row < 6; row++) stages[(row + 1) * n + k] = v[row];
+    }
     return 0;
 }

@@ -1,15 +1,17 @@
-"""The projection in C gives the Python projection's numbers to the bit
-(:mod:`tracker.paths.compiled_projection`)."""
+"""The path's C (:mod:`tracker.paths.compiled_path`): the projection gives the Python's
+numbers to the bit, the horizon numpy's to rounding."""
 
 from __future__ import annotations
 
+import copy
 import math
 
 import numpy as np
 import pytest
 
+from tracker.mpc.horizon_reference import horizon_reference
 from tracker.paths import shapes
-from tracker.paths.compiled_projection import projection_library
+from tracker.paths.compiled_path import projection_library
 from tracker.paths.double_lane_change import double_lane_change
 from tracker.paths.generated_circuit import generated_circuit
 from tracker.paths.reference_path import Projection, ReferencePath
@@ -57,3 +59,27 @@ def test_a_point_that_is_not_a_number_projects_as_in_python() -> None:
     for path in _paths().values():
         for x, y, near in ((math.nan, 0.0, None), (0.0, math.inf, 3.0), (math.nan, 1.0, 5.0)):
             assert _same(path.project(x, y, near), path.project_in_python(x, y, near))
+
+
+@pytest.mark.parametrize("name", ["open", "closed", "crossing"])
+def test_the_horizon_in_c_is_numpys_to_the_bit(name: str) -> None:
+    """The spline reference of 200 horizons (cars on and off the path, slow, fast, some
+    speeds negative or NaN, the car's heading whole turns away, stages beyond the end of an
+    open path) with the C and in numpy throughout: the same numbers to the bit."""
+    path = _paths()[name]
+    plain = copy.copy(path)
+    plain.__dict__["_compiled"] = None  # numpy and plain floats throughout
+    rng = np.random.default_rng(5)
+    for i in range(200):
+        s0 = rng.uniform(0.0, path.length_m)
+        point = path.point(s0)
+        x, y = point.x_m + rng.normal(0.0, 1.0), point.y_m + rng.normal(0.0, 1.0)
+        yaw = point.yaw_rad + rng.normal(0.0, 0.2) + 2.0 * np.pi * rng.integers(-2, 3)
+        speeds = rng.uniform(-2.0, 30.0 if i % 2 else 300.0, 26)
+        if i % 50 == 7:
+            speeds[3] = math.nan
+        got = horizon_reference("spline", path, x, y, yaw, speeds, 0.05)
+        expected = horizon_reference("spline", plain, x, y, yaw, speeds, 0.05)
+        for field in ("s_m", "x_m", "y_m", "yaw_rad", "curvature_1pm"):
+            np.testing.assert_array_equal(getattr(got, field), getattr(expected, field),
+                                          err_msg=f"{name} horizon {i}: {field}")
