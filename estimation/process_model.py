@@ -367,15 +367,16 @@ class ProcessModel:
                 function.set_parameters(values)
 
     def compiled_functions(self) -> tuple[DenseFunction, ...]:
-        """The evaluators worth compiling to C (the EKF's sub-step), for
+        """The evaluators worth compiling to C (the EKF's sub-step, and the cornering drag
+        of every acceleration command), for
         :meth:`cosim.core.dense_function.DenseFunction.use_compiled`."""
-        return (self._step_fast,)
+        return (self._step_fast, self._drag_fast)
 
     def sigma_point_functions(self) -> tuple[DenseFunction, ...]:
-        """The UKF's evaluators worth compiling to C: the process noise and the sub-step of
-        every sigma point (:meth:`propagate`)."""
+        """The UKF's evaluators worth compiling to C: the process noise, the sub-step of
+        every sigma point (:meth:`propagate`) and the cornering drag."""
         mapped = () if self._mapped_step is None else (self._mapped_step,)
-        return (self._noise_fast, *mapped)
+        return (self._noise_fast, *mapped, self._drag_fast)
 
     def derivative(self, x: np.ndarray,
                    command_rad: float | None = None) -> tuple[np.ndarray, np.ndarray]:

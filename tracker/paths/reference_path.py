@@ -54,7 +54,10 @@ class Projection:
 
 
 def wrap_angle(angle_rad: np.ndarray | float) -> np.ndarray | float:
-    """Wrap to (-pi, pi]."""
+    """Wrap to (-pi, pi]: ``pi - ((pi - angle) mod 2 pi)``. One float is wrapped in plain
+    floats (Python's remainder is numpy's, to the bit), an array by numpy."""
+    if isinstance(angle_rad, float):
+        return math.pi - (math.pi - angle_rad) % math.tau
     return np.pi - np.mod(np.pi - np.asarray(angle_rad), 2.0 * np.pi)
 
 

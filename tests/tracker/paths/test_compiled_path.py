@@ -14,7 +14,7 @@ from tracker.paths import shapes
 from tracker.paths.compiled_path import projection_library
 from tracker.paths.double_lane_change import double_lane_change
 from tracker.paths.generated_circuit import generated_circuit
-from tracker.paths.reference_path import Projection, ReferencePath
+from tracker.paths.reference_path import Projection, ReferencePath, wrap_angle
 
 pytestmark = pytest.mark.skipif(projection_library() is None, reason="no working C compiler")
 
@@ -83,3 +83,20 @@ def test_the_horizon_in_c_is_numpys_to_the_bit(name: str) -> None:
         for field in ("s_m", "x_m", "y_m", "yaw_rad", "curvature_1pm"):
             np.testing.assert_array_equal(getattr(got, field), getattr(expected, field),
                                           err_msg=f"{name} horizon {i}: {field}")
+
+
+def test_one_angle_wraps_as_numpy_wraps_an_array() -> None:
+    """wrap_angle of one float (plain floats) and of an array (numpy): the same numbers to
+    the bit, multiples of pi and their neighbours, huge, tiny, infinite and NaN included."""
+    rng = np.random.default_rng(2)
+    multiples = np.arange(-50, 51) * np.pi
+    angles = np.concatenate([
+        rng.normal(0.0, 1.0, 20000), rng.normal(0.0, 1e3, 5000), multiples,
+        np.nextafter(multiples, np.inf), np.nextafter(multiples, -np.inf),
+        [0.0, -0.0, 1e300, -1e300, 5e-324, -5e-324, math.inf, -math.inf, math.nan]])
+    with np.errstate(invalid="ignore"):
+        arrays = wrap_angle(angles)
+    floats = np.array([wrap_angle(a) for a in angles.tolist()])
+    assert type(wrap_angle(0.5)) is float
+    np.testing.assert_array_equal(floats, arrays)
+    assert np.array_equal(np.signbit(floats), np.signbit(arrays))
