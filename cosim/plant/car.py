@@ -61,7 +61,7 @@ from cosim.core.records import WHEEL_NAMES, ActuatorCommand, VehicleState
 from cosim.core.rotations import euler_zyx, quaternion_zyx
 from cosim.core.vehicle_params import PlantConfig
 from cosim.plant.compiled_steps import STATE as STEPS
-from cosim.plant.compiled_steps import CompiledSteps, load_steps_library
+from cosim.plant.compiled_steps import CompiledSteps, StateReader, load_steps_library
 from cosim.plant.low_level import resistance_constants, resistance_force_n
 from cosim.plant.sedan_model import FRONT_WHEELS, driven_wheels, sedan_xml_and_assets
 from cosim.plant.slip_control import SlipLimiter
@@ -129,6 +129,10 @@ class MujocoPlant:
         self._steps: CompiledSteps | None = self._compiled_steps()
         """The physics steps in one C call (:mod:`cosim.plant.compiled_steps`); None: the
         Python step (slip control, no C compiler, the plain tyre reference)."""
+        self._read_state: StateReader | None = None if self._steps is None else \
+            self._steps.state_reader(self._pos_slice.start, self._linvel_slice.start,
+                                     self._steer_qpos, self._spin_dof)
+        """:meth:`state`'s numbers in C, with the compiled steps (the same to the bit)."""
         # The car at rest depends on its configuration alone: found once per process
         # (static_equilibrium), here when the model also holds traffic cars.
         self.equilibrium: StaticEquilibrium = (
@@ -462,7 +466,18 @@ class MujocoPlant:
         kinematic acceleration of the CoG over the last step (no gravity), zero right after
         :meth:`reset`. The CoG is the chassis frame origin, i.e. the car's centre of
         gravity at static equilibrium (suspension travel moves the true one by < 1 mm).
+        Read in C where the plant steps in C (:class:`cosim.plant.compiled_steps.StateReader`,
+        the same expressions), else by :meth:`state_in_python`.
         """
+        reader = self._read_state
+        if reader is None:
+            return self.state_in_python()
+        values = reader(self._prev_linvel, 1.0 / self.physics_dt_s)
+        return VehicleState(self._data.time, *values[:12],
+                            wheel_speed_radps=tuple(values[12:]))  # type: ignore[arg-type]
+
+    def state_in_python(self) -> VehicleState:
+        """:meth:`state` in plain floats (the reference the C is held to)."""
         qpos = self._qpos_view.tolist()
         qvel = self._qvel_view.tolist()
         x, y, z = qpos[self._pos_slice]

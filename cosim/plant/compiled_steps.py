@@ -144,6 +144,12 @@ class CompiledSteps:
             *(buffer.ctypes.data_as(pointer) for buffer in self._buffers),
             self._iw.ctypes.data_as(pointer), self._w.ctypes.data_as(pointer))
 
+    def state_reader(self, free_qpos: int, free_dof: int, steer_qpos: Sequence[int],
+                     spin_dofs: Sequence[int]) -> StateReader:
+        """The plant's state read in C from this library (:class:`StateReader`)."""
+        return StateReader(self._library, self._data, free_qpos, free_dof, steer_qpos,
+                           spin_dofs)
+
     def advance(self, n: int, poses: np.ndarray | None = None) -> bool:
         """``n`` physics steps; False when one ended with a MuJoCo warning or a
         non-finite or absurd state (the steps stop there: the caller raises). ``poses``:
@@ -167,3 +173,30 @@ class CompiledSteps:
                                "it holds, or the tyre function reported an error)")
         return done == n
 
+
+
+class StateReader:
+    """:meth:`cosim.plant.car.MujocoPlant.state`'s numbers in one C call
+    (``cosim_plant_state`` of ``plant_step.c``, the same expressions in the same order):
+    ``reader(prev_linvel, inv_dt)`` gives x, y, z, roll, pitch, yaw, vx, vy, yaw rate, ax, ay,
+    the road-wheel angle and the four spin rates of the data's current state."""
+
+    def __init__(self, library: ctypes.CDLL, data: mujoco.MjData, free_qpos: int,
+                 free_dof: int, steer_qpos: Sequence[int], spin_dofs: Sequence[int]) -> None:
+        entry = library.cosim_plant_state
+        pointer, double = ctypes.c_void_p, ctypes.c_double
+        entry.argtypes = (pointer, pointer, double, double, double, double, pointer)
+        entry.restype = ctypes.c_int
+        self._addresses = np.array([free_qpos, free_dof, *steer_qpos, *spin_dofs],
+                                   dtype=np.intc)
+        if self._addresses.size != 8:
+            raise ValueError("expected two steering joints and four spin dofs")
+        self._out = np.zeros(16)
+        self._entry, self._library, self._data = entry, library, data  # kept alive
+        self._fixed = (data._address, self._addresses.ctypes.data)
+        self._out_address = self._out.ctypes.data
+
+    def __call__(self, prev_linvel: Sequence[float], inv_dt: float) -> list[float]:
+        pvx, pvy, pvz = prev_linvel
+        self._entry(*self._fixed, pvx, pvy, pvz, inv_dt, self._out_address)
+        return self._out.tolist()

@@ -242,3 +242,41 @@ int cosim_plant_advance(mjModel* m, mjData* d, int n, double* s, const double* c
   }
   return n;
 }
+
+/* MujocoPlant.state's numbers (cosim/plant/car.py) from the data after a step, expression by
+ * expression: position, roll, pitch and yaw of the chassis quaternion (euler_zyx), the
+ * world velocity and the acceleration over the last step (from the velocity before it,
+ * pv) turned into the chassis frame, the yaw rate, the mean front road-wheel angle and the
+ * wheels' spin rates. `at`: the free joint's qpos and dof addresses, the two steering
+ * joints' qpos addresses, the four spin dofs. out: x, y, z, roll, pitch, yaw, vx, vy,
+ * yaw_rate, ax, ay, steer, then the four spin rates. */
+int cosim_plant_state(const mjData* d, const int* at, double pvx, double pvy, double pvz,
+                      double inv_dt, double* out) {
+  const double* q = d->qpos + at[0];
+  const double* v = d->qvel + at[1];
+  double qw = q[3], qx = q[4], qy = q[5], qz = q[6];
+  double roll = atan2(2.0 * (qw * qx + qy * qz), 1.0 - 2.0 * (qx * qx + qy * qy));
+  double sin_pitch = 2.0 * (qw * qy - qz * qx);
+  double pitch = asin(min2(max2(sin_pitch, -1.0), 1.0));
+  double yaw = atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz));
+  double xx = 1.0 - 2.0 * (qy * qy + qz * qz), xy = 2.0 * (qx * qy + qw * qz),
+         xz = 2.0 * (qx * qz - qw * qy);
+  double yx = 2.0 * (qx * qy - qw * qz), yy = 1.0 - 2.0 * (qx * qx + qz * qz),
+         yz = 2.0 * (qy * qz + qw * qx);
+  double vwx = v[0], vwy = v[1], vwz = v[2];
+  double awx = (vwx - pvx) * inv_dt, awy = (vwy - pvy) * inv_dt, awz = (vwz - pvz) * inv_dt;
+  out[0] = q[0];
+  out[1] = q[1];
+  out[2] = q[2];
+  out[3] = roll;
+  out[4] = pitch;
+  out[5] = yaw;
+  out[6] = xx * vwx + xy * vwy + xz * vwz;
+  out[7] = yx * vwx + yy * vwy + yz * vwz;
+  out[8] = v[5];
+  out[9] = xx * awx + xy * awy + xz * awz;
+  out[10] = yx * awx + yy * awy + yz * awz;
+  out[11] = 0.5 * (d->qpos[at[2]] + d->qpos[at[3]]);
+  for (int wheel = 0; wheel < N_WHEELS; wheel++) out[12 + wheel] = d->qvel[at[4 + wheel]];
+  return 0;
+}

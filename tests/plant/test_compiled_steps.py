@@ -24,6 +24,7 @@ def _pair(config: PlantConfig) -> tuple[MujocoPlant, MujocoPlant]:
     compiled = MujocoPlant(config, DT_S, InitialState(speed_mps=15.0))
     python = MujocoPlant(config, DT_S, InitialState(speed_mps=15.0))
     python._steps = None  # the reference: the actuators and tyres in Python
+    python._read_state = None  # and its state read in Python
     assert compiled._steps is not None
     return compiled, python
 
@@ -69,6 +70,21 @@ def test_the_compiled_steps_are_the_python_steps_bit_for_bit(drive: str,
     assert compiled.state() == python.state()
     assert compiled.tyre_forces() == python.tyre_forces()
     assert abs(compiled.state().y_m) > 1.0  # it turned
+
+
+def test_the_state_read_in_c_is_the_pythons_bit_for_bit() -> None:
+    # After every chunk of 3,000 steps of steering, drive and brakes (rolling, pitching,
+    # the wheels spinning up and locking): VehicleState from C equals the Python one.
+    plant, _ = _pair(dataclasses.replace(PlantConfig(), drive="awd"))
+    k, states = 0, 0
+    while k < 3000:
+        if k % 10 == 0:
+            plant.apply(_command(k))
+        plant.advance_steps(1 + k % 7)
+        k += 1 + k % 7
+        assert plant.state() == plant.state_in_python(), f"apart after step {k}"
+        states += 1
+    assert states > 500 and abs(plant.state().roll_rad) > 1e-3
 
 
 def test_a_run_jumping_between_due_steps_is_the_per_step_run(
