@@ -257,9 +257,16 @@ class MujocoPlant:
         if self._tyres is not None:
             self._tyres.reset((0.0, 0.0, 0.0, 0.0))
         n_steps = max(1, math.ceil(SETTLE_DURATION_S / self.physics_dt_s))
-        for _ in range(n_steps):
-            self._physics_step()
-            self._check(d.time)
+        if self._steps is not None:  # in one C call: the same steps and checks
+            self._steps.state[STEPS["load0_n"]:STEPS["load0_n"] + 4] = 0.0
+            if not self._steps.settle(n_steps):
+                self._check(d.time)  # raises: the C step's checks failed
+                raise PhysicsDivergenceError(f"physics diverged at t = {d.time:.4f} s while "
+                                             "the car settled")
+        else:
+            for _ in range(n_steps):
+                self._physics_step()
+                self._check(d.time)
         mujoco.mj_forward(m, d)
         self._check(d.time)
         qpos = d.qpos.tolist()

@@ -135,6 +135,8 @@ class CompiledSteps:
         entry.restype = ctypes.c_int
         pointer = ctypes.c_void_p
         self._entry = entry
+        self._settle = library.cosim_plant_settle
+        self._settle.restype = ctypes.c_int
         self._library = library
         self._fixed = (
             pointer(model._address), pointer(data._address))
@@ -143,6 +145,16 @@ class CompiledSteps:
             self._indices.ctypes.data_as(pointer),
             *(buffer.ctypes.data_as(pointer) for buffer in self._buffers),
             self._iw.ctypes.data_as(pointer), self._w.ctypes.data_as(pointer))
+
+    def settle(self, n: int) -> bool:
+        """``n`` of :meth:`cosim.plant.car.MujocoPlant._settle`'s steps (MuJoCo and the tyres,
+        no actuator, no resistance) on the tyre loads in :attr:`state`; False when one ended
+        with a MuJoCo warning or a non-finite or absurd state (the caller raises)."""
+        done = self._settle(*self._fixed, ctypes.c_int(n), *self._arrays)
+        if done == -1:
+            raise RuntimeError("the compiled physics step failed (more tyre contacts than "
+                               "it holds, or the tyre function reported an error)")
+        return done == n
 
     def state_reader(self, free_qpos: int, free_dof: int, steer_qpos: Sequence[int],
                      spin_dofs: Sequence[int]) -> StateReader:

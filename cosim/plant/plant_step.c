@@ -213,11 +213,28 @@ static void place_traffic(mjData* d, const double* poses, const int* slots, int 
   }
 }
 
+/* MujocoPlant._physics_step and MujocoPlant._check: mj_step1, the tyres, mj_step2, the
+ * tyres' new loads into s; 0, -1 when the tyres failed, -2 when the state is not healthy. */
+static int physics_step(mjModel* m, mjData* d, double* s, const double* c, const int* ic,
+                        double* contact_buf, double* state_buf, double* wrench,
+                        double* forces, double* new_state, casadi_int* iw, double* w) {
+  int efc_wheel[MAX_TYRE_CONTACTS], efc_address[MAX_TYRE_CONTACTS];
+  int n_efc = 0;
+  mj_step1(m, d);
+  if (apply_tyres(c, ic, s, d, contact_buf, state_buf, wrench, forces, new_state, iw, w,
+                  efc_wheel, efc_address, &n_efc))
+    return -1;
+  mj_step2(m, d);
+  double loads[N_WHEELS] = {0.0, 0.0, 0.0, 0.0};
+  for (int i = 0; i < n_efc; i++) loads[efc_wheel[i]] += d->efc_force[efc_address[i]];
+  for (int wheel = 0; wheel < N_WHEELS; wheel++) s[PS_LOAD0 + wheel] = loads[wheel];
+  return healthy(m, c, d) ? 0 : -2;
+}
+
 int cosim_plant_advance(mjModel* m, mjData* d, int n, double* s, const double* c,
                         const int* ic, double* contact_buf, double* state_buf,
                         double* wrench, double* forces, double* new_state, casadi_int* iw,
                         double* w, const double* poses, const int* slots, int n_cars) {
-  int efc_wheel[MAX_TYRE_CONTACTS], efc_address[MAX_TYRE_CONTACTS];
   for (int k = 0; k < n; k++) {
     /* The velocities before the step, as advance() reads them (qvel.tolist()). */
     const double* qvel = d->qvel;
@@ -228,17 +245,24 @@ int cosim_plant_advance(mjModel* m, mjData* d, int n, double* s, const double* c
     s[PS_PREV_VX] = vx;
     s[PS_PREV_VY] = vy;
     s[PS_PREV_VZ] = vz;
-    int n_efc = 0;
-    mj_step1(m, d);
-    if (apply_tyres(c, ic, s, d, contact_buf, state_buf, wrench, forces, new_state, iw, w,
-                    efc_wheel, efc_address, &n_efc))
-      return -1;
-    mj_step2(m, d);
-    double loads[N_WHEELS] = {0.0, 0.0, 0.0, 0.0};
-    for (int i = 0; i < n_efc; i++) loads[efc_wheel[i]] += d->efc_force[efc_address[i]];
-    for (int wheel = 0; wheel < N_WHEELS; wheel++) s[PS_LOAD0 + wheel] = loads[wheel];
-    if (!healthy(m, c, d)) return -2 - k;
+    int status = physics_step(m, d, s, c, ic, contact_buf, state_buf, wrench, forces,
+                              new_state, iw, w);
+    if (status) return status == -1 ? -1 : -2 - k;
     if (n_cars) place_traffic(d, poses, slots, n_cars, k);
+  }
+  return n;
+}
+
+/* n of MujocoPlant._settle's steps: MujocoPlant._physics_step (mj_step1, the tyres,
+ * mj_step2, the tyres' new loads) and its checks, no actuator and no resistance; the same
+ * returns as cosim_plant_advance's. */
+int cosim_plant_settle(mjModel* m, mjData* d, int n, double* s, const double* c,
+                       const int* ic, double* contact_buf, double* state_buf, double* wrench,
+                       double* forces, double* new_state, casadi_int* iw, double* w) {
+  for (int k = 0; k < n; k++) {
+    int status = physics_step(m, d, s, c, ic, contact_buf, state_buf, wrench, forces,
+                              new_state, iw, w);
+    if (status) return status == -1 ? -1 : -2 - k;
   }
   return n;
 }

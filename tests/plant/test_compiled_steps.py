@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import cosim
+import cosim.plant.car
 from cosim.core.compiled_function import CompiledCacheWarning, CompileFailedWarning
 from cosim.core.initial_state import InitialState
 from cosim.core.records import ActuatorCommand
@@ -85,6 +86,29 @@ def test_the_state_read_in_c_is_the_pythons_bit_for_bit() -> None:
         assert plant.state() == plant.state_in_python(), f"apart after step {k}"
         states += 1
     assert states > 500 and abs(plant.state().roll_rad) > 1e-3
+
+
+@pytest.mark.parametrize(("drive", "mass_kg", "friction"),
+                         [("rwd", 1500.0, 1.0), ("awd", 1320.5, 0.6)])
+def test_the_car_settles_in_c_as_in_python(drive: str, mass_kg: float, friction: float,
+                                           monkeypatch: pytest.MonkeyPatch) -> None:
+    # The static equilibrium every run starts from: 750 steps of MuJoCo and the tyres, in
+    # one C call and in Python, to the bit (height, roll, pitch, suspension, radii, loads);
+    # and after 20 steps, still bouncing on tyres that started unloaded.
+    config = dataclasses.replace(PlantConfig(), drive=drive, mass_kg=mass_kg,
+                                 tyre_friction=friction)
+    plant = MujocoPlant(config, DT_S, InitialState(), settle_here=True)
+    steps = plant._steps
+    for duration_s in (None, 20 * DT_S):
+        if duration_s is not None:
+            monkeypatch.setattr(cosim.plant.car, "SETTLE_DURATION_S", duration_s)
+        plant._steps = steps
+        in_c = plant._settle()
+        plant._steps = None
+        in_python = plant._settle()
+        assert in_c == in_python
+    assert in_c != plant.equilibrium  # 20 steps are not yet at rest
+    assert plant.equilibrium.static_load_n[0] > 2000.0
 
 
 def test_a_run_jumping_between_due_steps_is_the_per_step_run(
