@@ -80,6 +80,8 @@ class FaultInjector:
 
     def apply(self, measurement: Measurement) -> Measurement | None:
         """The measurement as delivered, or ``None`` when a dropout swallows it."""
+        if not self._faults:  # (a sensor without faults: every sample as it is)
+            return measurement
         values = measurement.values.copy()
         changed = False
         for index, fault in enumerate(self._faults):
