@@ -52,13 +52,18 @@ def projection_library() -> ctypes.CDLL | None:
                       f"{FALLBACK}", CompileFailedWarning, stacklevel=2)
         return None
     pointer, double, long = ctypes.c_void_p, ctypes.c_double, ctypes.c_long
+    out = ctypes.POINTER(double)
     entry.argtypes = (pointer, long, pointer, pointer, long, pointer, double, double,
-                      ctypes.c_int, double, double, pointer)
+                      ctypes.c_int, double, double, out)
     entry.restype = ctypes.c_int
     horizon.argtypes = (pointer, long, pointer, pointer, long, pointer, double, double,
-                        pointer, long, double, pointer, pointer)
+                        pointer, long, double, out, pointer)
     horizon.restype = ctypes.c_int
     return library
+
+
+_Projection = ctypes.c_double * 4
+"""The C's projection: s_m, lateral_error_m, path_yaw_rad, curvature_1pm."""
 
 
 class CompiledPath:
@@ -78,22 +83,21 @@ class CompiledPath:
                 or self._knots.size != self._pieces.shape[0] + 1:
             raise ValueError("pieces must be (n, 8) with n + 1 knots")
         self._geometry = np.array([length_m, table_step_m, 1.0 if closed else 0.0])
-        self._out = np.zeros(4)
         self._entry = library.cosim_path_project
         self._horizon = library.cosim_path_horizon
         self._library = library  # kept alive while its entry is used
         self._fixed = (self._table.ctypes.data, self._table.shape[1], self._knots.ctypes.data,
                        self._pieces.ctypes.data, self._pieces.shape[0],
                        self._geometry.ctypes.data)
-        self._out_address = self._out.ctypes.data
 
     def __call__(self, x_m: float, y_m: float, near_s_m: float | None,
                  window_m: float) -> tuple[float, float, float, float]:
         windowed = near_s_m is not None
+        out = _Projection()  # a call's own (ctypes lets threads call the C at once)
         if self._entry(*self._fixed, x_m, y_m, windowed, near_s_m if windowed else 0.0,
-                       window_m, self._out_address):
+                       window_m, out):
             raise ValueError("an empty path table")
-        s_m, lateral_m, yaw_rad, curvature = self._out.tolist()
+        s_m, lateral_m, yaw_rad, curvature = out
         return s_m, lateral_m, yaw_rad, curvature
 
     def horizon(self, x_m: float, y_m: float, speeds_mps: np.ndarray,
@@ -107,10 +111,11 @@ class CompiledPath:
         if speeds.ndim != 1 or speeds.size < 2:
             raise ValueError(f"expected N + 1 >= 2 speeds, got shape {speeds.shape}")
         stages = np.empty((7, speeds.size - 1))
+        out = _Projection()
         if self._horizon(*self._fixed, x_m, y_m, speeds.ctypes.data, stages.shape[1], dt_s,
-                         self._out_address, stages.ctypes.data):
+                         out, stages.ctypes.data):
             raise ValueError("an empty path table")
-        s_m, lateral_m, yaw_rad, curvature = self._out.tolist()
+        s_m, lateral_m, yaw_rad, curvature = out
         return (s_m, lateral_m, yaw_rad, curvature), stages
 
 
