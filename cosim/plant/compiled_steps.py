@@ -150,11 +150,7 @@ class CompiledSteps:
         """``n`` of :meth:`cosim.plant.car.MujocoPlant._settle`'s steps (MuJoCo and the tyres,
         no actuator, no resistance) on the tyre loads in :attr:`state`; False when one ended
         with a MuJoCo warning or a non-finite or absurd state (the caller raises)."""
-        done = self._settle(*self._fixed, ctypes.c_int(n), *self._arrays)
-        if done == -1:
-            raise RuntimeError("the compiled physics step failed (more tyre contacts than "
-                               "it holds, or the tyre function reported an error)")
-        return done == n
+        return _finished(self._settle(*self._fixed, ctypes.c_int(n), *self._arrays), n)
 
     def state_reader(self, free_qpos: int, free_dof: int, steer_qpos: Sequence[int],
                      spin_dofs: Sequence[int]) -> StateReader:
@@ -180,11 +176,16 @@ class CompiledSteps:
             traffic = (None, None)
         done = self._entry(*self._fixed, ctypes.c_int(n), *self._arrays, *traffic,
                            ctypes.c_int(n_cars))
-        if done == -1:
-            raise RuntimeError("the compiled physics step failed (more tyre contacts than "
-                               "it holds, or the tyre function reported an error)")
-        return done == n
+        return _finished(done, n)
 
+
+def _finished(done: int, n: int) -> bool:
+    """Whether the C's ``n`` steps all ran (its return ``done``); RuntimeError when the C
+    step could not go on."""
+    if done == -1:
+        raise RuntimeError("the compiled physics step failed (more tyre contacts than it "
+                           "holds, or the tyre function reported an error)")
+    return done == n
 
 
 class StateReader:

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import ctypes
 import functools
-import math
 import warnings
 from pathlib import Path
 
@@ -37,7 +36,7 @@ FALLBACK = "paths are projected in Python, about 25 us a call instead of a few"
 
 
 @functools.lru_cache(maxsize=1)
-def projection_library() -> ctypes.CDLL | None:
+def path_library() -> ctypes.CDLL | None:
     """``reference_path.c`` compiled (or from the cache) and loaded, once per process; None
     without a working compiler or when the library does not load (with a warning)."""
     built = compiled_library("cosim_reference_path", [], key="reference path",
@@ -82,6 +81,8 @@ class CompiledPath:
         if self._pieces.ndim != 2 or self._pieces.shape[1] != 8 \
                 or self._knots.size != self._pieces.shape[0] + 1:
             raise ValueError("pieces must be (n, 8) with n + 1 knots")
+        if not self._table.shape[1]:
+            raise ValueError("an empty path table")
         self._geometry = np.array([length_m, table_step_m, 1.0 if closed else 0.0])
         self._entry = library.cosim_path_project
         self._horizon = library.cosim_path_horizon
@@ -94,9 +95,8 @@ class CompiledPath:
                  window_m: float) -> tuple[float, float, float, float]:
         windowed = near_s_m is not None
         out = _Projection()  # a call's own (ctypes lets threads call the C at once)
-        if self._entry(*self._fixed, x_m, y_m, windowed, near_s_m if windowed else 0.0,
-                       window_m, out):
-            raise ValueError("an empty path table")
+        self._entry(*self._fixed, x_m, y_m, windowed, near_s_m if windowed else 0.0, window_m,
+                    out)  # (its status says only whether the table is empty: it is not)
         s_m, lateral_m, yaw_rad, curvature = out
         return s_m, lateral_m, yaw_rad, curvature
 
@@ -112,14 +112,7 @@ class CompiledPath:
             raise ValueError(f"expected N + 1 >= 2 speeds, got shape {speeds.shape}")
         stages = np.empty((7, speeds.size - 1))
         out = _Projection()
-        if self._horizon(*self._fixed, x_m, y_m, speeds.ctypes.data, stages.shape[1], dt_s,
-                         out, stages.ctypes.data):
-            raise ValueError("an empty path table")
+        self._horizon(*self._fixed, x_m, y_m, speeds.ctypes.data, stages.shape[1], dt_s, out,
+                      stages.ctypes.data)
         s_m, lateral_m, yaw_rad, curvature = out
         return (s_m, lateral_m, yaw_rad, curvature), stages
-
-
-def usable_near(near_s_m: float | None) -> bool:
-    """Whether the C takes ``near_s_m`` (None or finite; Python raises on the others as it
-    always did)."""
-    return near_s_m is None or math.isfinite(near_s_m)

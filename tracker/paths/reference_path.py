@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cosim.core.exceptions import ConfigError
-from tracker.paths.compiled_path import CompiledPath, projection_library, usable_near
+from tracker.paths.compiled_path import CompiledPath, path_library
 from tracker.paths.cubic_spline import CubicSpline
 from tracker.paths.speed_profile import ConstantSpeed, SpeedProfile
 
@@ -188,7 +188,8 @@ class ReferencePath:
         microseconds instead of some 25), else by :meth:`project_in_python`.
         """
         projector = self._compiled
-        if projector is not None and usable_near(near_s_m):
+        # A near_s_m that is not finite: Python raises on it as it always did.
+        if projector is not None and (near_s_m is None or math.isfinite(near_s_m)):
             return Projection(*projector(float(x_m), float(y_m), near_s_m, float(window_m)))
         return self.project_in_python(x_m, y_m, near_s_m, window_m)
 
@@ -201,12 +202,11 @@ class ReferencePath:
     @functools.cached_property
     def _compiled(self) -> CompiledPath | None:
         """This path's projection and horizon in C (None without a working compiler)."""
-        library = projection_library()
+        library = path_library()
         if library is None:
             return None
-        return CompiledPath(library, self._table_s, self._table_x, self._table_y,
-                                  self._knots, self._coefficients, self.length_m,
-                                  self._table_step_m, self.closed)
+        return CompiledPath(library, self._table_s, self._table_x, self._table_y, self._knots,
+                            self._coefficients, self.length_m, self._table_step_m, self.closed)
 
     def compiled_horizon(self, x_m: float, y_m: float, speeds_mps: np.ndarray, dt_s: float
                          ) -> tuple[Projection, np.ndarray] | None:

@@ -11,12 +11,12 @@ import pytest
 
 from tracker.mpc.horizon_reference import horizon_reference
 from tracker.paths import shapes
-from tracker.paths.compiled_path import projection_library
+from tracker.paths.compiled_path import path_library
 from tracker.paths.double_lane_change import double_lane_change
 from tracker.paths.generated_circuit import generated_circuit
 from tracker.paths.reference_path import Projection, ReferencePath, wrap_angle
 
-pytestmark = pytest.mark.skipif(projection_library() is None, reason="no working C compiler")
+pytestmark = pytest.mark.skipif(path_library() is None, reason="no working C compiler")
 
 
 def _same(a: Projection, b: Projection) -> bool:
