@@ -373,9 +373,11 @@ class KalmanFusion(ABC):
             )
         # Every channel, in order: no selection needed.
         z = values if selection.every_column and len(selection.measurement_columns) == size \
-            else values[list(selection.measurement_columns)]
+            else values[selection.column_index]
         t_s = float(measurement.t_s)
-        if not (math.isfinite(t_s) and np.isfinite(z).all()):
+        # Each of a measurement's few values tested as a float: numpy's isfinite and all
+        # cost more for so few (the same test: NaN and both infinities are caught).
+        if not (math.isfinite(t_s) and all(map(math.isfinite, z.tolist()))):
             return NON_FINITE, dim
         if is_stale(self._t_s, t_s):
             return STALE, dim

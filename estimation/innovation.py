@@ -30,6 +30,12 @@ class Selection:
         """Whether the measurement's every channel is fused, in its order (no selection)."""
         return self.measurement_columns == tuple(range(len(self.measurement_columns)))
 
+    @functools.cached_property
+    def column_index(self) -> np.ndarray:
+        """:attr:`measurement_columns` as an index array, made once (indexing with a list
+        converts it at every measurement)."""
+        return np.array(self.measurement_columns, dtype=np.intp)
+
     @classmethod
     def of(cls, model: MeasurementModel, names: tuple[str, ...],
            believed: Mapping[str, float]) -> Selection:

@@ -256,12 +256,17 @@ def plan_scene(plan: Plan) -> dict[str, object] | None:
 
 
 def covariance_ellipse(covariance_xy: np.ndarray, n_sigma: float) -> Ellipse:
-    """The ``n_sigma`` ellipse of a 2x2 position covariance: semi-axes ``n_sigma`` times
-    the square roots of its eigenvalues, along their eigenvectors."""
-    eigenvalues, eigenvectors = np.linalg.eigh(covariance_xy)
-    minor, major = np.sqrt(np.clip(eigenvalues, 0.0, None))
-    angle_rad = math.atan2(eigenvectors[1, 1], eigenvectors[0, 1])
-    return Ellipse(n_sigma * float(major), n_sigma * float(minor), angle_rad)
+    """The ``n_sigma`` ellipse of a 2x2 position covariance ``[[a, b], [b, c]]``: semi-axes
+    ``n_sigma`` times the square roots of its eigenvalues, the major one along the
+    eigenvector of the larger. In closed form (a 2x2 symmetric matrix's eigenvalues are
+    ``(a + c) / 2 +- r`` with ``r = hypot((a - c) / 2, b)``, its larger eigenvector at
+    ``atan2(2 b, a - c) / 2`` from +x), a tenth of LAPACK's call for the scene written 25
+    times a second; a negative eigenvalue of a covariance rounded below zero counts as 0.
+    The angle is in (-pi/2, pi/2]: an ellipse is the same turned by pi."""
+    a, b, c = float(covariance_xy[0, 0]), float(covariance_xy[0, 1]), float(covariance_xy[1, 1])
+    mean, radius = 0.5 * (a + c), math.hypot(0.5 * (a - c), b)
+    major, minor = math.sqrt(max(mean + radius, 0.0)), math.sqrt(max(mean - radius, 0.0))
+    return Ellipse(n_sigma * major, n_sigma * minor, 0.5 * math.atan2(2.0 * b, a - c))
 
 
 _POSITION = ("x_m", "y_m")

@@ -84,6 +84,35 @@ def test_covariance_ellipse_has_n_sigma_semi_axes_along_the_eigenvectors() -> No
     assert math.tan(ellipse.angle_rad) == pytest.approx(math.tan(angle))
 
 
+def test_covariance_ellipse_is_lapacks_eigendecomposition() -> None:
+    # The closed form against numpy's eigh: the semi-axes to rounding, the major axis along
+    # the larger eigenvector (parallel: an ellipse turned by pi is the same), over shapes
+    # from a circle to a line. It fails with the axes swapped, the angle not halved or
+    # ``atan2(b, a - c)``.
+    rng = np.random.default_rng(3)
+    for _ in range(500):
+        sigma = rng.uniform(0.01, 3.0, size=2) * np.array([1.0, rng.choice([1e-4, 0.1, 1.0])])
+        angle = rng.uniform(-math.pi, math.pi)
+        rotation = np.array([[math.cos(angle), -math.sin(angle)],
+                             [math.sin(angle), math.cos(angle)]])
+        covariance = rotation @ np.diag(sigma**2) @ rotation.T
+        ellipse = foxglove.covariance_ellipse(covariance, 2.0)
+        eigenvalues, eigenvectors = np.linalg.eigh(covariance)
+        assert ellipse.semi_major_m == pytest.approx(2.0 * math.sqrt(eigenvalues[1]), rel=1e-9)
+        assert ellipse.semi_minor_m == pytest.approx(2.0 * math.sqrt(max(eigenvalues[0], 0.0)),
+                                                     rel=1e-6, abs=1e-9)
+        if eigenvalues[1] > 1.01 * eigenvalues[0]:
+            major = eigenvectors[:, 1]
+            along = (math.cos(ellipse.angle_rad), math.sin(ellipse.angle_rad))
+            assert abs(along[0] * major[1] - along[1] * major[0]) < 1e-6
+    # A line (a singular covariance) and a circle.
+    line = foxglove.covariance_ellipse(np.array([[1.0, 1.0], [1.0, 1.0]]), 1.0)
+    assert (line.semi_major_m, line.semi_minor_m) == (pytest.approx(math.sqrt(2.0)), 0.0)
+    assert line.angle_rad == pytest.approx(math.pi / 4)
+    circle = foxglove.covariance_ellipse(np.eye(2) * 0.25, 3.0)
+    assert circle.semi_major_m == circle.semi_minor_m == 1.5
+
+
 def test_car_scene_has_a_body_and_four_wheels_on_the_ground() -> None:
     params = VehicleParams()
     steer = 0.2
