@@ -29,7 +29,9 @@ demo: bytecode
 # Idle workers take tests from busy ones (--dist worksteal): the tests range from
 # milliseconds to twenty seconds, and handing them out in fixed batches left one core idle
 # at the end while the other finished the long ones (the suite 305-313 s against 284-296 s
-# on 2 cores, one tree, back to back).
+# on 2 cores, one tree, back to back). And each worker's share starts with the modules
+# that hold slow tests (tests/conftest.py, balanced_order): in collection order a 20-s test
+# could start last while the other core had nothing left (the suite 283 -> 277 s).
 TEST_WORKERS ?= auto
 PYTEST := $(BIN)/python -m pytest -n $(TEST_WORKERS) --dist worksteal
 
