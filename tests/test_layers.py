@@ -173,8 +173,8 @@ SUITES = ("conformance", "mismatch", "js")
 """Test folders that are suites, not mirrors of a package: the plant's physics conformance,
 the tracker's mismatch envelope, the JavaScript reader."""
 
-ROOT_TESTS = ("test_api.py", "test_layers.py", "test_packaging.py")
-"""Tests of the whole: the public API, this layering, the distribution."""
+ROOT_TESTS = ("test_api.py", "test_layers.py", "test_packaging.py", "test_test_order.py")
+"""Tests of the whole: the public API, this layering, the distribution, the suite's order."""
 
 
 def misplaced_tests(tests: Path, root: Path = ROOT) -> list[str]:
