@@ -287,7 +287,7 @@ def compiled_library(name: str, functions: Functions,
                      extra_sources: Sequence[Path] = (),
                      link_flags: Sequence[str] = (),
                      edit_source: Callable[[str], str] | None = None,
-                     fallback: str = "") -> Path | None:
+                     fallback: str = "", relocatable: Sequence[Path] = ()) -> Path | None:
     """The shared library holding ``functions`` (each under its own name), compiled with
     ``flags`` or found in the cache; None when no C compiler is available or compiling
     fails. ``name`` names the file (a C identifier). ``note``, if given, is printed as one
@@ -313,13 +313,23 @@ def compiled_library(name: str, functions: Functions,
     A build that fails says so in one :class:`CompileFailedWarning` with the compiler's first
     error and ``fallback`` (what the run does instead); no compiler at all is the caller's to
     say (:func:`compiler` is None).
+
+    ``relocatable`` names folders of dependencies (a Python package's shared libraries and
+    headers) whose place differs between virtualenvs holding the same version: their paths
+    in the flags are left out of the entry's hash (:func:`relocated`), so every virtualenv
+    with that version finds one entry, a fresh clone's too; the key must name the version.
+    The library's run path still names the folder it was built against, so the caller loads
+    the dependency from its own folder before the library (``import mujoco`` loads
+    libmujoco; :func:`tracker.mpc.compiled_rti.load_hpipm`): the dynamic loader then takes
+    the loaded one by its soname, even where the run path's folder is gone.
     """
     command = compiler()
     if command is None:
         return None
     flags = (*flags, *ALWAYS_FLAGS)
     own = b"".join(Path(extra).read_bytes() for extra in extra_sources)
-    hashed_flags = (*flags, *NATIVE_FLAGS, *link_flags, f"processor: {host_processor()}")
+    hashed_flags = relocated((*flags, *NATIVE_FLAGS, *link_flags,
+                              f"processor: {host_processor()}"), relocatable)
     entry = None
     if key is not None:  # found without generating anything, nor a temporary folder
         digest = _keyed_digest(key, own, hashed_flags)
@@ -361,6 +371,15 @@ def compiled_library(name: str, functions: Functions,
                               "(XDG_CACHE_HOME names the cache)", CompiledCacheWarning,
                               stacklevel=1)  # one place: said once per process
                 return _private_copy(built)
+
+
+def relocated(flags: Sequence[str], folders: Sequence[Path]) -> tuple[str, ...]:
+    """``flags`` with the path of each of ``folders`` replaced by a placeholder naming its
+    position (:func:`compiled_library`'s ``relocatable``)."""
+    flags = tuple(flags)
+    for i, folder in enumerate(folders):
+        flags = tuple(flag.replace(str(folder), f"<dependency {i}>") for flag in flags)
+    return flags
 
 
 def _cached(entry: Path, name: str) -> Path | None:

@@ -84,10 +84,13 @@ def load_steps_library(tyres: ca.Function) -> ctypes.CDLL | None:
     flags = ("-O2", "-ffp-contract=off", f"-DPATCHES={tyres.name()}",
              f"-I{folder / 'include'}")
     link = (f"-L{folder}", f"-l:{library.name}", f"-Wl,-rpath,{folder}")
+    # MuJoCo's folder is not part of the key (its version is): libmujoco is loaded by
+    # ``import mujoco`` already, so a library built in another virtualenv finds it.
     built = compiled_library(
         "cosim_plant_steps", [tyres], flags, key=tyres.serialize() + mujoco.__version__,
         extra_sources=(SOURCE,), link_flags=link,
-        note="compiling the plant's physics step to C (about 5 s)", fallback=STEPS_FALLBACK)
+        note="compiling the plant's physics step to C (about 5 s)", fallback=STEPS_FALLBACK,
+        relocatable=(folder,))
     if built is None:
         return None
     try:

@@ -47,6 +47,14 @@ def hpipm_build_flags() -> tuple[tuple[str, ...], tuple[str, ...]]:
             (f"-L{folder}", "-lhpipm", "-lblasfeo", f"-Wl,-rpath,{folder}"))
 
 
+def load_hpipm() -> ctypes.CDLL:
+    """This CasADi's hpipm (and the blasfeo it needs), loaded: a compiled real-time
+    iteration built in another virtualenv with the same CasADi (its run path naming that
+    one's folder, perhaps deleted since) then finds it by its soname
+    (:func:`cosim.core.compiled_function.compiled_library`'s ``relocatable``)."""
+    return ctypes.CDLL(str(casadi_folder() / "libhpipm.so"))
+
+
 _HPIPM_PROBLEM = "  struct casadi_hpipm_prob p;\n"
 _HPIPM_MODE = re.compile(r"^  p\.hpipm_options\.mode = (\d+);$", re.MULTILINE)
 

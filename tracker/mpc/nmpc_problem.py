@@ -59,9 +59,11 @@ from cosim.core.exceptions import ConfigError
 from tracker.config import TrackerConfig, TrackerWeights
 from tracker.mpc.compiled_rti import (
     CompiledRtiStep,
+    casadi_folder,
     complete_hpipm_options,
     hpipm_build_flags,
     hpipm_options_edit_digest,
+    load_hpipm,
     rti_step_function,
 )
 from tracker.mpc.fallback import INPUT, INPUT_NAMES
@@ -476,7 +478,7 @@ class NmpcProblem:
             library = self._compiled_library(name, lambda: [step], key,
                                              "real-time iteration", 10,
                                              (*COMPILE_FLAGS, *include), link,
-                                             complete_hpipm_options)
+                                             complete_hpipm_options, (casadi_folder(),))
         except ValueError as error:  # another CasADi's generated code
             warnings.warn(f"cannot compile the real-time iteration ({error}): using "
                           "CasADi's virtual machine", CompiledCacheWarning, stacklevel=3)
@@ -485,6 +487,7 @@ class NmpcProblem:
             return None
         layout = problem.layout
         try:
+            load_hpipm()  # found by its soname whichever virtualenv built the library
             return CompiledRtiStep(ctypes.CDLL(str(library)), step, layout["lbx"],
                                    layout["ubx"], layout["lbg"], layout["ubg"])
         except (OSError, AttributeError) as error:  # checked, so only a changing file
@@ -497,7 +500,8 @@ class NmpcProblem:
                           key: str, what: str, build_s: int,
                           flags: tuple[str, ...] = COMPILE_FLAGS,
                           link_flags: tuple[str, ...] = (),
-                          edit_source: Callable[[str], str] | None = None) -> Path | None:
+                          edit_source: Callable[[str], str] | None = None,
+                          relocatable: tuple[Path, ...] = ()) -> Path | None:
         """The library of ``functions`` compiled once per machine
         (:func:`cosim.core.compiled_function.compiled_library`, with a note saying it takes
         about ``build_s``), or None with a warning when no C compiler works or it cannot
@@ -506,6 +510,7 @@ class NmpcProblem:
                     "(tracker.compiled=false says so quietly)")
         library = compiled_library(
             name, functions, flags, key=key, link_flags=link_flags, edit_source=edit_source,
+            relocatable=relocatable,
             note=f"compiling {self.model.name.replace('_', '-')}'s {what} to C "
                  f"(about {build_s} s)", fallback=fallback)
         if library is None and compiler() is None:  # a failed build has said why
