@@ -55,6 +55,11 @@ def _loads_alone(library: Path) -> bool:
                           capture_output=True).returncode == 0
 
 
+MUJOCO_HEADER = Path(mujoco.__file__).parent / "include" / "mujoco" / "mujoco.h"
+
+
+@pytest.mark.skipif(not MUJOCO_HEADER.is_file(),
+                    reason="a mujoco build without its headers (the physics step is not compiled)")
 def test_the_plant_steps_find_the_mujoco_that_import_mujoco_loaded(tmp_path: Path) -> None:
     folder = Path(mujoco.__file__).parent
     name = sorted(folder.glob("libmujoco.so*"))[-1].name
@@ -65,6 +70,8 @@ def test_the_plant_steps_find_the_mujoco_that_import_mujoco_loaded(tmp_path: Pat
     assert ctypes.CDLL(str(library)).probe() == mujoco.mj_version()
 
 
+@pytest.mark.skipif(not (casadi_folder() / "libhpipm.so").is_file(),
+                    reason="a CasADi without hpipm (the real-time iteration is not compiled)")
 def test_the_real_time_iteration_finds_the_hpipm_load_hpipm_loaded(tmp_path: Path) -> None:
     folder = casadi_folder()
     library = _build(tmp_path, "extern int d_ocp_qp_dim_memsize(int);\n"
