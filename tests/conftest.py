@@ -39,18 +39,17 @@ def balanced_order(items: list[pytest.Item], workers: int) -> list[pytest.Item]:
     for item in items:
         modules.setdefault(item.nodeid.partition("::")[0], []).append(item)
 
-    def slow_tests(module: list[pytest.Item]) -> int:
-        return sum(item.get_closest_marker("slow") is not None for item in module)
-
-    heavy = sorted((m for m in modules.values() if slow_tests(m)), key=slow_tests,
+    slow = {name: sum(item.get_closest_marker("slow") is not None for item in module)
+            for name, module in modules.items()}
+    heavy = sorted((name for name in modules if slow[name]), key=slow.__getitem__,
                    reverse=True)
-    light = [item for m in modules.values() if not slow_tests(m) for item in m]
+    light = [item for name, module in modules.items() if not slow[name] for item in module]
     shares: list[list[pytest.Item]] = [[] for _ in range(workers)]
     weights = [0] * workers
-    for module in heavy:
+    for name in heavy:
         j = weights.index(min(weights))
-        shares[j].extend(module)
-        weights[j] += slow_tests(module)
+        shares[j].extend(modules[name])
+        weights[j] += slow[name]
     ordered: list[pytest.Item] = []
     remaining, start = len(items), 0
     for j, share in enumerate(shares):  # the scheduler's shares: what is left, divided
