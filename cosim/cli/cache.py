@@ -1,4 +1,5 @@
-"""``cosim cache``: the compiled libraries' folder, what it holds, and emptying it."""
+"""``cosim cache``: the compiled libraries' folder, what it holds, and emptying it (the
+libraries, and the results kept there by :mod:`cosim.core.built_on_disk`)."""
 
 from __future__ import annotations
 
@@ -13,7 +14,8 @@ def add_parsers(commands: Any) -> dict[str, Handler]:
     cache = commands.add_parser(
         "cache", help="show the compiled-code cache (its folder, size and bound) or clear it")
     cache.add_argument("--clear", action="store_true",
-                       help="remove every compiled library (the next run builds what it needs)")
+                       help="remove every compiled library and kept model (the next run "
+                            "builds what it needs)")
     return {"cache": command}
 
 
@@ -23,10 +25,11 @@ def command(args: argparse.Namespace) -> int:
     folder, limit = cache_dir(), limit_bytes()
     if args.clear:
         removed = clear()
-        print(f"removed {len(removed)} compiled libraries ({_mb(removed)}) from {folder}")
+        print(f"removed {len(removed)} entries ({_mb(removed)}) from {folder}")
         return 0
     found = entries()
-    print(f"{folder}: {len(found)} compiled libraries, {_mb(found)} of at most "
+    print(f"{folder}: {len(found)} entries (compiled libraries, kept models), {_mb(found)} "
+          f"of at most "
           f"{limit / 1e6:.0f} MB (COSIM_CACHE_MAX_MB; the least recently used go first)")
     by_name: dict[str, list[Any]] = collections.defaultdict(list)
     for entry in found:

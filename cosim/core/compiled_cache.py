@@ -14,6 +14,9 @@ again. ``cosim cache`` shows the folder and ``cosim cache --clear`` empties it.
 from __future__ import annotations
 
 import contextlib
+import functools
+import hashlib
+import json
 import os
 import shutil
 from collections.abc import Iterator
@@ -28,7 +31,7 @@ except ImportError:  # not POSIX: builds are not serialised (the first to instal
     fcntl = None  # type: ignore[assignment]
 
 MANIFEST = "manifest.json"
-"""The file beside each library with its size and SHA-256."""
+"""The file beside each library with its size and SHA-256, checked before every load."""
 
 DEFAULT_LIMIT_MB = 1024.0
 """The cache's bound unless ``COSIM_CACHE_MAX_MB`` says otherwise."""
@@ -52,6 +55,68 @@ def limit_bytes() -> int:
     if not (value > 0.0 and value < 1e9):
         raise ConfigError(f"COSIM_CACHE_MAX_MB = {text!r}: expected a number of megabytes > 0")
     return int(value * 1e6)
+
+
+def file_digest(path: Path) -> str:
+    """The SHA-256 of the file at ``path`` (hex)."""
+    sha = hashlib.sha256()
+    with path.open("rb") as stream:
+        for block in iter(lambda: stream.read(1 << 20), b""):
+            sha.update(block)
+    return sha.hexdigest()
+
+
+@functools.lru_cache(maxsize=64)
+def _checked_digest(path: str, size: int, mtime_ns: int, inode: int) -> str:
+    """:func:`file_digest` of the file at ``path``, computed once per process for each
+    version of it (its size, modification time and inode name the version: a file
+    rewritten, truncated or replaced is hashed again). A run's libraries are checked at
+    every run's set-up; hashing the NLP's 2 MB again each time cost a millisecond a run."""
+    del size, mtime_ns, inode  # part of the key only
+    return file_digest(Path(path))
+
+
+def entry_damage(entry: Path, filename: str, what: str = "the library") -> str:
+    """Why the cache entry ``entry`` cannot be used ("" when its file ``filename``, called
+    ``what`` in the answer, has the size and SHA-256 its manifest gives)."""
+    data = entry / filename
+    try:  # a hand-edited manifest: size Infinity, nesting deep enough to recurse ...
+        manifest = json.loads((entry / MANIFEST).read_text())
+        size, digest = int(manifest["size"]), str(manifest["sha256"])
+    except (OSError, ValueError, KeyError, TypeError, OverflowError, RecursionError):
+        return f"its {MANIFEST} is missing or unreadable"
+    try:
+        actual = data.stat()
+    except OSError:
+        return f"{what} is missing"
+    if actual.st_size != size:
+        return f"{what} has {actual.st_size} bytes, {size} were written"
+    if _checked_digest(str(data), actual.st_size, actual.st_mtime_ns, actual.st_ino) != digest:
+        return f"{what}'s SHA-256 differs from the one written"
+    return ""
+
+
+def install(built: Path, entry: Path, filename: str) -> Path:
+    """Put the file ``built`` into the cache as ``entry`` (a folder with the file, named
+    ``filename``, and its manifest), atomically: written under a temporary name and
+    renamed, so a concurrent run sees either no entry or a whole one. Another run that
+    installed first wins. The installed file's path."""
+    entry.parent.mkdir(parents=True, exist_ok=True)
+    staging = entry.with_name(f".{entry.name}.{os.getpid()}.tmp")
+    shutil.rmtree(staging, ignore_errors=True)
+    staging.mkdir()
+    try:
+        shutil.copyfile(built, staging / filename)
+        manifest = {"size": built.stat().st_size, "sha256": file_digest(built)}
+        (staging / MANIFEST).write_text(json.dumps(manifest))
+        try:
+            os.rename(staging, entry)
+        except OSError:
+            if not entry.is_dir():
+                raise
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    return entry / filename
 
 
 @dataclass(frozen=True)

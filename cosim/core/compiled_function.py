@@ -25,7 +25,6 @@ import atexit
 import ctypes
 import functools
 import hashlib
-import json
 import os
 import shlex
 import shutil
@@ -40,9 +39,10 @@ import casadi as ca
 import numpy as np
 
 from cosim.core.compiled_cache import (
-    MANIFEST,
     build_lock,
     cache_dir,
+    entry_damage,
+    install,
     mark_used,
     prune,
     remove,
@@ -116,68 +116,6 @@ class CompiledFunction:
 
 class CompiledCacheWarning(UserWarning):
     """The cache of compiled libraries is damaged or cannot be written (the run goes on)."""
-
-
-"""Beside each cached library: its size and SHA-256, checked before every load."""
-
-
-def _digest(path: Path) -> str:
-    sha = hashlib.sha256()
-    with path.open("rb") as stream:
-        for block in iter(lambda: stream.read(1 << 20), b""):
-            sha.update(block)
-    return sha.hexdigest()
-
-
-def _damage(entry: Path, name: str) -> str:
-    """Why the cache entry ``entry`` cannot be loaded ("" when its library is intact)."""
-    library = entry / f"{name}.so"
-    try:  # a hand-edited manifest: size Infinity, nesting deep enough to recurse ...
-        manifest = json.loads((entry / MANIFEST).read_text())
-        size, digest = int(manifest["size"]), str(manifest["sha256"])
-    except (OSError, ValueError, KeyError, TypeError, OverflowError, RecursionError):
-        return f"its {MANIFEST} is missing or unreadable"
-    try:
-        actual = library.stat()
-    except OSError:
-        return "the library is missing"
-    if actual.st_size != size:
-        return f"the library has {actual.st_size} bytes, {size} were written"
-    if _file_digest(str(library), actual.st_size, actual.st_mtime_ns, actual.st_ino) != digest:
-        return "the library's SHA-256 differs from the one written"
-    return ""
-
-
-@functools.lru_cache(maxsize=64)
-def _file_digest(path: str, size: int, mtime_ns: int, inode: int) -> str:
-    """:func:`_digest` of the file at ``path``, computed once per process for each version
-    of it (its size, modification time and inode name the version: a file rewritten,
-    truncated or replaced is hashed again). A run's libraries are checked at every run's
-    set-up; hashing the NLP's 2 MB again each time cost a millisecond a run."""
-    del size, mtime_ns, inode  # part of the key only
-    return _digest(Path(path))
-
-
-def _install(built: Path, entry: Path, name: str) -> Path:
-    """Put the library ``built`` into the cache as ``entry`` (a folder with the library and
-    its manifest), atomically: written under a temporary name and renamed, so a concurrent
-    run sees either no entry or a whole one. Another run that installed first wins."""
-    entry.parent.mkdir(parents=True, exist_ok=True)
-    staging = entry.with_name(f".{entry.name}.{os.getpid()}.tmp")
-    shutil.rmtree(staging, ignore_errors=True)
-    staging.mkdir()
-    try:
-        shutil.copyfile(built, staging / f"{name}.so")
-        manifest = {"size": built.stat().st_size, "sha256": _digest(built)}
-        (staging / MANIFEST).write_text(json.dumps(manifest))
-        try:
-            os.rename(staging, entry)
-        except OSError:
-            if not entry.is_dir():
-                raise
-    finally:
-        shutil.rmtree(staging, ignore_errors=True)
-    return entry / f"{name}.so"
 
 
 def _private_copy(built: Path) -> Path:
@@ -362,7 +300,7 @@ def compiled_library(name: str, functions: Functions,
             if built is None:
                 return None
             try:
-                installed = _install(built, entry, name)
+                installed = install(built, entry, f"{name}.so")
                 prune(keep=entry)  # the cache stays within its bound (compiled_cache)
                 return installed
             except OSError as error:
@@ -387,7 +325,7 @@ def _cached(entry: Path, name: str) -> Path | None:
     was damaged (removed, with a warning, to be rebuilt)."""
     if not entry.is_dir():
         return None
-    damage = _damage(entry, name)
+    damage = entry_damage(entry, f"{name}.so")
     if not damage:
         mark_used(entry)
         return entry / f"{name}.so"

@@ -32,6 +32,7 @@ axis turns with the steer angle.
 
 from __future__ import annotations
 
+import base64
 import importlib.resources
 import math
 import types
@@ -40,6 +41,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from cosim.core.built_on_disk import kept_on_disk
 from cosim.core.built_once import built_once
 from cosim.core.exceptions import ConfigError
 from cosim.core.records import WHEEL_NAMES
@@ -399,5 +401,19 @@ def sedan_xml_and_assets(config: PlantConfig, physics_dt_s: float,
 @built_once
 def _sedan_xml_and_assets(config: PlantConfig, physics_dt_s: float,
                           traffic: tuple[str, ...]) -> tuple[str, dict[str, bytes]]:
+    """Read from the cache folder when an earlier process wrote the same text (the same
+    arguments, code and dm_control: :mod:`cosim.core.built_on_disk`), so a new process
+    neither imports PyMJCF nor builds the tree."""
+    kept = kept_on_disk("sedan_mjcf", repr((config, physics_dt_s, traffic)),
+                        lambda: _mjcf_text(config, physics_dt_s, traffic),
+                        packages=("dm_control.mjcf",), folders=(models_dir(),))
+    return kept["xml"], {name: base64.b64decode(data) for name, data in kept["assets"].items()}
+
+
+def _mjcf_text(config: PlantConfig, physics_dt_s: float,
+               traffic: tuple[str, ...]) -> dict[str, object]:
+    """:func:`build_sedan`'s tree as MJCF text and its assets (base64), as JSON values."""
     root = build_sedan(config, physics_dt_s, traffic)
-    return root.to_xml_string(precision=12), root.get_assets()
+    return {"xml": root.to_xml_string(precision=12),
+            "assets": {name: base64.b64encode(data).decode("ascii")
+                       for name, data in root.get_assets().items()}}

@@ -14,8 +14,8 @@ import casadi as ca
 import numpy as np
 import pytest
 
+from cosim.core.compiled_cache import MANIFEST
 from cosim.core.compiled_function import (
-    MANIFEST,
     CompiledCacheWarning,
     CompiledFunction,
     compile_function,
@@ -176,9 +176,9 @@ def test_cosim_cache_shows_and_clears(cache: Path, capsys: pytest.CaptureFixture
     assert _load_quietly(_function("cache_shown")) is not None
     assert main(["cache"]) == 0
     out = capsys.readouterr().out
-    assert f"{cache}: 1 compiled libraries" in out and "cache_shown" in out
+    assert f"{cache}: 1 entries" in out and "cache_shown" in out
     assert main(["cache", "--clear"]) == 0
-    assert "removed 1 compiled libraries" in capsys.readouterr().out
+    assert "removed 1 entries" in capsys.readouterr().out
     assert not any(cache.iterdir())
 
 
