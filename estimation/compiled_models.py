@@ -6,7 +6,9 @@ serves every belief and is built once per machine."""
 from __future__ import annotations
 
 import warnings
+from typing import Any
 
+from cosim.core.built_on_disk import PROJECT_PACKAGES
 from cosim.core.compiled_function import CompiledCacheWarning, compiler, load_library
 from cosim.core.dense_function import DenseFunction
 
@@ -15,11 +17,14 @@ FILTER_FLAGS = ("-O1",)
 12 s at ``-O2``, and the filter runs as fast (a lane change's filter calls replayed)."""
 
 
-def use_compiled(kind: str, functions: tuple[DenseFunction, ...]) -> None:
+def use_compiled(kind: str, functions: tuple[DenseFunction, ...],
+                 recipe: str | None = None) -> None:
     """Evaluate ``functions`` as C: one library for all of them, compiled on first use
     (with a one-line note) and cached; with a one-line warning, CasADi's virtual machine
     when no C compiler works. Their numbers are inputs, so the library serves every
-    belief: it is built once per machine."""
+    belief: it is built once per machine. ``recipe``: what the functions are built from
+    (:func:`cosim.core.compiled_function.load_library`), so a new process finds the
+    library without serialising them."""
     if not functions:
         return
     fallback = (f"the {kind}'s models run in CasADi's virtual machine, about 2x slower "
@@ -27,7 +32,7 @@ def use_compiled(kind: str, functions: tuple[DenseFunction, ...]) -> None:
     library = load_library(f"cosim_{kind.lower()}",
                            [function.function for function in functions],
                            note=f"compiling the {kind}'s models to C (5-10 s)",
-                           fallback=fallback, flags=FILTER_FLAGS)
+                           fallback=fallback, flags=FILTER_FLAGS, recipe=recipe)
     if library is None:
         if compiler() is None:  # a failed build or load has said why
             warnings.warn(f"no working C compiler (gcc, or $CC): {fallback}",
@@ -35,3 +40,13 @@ def use_compiled(kind: str, functions: tuple[DenseFunction, ...]) -> None:
         return
     for function in functions:
         function.use_compiled(library)
+
+
+def recipe(cls: type, *arguments: Any) -> str | None:
+    """What a filter of class ``cls`` builds its models from (``arguments``: its
+    configuration and belief, more than the models depend on: equal recipes give equal
+    functions with the same code), for :func:`use_compiled`; None for a class outside the
+    project, whose code the cache's stamp does not cover (:mod:`cosim.core.built_on_disk`)."""
+    if cls.__module__.split(".")[0] not in PROJECT_PACKAGES:
+        return None
+    return "\n".join((f"{cls.__module__}.{cls.__qualname__}", *map(repr, arguments)))

@@ -38,7 +38,7 @@ from cosim.core.sensor_names import FUSED_SENSORS, GNSS
 from cosim.core.vehicle_params import VehicleParams
 from estimation.accel_commands import AccelCommands, DriveBelief
 from estimation.belief_models import bicycle_params, process_noise, told_process_noise
-from estimation.compiled_models import use_compiled
+from estimation.compiled_models import recipe, use_compiled
 from estimation.config import EstimatorConfig
 from estimation.consistency import chi_square_quantile
 from estimation.covariance_room import first_fix, room_for_jump, room_for_surprise
@@ -111,10 +111,8 @@ class KalmanFusion(ABC):
         rng: np.random.Generator | None = None,
     ) -> None:
         if not 0.0 < config.max_step_s <= MAX_STEP_S:
-            raise ConfigError(
-                f"estimator.max_step_s = {config.max_step_s!r}: expected a number in "
-                f"(0, {MAX_STEP_S:g}]"
-            )
+            raise ConfigError(f"estimator.max_step_s = {config.max_step_s!r}: expected a "
+                              f"number in (0, {MAX_STEP_S:g}]")
         self._config = config
         bicycle = bicycle_params(config, belief)
         self._untold_noise = process_noise(config)
@@ -138,7 +136,7 @@ class KalmanFusion(ABC):
             wheel_slip_per_force_ratio=config.wheel_slip_per_force_ratio,
         )
         if config.compiled:
-            use_compiled(self.kind, self._hot_functions())
+            use_compiled(self.kind, self._hot_functions(), recipe(type(self), config, belief))
         self._angle_indices = tuple(state_index(name) for name in ANGLE_STATES)
         self._noise_variances = config.noise.channel_variances()
         self._gate_thresholds: dict[int, float] = {}

@@ -87,13 +87,10 @@ def _wrapped(angle: ca.SX) -> ca.SX:
 
 def _symmetric_product(left: ca.SX, right: ca.SX) -> ca.SX:
     """``left @ right.T`` for a product known to be symmetric: the upper triangle
-    computed, the lower one its mirror (half the arithmetic; exactly symmetric)."""
-    n = left.shape[0]
-    entries = [[None] * n for _ in range(n)]
-    for i in range(n):
-        for j in range(i, n):
-            entries[i][j] = entries[j][i] = ca.dot(left[i, :], right[j, :])
-    return ca.blockcat(entries)
+    computed, the lower one its mirror (half the arithmetic: the lower triangle's products
+    reach no output and are left out of the function; exactly symmetric)."""
+    full = left @ right.T
+    return ca.triu(full) + ca.triu(full, False).T
 
 
 def _cholesky_pivots_positive(matrix: ca.SX) -> ca.SX:
@@ -101,19 +98,19 @@ def _cholesky_pivots_positive(matrix: ca.SX) -> ca.SX:
     pivot of its Cholesky factorisation ``A = L L'`` positive and finite (the test LAPACK's
     ``potrf`` makes, which ``numpy.linalg.cholesky`` raises on), in the order of the
     unblocked algorithm (Golub and Van Loan, "Matrix Computations", 4th ed. 2013, alg.
-    4.2.1): ``d_j = a_jj - sum_k<j l_jk^2``, ``l_jj = sqrt(d_j)``, ``l_ij = (a_ij - sum_k<j
-    l_ik l_jk) / l_jj``. A non-finite entry makes some pivot NaN or infinite; a comparison
-    with NaN is false."""
+    4.2.1), a column at a time: ``d_j = a_jj - sum_k<j l_jk^2``, ``l_jj = sqrt(d_j)``,
+    ``l_ij = (a_ij - sum_k<j l_ik l_jk) / l_jj``. A non-finite entry makes some pivot NaN or
+    infinite; a comparison with NaN is false."""
     n = matrix.shape[0]
-    lower: list[list[ca.SX]] = [[ca.SX(0.0)] * n for _ in range(n)]
+    lower = ca.SX(n, n)
     positive = ca.SX(1.0)
     for j in range(n):
-        pivot = matrix[j, j] - sum((lower[j][k] ** 2 for k in range(j)), ca.SX(0.0))
+        row = lower[j, :j]
+        pivot = matrix[j, j] - ca.sumsqr(row) if j else matrix[j, j]
         positive = positive * (pivot > 0.0) * (pivot < ca.inf)
-        root = ca.sqrt(pivot)
-        for i in range(j + 1, n):
-            lower[i][j] = (matrix[i, j] - sum((lower[i][k] * lower[j][k] for k in range(j)),
-                                              ca.SX(0.0))) / root
+        if j + 1 < n:
+            column = matrix[j + 1:, j] - lower[j + 1:, :j] @ row.T if j else matrix[j + 1:, j]
+            lower[j + 1:, j] = column / ca.sqrt(pivot)
     return positive
 
 

@@ -38,6 +38,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from cosim.core.built_on_disk import kept_on_disk
 from cosim.core.compiled_cache import (
     build_lock,
     cache_dir,
@@ -221,11 +222,12 @@ Functions = Sequence[ca.Function] | Callable[[], Sequence[ca.Function]]
 
 def compiled_library(name: str, functions: Functions,
                      flags: Sequence[str] = COMPILER_FLAGS,
-                     note: str | None = None, key: str | None = None,
+                     note: str | None = None, key: str | Callable[[], str] | None = None,
                      extra_sources: Sequence[Path] = (),
                      link_flags: Sequence[str] = (),
                      edit_source: Callable[[str], str] | None = None,
-                     fallback: str = "", relocatable: Sequence[Path] = ()) -> Path | None:
+                     fallback: str = "", relocatable: Sequence[Path] = (),
+                     recipe: str | None = None) -> Path | None:
     """The shared library holding ``functions`` (each under its own name), compiled with
     ``flags`` or found in the cache; None when no C compiler is available or compiling
     fails. ``name`` names the file (a C identifier). ``note``, if given, is printed as one
@@ -242,7 +244,12 @@ def compiled_library(name: str, functions: Functions,
     functions more cheaply passes ``key`` (a string that determines them, e.g. a
     serialised CasADi function they are all derived from) and ``functions`` as a callable
     producing them: the entry is then keyed by ``key``, the flags and CasADi's version, and
-    the functions are generated only when the entry must be built.
+    the functions are generated only when the entry must be built. ``key`` may be a callable
+    making the string, and ``recipe`` what the functions are built from (the ``repr`` of the
+    builders' arguments, in the project's own code): the entry's hash is then kept on disk
+    for the recipe (:func:`cosim.core.built_on_disk.kept_on_disk`), so a new process with the
+    same recipe and code finds the entry without making the key (serialising the EKF's
+    functions and hashing their 8 MB took 70 ms of every process's set-up).
 
     ``extra_sources`` (C files of one's own, e.g. calling the generated functions) are
     compiled into the same library and ``link_flags`` passed last; both are part of the
@@ -270,7 +277,7 @@ def compiled_library(name: str, functions: Functions,
                               f"processor: {host_processor()}"), relocatable)
     entry = None
     if key is not None:  # found without generating anything, nor a temporary folder
-        digest = _keyed_digest(key, own, hashed_flags)
+        digest = _entry_digest(name, key, own, hashed_flags, recipe)
         entry = cache_dir() / f"{name}-{digest[:16]}"
         found = _cached(entry, name)
         if found is not None:
@@ -353,6 +360,21 @@ def _source_digest(content: bytes, flags: Sequence[str]) -> str:
     return hashlib.sha256(content + " ".join(flags).encode()).hexdigest()
 
 
+def _entry_digest(name: str, key: str | Callable[[], str], own: bytes,
+                  flags: tuple[str, ...], recipe: str | None) -> str:
+    """:func:`_keyed_digest` of ``key`` (made by calling it, if a callable), or, with a
+    ``recipe``, the one an earlier process found for the same recipe, flags, own sources,
+    CasADi and code (:mod:`cosim.core.built_on_disk`)."""
+    def made() -> str:
+        return _keyed_digest(key() if callable(key) else key, own, flags)
+
+    if recipe is None:
+        return made()
+    arguments = (f"{recipe}\ncasadi {ca.__version__}\n{flags!r}\n"
+                 f"{hashlib.sha256(own).hexdigest()}")
+    return str(kept_on_disk(f"{name}_key", arguments, made))
+
+
 @functools.lru_cache(maxsize=8)
 def _keyed_digest(key: str, own: bytes, flags: tuple[str, ...]) -> str:
     """:func:`_source_digest` of a ``key`` (with CasADi's version and the caller's own
@@ -385,16 +407,18 @@ def serialized(function: ca.Function) -> str:
 
 def load_library(name: str, functions: Sequence[ca.Function],
                  note: str | None = None, fallback: str = "",
-                 flags: Sequence[str] = COMPILER_FLAGS) -> ctypes.CDLL | None:
+                 flags: Sequence[str] = COMPILER_FLAGS,
+                 recipe: str | None = None) -> ctypes.CDLL | None:
     """The shared library ``name`` holding ``functions``, compiled (with ``note``, see
     :func:`compiled_library`) or from the cache, and loaded; None when no C compiler is
     available, compiling fails or the library cannot be loaded (with a warning).
 
-    The cache entry is found by a hash of the serialised functions (about a millisecond),
-    so their C is generated only to build it."""
-    key = _functions_key(tuple(functions))
-    library = compiled_library(name, functions, flags=flags, note=note, key=key,
-                               fallback=fallback)
+    The cache entry is found by a hash of the serialised functions, so their C is
+    generated only to build it; with a ``recipe`` (what the functions are built from, see
+    :func:`compiled_library`) a new process need not serialise them."""
+    library = compiled_library(name, functions, flags=flags, note=note,
+                               key=lambda: _functions_key(tuple(functions)),
+                               fallback=fallback, recipe=recipe)
     if library is None:
         return None
     try:

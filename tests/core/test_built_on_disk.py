@@ -112,3 +112,41 @@ if sys.argv[1] == "check":
     assert outputs[0][1] == "True"  # built with PyMJCF and written
     assert outputs[1][1] == "False"  # read back: PyMJCF not imported
     assert outputs[0][0] == outputs[1][0] == outputs[2][0]
+
+
+def test_a_recipe_finds_the_library_in_a_new_process_without_serialising(
+        cache: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``load_library(..., recipe=...)``: the first process serialises the functions for
+    the key and keeps the entry's hash for the recipe; the next one (the process's own
+    caches emptied) loads the same library without serialising; another recipe does."""
+    import casadi as ca
+
+    import cosim.core.compiled_function as compiled
+
+    x = ca.SX.sym("x", 2)
+    function = ca.Function("recipe_probe", [x], [x[0] * x[1] + 3.0])
+    calls: list[str] = []
+    real = compiled.serialized.__wrapped__
+
+    def counted(f: ca.Function) -> str:
+        calls.append(f.name())
+        return real(f)
+
+    def new_process() -> None:
+        for cached in (compiled._functions_key, compiled._keyed_digest):
+            cached.cache_clear()
+        code_stamp.cache_clear()
+
+    monkeypatch.setattr(compiled, "serialized", counted)
+    assert compiled.load_library("recipe_probe", [function], recipe="probe(1)") is not None
+    assert calls == ["recipe_probe"]
+    library = next(e.path for e in entries(cache) if e.name == "recipe_probe")
+    new_process()
+    loaded = compiled.load_library("recipe_probe", [function], recipe="probe(1)")
+    assert loaded is not None and loaded._name == str(library / "recipe_probe.so")
+    assert calls == ["recipe_probe"]
+    new_process()
+    assert compiled.load_library("recipe_probe", [function], recipe="probe(2)") is not None
+    assert calls == ["recipe_probe", "recipe_probe"]
+    assert sorted(e.name for e in entries(cache)) == ["recipe_probe", "recipe_probe_key",
+                                                      "recipe_probe_key"]
