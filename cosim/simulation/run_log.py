@@ -64,16 +64,28 @@ def versions() -> dict[str, str]:
 
 @functools.cache
 def _installed_versions() -> dict[str, str]:
-    """The versions, read once per process: ``importlib.metadata`` parses each package's
-    metadata file (some 12 ms for the seven, a sixth of a short logged run), and what is
-    imported does not change while the process runs."""
+    """The versions, read once per process (what is imported does not change while the
+    process runs)."""
     found = {"cosim": __version__}
     for package in ("mujoco", "dm-control", "casadi", "filterpy", "numpy", "scipy", "mcap"):
         try:
-            found[package] = importlib.metadata.version(package)
+            found[package] = _version(package)
         except importlib.metadata.PackageNotFoundError:
             found[package] = "unknown"
     return found
+
+
+def _version(package: str) -> str:
+    """``importlib.metadata.version(package)``, read from the ``Version`` header of the
+    package's metadata without the e-mail parser that function runs over the whole file
+    (2.7 ms for the seven packages instead of 7.5 in a fresh process)."""
+    distribution = importlib.metadata.distribution(package)
+    for line in (distribution.read_text("METADATA") or "").splitlines():
+        if not line:  # the headers end at the first empty line
+            break
+        if line.startswith("Version:"):
+            return line[len("Version:"):].strip()
+    return distribution.version
 
 
 class RunLog(Observer):

@@ -169,3 +169,17 @@ def test_every_message_matches_its_channel_schema(short_run: RunResult) -> None:
             jsonschema.validate(json.loads(message.data), json.loads(schema.data))
             checked[channel.topic] = checked.get(channel.topic, 0) + 1
     assert DESIGN_TOPICS <= set(checked)
+
+
+def test_the_logged_versions_are_the_installed_ones() -> None:
+    """The log's versions are read from each package's metadata header: the same strings
+    importlib.metadata gives (a release candidate's, a local build's suffix included)."""
+    import importlib.metadata
+
+    from cosim.simulation.run_log import versions
+
+    found = versions()
+    assert found["cosim"] and len(found) == 8
+    for package, version in found.items():
+        if package != "cosim":
+            assert version == importlib.metadata.version(package), package
