@@ -9,42 +9,32 @@ installed plug-in: :mod:`tracker.plugins.loading`), or a co-simulation FMU, ``fm
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import importlib
 from types import MappingProxyType
 
 from cosim.core.exceptions import ConfigError
-from tracker.baselines.lqr import make_lqr
-from tracker.baselines.pid import make_pid
-from tracker.baselines.pure_pursuit import make_pure_pursuit
-from tracker.baselines.stanley import make_stanley
 from tracker.config import TrackerConfig, is_plugin_name
-from tracker.cruise.law import AccTracker
 from tracker.fmu import make_fmu_tracker
 from tracker.fmu.config import is_fmu_name
 from tracker.manoeuvre import ManoeuvreConfig
-from tracker.mpc.dynamic_mpc import DynamicMpc
-from tracker.mpc.dynamic_nmpc import DynamicNmpc
-from tracker.mpc.kinematic_nmpc import KinematicNmpc
-from tracker.mpc.ltv_mpc import LtvMpc
-from tracker.open_loop import OpenLoopTracker
 from tracker.plugins.loading import make_plugin_tracker
 from tracker.protocol import Tracker
 
-_CONSTRUCTORS: MappingProxyType[
-    str, Callable[[TrackerConfig, ManoeuvreConfig], Tracker]
-] = MappingProxyType(
-    {
-        "kinematic-nmpc": lambda config, manoeuvre: KinematicNmpc(config),
-        "dynamic-nmpc": lambda config, manoeuvre: DynamicNmpc(config),
-        "dynamic-mpc": lambda config, manoeuvre: DynamicMpc(config),
-        "ltv-mpc": lambda config, manoeuvre: LtvMpc(config),
-        "open-loop": OpenLoopTracker,
-        "pid": lambda config, manoeuvre: make_pid(config),
-        "stanley": lambda config, manoeuvre: make_stanley(config),
-        "pure-pursuit": lambda config, manoeuvre: make_pure_pursuit(config),
-        "lqr": lambda config, manoeuvre: make_lqr(config),
-    }
-)
+_CONSTRUCTORS: MappingProxyType[str, str] = MappingProxyType({
+    "kinematic-nmpc": "tracker.mpc.kinematic_nmpc:KinematicNmpc",
+    "dynamic-nmpc": "tracker.mpc.dynamic_nmpc:DynamicNmpc",
+    "dynamic-mpc": "tracker.mpc.dynamic_mpc:DynamicMpc",
+    "ltv-mpc": "tracker.mpc.ltv_mpc:LtvMpc",
+    "open-loop": "tracker.open_loop:OpenLoopTracker",
+    "pid": "tracker.baselines.pid:make_pid",
+    "stanley": "tracker.baselines.stanley:make_stanley",
+    "pure-pursuit": "tracker.baselines.pure_pursuit:make_pure_pursuit",
+    "lqr": "tracker.baselines.lqr:make_lqr",
+})
+"""Each built-in tracker's constructor, ``module:name``, imported when a run asks for it:
+a process imports the code of the trackers it runs, not of all nine (with the ACC's, some
+20 ms of every ``cosim run``'s start). Each takes the configuration; ``open-loop`` also the
+manoeuvre it replays."""
 
 TRACKER_NAMES: tuple[str, ...] = tuple(_CONSTRUCTORS)
 """Every tracker name :func:`make_tracker` knows (the choices of ``tracker.name``)."""
@@ -64,6 +54,8 @@ def make_tracker(config: TrackerConfig, manoeuvre: ManoeuvreConfig | None = None
     else:
         tracker = _make_path_tracker(config, manoeuvre)
     if config.acc.enabled:
+        from tracker.cruise.law import AccTracker
+
         return AccTracker(tracker, config.acc, config.dt_s)
     return tracker
 
@@ -76,4 +68,8 @@ def _make_path_tracker(config: TrackerConfig, manoeuvre: ManoeuvreConfig | None)
         raise ConfigError(
             f"tracker.name = {config.name!r}: expected one of {', '.join(TRACKER_NAMES)}"
         )
-    return constructor(config, manoeuvre if manoeuvre is not None else ManoeuvreConfig())
+    module, _, name = constructor.partition(":")
+    build = getattr(importlib.import_module(module), name)
+    if config.name == "open-loop":
+        return build(config, manoeuvre if manoeuvre is not None else ManoeuvreConfig())
+    return build(config)

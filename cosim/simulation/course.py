@@ -38,7 +38,6 @@ from tracker.config import TrackerConfig
 from tracker.paths import iso3888, shapes
 from tracker.paths.centre_line import smooth_centre_line
 from tracker.paths.double_lane_change import double_lane_change
-from tracker.paths.generated_circuit import generated_circuit
 from tracker.paths.reference_path import ReferencePath
 from tracker.paths.speed_profile import (
     ConstantSpeed,
@@ -191,10 +190,12 @@ def build_course(path: PathConfig, initial: InitialState, plant: CarParams,
         cones = shapes.slalom_cones(path.spacing_m, path.cones, path.approach_m)
     elif path.kind == "s-curve":
         shape = shapes.s_curve(path.radius_m, path.arc_deg, path.approach_m, path.length_m)
-    elif path.kind in ("track", "generated"):
-        track = (load_track(resolve_track_file(path.file), path.closed) if path.kind == "track"
-                 else generated_circuit(path.seed))
-        shape, bounds = _circuit(track, path)
+    elif path.kind == "track":
+        shape, bounds = _circuit(load_track(resolve_track_file(path.file), path.closed), path)
+    elif path.kind == "generated":
+        from tracker.paths.generated_circuit import generated_circuit  # its runs alone
+
+        shape, bounds = _circuit(generated_circuit(path.seed), path)
     else:  # validated by choices
         raise AssertionError(f"unhandled path kind {path.kind!r}")
     reference = ReferencePath(shape.x_m, shape.y_m, _profile(path, shape, duration_s, limits),

@@ -26,7 +26,7 @@ from types import MappingProxyType
 
 from cosim.core.sensor_names import FUSED_SENSORS
 from cosim.simulation.outcome import OUTCOMES, SEVERITY
-from tracker.cruise.law import GAIN_NAMES
+from tracker.cruise.config import GAIN_NAMES
 
 EVERY_RUN = "every run"
 OPEN_LOOP = "open-loop manoeuvres (`steady-circle`, `step-steer`, `ramp-steer`)"

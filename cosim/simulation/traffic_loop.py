@@ -59,7 +59,7 @@ from cosim.plant.traffic import Traffic, traffic_cars
 from cosim.sensing.range_sensor import RangeSensor
 from cosim.simulation.running_stats import RunningStats
 from cosim.simulation.scenario_config import ScenarioConfig, steps_per_period
-from tracker.cruise.law import GAIN_NAMES, AccTracker
+from tracker.cruise.config import GAIN_NAMES
 from tracker.protocol import RangeObserver
 
 SET_SPEED_TOLERANCE_MPS = 0.5
@@ -134,6 +134,8 @@ class TrafficLoop:
         self.plant = plant
         self.traffic = traffic
         self.recorder = recorder
+        from tracker.cruise.law import AccTracker  # only runs with traffic need the ACC's code
+
         self.acc = tracker if isinstance(tracker, AccTracker) else None
         self.deliver = tracker.observe_range if isinstance(tracker, RangeObserver) else None
         radar = config.sensors.radar

@@ -34,6 +34,9 @@ from dataclasses import dataclass
 from cosim.core.config_fields import section, setting
 from cosim.core.exceptions import ConfigError
 
+GAIN_NAMES = ("k_v", "k_x", "k_vrel")
+"""The tuned gains, in the ESC's parameter order."""
+
 
 @dataclass(frozen=True)
 class EscGainConfig:

@@ -40,13 +40,10 @@ from dataclasses import dataclass
 
 from cosim.core.records import Command, Estimate, Plan
 from cosim.core.traffic_records import RangeReading
-from tracker.cruise.config import AccConfig, EscGainConfig
+from tracker.cruise.config import GAIN_NAMES, AccConfig, EscGainConfig
 from tracker.cruise.esc import EscAdaptation, EscChannel, EscFilters, ExtremumSeeker, warn_breaches
 from tracker.paths.reference_path import ReferencePath
 from tracker.protocol import Closable, Resettable, Tracker
-
-GAIN_NAMES = ("k_v", "k_x", "k_vrel")
-"""The tuned gains, in the ESC's parameter order."""
 
 
 @dataclass(frozen=True)
