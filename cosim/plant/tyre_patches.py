@@ -26,6 +26,7 @@ there; otherwise the plant keeps the plain reference.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import types
 from collections.abc import Sequence
 from typing import Any
@@ -209,6 +210,33 @@ def _wheel(params: Any, friction: ca.SX, dt_s: float, subtree_com: list[ca.SX],
             when_on(new_state))
 
 
+@functools.lru_cache(maxsize=4)
+def _wheel_function(dt_s: float) -> ca.Function:
+    """:func:`_wheel` as a CasADi function of one wheel's tyre numbers, the road's friction,
+    the subtree's centre of mass, the wheel body's ``cvel``, ``xpos``, ``xipos`` and
+    ``xmat``, its contact (:data:`CONTACT_FIELDS`) and carcass state: the equations are
+    written in Python once, and each wheel's call expands into the same operations
+    (some 13 ms of a process's set-up)."""
+    numbers = ca.SX.sym("tyre", len(TYRE_NUMBERS))
+    friction = ca.SX.sym("friction")
+    subtree_com = ca.SX.sym("subtree_com", 3)
+    body = {name: ca.SX.sym(name, width)
+            for name, width in (("cvel", 6), ("xpos", 3), ("xipos", 3), ("xmat", 9))}
+    contact = ca.SX.sym("contact", CONTACT_SIZE)
+    state = ca.SX.sym("patch_state", PATCH_STATE_SIZE)
+    fields, offset = {}, 0
+    for name, size in CONTACT_FIELDS:
+        fields[name] = [contact[offset + j] for j in range(size)]
+        offset += size
+    wrench, force, new_state = _wheel(
+        _symbolic_tyre(numbers), friction, dt_s, [subtree_com[i] for i in range(3)],
+        {name: [value[i] for i in range(value.numel())] for name, value in body.items()},
+        fields, [state[i] for i in range(PATCH_STATE_SIZE)])
+    return ca.Function("cosim_tyre_wheel",
+                       [numbers, friction, subtree_com, *body.values(), contact, state],
+                       [ca.vertcat(*wrench), ca.vertcat(*force), ca.vertcat(*new_state)])
+
+
 def tyre_patches_function(dt_s: float, wheel_bodies: Sequence[int], root_body: int,
                           n_bodies: int) -> ca.Function:
     """:func:`_tyre_patches_function`, built once per process for the same structure."""
@@ -237,21 +265,19 @@ def _tyre_patches_function(dt_s: float, wheel_bodies: tuple[int, ...], root_body
         width = widths[name]
         return [arrays[name][body_id * width + j] for j in range(width)]
 
+    wheel_function = _wheel_function(dt_s)
     wrenches, forces, new_states = [], [], []
     for wheel, body_id in enumerate(wheel_bodies):
         first = 1 + wheel * len(TYRE_NUMBERS)
-        wheel_params = _symbolic_tyre(road_tyres[first:first + len(TYRE_NUMBERS)])
-        body = {name: row(name, body_id) for name in ("cvel", "xpos", "xipos", "xmat")}
-        offset, contact = wheel * CONTACT_SIZE, {}
-        for name, size in CONTACT_FIELDS:
-            contact[name] = [contacts[offset + j] for j in range(size)]
-            offset += size
-        state = [states[wheel * PATCH_STATE_SIZE + j] for j in range(PATCH_STATE_SIZE)]
-        wrench, force, new_state = _wheel(wheel_params, friction, dt_s,
-                                          row("subtree_com", root_body), body, contact, state)
-        wrenches += wrench
-        forces += force
-        new_states += new_state
+        body = [ca.vertcat(*row(name, body_id)) for name in ("cvel", "xpos", "xipos", "xmat")]
+        wrench, force, new_state = wheel_function(
+            road_tyres[first:first + len(TYRE_NUMBERS)], friction,
+            ca.vertcat(*row("subtree_com", root_body)), *body,
+            contacts[wheel * CONTACT_SIZE:(wheel + 1) * CONTACT_SIZE],
+            states[wheel * PATCH_STATE_SIZE:(wheel + 1) * PATCH_STATE_SIZE])
+        wrenches.append(wrench)
+        forces.append(force)
+        new_states.append(new_state)
     return ca.Function(
         "cosim_tyre_patches",
         [*arrays.values(), contacts, states, road_tyres],

@@ -51,6 +51,7 @@ chosen by :func:`rk4_substeps` from the lateral eigenvalues so that ``h |lambda|
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from types import MappingProxyType
@@ -240,6 +241,26 @@ def _vehicle_part(state: Symbolic) -> Symbolic:
     return ca.vertcat(*(state[STATE[name]] for name in VEHICLE_STATE_NAMES))
 
 
+@functools.lru_cache(maxsize=8)
+def _dynamics_function(parameter_count: int, low_speed_mps: float,
+                       high_speed_mps: float) -> ca.Function:
+    """:func:`vehicle_dynamics` as a CasADi function of the vehicle state, the inputs and
+    the numbers that may be symbols (the bicycle's vector, the wheelbase, the CoG to rear
+    axle), for the low-speed blend's speeds (the model's design, constants): an RK4 step
+    calls it at each of its stages, which CasADi expands into the same operations as
+    writing the equations out there, and the equations are written in Python once instead
+    of at each of the 24 stages of a model's functions (some 25 ms of a process's set-up)."""
+    vehicle_state = ca.SX.sym("vehicle_state", len(VEHICLE_STATE_NAMES))
+    accel, steer = ca.SX.sym("accel_mps2"), ca.SX.sym("steer_rad")
+    vector = ca.SX.sym("bicycle", parameter_count)
+    wheelbase, cog_rear = ca.SX.sym("wheelbase_m"), ca.SX.sym("cog_rear_m")
+    numbers = ModelNumbers(vector, wheelbase, cog_rear, 0.0, False, low_speed_mps,
+                           high_speed_mps)
+    return ca.Function("vehicle_dynamics",
+                       [vehicle_state, accel, steer, vector, wheelbase, cog_rear],
+                       [vehicle_dynamics(vehicle_state, accel, steer, numbers)])
+
+
 def _advance(state: Symbolic, inputs: Symbolic, duration_s: Symbolic | float, substeps: int,
              numbers: ModelNumbers) -> Symbolic:
     """``substeps`` RK4 steps over ``duration_s`` with the inputs held; the actuator by (A2)."""
@@ -249,9 +270,13 @@ def _advance(state: Symbolic, inputs: Symbolic, duration_s: Symbolic | float, su
     tau, lagged = numbers.steer_time_constant_s, numbers.lagged
     h = duration_s / substeps
 
+    dynamics = _dynamics_function(numbers.bicycle_vector.shape[0], numbers.low_speed_mps,
+                                  numbers.high_speed_mps)
+    fixed = (numbers.bicycle_vector, numbers.wheelbase_m, numbers.cog_rear_m)
+
     def f(vehicle_state: Symbolic, t_s: Symbolic | float) -> Symbolic:
         steer = road_wheel_angle(angle0, command, t_s, tau, lagged)
-        return vehicle_dynamics(vehicle_state, accel, steer, numbers)
+        return dynamics(vehicle_state, accel, steer, *fixed)
 
     vehicle = _vehicle_part(state)
     for i in range(substeps):
