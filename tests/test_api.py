@@ -150,13 +150,20 @@ def test_the_package_exposes_the_api_lazily() -> None:
 
 def test_a_default_run_imports_nothing_heavy_for_one_function(tmp_path: Path) -> None:
     # scipy (a fifth of a second of every start), its statistics, the plots and filterpy
-    # (scipy.stats through it) have no place in a default run.
+    # (scipy.stats through it) have no place in a default run; nor the other trackers'
+    # code, the ACC's or the generated circuits' (tracker.registry imports a tracker's
+    # module when a run asks for it).
+    others = ("tracker.cruise.law", "tracker.cruise.esc", "tracker.mpc.ltv_mpc",
+              "tracker.mpc.dynamic_mpc", "tracker.mpc.kinematic_nmpc", "tracker.open_loop",
+              "tracker.baselines.lqr", "tracker.baselines.pid", "tracker.baselines.stanley",
+              "tracker.baselines.pure_pursuit", "tracker.paths.generated_circuit")
     probe = ("import sys, cosim; cosim.run(cosim.load_config('lane-change', duration_s=0.2), "
              f"{str(tmp_path / 'run.mcap')!r}); heavy = ('scipy', 'matplotlib', 'filterpy'); "
-             "print(sorted(m for m in sys.modules if m.split('.')[0] in heavy))")
+             "print(sorted(m for m in sys.modules if m.split('.')[0] in heavy)); "
+             f"print(sorted(m for m in sys.modules if m in {others!r}))")
     done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
                           check=True, env={**os.environ, "MUJOCO_GL": "disable"})
-    assert done.stdout.strip().splitlines()[-1] == "[]"
+    assert done.stdout.strip().splitlines()[-2:] == ["[]", "[]"]
 
 
 def ten_line_tracker() -> str:
