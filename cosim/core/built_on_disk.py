@@ -43,17 +43,20 @@ STAMPED_SUFFIXES = (".py", ".c", ".h", ".xml", ".yaml", ".json")
 
 
 def kept_on_disk(name: str, arguments: str, build: Callable[[], Any],
-                 packages: tuple[str, ...] = (), folders: tuple[Path, ...] = ()) -> Any:
+                 packages: tuple[str, ...] = (), folders: tuple[Path, ...] = (),
+                 valid: Callable[[Any], bool] = lambda value: True) -> Any:
     """``build()``'s result (a JSON value) for ``arguments`` (the ``repr`` of everything
     the builder reads besides the code), read from the cache entry ``name-HASH`` when an
     earlier process wrote it, else built and written there. ``packages`` names the
     third-party packages (import names) whose files the result depends on besides the
-    project's own; ``folders`` further folders of data files it reads (the models)."""
+    project's own; ``folders`` further folders of data files it reads (the models).
+    ``valid`` says whether a value read back has the builder's form: one that has not (an
+    entry written by hand, manifest and all) is built again, as a damaged one is."""
     stamp = code_stamp(tuple(packages), tuple(str(folder) for folder in folders))
     digest = hashlib.sha256(f"{name}\n{stamp}\n{arguments}".encode()).hexdigest()
     entry = cache_dir() / f"{name}-{digest[:32]}"
     filename = f"{name}.json"
-    kept = _read(entry, filename)
+    kept = _read(entry, filename, valid)
     if kept is not None:
         return kept[0]
     value = build()
@@ -61,7 +64,7 @@ def kept_on_disk(name: str, arguments: str, build: Callable[[], Any],
     return value
 
 
-def _read(entry: Path, filename: str) -> tuple[Any] | None:
+def _read(entry: Path, filename: str, valid: Callable[[Any], bool]) -> tuple[Any] | None:
     """The value of an intact entry, as a 1-tuple (the value may be None); None when there
     is no entry or it is damaged (then removed, for the next write)."""
     if not entry.is_dir():
@@ -72,8 +75,9 @@ def _read(entry: Path, filename: str) -> tuple[Any] | None:
         except (OSError, ValueError, RecursionError):
             pass
         else:
-            mark_used(entry)
-            return (value,)
+            if valid(value):
+                mark_used(entry)
+                return (value,)
     remove(entry)
     return None
 

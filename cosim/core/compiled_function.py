@@ -372,7 +372,13 @@ def _entry_digest(name: str, key: str | Callable[[], str], own: bytes,
         return made()
     arguments = (f"{recipe}\ncasadi {ca.__version__}\n{flags!r}\n"
                  f"{hashlib.sha256(own).hexdigest()}")
-    return str(kept_on_disk(f"{name}_key", arguments, made))
+    return str(kept_on_disk(f"{name}_key", arguments, made, valid=_is_digest))
+
+
+def _is_digest(value: object) -> bool:
+    """Whether ``value`` is a SHA-256 in hex, as :func:`_keyed_digest` gives."""
+    return (isinstance(value, str) and len(value) == 64
+            and all(c in "0123456789abcdef" for c in value))
 
 
 @functools.lru_cache(maxsize=8)

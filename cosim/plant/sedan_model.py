@@ -406,8 +406,22 @@ def _sedan_xml_and_assets(config: PlantConfig, physics_dt_s: float,
     neither imports PyMJCF nor builds the tree."""
     kept = kept_on_disk("sedan_mjcf", repr((config, physics_dt_s, traffic)),
                         lambda: _mjcf_text(config, physics_dt_s, traffic),
-                        packages=("dm_control.mjcf",), folders=(models_dir(),))
+                        packages=("dm_control.mjcf",), folders=(models_dir(),),
+                        valid=_is_mjcf_text)
     return kept["xml"], {name: base64.b64decode(data) for name, data in kept["assets"].items()}
+
+
+def _is_mjcf_text(value: object) -> bool:
+    """Whether ``value`` has :func:`_mjcf_text`'s form (text, and assets in base64)."""
+    if not (isinstance(value, dict) and isinstance(value.get("xml"), str)
+            and isinstance(value.get("assets"), dict)):
+        return False
+    try:
+        for data in value["assets"].values():
+            base64.b64decode(data, validate=True)
+    except (TypeError, ValueError):  # binascii.Error is a ValueError
+        return False
+    return True
 
 
 def _mjcf_text(config: PlantConfig, physics_dt_s: float,

@@ -150,3 +150,24 @@ def test_a_recipe_finds_the_library_in_a_new_process_without_serialising(
     assert calls == ["recipe_probe", "recipe_probe"]
     assert sorted(e.name for e in entries(cache)) == ["recipe_probe", "recipe_probe_key",
                                                       "recipe_probe_key"]
+
+
+def test_an_entry_of_another_form_is_built_again(cache: Path, data: Path) -> None:
+    """An entry written by hand with a manifest that fits it, but not of the builder's form
+    (``valid``), is built again rather than handed to the caller."""
+    from cosim.core.compiled_cache import file_digest
+
+    def valid(value: object) -> bool:
+        return isinstance(value, dict) and isinstance(value.get("xml"), str)
+
+    kept_on_disk("thing", "args(1)", Builder({"xml": "<mujoco/>"}), folders=(data,),
+                 valid=valid)
+    (entry,) = cache.iterdir()
+    (entry / "thing.json").write_text('{"xml": 3}')
+    (entry / "manifest.json").write_text(json.dumps({
+        "size": (entry / "thing.json").stat().st_size,
+        "sha256": file_digest(entry / "thing.json")}))
+    rebuilt = Builder({"xml": "<mujoco/>"})
+    assert kept_on_disk("thing", "args(1)", rebuilt, folders=(data,),
+                        valid=valid) == {"xml": "<mujoco/>"}
+    assert rebuilt.calls == 1
