@@ -7,6 +7,7 @@ import math
 from pathlib import Path
 
 import jsonschema
+import numpy as np
 import pytest
 from mcap.reader import make_reader
 
@@ -183,3 +184,20 @@ def test_the_logged_versions_are_the_installed_ones() -> None:
     for package, version in found.items():
         if package != "cosim":
             assert version == importlib.metadata.version(package), package
+
+
+def test_the_solve_time_percentiles_are_numpys_to_the_bit() -> None:
+    """The metrics' percentiles (written out, without numpy's machinery) give
+    ``np.percentile``'s default (linear) values exactly, ties, one value, infinities and NaN
+    included."""
+    from cosim.simulation.metrics import percentiles
+
+    rng = np.random.default_rng(11)
+    cases = [rng.random(n) * 10.0 ** rng.integers(-3, 4) for n in (1, 2, 3, 7, 100, 301)]
+    cases += [np.round(rng.random(50), 1), np.array([1.0, np.inf, 2.0]),
+              np.array([3.0, np.nan, 1.0]), np.full(9, 0.25)]
+    percents = (0.0, 1.0, 37.5, 50.0, 99.0, 100.0)
+    for values in cases:
+        with np.errstate(invalid="ignore"):  # numpy's own lerp over an infinity
+            expected = np.percentile(values, percents)
+        assert np.array_equal(percentiles(values, percents), expected, equal_nan=True), values
