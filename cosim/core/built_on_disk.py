@@ -6,7 +6,8 @@ MJCF text, for one, which dm_control's PyMJCF writes in some 70 ms a process (it
 included) for a text MuJoCo then compiles in a few. :func:`kept_on_disk` writes such a
 result (JSON) once into the cache folder, beside the compiled libraries
 (:mod:`cosim.core.compiled_cache`: an entry ``NAME-HASH`` holding the data and its
-manifest, within the same bound, shown and cleared by ``cosim cache``), named by a hash of
+manifest, within the same bound, shown and cleared by ``cosim cache``; at most
+:data:`KEPT_PER_NAME` of a name, those used last), named by a hash of
 
 * the builder's arguments, as their ``repr`` (frozen dataclasses of numbers and strings:
   a float's ``repr`` is exact, so equal arguments and only those give equal text);
@@ -33,10 +34,21 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from cosim.core.compiled_cache import cache_dir, entry_damage, install, mark_used, prune, remove
+from cosim.core.compiled_cache import (
+    MANIFEST,
+    cache_dir,
+    entry_damage,
+    install,
+    mark_used,
+    remove,
+)
 
 PROJECT_PACKAGES = ("cosim", "estimation", "tracker")
 """The project's packages, whose files are part of every key (:func:`code_stamp`)."""
+
+KEPT_PER_NAME = 256
+"""Entries kept per name (the sedan's texts of as many cars, steps and code versions): a
+new one replaces the one used least recently; the cache's byte bound holds as well."""
 
 STAMPED_SUFFIXES = (".py", ".c", ".h", ".xml", ".yaml", ".json")
 """The files of a package whose path, size and modification time the stamp holds."""
@@ -84,13 +96,32 @@ def _read(entry: Path, filename: str, valid: Callable[[Any], bool]) -> tuple[Any
 
 def _write(entry: Path, filename: str, value: Any) -> None:
     """Install ``value`` as the entry (atomically; nothing when the cache cannot be
-    written: the next process builds it again)."""
+    written: the next process builds it again), and keep the :data:`KEPT_PER_NAME` entries
+    of its name used last."""
     with contextlib.suppress(OSError), tempfile.TemporaryDirectory(
             prefix="cosim-kept-") as folder:
         built = Path(folder) / filename
         built.write_text(json.dumps(value), encoding="utf-8")
         install(built, entry, filename)
-        prune(keep=entry)
+        _prune_name(entry)
+
+
+def _prune_name(entry: Path, limit: int | None = None) -> None:
+    """Remove the entries of ``entry``'s name used least recently beyond ``limit``
+    (:data:`KEPT_PER_NAME`), never ``entry`` itself. Only that name's entries are looked
+    at: the whole cache's bound (:func:`cosim.core.compiled_cache.prune`, which stats every
+    entry, some 20 us each) is kept by the library builds, and run at every write of these
+    small entries it cost 33 ms a write once the folder held 1,400 entries."""
+    limit = KEPT_PER_NAME if limit is None else limit
+    name = entry.name.rsplit("-", 1)[0]
+    used = []
+    for other in entry.parent.glob(f"{name}-*"):
+        if other != entry and other.name.rsplit("-", 1)[0] == name:
+            with contextlib.suppress(OSError):
+                used.append(((other / MANIFEST).stat().st_mtime, other.name, other))
+    used.sort()
+    for _, _, other in used[:max(len(used) - (limit - 1), 0)]:
+        remove(other)
 
 
 @functools.lru_cache(maxsize=8)

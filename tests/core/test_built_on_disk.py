@@ -171,3 +171,24 @@ def test_an_entry_of_another_form_is_built_again(cache: Path, data: Path) -> Non
     assert kept_on_disk("thing", "args(1)", rebuilt, folders=(data,),
                         valid=valid) == {"xml": "<mujoco/>"}
     assert rebuilt.calls == 1
+
+
+def test_a_name_keeps_the_entries_used_last(cache: Path, data: Path,
+                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    """A new entry replaces the one of its name used least recently beyond the limit;
+    entries of other names are left alone."""
+    import cosim.core.built_on_disk as kept
+
+    monkeypatch.setattr(kept, "KEPT_PER_NAME", 3)
+    kept_on_disk("other", "args(0)", Builder("other"), folders=(data,))
+    for i in range(5):
+        kept_on_disk("thing", f"args({i})", Builder(i), folders=(data,))
+        for entry in cache.iterdir():  # each write later than the ones before
+            if entry.name.startswith("thing-") and (entry / "thing.json").read_text() == str(i):
+                os.utime(entry / "manifest.json", (1e9 + i, 1e9 + i))
+    kept_on_disk("thing", "args(2)", Builder(2), folders=(data,))  # read: used now
+    kept_on_disk("thing", "args(5)", Builder(5), folders=(data,))
+    values = sorted(json.loads((e / "thing.json").read_text())
+                    for e in cache.iterdir() if e.name.startswith("thing-"))
+    assert values == [2, 4, 5]
+    assert sum(e.name.startswith("other-") for e in cache.iterdir()) == 1
