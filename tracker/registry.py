@@ -10,6 +10,7 @@ installed plug-in: :mod:`tracker.plugins.loading`), or a co-simulation FMU, ``fm
 from __future__ import annotations
 
 import importlib
+from dataclasses import dataclass
 from types import MappingProxyType
 
 from cosim.core.exceptions import ConfigError
@@ -20,21 +21,35 @@ from tracker.manoeuvre import ManoeuvreConfig
 from tracker.plugins.loading import make_plugin_tracker
 from tracker.protocol import Tracker
 
-_CONSTRUCTORS: MappingProxyType[str, str] = MappingProxyType({
-    "kinematic-nmpc": "tracker.mpc.kinematic_nmpc:KinematicNmpc",
-    "dynamic-nmpc": "tracker.mpc.dynamic_nmpc:DynamicNmpc",
-    "dynamic-mpc": "tracker.mpc.dynamic_mpc:DynamicMpc",
-    "ltv-mpc": "tracker.mpc.ltv_mpc:LtvMpc",
-    "open-loop": "tracker.open_loop:OpenLoopTracker",
-    "pid": "tracker.baselines.pid:make_pid",
-    "stanley": "tracker.baselines.stanley:make_stanley",
-    "pure-pursuit": "tracker.baselines.pure_pursuit:make_pure_pursuit",
-    "lqr": "tracker.baselines.lqr:make_lqr",
+
+@dataclass(frozen=True)
+class _Constructor:
+    """A built-in tracker's constructor, ``module.name``, imported when a run asks for it."""
+
+    module: str
+    name: str
+    takes_manoeuvre: bool = False
+    """Called with the manoeuvre it replays after the configuration (``open-loop``)."""
+
+    def build(self, config: TrackerConfig, manoeuvre: ManoeuvreConfig) -> Tracker:
+        constructor = getattr(importlib.import_module(self.module), self.name)
+        return constructor(config, manoeuvre) if self.takes_manoeuvre else constructor(config)
+
+
+_CONSTRUCTORS: MappingProxyType[str, _Constructor] = MappingProxyType({
+    "kinematic-nmpc": _Constructor("tracker.mpc.kinematic_nmpc", "KinematicNmpc"),
+    "dynamic-nmpc": _Constructor("tracker.mpc.dynamic_nmpc", "DynamicNmpc"),
+    "dynamic-mpc": _Constructor("tracker.mpc.dynamic_mpc", "DynamicMpc"),
+    "ltv-mpc": _Constructor("tracker.mpc.ltv_mpc", "LtvMpc"),
+    "open-loop": _Constructor("tracker.open_loop", "OpenLoopTracker", takes_manoeuvre=True),
+    "pid": _Constructor("tracker.baselines.pid", "make_pid"),
+    "stanley": _Constructor("tracker.baselines.stanley", "make_stanley"),
+    "pure-pursuit": _Constructor("tracker.baselines.pure_pursuit", "make_pure_pursuit"),
+    "lqr": _Constructor("tracker.baselines.lqr", "make_lqr"),
 })
-"""Each built-in tracker's constructor, ``module:name``, imported when a run asks for it:
-a process imports the code of the trackers it runs, not of all nine (with the ACC's, some
-20 ms of every ``cosim run``'s start). Each takes the configuration; ``open-loop`` also the
-manoeuvre it replays."""
+"""Each built-in tracker's constructor, imported when a run asks for it: a process imports
+the code of the trackers it runs, not of all nine (with the ACC's, some 20 ms of every
+``cosim run``'s start)."""
 
 TRACKER_NAMES: tuple[str, ...] = tuple(_CONSTRUCTORS)
 """Every tracker name :func:`make_tracker` knows (the choices of ``tracker.name``)."""
@@ -68,8 +83,4 @@ def _make_path_tracker(config: TrackerConfig, manoeuvre: ManoeuvreConfig | None)
         raise ConfigError(
             f"tracker.name = {config.name!r}: expected one of {', '.join(TRACKER_NAMES)}"
         )
-    module, _, name = constructor.partition(":")
-    build = getattr(importlib.import_module(module), name)
-    if config.name == "open-loop":
-        return build(config, manoeuvre if manoeuvre is not None else ManoeuvreConfig())
-    return build(config)
+    return constructor.build(config, manoeuvre if manoeuvre is not None else ManoeuvreConfig())

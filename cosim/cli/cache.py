@@ -29,8 +29,8 @@ def command(args: argparse.Namespace) -> int:
         return 0
     found = entries()
     print(f"{folder}: {len(found)} entries (compiled libraries, kept models), {_mb(found)} "
-          f"of at most "
-          f"{limit / 1e6:.0f} MB (COSIM_CACHE_MAX_MB; the least recently used go first)")
+          f"of at most {limit / 1e6:.0f} MB (COSIM_CACHE_MAX_MB; the least recently used go "
+          "first)")
     by_name: dict[str, list[Any]] = collections.defaultdict(list)
     for entry in found:
         by_name[entry.name].append(entry)
