@@ -72,8 +72,10 @@ PLUGIN_GROUP = "cosim.trackers"
 
 def is_plugin_name(name: str) -> bool:
     """Whether ``name`` names a tracker class from outside cosim: an import path or a
-    plug-in (not an FMU: ``fmu:ctrl.fmu`` has the form of an import path)."""
-    if is_fmu_name(name):
+    plug-in (not an FMU: ``fmu:ctrl.fmu`` has the form of an import path; not a built-in
+    name, which :func:`tracker.registry.make_tracker` takes first even where a plug-in
+    declares it too, so the installed entry points are read only for other names)."""
+    if name in TRACKER_CHOICES or is_fmu_name(name):
         return False
     return is_import_path(name) or name in entry_point_names(PLUGIN_GROUP)
 

@@ -19,7 +19,6 @@ first message. The topics and their schemas are :mod:`cosim.log.topics`.
 from __future__ import annotations
 
 import functools
-import importlib.metadata
 import json
 from typing import Any
 
@@ -65,7 +64,10 @@ def versions() -> dict[str, str]:
 @functools.cache
 def _installed_versions() -> dict[str, str]:
     """The versions, read once per process (what is imported does not change while the
-    process runs)."""
+    process runs). :mod:`importlib.metadata` is imported here: a run without a log (a
+    sweep's) does not need it, nor the e-mail parser and zip reader it imports."""
+    import importlib.metadata
+
     found = {"cosim": __version__}
     for package in ("mujoco", "dm-control", "casadi", "filterpy", "numpy", "scipy", "mcap"):
         try:
@@ -79,6 +81,8 @@ def _version(package: str) -> str:
     """``importlib.metadata.version(package)``, read from the ``Version`` header of the
     package's metadata without the e-mail parser that function runs over the whole file
     (2.7 ms for the seven packages instead of 7.5 in a fresh process)."""
+    import importlib.metadata
+
     distribution = importlib.metadata.distribution(package)
     for line in (distribution.read_text("METADATA") or "").splitlines():
         if not line:  # the headers end at the first empty line
