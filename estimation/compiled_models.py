@@ -6,10 +6,16 @@ serves every belief and is built once per machine."""
 from __future__ import annotations
 
 import warnings
+from pathlib import Path
 from typing import Any
 
 from cosim.core.built_on_disk import PROJECT_PACKAGES
-from cosim.core.compiled_function import CompiledCacheWarning, compiler, load_library
+from cosim.core.compiled_function import (
+    CompiledCacheWarning,
+    compiler,
+    load_library,
+    recorded_library,
+)
 from cosim.core.dense_function import DenseFunction
 
 FILTER_FLAGS = ("-O1",)
@@ -40,6 +46,16 @@ def use_compiled(kind: str, functions: tuple[DenseFunction, ...],
         return
     for function in functions:
         function.use_compiled(library)
+
+
+def recorded(kind: str, recipe: str | None) -> Path | None:
+    """The library :func:`use_compiled` would load for ``recipe``, when an earlier process
+    kept it (:func:`cosim.core.compiled_function.recorded_library`): a filter may take
+    functions from it (``casadi.external``) instead of building their graphs; None when
+    there is none yet, or no recipe."""
+    if recipe is None:
+        return None
+    return recorded_library(f"cosim_{kind.lower()}", recipe, flags=FILTER_FLAGS)
 
 
 def recipe(cls: type, *arguments: Any) -> str | None:

@@ -75,7 +75,7 @@ class Ekf(KalmanFusion):
         belief = beliefs[0]
         if belief is None or any(b is None or not np.array_equal(b, belief) for b in beliefs):
             raise ValueError("the measurement models must share one belief")
-        return JointUpdate(self._models, belief)
+        return JointUpdate(self._models, belief, self._recorded_library)
 
     def _joint_update(self, checked: list[CheckedMeasurement]) -> JointPosterior | None:
         """The iterated EKF's update (Bell and Cathey, "The iterated Kalman filter update as

@@ -38,7 +38,7 @@ from cosim.core.sensor_names import FUSED_SENSORS, GNSS
 from cosim.core.vehicle_params import VehicleParams
 from estimation.accel_commands import AccelCommands, DriveBelief
 from estimation.belief_models import bicycle_params, process_noise, told_process_noise
-from estimation.compiled_models import recipe, use_compiled
+from estimation.compiled_models import recipe, recorded, use_compiled
 from estimation.config import EstimatorConfig
 from estimation.consistency import chi_square_quantile
 from estimation.covariance_room import first_fix, room_for_jump, room_for_surprise
@@ -101,15 +101,8 @@ class KalmanFusion(ABC):
     kind: str = ""
     """Short name for messages ("EKF", "UKF")."""
 
-    def __init__(
-        self,
-        config: EstimatorConfig,
-        initial: InitialState,
-        belief: VehicleParams,
-        *,
-        t0_s: float = 0.0,
-        rng: np.random.Generator | None = None,
-    ) -> None:
+    def __init__(self, config: EstimatorConfig, initial: InitialState, belief: VehicleParams,
+                 *, t0_s: float = 0.0, rng: np.random.Generator | None = None) -> None:
         if not 0.0 < config.max_step_s <= MAX_STEP_S:
             raise ConfigError(f"estimator.max_step_s = {config.max_step_s!r}: expected a "
                               f"number in (0, {MAX_STEP_S:g}]")
@@ -118,9 +111,14 @@ class KalmanFusion(ABC):
         self._untold_noise = process_noise(config)
         """The process noise before the first command (:func:`told_process_noise`)."""
         self._steering = SteeringBelief.from_vehicle(belief, config.steering_compliance_radpnm)
+        # The library an earlier process kept for this recipe gives the functions it holds
+        # without their graphs being built (estimation.compiled_models.recorded).
+        formula = recipe(type(self), config, belief)
+        self._recorded_library = recorded(self.kind, formula) if config.compiled else None
         self._process = ProcessModel(
             self._untold_noise, bicycle, config.lateral_residual_time_constant_s,
-            sigma_point_count=self._sigma_point_count(), steering=self._steering)
+            sigma_point_count=self._sigma_point_count(), steering=self._steering,
+            library=self._recorded_library)
         self._commands = SteeringCommands()
         """The steering commands told (:meth:`command`), which the predictions run along."""
         self._accel_commands = AccelCommands(DriveBelief(
@@ -136,7 +134,7 @@ class KalmanFusion(ABC):
             wheel_slip_per_force_ratio=config.wheel_slip_per_force_ratio,
         )
         if config.compiled:
-            use_compiled(self.kind, self._hot_functions(), recipe(type(self), config, belief))
+            use_compiled(self.kind, self._hot_functions(), formula)
         self._angle_indices = tuple(state_index(name) for name in ANGLE_STATES)
         self._noise_variances = config.noise.channel_variances()
         self._gate_thresholds: dict[int, float] = {}
@@ -266,9 +264,9 @@ class KalmanFusion(ABC):
 
     def gate_threshold(self, dim: int) -> float:
         """The NIS above which a ``dim``-channel update is rejected (chi-square quantile)."""
-        if dim < 1:
-            raise ValueError(f"dim = {dim}: expected at least one channel")
         if dim not in self._gate_thresholds:
+            if dim < 1:
+                raise ValueError(f"dim = {dim}: expected at least one channel")
             self._gate_thresholds[dim] = chi_square_quantile(self._config.gate_probability, dim)
         return self._gate_thresholds[dim]
 

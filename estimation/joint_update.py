@@ -44,15 +44,20 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
 
 from cosim.core.built_once import built_once
+from cosim.core.compiled_function import external_function
 from cosim.core.dense_function import DenseFunction
 from estimation.innovation import Selection
 from estimation.measurement_models import MeasurementModel
 from estimation.state import STATE_NAMES
+
+JOINT_FUNCTION = "ekf_joint_update"
+"""The joint update's name, in the filter's compiled library."""
 
 
 @dataclass(frozen=True)
@@ -165,7 +170,7 @@ def _joint_function(parts: tuple[tuple[ca.Function, int, tuple[int, ...]], ...],
     miss = after - ca.vertcat(*values) - stacked @ (posterior - at)
     miss = ca.vertcat(*[_wrapped(miss[i]) if i in angle_rows else miss[i] for i in range(size)])
     error = ca.mmax(ca.fabs(mask * miss / ca.sqrt(variance)))
-    return ca.Function("ekf_joint_update", [x, at, p, z, r, mask, numbers],
+    return ca.Function(JOINT_FUNCTION, [x, at, p, z, r, mask, numbers],
                        [posterior, ca.densify(covariance), ca.vertcat(*nis), error,
                         _cholesky_pivots_positive(covariance)])
 
@@ -177,7 +182,12 @@ class JointUpdate:
     evaluates the function; :attr:`function` is the evaluator to compile.
     """
 
-    def __init__(self, models: Mapping[str, MeasurementModel], belief: np.ndarray) -> None:
+    def __init__(self, models: Mapping[str, MeasurementModel], belief: np.ndarray,
+                 library: Path | None = None) -> None:
+        """``library``, if given, holds the function compiled (an earlier process built it
+        from the same models: :func:`estimation.compiled_models.recorded`): it is taken
+        from there (``casadi.external``, the C the compiled call runs) instead of
+        building its graph, some 20 ms of a new process's set-up."""
         self._offsets: dict[str, int] = {}
         offset = 0
         for sensor, model in models.items():
@@ -187,7 +197,9 @@ class JointUpdate:
         parts = tuple((model.function.function, len(model.channels),
                        tuple(model.channels.index(c) for c in model.angle_channels))
                       for model in models.values())
-        self.function = DenseFunction(_joint_function(parts, belief.size), parameters=belief)
+        function = _joint_function(parts, belief.size) if library is None else \
+            external_function(JOINT_FUNCTION, library)
+        self.function = DenseFunction(function, parameters=belief)
         """``(x, x_l, P, z, r, mask) -> (x+, P+, NIS per model, linearisation error)``, the
         belief set once."""
         self._order = tuple(models)

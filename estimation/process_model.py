@@ -85,14 +85,17 @@ like ``(2 |A| dt)^k / k!``; the largest entries of ``A`` are the roll mode's ``o
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import casadi as ca
 import numpy as np
 
 from cosim.core.built_once import built_once
+from cosim.core.compiled_function import external_function
 from cosim.core.dense_function import DenseFunction
 from cosim.core.symbolic_record import symbolic_twin
 from cosim.core.vehicle_equations import rk4_step
@@ -239,6 +242,20 @@ class _ProcessFunctions:
     mapped_mean_step: ca.Function | None
     cornering_drag: ca.Function
 
+    def named(self, name: str) -> ca.Function:
+        """The function of CasADi name ``name`` (``bicycle_step`` ...)."""
+        for function in (self.derivative, self.step, self.mean_step, self.noise, self.psd,
+                         self.mapped_mean_step, self.cornering_drag):
+            if function is not None and function.name() == name:
+                return function
+        raise KeyError(name)
+
+
+_COMPILED = ("bicycle_step", "bicycle_cornering_drag")
+"""The functions the EKF compiles (:meth:`ProcessModel.compiled_functions`)."""
+_SIGMA_POINT_COMPILED = ("bicycle_noise", "bicycle_mean_steps", "bicycle_cornering_drag")
+"""The functions the UKF compiles (:meth:`ProcessModel.sigma_point_functions`)."""
+
 
 @built_once
 def _process_functions(numbers: _Belief, sigma_point_count: int) -> _ProcessFunctions:
@@ -303,11 +320,16 @@ def _process_functions(numbers: _Belief, sigma_point_count: int) -> _ProcessFunc
 class ProcessModel:
     """The dynamic-bicycle process model with its CasADi-built discretisation.
 
-    The CasADi functions are built once, here; :meth:`step`, :meth:`noise` and
-    :meth:`propagate` only evaluate them. Every number of the noise, the bicycle and the
-    residual's time constant is an input of the functions (:attr:`belief_names`), not a
-    constant, so their structure, and the C the EKF's sub-step is compiled to
-    (:meth:`compiled_functions`), is the same for every belief.
+    The CasADi functions are built once per process (:func:`_process_functions`), when
+    first evaluated; :meth:`step`, :meth:`noise` and :meth:`propagate` only evaluate them.
+    Every number of the noise, the bicycle and the residual's time constant is an input of
+    the functions (:attr:`belief_names`), not a constant, so their structure, and the C the
+    filters' functions are compiled to (:meth:`compiled_functions`,
+    :meth:`sigma_point_functions`), is the same for every belief. With ``library`` (the
+    filter's library as an earlier process built it from these functions:
+    :func:`estimation.compiled_models.recorded`), the functions the filter compiles are
+    taken from it (``casadi.external``, the C the compiled call runs) and their graphs
+    are not built at all: some 40 ms of a new process's set-up.
     """
 
     def __init__(
@@ -317,6 +339,7 @@ class ProcessModel:
         residual_time_constant_s: float,
         sigma_point_count: int = 0,
         steering: SteeringBelief | None = None,
+        library: Path | None = None,
     ) -> None:
         if not (
             math.isfinite(residual_time_constant_s)
@@ -333,30 +356,61 @@ class ProcessModel:
         self.residual_time_constant_s = residual_time_constant_s
         self.steering = SteeringBelief() if steering is None else steering
         """The steering actuator the commands drive (:mod:`estimation.steering_model`)."""
-        functions = _process_functions(
-            _Belief(noise, bicycle, float(residual_time_constant_s), self.steering),
-            sigma_point_count)
-        self.belief_names: tuple[str, ...] = functions.belief_names
+        self._numbers = _Belief(noise, bicycle, float(residual_time_constant_s), self.steering)
+        self._sigma_point_count = sigma_point_count
+        record = symbolic_twin(self._numbers)  # the names and values the functions take
+        self.belief_names: tuple[str, ...] = record.names
         """The numbers of the ``belief`` input of the model's functions, in order."""
-        self.belief_values: np.ndarray = functions.belief_values.copy()
+        self.belief_values: np.ndarray = record.values.copy()
         """Their values: this model's noise, bicycle, residual time constant and steering."""
-        self.derivative_function = functions.derivative
-        self.step_function = functions.step
-        """One sub-step, ``(x, u, dt_s, belief) -> (x_next, F, Q)``: the EKF's prediction
-        (``u``: :data:`estimation.steering_model.COMMAND_INPUTS`)."""
-        values = self.belief_values
-        self._psd_fast = DenseFunction(functions.psd, parameters=values)
-        self._derivative_fast = DenseFunction(self.derivative_function, parameters=values)
-        self._step_fast = DenseFunction(self.step_function, parameters=values)
-        self._noise_fast = DenseFunction(functions.noise, parameters=values)
-        self._mean_step_fast = DenseFunction(functions.mean_step, parameters=values)
-        self._drag_fast = DenseFunction(functions.cornering_drag, parameters=values)
+        self._library = library
+        self._evaluators: dict[str, DenseFunction] = {}
+        """The functions evaluated so far, by name (:meth:`_evaluator`)."""
         self._last_input: tuple[float | None, np.ndarray] = (None, command_input(None))
         """The input vector of the last command asked for (a command is held for several
         sub-steps: its vector is made once)."""
-        self._mapped_step: DenseFunction | None = None
-        if functions.mapped_mean_step is not None:
-            self._mapped_step = DenseFunction(functions.mapped_mean_step, parameters=values)
+
+    @functools.cached_property
+    def _functions(self) -> _ProcessFunctions:
+        return _process_functions(self._numbers, self._sigma_point_count)
+
+    @property
+    def derivative_function(self) -> ca.Function:
+        """``(x, u, belief) -> (x_dot, A)``: the time derivative and its Jacobian."""
+        return self._functions.derivative
+
+    @property
+    def step_function(self) -> ca.Function:
+        """One sub-step, ``(x, u, dt_s, belief) -> (x_next, F, Q)``: the EKF's prediction
+        (``u``: :data:`estimation.steering_model.COMMAND_INPUTS`)."""
+        return self._functions.step
+
+    def _evaluator(self, name: str) -> DenseFunction:
+        """The function ``name`` (``bicycle_step`` ...) on buffers of its own, with this
+        model's belief: from the recorded library if the filter compiles it (the EKF: the
+        sub-step and the cornering drag; the UKF: the noise, the mapped sub-step and the
+        drag), else from the functions built once per process."""
+        evaluator = self._evaluators.get(name)
+        if evaluator is None:
+            compiled = (_SIGMA_POINT_COMPILED if self._sigma_point_count else _COMPILED)
+            function = (external_function(name, self._library)
+                        if self._library is not None and name in compiled
+                        else self._functions.named(name))
+            evaluator = DenseFunction(function, parameters=self.belief_values)
+            self._evaluators[name] = evaluator
+        return evaluator
+
+    @functools.cached_property
+    def _step_fast(self) -> DenseFunction:
+        return self._evaluator("bicycle_step")
+
+    @functools.cached_property
+    def _drag_fast(self) -> DenseFunction:
+        return self._evaluator("bicycle_cornering_drag")
+
+    @functools.cached_property
+    def _mapped_step(self) -> DenseFunction | None:
+        return self._evaluator("bicycle_mean_steps") if self._sigma_point_count else None
 
     def use_noise(self, noise: ProcessNoise) -> None:
         """From now on, the process noise ``noise`` (the same functions, compiled or not:
@@ -365,11 +419,8 @@ class ProcessModel:
         for name, value in vars(noise).items():
             values[self.belief_names.index(f"noise.{name}")] = value
         self.noise, self.belief_values = noise, values
-        for function in (self._psd_fast, self._derivative_fast, self._step_fast,
-                         self._noise_fast, self._mean_step_fast, self._mapped_step,
-                         self._drag_fast):
-            if function is not None:
-                function.set_parameters(values)
+        for evaluator in self._evaluators.values():  # later ones take belief_values
+            evaluator.set_parameters(values)
 
     def compiled_functions(self) -> tuple[DenseFunction, ...]:
         """The evaluators worth compiling to C (the EKF's sub-step, and the cornering drag
@@ -381,13 +432,13 @@ class ProcessModel:
         """The UKF's evaluators worth compiling to C: the process noise, the sub-step of
         every sigma point (:meth:`propagate`) and the cornering drag."""
         mapped = () if self._mapped_step is None else (self._mapped_step,)
-        return (self._noise_fast, *mapped, self._drag_fast)
+        return (self._evaluator("bicycle_noise"), *mapped, self._drag_fast)
 
     def derivative(self, x: np.ndarray,
                    command_rad: float | None = None) -> tuple[np.ndarray, np.ndarray]:
         """The noise-free time derivative of the state and its Jacobian ``A`` at ``x``, the
         steering driven by ``command_rad`` (None: no command, :mod:`estimation.steering_model`)."""
-        f, a = self._derivative_fast(np.asarray(x, dtype=float).reshape(-1),
+        f, a = self._evaluator("bicycle_derivative")(np.asarray(x, dtype=float).reshape(-1),
                                      self._input(command_rad))
         return f.reshape(-1), a
 
@@ -423,14 +474,21 @@ class ProcessModel:
     def noise_psd(self, x: np.ndarray) -> np.ndarray:
         """The white-noise PSD matrix ``W`` at ``x`` (diagonal; some entries grow with the
         tyre forces, see :class:`ProcessNoise`)."""
-        return self._psd_fast(np.asarray(x, dtype=float).reshape(-1))[0]
+        return self._evaluator("bicycle_psd")(np.asarray(x, dtype=float).reshape(-1))[0]
 
     def process_noise(self, x: np.ndarray, dt_s: float,
                       command_rad: float | None = None) -> np.ndarray:
         """The discrete process noise Q of a sub-step, linearised at ``x`` (and the
-        steering command ``command_rad``, None: none)."""
+        steering command ``command_rad``, None: none).
+
+        For a model without sigma points (the EKF's) it is the ``Q`` of :meth:`step`, the
+        same expression evaluated with the mean and its Jacobian: the sub-step the EKF
+        evaluates (compiled) at every prediction serves the rare call here, and the noise
+        function is never built for it; the UKF's is its own compiled noise function."""
         self._check_step(dt_s)
-        return self._noise_fast(x, self._input(command_rad), dt_s)[0]
+        if not self._sigma_point_count:
+            return self._step_fast(x, self._input(command_rad), dt_s)[2]
+        return self._evaluator("bicycle_noise")(x, self._input(command_rad), dt_s)[0]
 
     def propagate(self, points: np.ndarray, dt_s: float,
                   command_rad: float | None = None) -> np.ndarray:
@@ -449,8 +507,8 @@ class ProcessModel:
         mapped, command = self._mapped_step, self._input(command_rad)
         if mapped is not None and points.shape[0] == mapped.function.size_in(0)[1]:
             return mapped.rows(points, command, np.full(points.shape[0], dt_s))[0]
-        return np.vstack([self._mean_step_fast(p, command, dt_s)[0].reshape(-1)
-                          for p in points])
+        mean_step = self._evaluator("bicycle_mean_step")
+        return np.vstack([mean_step(p, command, dt_s)[0].reshape(-1) for p in points])
 
 
 def _cornering_drag(x: ca.SX, bicycle: BicycleParams) -> ca.SX:

@@ -64,16 +64,29 @@ def kept_on_disk(name: str, arguments: str, build: Callable[[], Any],
     project's own; ``folders`` further folders of data files it reads (the models).
     ``valid`` says whether a value read back has the builder's form: one that has not (an
     entry written by hand, manifest and all) is built again, as a damaged one is."""
-    stamp = code_stamp(tuple(packages), tuple(str(folder) for folder in folders))
-    digest = hashlib.sha256(f"{name}\n{stamp}\n{arguments}".encode()).hexdigest()
-    entry = cache_dir() / f"{name}-{digest[:32]}"
-    filename = f"{name}.json"
+    entry, filename = _entry(name, arguments, packages, folders)
     kept = _read(entry, filename, valid)
     if kept is not None:
         return kept[0]
     value = build()
     _write(entry, filename, value)
     return value
+
+
+def kept_before(name: str, arguments: str, packages: tuple[str, ...] = (),
+                folders: tuple[Path, ...] = (),
+                valid: Callable[[Any], bool] = lambda value: True) -> tuple[Any] | None:
+    """What :func:`kept_on_disk` with these arguments would read, as a 1-tuple, without
+    building anything: None when no earlier process kept it (or its entry is damaged)."""
+    return _read(*_entry(name, arguments, packages, folders), valid)
+
+
+def _entry(name: str, arguments: str, packages: tuple[str, ...],
+           folders: tuple[Path, ...]) -> tuple[Path, str]:
+    """The cache entry of ``name`` for ``arguments`` and the code, and its data file."""
+    stamp = code_stamp(tuple(packages), tuple(str(folder) for folder in folders))
+    digest = hashlib.sha256(f"{name}\n{stamp}\n{arguments}".encode()).hexdigest()
+    return cache_dir() / f"{name}-{digest[:32]}", f"{name}.json"
 
 
 def _read(entry: Path, filename: str, valid: Callable[[Any], bool]) -> tuple[Any] | None:

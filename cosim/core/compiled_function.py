@@ -38,7 +38,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from cosim.core.built_on_disk import kept_on_disk
+from cosim.core.built_on_disk import kept_before, kept_on_disk
 from cosim.core.compiled_cache import (
     build_lock,
     cache_dir,
@@ -370,9 +370,45 @@ def _entry_digest(name: str, key: str | Callable[[], str], own: bytes,
 
     if recipe is None:
         return made()
-    arguments = (f"{recipe}\ncasadi {ca.__version__}\n{flags!r}\n"
-                 f"{hashlib.sha256(own).hexdigest()}")
-    return str(kept_on_disk(f"{name}_key", arguments, made, valid=_is_digest))
+    return str(kept_on_disk(f"{name}_key", _recipe_arguments(recipe, own, flags), made,
+                            valid=_is_digest))
+
+
+def _recipe_arguments(recipe: str, own: bytes, flags: tuple[str, ...]) -> str:
+    """What names the entry's hash kept for a ``recipe``: the recipe, CasADi's version, the
+    flags and the caller's own sources."""
+    return (f"{recipe}\ncasadi {ca.__version__}\n{flags!r}\n"
+            f"{hashlib.sha256(own).hexdigest()}")
+
+
+@functools.lru_cache(maxsize=64)
+def external_function(name: str, library: Path) -> ca.Function:
+    """The compiled function ``name`` of ``library`` as a CasADi function
+    (``casadi.external``), once per process for a library and name: every user shares it,
+    as they would share the function built once (:mod:`cosim.core.built_once`)."""
+    return ca.external(name, str(library))
+
+
+def recorded_library(name: str, recipe: str,
+                     flags: Sequence[str] = COMPILER_FLAGS) -> Path | None:
+    """The library :func:`load_library` with this ``recipe`` (and no sources of the
+    caller's own) would load, when an earlier process built or found it and kept its entry's
+    hash for the recipe, the entry intact; None otherwise, and without a C compiler (with
+    none, no library is loaded). Nothing is built or generated: a caller that gets a path
+    may take its functions from it (``casadi.external``) instead of building their graphs,
+    then load it as before, by the same recipe."""
+    if compiler() is None:
+        return None
+    flags = (*flags, *ALWAYS_FLAGS)
+    hashed_flags = relocated((*flags, *NATIVE_FLAGS, f"processor: {host_processor()}"), ())
+    kept = kept_before(f"{name}_key", _recipe_arguments(recipe, b"", hashed_flags),
+                       valid=_is_digest)
+    if kept is None:
+        return None
+    entry = cache_dir() / f"{name}-{str(kept[0])[:16]}"
+    if not entry.is_dir() or entry_damage(entry, f"{name}.so"):
+        return None
+    return entry / f"{name}.so"
 
 
 def _is_digest(value: object) -> bool:

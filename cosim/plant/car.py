@@ -46,6 +46,7 @@ to their scripted poses after each step; their body boxes collide with the ego's
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 from dataclasses import dataclass
@@ -53,6 +54,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from cosim.core.built_on_disk import kept_on_disk
 from cosim.core.built_once import built_once
 from cosim.core.compiled_function import CompiledCacheWarning, compiler
 from cosim.core.exceptions import PhysicsDivergenceError
@@ -63,7 +65,12 @@ from cosim.core.vehicle_params import PlantConfig
 from cosim.plant.compiled_steps import STATE as STEPS
 from cosim.plant.compiled_steps import CompiledSteps, StateReader, load_steps_library
 from cosim.plant.low_level import resistance_constants, resistance_force_n
-from cosim.plant.sedan_model import FRONT_WHEELS, driven_wheels, sedan_xml_and_assets
+from cosim.plant.sedan_model import (
+    FRONT_WHEELS,
+    driven_wheels,
+    models_dir,
+    sedan_xml_and_assets,
+)
 from cosim.plant.slip_control import SlipLimiter
 from cosim.plant.steering import SteeringActuator
 from cosim.plant.traffic import Traffic
@@ -594,11 +601,37 @@ class StaticEquilibrium:
 @built_once
 def static_equilibrium(config: PlantConfig, physics_dt_s: float,
                        one_call_tyres: bool) -> StaticEquilibrium:
-    """The static equilibrium of the car of ``config``, found once per process: a car of
-    its own let stand for :data:`SETTLE_DURATION_S` (750 MuJoCo steps of the default 2 ms,
-    some 30 ms that every run's plant would otherwise repeat). Its warnings (no C compiler)
-    are the plant's to give, once."""
+    """The static equilibrium of the car of ``config``, found once per process and kept on
+    disk (:mod:`cosim.core.built_on_disk`, named by the arguments, the project's code, the
+    models and MuJoCo's and PyMJCF's files): a car of its own let stand for
+    :data:`SETTLE_DURATION_S` (750 MuJoCo steps of the default 2 ms), some 12 ms of a new
+    process's set-up that every run's plant would otherwise repeat. JSON keeps every float
+    exactly (``repr``), so the equilibrium read back is the one built, to the bit."""
+    kept = kept_on_disk("static_equilibrium", repr((config, physics_dt_s, one_call_tyres)),
+                        lambda: dataclasses.asdict(_settled(config, physics_dt_s,
+                                                            one_call_tyres)),
+                        packages=("mujoco", "dm_control.mjcf"), folders=(models_dir(),),
+                        valid=_is_equilibrium)
+    return StaticEquilibrium(**{name: tuple(value) if isinstance(value, list) else value
+                                for name, value in kept.items()})
+
+
+def _settled(config: PlantConfig, physics_dt_s: float,
+             one_call_tyres: bool) -> StaticEquilibrium:
+    """A car of ``config`` let settle (:meth:`MujocoPlant._settle`). Its warnings (no C
+    compiler) are the plant's to give, once."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", CompiledCacheWarning)
         return MujocoPlant(config, physics_dt_s, InitialState(), one_call_tyres,
                            settle_here=True).equilibrium
+
+
+def _is_equilibrium(value: object) -> bool:
+    """Whether ``value`` has the form of a :class:`StaticEquilibrium` as JSON: its fields,
+    three floats and three lists of one float per wheel."""
+    names = [field.name for field in dataclasses.fields(StaticEquilibrium)]
+    if not (isinstance(value, dict) and sorted(value) == sorted(names)):
+        return False
+    return all(isinstance(value[name], float) for name in names[:3]) and all(
+        isinstance(value[name], list) and len(value[name]) == len(WHEEL_NAMES)
+        and all(isinstance(v, float) for v in value[name]) for name in names[3:])

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from cosim.core.compiled_function import CompiledCacheWarning
+from estimation import joint_update, process_model
 from estimation.config import EstimatorConfig
 from tests.estimation.drive import Run, SensorSetup, lane_change, run_filter
 
@@ -52,6 +53,19 @@ def test_one_compiled_library_serves_every_belief_with_the_vms_estimates(
     other = _other_belief(default)
     compiled_other = _drive(other)
     assert "note" not in capfd.readouterr().err
+    # A filter whose recipe an earlier one kept takes the functions it compiles (the
+    # sub-step, the cornering drag, the joint update) from the library (casadi.external)
+    # without building their graphs: the same estimates, to the bit.
+    built: list[str] = []
+    for module, name in ((joint_update, "_joint_function"),
+                         (process_model, "_process_functions")):
+        real = getattr(module, name)
+        monkeypatch.setattr(module, name, lambda *args, real=real, name=name:
+                            built.append(name) or real(*args))
+    again = _drive(default)
+    assert built == []
+    assert np.array_equal(again.means, compiled.means)
+    assert np.array_equal(again.covariances, compiled.covariances)
     names = sorted(p.name.split("-")[0] for p in (tmp_path / "cosim").iterdir())
     # One library; the hash of its entry kept for each belief's recipe (built_on_disk).
     assert names == ["cosim_ekf", "cosim_ekf_key", "cosim_ekf_key"]
