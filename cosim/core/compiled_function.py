@@ -439,6 +439,23 @@ def compile_function(function: ca.Function, fallback: str = "") -> ctypes.CDLL |
     return load_library(function.name(), [function], fallback=fallback)
 
 
+def function_by_recipe(name: str, graph: Callable[[], ca.Function], recipe: str,
+                       fallback: str = "") -> tuple[ctypes.CDLL, ca.Function] | None:
+    """The library of the one function ``name`` that ``graph()`` builds (compiled or from
+    the cache, as :func:`compile_function`), loaded, and the function to bind it with: when
+    an earlier process kept the library for ``recipe`` (what the graph is built from, see
+    :func:`compiled_library`) the function is taken from the library
+    (:func:`external_function`) and the graph is never built; otherwise it is built, and
+    the library found by the graph's serialisation and kept for the recipe. None as
+    :func:`load_library`."""
+    found = recorded_library(name, recipe)
+    function = graph() if found is None else external_function(name, found)
+    library = compiled_library(name, lambda: [graph()], key=lambda: serialized(graph()),
+                               fallback=fallback, recipe=recipe)
+    loaded = None if library is None else _loaded(library, [name], fallback)
+    return None if loaded is None else (loaded, function)
+
+
 @functools.lru_cache(maxsize=64)
 def serialized(function: ca.Function) -> str:
     """``function.serialize()``, once per function object (a CasADi function is immutable
@@ -461,17 +478,22 @@ def load_library(name: str, functions: Sequence[ca.Function],
     library = compiled_library(name, functions, flags=flags, note=note,
                                key=lambda: _functions_key(tuple(functions)),
                                fallback=fallback, recipe=recipe)
-    if library is None:
-        return None
+    return None if library is None else \
+        _loaded(library, [function.name() for function in functions], fallback)
+
+
+def _loaded(library: Path, names: Sequence[str], fallback: str) -> ctypes.CDLL | None:
+    """``library`` loaded, each of ``names`` in it; None, with a warning, when it does not
+    load (and its cache entry removed, never kept for the next run to trip on)."""
     try:
         loaded = ctypes.CDLL(str(library))
-        for function in functions:
-            getattr(loaded, function.name())
+        for name in names:
+            getattr(loaded, name)
     except (OSError, AttributeError) as error:  # checked, so only a changing file gets here
-        if library.parent.parent == cache_dir():  # never kept for the next run to trip on
+        if library.parent.parent == cache_dir():
             remove(library.parent)
         warnings.warn(f"cannot load the compiled library {str(library)!r} ({error}): "
                       f"{fallback or 'using the plain implementation'}",
-                      CompileFailedWarning, stacklevel=3)
+                      CompileFailedWarning, stacklevel=4)
         return None
     return loaded

@@ -153,7 +153,7 @@ class MujocoPlant:
         if tyres is None or tyres.compiled is None or self._slip_limiter is not None:
             return None
         library, function = tyres.compiled
-        loaded = load_steps_library(function)
+        loaded = load_steps_library(function, tyres.graph, tyres.recipe)
         if loaded is None:
             return None
         cfg, steering = self.config, self._steering

@@ -21,14 +21,14 @@ from __future__ import annotations
 
 import ctypes
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import casadi as ca
 import mujoco
 import numpy as np
 
-from cosim.core.compiled_function import CompileFailedWarning, compiled_library
+from cosim.core.compiled_function import CompileFailedWarning, compiled_library, serialized
 
 SOURCE = Path(__file__).with_name("plant_step.c")
 
@@ -73,10 +73,14 @@ STEPS_FALLBACK = "the plant's physics step runs step by step in Python, about 2x
 """What the plant does without its compiled step (said in the one warning line)."""
 
 
-def load_steps_library(tyres: ca.Function) -> ctypes.CDLL | None:
-    """The library of ``plant_step.c`` and the tyre function ``tyres``, compiled (on first
-    use, with a note) or from the cache; None when there is no compiler, no MuJoCo headers
-    (a ``mujoco`` build without them) or the library does not load."""
+def load_steps_library(tyres: ca.Function, graph: Callable[[], ca.Function],
+                       recipe: str) -> ctypes.CDLL | None:
+    """The library of ``plant_step.c`` and the tyre function ``tyres`` (whose graph
+    ``graph()`` builds, from ``recipe``: :class:`cosim.plant.tyre_forces.MagicFormulaTyres`),
+    compiled (on first use, with a note) or from the cache; None when there is no compiler,
+    no MuJoCo headers (a ``mujoco`` build without them) or the library does not load. A new
+    process finds it by the recipe, without building the graph
+    (:func:`cosim.core.compiled_function.compiled_library`)."""
     library = _mujoco_library()
     if library is None:
         return None
@@ -87,10 +91,11 @@ def load_steps_library(tyres: ca.Function) -> ctypes.CDLL | None:
     # MuJoCo's folder is not part of the key (its version is): libmujoco is loaded by
     # ``import mujoco`` already, so a library built in another virtualenv finds it.
     built = compiled_library(
-        "cosim_plant_steps", [tyres], flags, key=tyres.serialize() + mujoco.__version__,
-        extra_sources=(SOURCE,), link_flags=link,
-        note="compiling the plant's physics step to C (about 5 s)", fallback=STEPS_FALLBACK,
-        relocatable=(folder,))
+        "cosim_plant_steps", lambda: [graph()], flags,
+        key=lambda: serialized(graph()) + mujoco.__version__, extra_sources=(SOURCE,),
+        link_flags=link, note="compiling the plant's physics step to C (about 5 s)",
+        fallback=STEPS_FALLBACK, relocatable=(folder,),
+        recipe=f"{recipe}\nmujoco {mujoco.__version__}")
     if built is None:
         return None
     try:

@@ -19,7 +19,7 @@ import casadi as ca
 import mujoco
 import numpy as np
 
-from cosim.core.compiled_function import CompiledFunction, compile_function
+from cosim.core.compiled_function import CompiledFunction, function_by_recipe
 from cosim.core.records import WHEEL_NAMES
 from cosim.core.tyre_params import TyreParams
 from cosim.core.vehicle_params import PlantConfig
@@ -29,6 +29,7 @@ from cosim.plant.tyre_patches import (
     CONTACT_SIZE,
     FORCE_FIELDS,
     PATCH_STATE_SIZE,
+    TYRE_PATCHES,
     road_tyre_numbers,
     tyre_patches_function,
 )
@@ -109,12 +110,14 @@ class MagicFormulaTyres:
         self._compiled: tuple[ctypes.CDLL, ca.Function] | None = None
         """The four tyres as one compiled C call (:mod:`cosim.plant.tyre_patches`); None:
         the plain reference, :func:`cosim.plant.tyre_model.patch_step` per wheel."""
+        self._structure = (float(physics_dt_s), self._wheel_body, self._root, int(model.nbody))
+        self.recipe = repr(("tyre patches", *self._structure))
+        """What the four-tyre function is built from (its library's recipe: a new process
+        finds the library, and takes the function from it, without building its graph:
+        :func:`cosim.core.compiled_function.function_by_recipe`)."""
         if one_call:
-            function = tyre_patches_function(physics_dt_s, self._wheel_body, self._root,
-                                             model.nbody)
-            library = compile_function(function, fallback=PYTHON_STEP_FALLBACK)
-            if library is not None:
-                self._compiled = (library, function)
+            self._compiled = function_by_recipe(TYRE_PATCHES, self.graph, self.recipe,
+                                                fallback=PYTHON_STEP_FALLBACK)
         self._patches: CompiledFunction | None = None
         self.reset((0.0,) * self._n_wheels)
 
@@ -128,6 +131,11 @@ class MagicFormulaTyres:
             [d.cvel, d.xpos, d.xipos, d.xmat, d.subtree_com, self._contact_buffer,
              self._state_buffer, self._road_tyres_buffer],
             [self._wrench_buffer, self._forces_buffer, self._new_state_buffer])
+
+    def graph(self) -> ca.Function:
+        """The four tyres as one CasADi function, its graph built (once per process:
+        :func:`cosim.plant.tyre_patches.tyre_patches_function`)."""
+        return tyre_patches_function(*self._structure)
 
     @property
     def compiled(self) -> tuple[ctypes.CDLL, ca.Function] | None:

@@ -67,6 +67,9 @@ OUTPUT_NAMES = ("wrench", "forces", "new_patch_state")
 mass); ``new_patch_state``: the new carcass states."""
 
 
+TYRE_PATCHES = "cosim_tyre_patches"
+"""The four tyres' function's name (and its compiled library's)."""
+
 TYRE_NUMBERS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(TyreParams))
 """The numbers of one tyre (:class:`TyreParams`' fields, in order) in ``road_tyres``."""
 
@@ -279,7 +282,7 @@ def _tyre_patches_function(dt_s: float, wheel_bodies: tuple[int, ...], root_body
         forces.append(force)
         new_states.append(new_state)
     return ca.Function(
-        "cosim_tyre_patches",
+        TYRE_PATCHES,
         [*arrays.values(), contacts, states, road_tyres],
         [ca.vertcat(*wrenches), ca.vertcat(*forces), ca.vertcat(*new_states)],
         list(INPUT_NAMES), list(OUTPUT_NAMES),

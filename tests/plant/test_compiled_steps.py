@@ -1,9 +1,14 @@
 """The plant's physics steps as one compiled C call: the Python step's numbers, bit for bit,
-and the runner's jumps between due instants give the per-step loop's run."""
+the runner's jumps between due instants give the per-step loop's run, and a new process
+finds the tyres' and the steps' libraries by their recipe without building the tyres'
+graph."""
 
 from __future__ import annotations
 
 import dataclasses
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -237,3 +242,33 @@ def test_traffic_runs_on_the_compiled_steps_bit_for_bit() -> None:
     assert np.array_equal(compiled.data.mocap_quat, python.data.mocap_quat)
     moved = compiled.data.mocap_pos - placed
     assert np.all(moved[:, 0] > 100.0) and np.ptp(moved[:, 1]) > 1.0  # one changed lanes
+
+
+def test_a_new_process_takes_the_tyres_from_their_library_without_their_graph() -> None:
+    """Once a process has found the tyres' and the physics step's libraries (kept for the
+    tyres' recipe, :func:`cosim.core.compiled_function.function_by_recipe`), the next one
+    builds neither the four-tyre graph nor its serialisation, and its car drives the same
+    second to the bit (each float's repr)."""
+    script = """
+import sys
+from cosim.core.initial_state import InitialState
+from cosim.core.records import ActuatorCommand
+from cosim.core.vehicle_params import PlantConfig
+from cosim.plant import tyre_forces
+from cosim.plant.car import MujocoPlant
+built = []
+real = tyre_forces.tyre_patches_function
+tyre_forces.tyre_patches_function = lambda *args: built.append(args) or real(*args)
+plant = MujocoPlant(PlantConfig(), 0.002, InitialState(speed_mps=15.0))
+assert plant._steps is not None
+plant.apply(ActuatorCommand(t_s=0.0, steer_rad=0.05, drive_torque_nm=2000.0,
+                            brake_torque_nm=0.0))
+plant.advance_steps(500)
+print(len(built), repr(plant.state()))
+"""
+    env = {**os.environ, "MUJOCO_GL": "disable"}
+    first, second = (subprocess.run([sys.executable, "-c", script], env=env, check=True,
+                                    capture_output=True, text=True).stdout.split(" ", 1)
+                     for _ in range(2))
+    assert second[0] == "0"  # found by the recipe the first process kept (or found)
+    assert first[1] == second[1]
