@@ -56,7 +56,7 @@ import numpy as np
 
 from cosim.core.built_on_disk import kept_on_disk
 from cosim.core.built_once import built_once
-from cosim.core.compiled_function import CompiledCacheWarning, compiler
+from cosim.core.compiled_function import CompiledCacheWarning, compiler, host_processor
 from cosim.core.exceptions import PhysicsDivergenceError
 from cosim.core.initial_state import InitialState
 from cosim.core.records import WHEEL_NAMES, ActuatorCommand, VehicleState
@@ -603,11 +603,13 @@ def static_equilibrium(config: PlantConfig, physics_dt_s: float,
                        one_call_tyres: bool) -> StaticEquilibrium:
     """The static equilibrium of the car of ``config``, found once per process and kept on
     disk (:mod:`cosim.core.built_on_disk`, named by the arguments, the project's code, the
-    models and MuJoCo's and PyMJCF's files): a car of its own let stand for
-    :data:`SETTLE_DURATION_S` (750 MuJoCo steps of the default 2 ms), some 12 ms of a new
-    process's set-up that every run's plant would otherwise repeat. JSON keeps every float
-    exactly (``repr``), so the equilibrium read back is the one built, to the bit."""
-    kept = kept_on_disk("static_equilibrium", repr((config, physics_dt_s, one_call_tyres)),
+    models, MuJoCo's and PyMJCF's files and the processor, as the compiled steps' library
+    is): a car of its own let stand for :data:`SETTLE_DURATION_S` (750 MuJoCo steps of the
+    default 2 ms), some 12 ms of a new process's set-up that every run's plant would
+    otherwise repeat. JSON keeps every float exactly (``repr``), so the equilibrium read
+    back is the one built, to the bit."""
+    arguments = repr((config, physics_dt_s, one_call_tyres, host_processor()))
+    kept = kept_on_disk("static_equilibrium", arguments,
                         lambda: dataclasses.asdict(_settled(config, physics_dt_s,
                                                             one_call_tyres)),
                         packages=("mujoco", "dm_control.mjcf"), folders=(models_dir(),),
