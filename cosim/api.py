@@ -31,6 +31,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from cosim.core.exceptions import ConfigError
 from cosim.log.output_claim import claim_output
@@ -39,7 +40,9 @@ from cosim.simulation.runner import run as _run_loop
 from cosim.simulation.scenario_config import ScenarioConfig
 from cosim.simulation.scenario_config import load_config as _load_config
 from cosim.simulation.workshop import Workshop
-from cosim.sweeps.driver import SweepOutcome, check_sweep_dir, run_sweep
+
+if TYPE_CHECKING:
+    from cosim.sweeps.driver import SweepOutcome
 
 __all__ = ["RunResult", "ScenarioConfig", "SweepOutcome", "Workshop", "load_config", "run",
            "sweep"]
@@ -141,7 +144,20 @@ def sweep(
         raise ConfigError(f"backend = {backend!r}: expected process or ray")
     if workers is not None and workers < 1:
         raise ConfigError(f"workers = {workers}: expected at least 1")
+    from cosim.sweeps.driver import check_sweep_dir, run_sweep
+
     out_dir = Path(out)
     check_sweep_dir(out_dir, force, resume)
     return run_sweep(spec_path, out_dir, workers, backend, keep_logs, resume, yes=yes,
                      force=force)
+
+
+def __getattr__(name: str) -> Any:
+    """``SweepOutcome``, imported with the sweep machinery when asked: a script that only
+    loads and runs configurations does not import it (multiprocessing, the sweep's
+    results and plots: some 25 ms of its first call)."""
+    if name == "SweepOutcome":
+        from cosim.sweeps.driver import SweepOutcome
+
+        return SweepOutcome
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

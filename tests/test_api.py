@@ -152,8 +152,10 @@ def test_a_default_run_imports_nothing_heavy_for_one_function(tmp_path: Path) ->
     # scipy (a fifth of a second of every start), its statistics, the plots and filterpy
     # (scipy.stats through it) have no place in a default run; nor the other trackers'
     # code, the ACC's or the generated circuits' (tracker.registry imports a tracker's
-    # module when a run asks for it).
-    others = ("tracker.cruise.law", "tracker.cruise.esc", "tracker.mpc.ltv_mpc",
+    # module when a run asks for it); nor the sweep's machinery (cosim.api imports it for
+    # cosim.sweep).
+    others = ("cosim.sweeps.driver", "multiprocessing",
+              "tracker.cruise.law", "tracker.cruise.esc", "tracker.mpc.ltv_mpc",
               "tracker.mpc.dynamic_mpc", "tracker.mpc.kinematic_nmpc", "tracker.open_loop",
               "tracker.baselines.lqr", "tracker.baselines.pid", "tracker.baselines.stanley",
               "tracker.baselines.pure_pursuit", "tracker.paths.generated_circuit")
