@@ -273,8 +273,7 @@ def compiled_library(name: str, functions: Functions,
         return None
     flags = (*flags, *ALWAYS_FLAGS)
     own = b"".join(Path(extra).read_bytes() for extra in extra_sources)
-    hashed_flags = relocated((*flags, *NATIVE_FLAGS, *link_flags,
-                              f"processor: {host_processor()}"), relocatable)
+    hashed_flags = _hashed_flags(flags, link_flags, relocatable)
     entry = None
     if key is not None:  # found without generating anything, nor a temporary folder
         digest = _entry_digest(name, key, own, hashed_flags, recipe)
@@ -316,6 +315,15 @@ def compiled_library(name: str, functions: Functions,
                               "(XDG_CACHE_HOME names the cache)", CompiledCacheWarning,
                               stacklevel=1)  # one place: said once per process
                 return _private_copy(built)
+
+
+def _hashed_flags(flags: Sequence[str], link_flags: Sequence[str],
+                  relocatable: Sequence[Path]) -> tuple[str, ...]:
+    """What of the build the entry's hash holds besides the source: the compiler flags
+    (the processor's own included: :data:`NATIVE_FLAGS`, :func:`host_processor`) and the
+    link flags, the ``relocatable`` folders' paths replaced (:func:`relocated`)."""
+    return relocated((*flags, *NATIVE_FLAGS, *link_flags, f"processor: {host_processor()}"),
+                     relocatable)
 
 
 def relocated(flags: Sequence[str], folders: Sequence[Path]) -> tuple[str, ...]:
@@ -399,8 +407,7 @@ def recorded_library(name: str, recipe: str,
     then load it as before, by the same recipe."""
     if compiler() is None:
         return None
-    flags = (*flags, *ALWAYS_FLAGS)
-    hashed_flags = relocated((*flags, *NATIVE_FLAGS, f"processor: {host_processor()}"), ())
+    hashed_flags = _hashed_flags((*flags, *ALWAYS_FLAGS), (), ())
     kept = kept_before(f"{name}_key", _recipe_arguments(recipe, b"", hashed_flags),
                        valid=_is_digest)
     if kept is None:
