@@ -16,15 +16,20 @@ the child. The child reports through a pipe, one line each:
 * ``t <seconds>`` as the simulated time advances;
 * ``exit <code>`` just before it ends on its own.
 
-The parent only waits. An interrupt (``SIGINT``, ``SIGTERM``) is passed on to the child once
-it is ready; a second one before that ends the child at once (a set-up that hangs). A child
+The parent also writes the run's log: the child's recorder sends it the encoded messages
+down a second pipe (:mod:`cosim.log.piped_recorder`), so that the MCAP writer and its
+compression run on the other core, and a child that dies leaves its log finished with every
+message it had sent. Otherwise the parent waits. An interrupt (``SIGINT``, ``SIGTERM``) is
+passed on to the child once it is ready; a second one before that ends the child at once (a
+set-up that hangs). A child
 that ends without its ``exit`` line died: the parent returns a :class:`Death` naming how
 (exit status or signal) and the last simulated time reached, and the caller says which
 component is the likely cause and where the log up to then is
 (:func:`cosim.log.reader.read_summary` reads a log up to its last complete chunk).
 
 The cost is one ``fork`` of an interpreter that has imported the simulation (about a
-millisecond of page-table copy on Linux) and a pipe write every progress step. Where
+millisecond of page-table copy on Linux), a pipe write every progress step, and the
+parent's import of foxglove-sdk while the child imports the simulation. Where
 ``fork`` does not exist the body runs in this process, unguarded.
 """
 
@@ -37,10 +42,11 @@ import signal
 import sys
 import traceback
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
+from dataclasses import astuple, dataclass, field
 from typing import Any
 
 from cosim.core.interrupts import INTERRUPTS, interrupts_to
+from cosim.log.piped_recorder import LogLink, LogServer, log_pipes
 
 FORCE_AFTER_SIGNALS = 2
 """Signals received before the child is ready that end it at once (``SIGKILL``)."""
@@ -66,8 +72,11 @@ class Death:
 class Reporter:
     """The child's side of the pipe (a no-op in an unguarded run)."""
 
-    def __init__(self, descriptor: int | None) -> None:
+    def __init__(self, descriptor: int | None, log_link: LogLink | None = None) -> None:
         self._descriptor = descriptor
+        self.log_link = log_link
+        """The pipes to the parent that writes the run's log
+        (:class:`cosim.log.piped_recorder.PipedRecorder`; None: the child writes it)."""
 
     def _send(self, line: str) -> None:
         if self._descriptor is not None:
@@ -103,17 +112,26 @@ def guarded(body: Callable[[Reporter], int]) -> int | Death:
         with contextlib.suppress(OSError, ValueError):
             stream.flush()
     read_end, write_end = os.pipe()
+    link, server_ends = log_pipes()
     parent = os.getpid()
     # The parent's handlers are in place before the fork: no interrupt falls between.
     with _forwarding_signals() as state:
         child = os.fork()
         if child == 0:  # pragma: no cover - the child's coverage is not collected
-            os.close(read_end)
+            for descriptor in (read_end, *astuple(server_ends)):
+                os.close(descriptor)
             _die_with(parent)
-            _child(body, Reporter(write_end))
+            _child(body, Reporter(write_end, link))
         state.child = child
-        os.close(write_end)
-        _follow(read_end, state)
+        for descriptor in (write_end, *astuple(link)):
+            os.close(descriptor)
+        server = LogServer(server_ends)
+        try:
+            _follow(read_end, server, state)
+        finally:
+            server.finish()  # a child that died: its log finished with what arrived
+            for descriptor in astuple(server_ends):
+                os.close(descriptor)
     os.close(read_end)
     _, status = _wait(child)
     if state.code is not None:
@@ -207,21 +225,29 @@ def _forwarding_signals() -> Iterator[_State]:
         yield state
 
 
-def _follow(read_end: int, state: _State) -> None:
-    """Read the child's lines until it closes the pipe."""
+def _follow(read_end: int, server: LogServer, state: _State) -> None:
+    """Read the child's lines and write its log until it closes both pipes."""
     buffer = b""
+    frames = server.frames_fd
     with selectors.DefaultSelector() as selector:
         selector.register(read_end, selectors.EVENT_READ)
-        while True:
-            if not selector.select(timeout=0.5):
-                continue
-            data = os.read(read_end, 4096)
-            if not data:
-                return
-            buffer += data
-            *lines, buffer = buffer.split(b"\n")
-            for line in lines:
-                _take(line.decode(errors="surrogateescape"), state)
+        selector.register(frames, selectors.EVENT_READ)
+        while selector.get_map():
+            for key, _ in selector.select(timeout=0.5):
+                data = os.read(key.fd, LOG_READ_BYTES if key.fd == frames else 4096)
+                if not data:
+                    selector.unregister(key.fd)
+                elif key.fd == frames:
+                    server.feed(data)
+                else:
+                    buffer += data
+                    *lines, buffer = buffer.split(b"\n")
+                    for line in lines:
+                        _take(line.decode(errors="surrogateescape"), state)
+
+
+LOG_READ_BYTES = 256 * 1024
+"""The most of the log's frames read at once."""
 
 
 def _take(line: str, state: _State) -> None:

@@ -120,6 +120,8 @@ def _run_and_report(args: argparse.Namespace, config: Any, out: Path, live: Any,
     from cosim.simulation.runner import run
 
     duration_s = config.sim.duration_s
+    # In the guarded child the parent writes the log (cosim.log.piped_recorder).
+    log_link = getattr(reporter, "log_link", None)
 
     def reached(done: float) -> None:
         if reporter is not None:
@@ -147,9 +149,9 @@ def _run_and_report(args: argparse.Namespace, config: Any, out: Path, live: Any,
                         bar.update(task, completed=done)
                         reached(done)
 
-                    result = run(config, out, shown, live=stream)
+                    result = run(config, out, shown, live=stream, log_link=log_link)
             else:
-                result = run(config, out, reached, live=stream)
+                result = run(config, out, reached, live=stream, log_link=log_link)
         except CosimError as error:  # refused during the run: say where its log is
             if Path(out).is_file():
                 raise type(error)(f"{error} (the log up to it: {out})") from None
@@ -226,8 +228,10 @@ def _what_is_left(out: Path | None) -> str:
         summary = read_summary(out)
     except Exception:  # noqa: BLE001 - any unreadable log gets the same answer
         return f"the log {str(out)!r} holds nothing readable"
-    return (f"the log up to t = {summary.duration_s:.2f} s (its last complete chunk) is in "
-            f"{out} (cosim inspect reads it)")
+    # The parent writes the log of a guarded run: it finishes it with what the run sent.
+    kept = "its last complete chunk" if summary.truncated else "every message the run sent"
+    return (f"the log up to t = {summary.duration_s:.2f} s ({kept}) is in {out} "
+            "(cosim inspect reads it)")
 
 
 def _seeds(config: Any) -> str:

@@ -42,7 +42,6 @@ import orjson
 from foxglove.mcap import MCAPCompression, MCAPWriteOptions
 
 from cosim.core.exceptions import ConfigError
-from cosim.log import topics
 from cosim.log.held_chunks import HeldChunks
 from cosim.log.safe_file import PendingFile
 
@@ -205,6 +204,10 @@ class McapRecorder:
         """Declare a topic with its JSON schema (by default the one :mod:`cosim.log.topics`
         gives it); the schema's title is its name."""
         if schema is None:
+            # Imported here: the process that writes ``cosim run``'s log takes the schemas
+            # from the run (cosim.log.piped_recorder) and need not import the sensors' models.
+            from cosim.log import topics
+
             schema = topics.schema_of(topic)
         declared = foxglove.Schema(name=schema["title"], encoding="jsonschema",
                                    data=json.dumps(schema).encode())
@@ -219,15 +222,17 @@ class McapRecorder:
 
     def write(self, topic: str, t_s: float, message: dict[str, Any]) -> None:
         """Write one message at simulated time ``t_s`` (NaN and inf are written as null)."""
-        log_time = self.epoch_ns + seconds_to_ns(t_s)
-        data = encode_message(message)
+        self.write_encoded(topic, self.epoch_ns + seconds_to_ns(t_s), encode_message(message))
+
+    def write_encoded(self, topic: str, log_time_ns: int, data: bytes) -> None:
+        """Write one message already encoded (:func:`encode_message`) at its log time."""
         if self.live is not None:
-            self.live.due(log_time)
-        self._log[topic](data, log_time)
+            self.live.due(log_time_ns)
+        self._log[topic](data, log_time_ns)
         if self._stream.error is not None:  # the file could not take a finished chunk
             raise self._stream.error
         if self.live is not None:
-            self.live.sent(topic, log_time, data)
+            self.live.sent(topic, log_time_ns, data)
 
     write_finite = write
     """:meth:`write`, named for the messages that may carry NaN or inf (written as null)."""
@@ -236,9 +241,18 @@ class McapRecorder:
         self._writer.write_metadata(name, values)
 
     def add_attachment(self, name: str, media_type: str, data: bytes, t_s: float = 0.0) -> None:
-        t_ns = self.epoch_ns + seconds_to_ns(t_s)
-        self._writer.attach(log_time=t_ns, create_time=t_ns, name=name, media_type=media_type,
-                            data=data)
+        self.add_attachment_at(name, media_type, data, self.epoch_ns + seconds_to_ns(t_s))
+
+    def add_attachment_at(self, name: str, media_type: str, data: bytes,
+                          log_time_ns: int) -> None:
+        """:meth:`add_attachment` at a log time [ns since the Unix epoch]."""
+        self._writer.attach(log_time=log_time_ns, create_time=log_time_ns, name=name,
+                            media_type=media_type, data=data)
+
+    @property
+    def published(self) -> bool:
+        """The log has its final name (:meth:`publish`)."""
+        return self._pending.published
 
     def close(self) -> None:
         """Write the summary, publish and close the file (idempotent)."""

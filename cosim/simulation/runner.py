@@ -35,6 +35,7 @@ from cosim.core.config_fields import to_dict
 from cosim.core.exceptions import PhysicsDivergenceError, TrackerFault
 from cosim.core.records import Command, Estimate, VehicleState
 from cosim.core.sensor_names import GNSS, RADAR
+from cosim.log.piped_recorder import LogLink, PipedRecorder
 from cosim.log.recorder import LiveSink, McapRecorder, NoLog, Recorder
 from cosim.plant import disturbances
 from cosim.plant.low_level import AccelToTorque
@@ -383,10 +384,13 @@ def run(
     progress: Callable[[float], None] | None = None,
     live: LiveSink | None = None,
     workshop: Workshop | None = None,
+    log_link: LogLink | None = None,
 ) -> RunResult:
     """Run one scenario to ``out_path``; ``progress`` is called with the fraction done;
     ``live`` is a second sink on the log's channels (``cosim run --live``); ``workshop``
-    holds parts earlier runs built, for this one to reuse (:mod:`cosim.simulation.workshop`).
+    holds parts earlier runs built, for this one to reuse (:mod:`cosim.simulation.workshop`);
+    ``log_link``, the pipes to a process that writes the log
+    (:mod:`cosim.log.piped_recorder`: ``cosim run``'s parent), unless ``live`` is given.
 
     SIGINT and SIGTERM stop the run between two physics steps; the log is finished with
     ``completed: false`` and the result says ``interrupted``. A ``SystemExit`` (or another
@@ -395,7 +399,12 @@ def run(
     reason; an ordinary exception is raised on once the log is finished.
     """
     wall_start = time.perf_counter()
-    with McapRecorder(out_path, epoch_ns=config.sim.epoch_ns, live=live) as recorder:
+    recorder: PipedRecorder | McapRecorder
+    if log_link is not None and live is None:
+        recorder = PipedRecorder(log_link, out_path, epoch_ns=config.sim.epoch_ns)
+    else:
+        recorder = McapRecorder(out_path, epoch_ns=config.sim.epoch_ns, live=live)
+    with recorder:
         metrics, completed, abort_reason = _run_with(config, recorder, progress, wall_start,
                                                      workshop)
     return RunResult(Path(out_path), metrics, completed, abort_reason)
