@@ -17,7 +17,10 @@ runner, and judges the ensemble with the consistency figures of Bar-Shalom, Li, 
 (2001), section 5.4 (:mod:`estimation.consistency`). The headline puts every judged run in
 one band (100 runs: chi-square(400)/100, narrow enough to see a systematic error that groups
 of 20 hide in their noise), with the mean ANEES of each 1 s window beside it (the shape of
-the filter's confidence over the manoeuvre). Then, as a secondary view, groups of
+the filter's confidence over the manoeuvre), and per state the truth logs its error squared
+over the filter's variance of it (``cosim.sweeps.ensemble.state_consistency``: 1 for a
+consistent filter; it says which state's variance puts the ANEES off its band, and which
+the ANEES does not see, the lateral speed and the roll). Then, as a secondary view, groups of
 ``--group-size`` runs (five groups of 20): per group the ANEES over its runs at every logged time
 step after the first second against its 95 % chi-square band (runs x 4 dof: x, y, yaw, vx),
 the fraction of steps inside (below, above) and the largest fraction above in any 1 s window
@@ -63,6 +66,7 @@ from cosim.sweeps.ensemble import (
     anees_error,
     judge,
     run_member,
+    state_consistency,
 )
 from estimation.config import EstimatorConfig
 from estimation.consistency import SETTLE_S, false_alarms
@@ -186,6 +190,12 @@ def _report(members: list[EnsembleMember], group_size: int,
         f"{start:g}-{start + WINDOW_S:g} s {mean:.2f}" + ("" if low <= mean <= high else
                                                           (" ^" if mean > high else " v"))
         for start, mean in windows_all) + "  (^ above the band, v below)")
+    print("  per state, its error squared over the filter's variance (1: the variance is the "
+          "error's; under 1 the filter is under-confident in it), after the first second and in "
+          f"{WINDOW_S:g} s windows:")
+    for figure in state_consistency(members, window_s=WINDOW_S):
+        print(f"    {figure.state:22s} {figure.mean:6.3f}   "
+              + " ".join(f"{mean:.2f}" for _, mean in figure.windows))
     print(f"  {'group':10s} {'inside':>7s} {'below':>7s} {'above':>7s} "
           f"{'worst 1 s above':>16s} {'mean ANEES':>11s}  (each group against its own band)")
     insides, windows = [], []

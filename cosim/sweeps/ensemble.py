@@ -52,6 +52,9 @@ class EnsembleMember:
     nis_settled_dof: Mapping[str, int] = dataclasses.field(default_factory=dict)
     gated_first_s: Mapping[str, int] = dataclasses.field(default_factory=dict)
     """Per sensor, the updates the gate refused (in whole or in part) in the first second."""
+    normalized_errors: Mapping[str, np.ndarray] = dataclasses.field(default_factory=dict)
+    """Per state the truth logs, its error squared over the filter's variance of it at each
+    of ``t_s`` (:func:`state_consistency`)."""
 
 
 def _sums(metrics: Mapping[str, object], dof_prefix: str, nis_prefix: str
@@ -81,8 +84,51 @@ def run_member(config: ScenarioConfig, seed: int, out_dir: Path, keep_log: bool 
     settled_sums, settled_dofs = _sums(result.metrics, SETTLED_NIS_PREFIX, "nis_settled_")
     gated = {key.removeprefix(GATED_PREFIX): int(value)  # type: ignore[call-overload]
              for key, value in result.metrics.items() if key.startswith(GATED_PREFIX)}
+    normalized = {name: (errors.error[name] / errors.sigma[name]) ** 2
+                  for name in errors.error}
     return EnsembleMember(seed, errors.t_s, errors.nees, sums, dofs, result.metrics,
-                          settled_sums, settled_dofs, gated)
+                          settled_sums, settled_dofs, gated, normalized)
+
+
+@dataclass(frozen=True)
+class StateConsistency:
+    """One state's error squared over the filter's variance of it, averaged over the runs
+    (:func:`state_consistency`): 1 where the filter's variance of the state is its error's,
+    under 1 where the filter is under-confident in it, over 1 where over-confident. The
+    NEES of several states can sit in its band while one of them is off and another off the
+    other way; this says which."""
+
+    state: str
+    mean: float
+    """Over every run and step after the settling time."""
+    windows: tuple[tuple[float, float], ...]
+    """``(start_s, mean)`` of consecutive 1 s windows from the settling time on."""
+
+
+def state_consistency(members: Sequence[EnsembleMember], settle_s: float = SETTLE_S,
+                      window_s: float = 1.0) -> list[StateConsistency]:
+    """Per state every member logs, ``e^2 / P_ii`` averaged over the runs at each step after
+    ``settle_s``, its mean and its ``window_s`` window means (members cut to the shortest
+    run's samples, as :func:`judge` cuts them)."""
+    if not members:
+        raise ValueError("no runs to judge")
+    steps = min(m.t_s.size for m in members)
+    t_s = members[0].t_s[:steps]
+    settled = t_s >= settle_s - 1e-9
+    shared = [name for name in members[0].normalized_errors
+              if all(name in m.normalized_errors for m in members)]
+    figures = []
+    for name in shared:
+        per_step = np.mean([m.normalized_errors[name][:steps] for m in members], axis=0)
+        windows, start = [], float(settle_s)
+        while start + 0.5 * window_s <= float(t_s[-1]) + 1e-9:
+            inside = (t_s >= start - 1e-9) & (t_s < start + window_s - 1e-9)
+            if inside.any():
+                windows.append((start, float(np.mean(per_step[inside]))))
+            start += window_s
+        figures.append(StateConsistency(name, float(np.mean(per_step[settled])),
+                                        tuple(windows)))
+    return figures
 
 
 def judge(members: Sequence[EnsembleMember], probability: float = 0.95,

@@ -123,7 +123,7 @@ def replay(config: ScenarioConfig, log: Path | LoggedRun,
     n_steps = steps_per_period(sim.duration_s, dt_s, "sim.duration_s")
     sensor_steps = {round(t_ns * 1e-9 / dt_s) for t_ns in stream}
     yaw = NEES_STATES.index("yaw_rad")
-    times, nees = [], []
+    times, nees, normalized = [], [], []
     nis_sum: dict[str, float] = defaultdict(float)
     nis_dof: dict[str, int] = defaultdict(int)
     settled_sum: dict[str, float] = defaultdict(float)
@@ -142,6 +142,7 @@ def replay(config: ScenarioConfig, log: Path | LoggedRun,
             covariance = estimate.sub_covariance(NEES_STATES)
             times.append(t_s)
             nees.append(float(error @ np.linalg.solve(covariance, error)))
+            normalized.append(error**2 / np.diag(covariance))
         delivered = stream.get(t_ns, [])
         if delivered:
             results = port.fuse(delivered)
@@ -161,5 +162,7 @@ def replay(config: ScenarioConfig, log: Path | LoggedRun,
             command = next(commands, None)
             if command is not None:
                 port.command(t_s + config.tracker.latency_s, *command)
+    by_state = np.array(normalized).reshape(-1, len(NEES_STATES)).T
     return EnsembleMember(config.seed, np.array(times), np.array(nees), dict(nis_sum),
-                          dict(nis_dof), {}, dict(settled_sum), dict(settled_dof), dict(gated))
+                          dict(nis_dof), {}, dict(settled_sum), dict(settled_dof), dict(gated),
+                          dict(zip(NEES_STATES, by_state, strict=True)))

@@ -42,6 +42,12 @@ def test_replay_with_the_runs_own_filter_repeats_it(logged_run: LoggedRun) -> No
     assert replayed.nis_settled_dof == member.nis_settled_dof
     assert replayed.gated_first_s == member.gated_first_s
     assert set(member.nis_dof) == {"gnss", "imu", "steering", "wheel_speed"}
+    # Each NEES state's error over its own variance, from the log (the run) and from the
+    # replay's estimates: the same figures.
+    assert set(replayed.normalized_errors) == {"x_m", "y_m", "yaw_rad", "vx_mps"}
+    for name, values in replayed.normalized_errors.items():
+        np.testing.assert_allclose(values, member.normalized_errors[name], rtol=1e-6,
+                                   atol=1e-12)
 
 
 def test_replay_with_other_beliefs_is_another_filter_on_one_truth(logged_run: LoggedRun) -> None:
