@@ -299,8 +299,10 @@ def compiled_library(name: str, functions: Functions,
             if key is not None:
                 _generate(name, functions, tmp, edit_source)
             if note is not None:
-                print(f"cosim: note: {note} (once per machine, cached in {entry.parent})",
-                      file=sys.stderr, flush=True)
+                kept = (f"once per machine, cached in {entry.parent}" if _writable(entry.parent)
+                        else f"for this run only: the cache {str(entry.parent)!r} cannot be "
+                        "written")
+                print(f"cosim: note: {note} ({kept})", file=sys.stderr, flush=True)
             built = _build(command, (*flags, *native_flags(tuple(command))), source, name,
                            extra_sources, link_flags, fallback)
             if built is None:
@@ -315,6 +317,15 @@ def compiled_library(name: str, functions: Functions,
                               "(XDG_CACHE_HOME names the cache)", CompiledCacheWarning,
                               stacklevel=1)  # one place: said once per process
                 return _private_copy(built)
+
+
+def _writable(folder: Path) -> bool:
+    """Whether ``folder`` (made if missing) can take a new entry."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        return False
+    return os.access(folder, os.W_OK)
 
 
 def _hashed_flags(flags: Sequence[str], link_flags: Sequence[str],

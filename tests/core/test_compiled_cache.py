@@ -114,6 +114,24 @@ def test_an_unwritable_cache_is_said_once_and_the_library_still_works(
     assert library is not None and _evaluates_right(library, function)
 
 
+def test_the_note_of_a_build_for_an_unwritable_cache_does_not_say_cached(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """Before: "(once per machine, cached in <the folder it could not write>)"."""
+    blocker = tmp_path / "a-file"
+    blocker.write_text("not a folder")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(blocker))
+    function = _function()
+    with pytest.warns(CompiledCacheWarning):
+        compiled_library("cosim_note_test", [function], note="compiling a test function")
+    note = capsys.readouterr().err.strip()
+    assert note.startswith("cosim: note: compiling a test function (for this run only: ")
+    assert "cannot be written" in note and "cached in" not in note
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    compiled_library("cosim_note_test", [function], note="compiling a test function")
+    assert f"(once per machine, cached in {tmp_path / 'cache'}" in capsys.readouterr().err
+
+
 @pytest.mark.slow
 def test_a_truncated_tyre_library_no_longer_kills_every_run(tmp_path: Path) -> None:
     """The SIGBUS of a half-written library mapped into the plant: now a note and a rebuild."""
