@@ -119,10 +119,20 @@ class CompiledCacheWarning(UserWarning):
     """The cache of compiled libraries is damaged or cannot be written (the run goes on)."""
 
 
-def _private_copy(built: Path) -> Path:
-    """``built`` copied to a folder of this process's own, removed when it exits."""
-    folder = Path(tempfile.mkdtemp(prefix="cosim-compiled-"))
-    atexit.register(shutil.rmtree, folder, ignore_errors=True)
+def _private_entry(entry: Path) -> Path:
+    """Where this process keeps ``entry``'s library when the cache cannot take it: a folder
+    of the process's own (named by its id, removed when it exits), so that a second user of
+    the same library in the process loads it instead of building it again."""
+    where = hashlib.sha256(os.fsencode(entry)).hexdigest()[:16]  # the cache's folder too
+    return Path(tempfile.gettempdir()) / f"cosim-compiled-{os.getpid()}" / where
+
+
+def _private_copy(built: Path, entry: Path) -> Path:
+    """``built`` copied to :func:`_private_entry`."""
+    folder = _private_entry(entry)
+    if not folder.parent.exists():
+        atexit.register(shutil.rmtree, folder.parent, ignore_errors=True)
+    folder.mkdir(parents=True, exist_ok=True)
     return Path(shutil.copy2(built, folder / built.name))
 
 
@@ -290,6 +300,9 @@ def compiled_library(name: str, functions: Functions,
             found = _cached(entry, name)
             if found is not None:
                 return found
+        private = _private_entry(entry) / f"{name}.so"
+        if private.is_file():  # built by this process for an unwritable cache
+            return private
         # One process builds an entry; another that needs it meanwhile (a sweep's workers on
         # an empty cache) waits, then loads it instead of building it too.
         with build_lock(entry):
@@ -316,7 +329,7 @@ def compiled_library(name: str, functions: Functions,
                               f"({error.strerror or error}): compiling for this run only "
                               "(XDG_CACHE_HOME names the cache)", CompiledCacheWarning,
                               stacklevel=1)  # one place: said once per process
-                return _private_copy(built)
+                return _private_copy(built, entry)
 
 
 def _writable(folder: Path) -> bool:

@@ -132,6 +132,25 @@ def test_the_note_of_a_build_for_an_unwritable_cache_does_not_say_cached(
     assert f"(once per machine, cached in {tmp_path / 'cache'}" in capsys.readouterr().err
 
 
+def test_an_unwritable_cache_builds_a_library_once_per_process(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """Before: every user of the library in the process built it again, each with its note
+    and warning (the plant's physics step twice a run)."""
+    blocker = tmp_path / "a-file"
+    blocker.write_text("not a folder")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(blocker))
+    function = _function()
+    with pytest.warns(CompiledCacheWarning):
+        first = compiled_library("cosim_once_test", [function], note="compiling it")
+    assert "compiling it" in capsys.readouterr().err
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no second warning
+        second = compiled_library("cosim_once_test", [function], note="compiling it")
+    assert second == first and capsys.readouterr().err == ""
+    assert first is not None and str(os.getpid()) in str(first)
+
+
 @pytest.mark.slow
 def test_a_truncated_tyre_library_no_longer_kills_every_run(tmp_path: Path) -> None:
     """The SIGBUS of a half-written library mapped into the plant: now a note and a rebuild."""
