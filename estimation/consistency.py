@@ -135,6 +135,23 @@ def _chi_square_tails(x: float, dof: int) -> tuple[float, float]:
     return 1.0 - upper, upper
 
 
+def window_means(t_s: np.ndarray, values: np.ndarray, start_s: float,
+                 window_s: float) -> list[tuple[float, float]]:
+    """``(start, mean of values)`` of consecutive windows ``[start, start + window_s)`` of the
+    times ``t_s`` from ``start_s`` on; a last window shorter than half of ``window_s`` is
+    left out."""
+    if window_s <= 0.0:
+        raise ValueError(f"window_s = {window_s!r}: expected a positive duration")
+    means = []
+    start = start_s
+    while start + 0.5 * window_s <= float(t_s[-1]) + 1e-9:
+        inside = (t_s >= start - 1e-9) & (t_s < start + window_s - 1e-9)
+        if inside.any():
+            means.append((start, float(np.mean(values[inside]))))
+        start += window_s
+    return means
+
+
 @dataclass(frozen=True)
 class SensorNis:
     """A sensor's NIS over an ensemble: summed NIS per summed degree of freedom."""
@@ -187,16 +204,7 @@ class EnsembleConsistency:
         the first judged step on (a last window shorter than half of ``window_s`` is left
         out): the shape of the filter's confidence over the manoeuvre, over-confident where
         a window's mean lies above the band, under-confident below it."""
-        if window_s <= 0.0:
-            raise ValueError(f"window_s = {window_s!r}: expected a positive duration")
-        means = []
-        start = float(self.t_s[0])
-        while start + 0.5 * window_s <= float(self.t_s[-1]) + 1e-9:
-            inside = (self.t_s >= start - 1e-9) & (self.t_s < start + window_s - 1e-9)
-            if inside.any():
-                means.append((start, float(np.mean(self.anees[inside]))))
-            start += window_s
-        return means
+        return window_means(self.t_s, self.anees, float(self.t_s[0]), window_s)
 
     def consistent(
         self, min_fraction: float = 0.9, nis_range: tuple[float, float] = (0.85, 1.15)

@@ -127,7 +127,7 @@ def guarded(body: Callable[[Reporter], int]) -> int | Death:
             os.close(descriptor)
         server = LogServer(server_ends)
         try:
-            _follow(read_end, server, state)
+            _follow(read_end, server_ends.frames_fd, server, state)
         finally:
             server.finish()  # a child that died: its log finished with what arrived
             for descriptor in astuple(server_ends):
@@ -225,10 +225,10 @@ def _forwarding_signals() -> Iterator[_State]:
         yield state
 
 
-def _follow(read_end: int, server: LogServer, state: _State) -> None:
-    """Read the child's lines and write its log until it closes both pipes."""
+def _follow(read_end: int, frames: int, server: LogServer, state: _State) -> None:
+    """Read the child's lines (``read_end``) and its log's frames (``frames``, fed to
+    ``server``) until it closes both pipes."""
     buffer = b""
-    frames = server.frames_fd
     with selectors.DefaultSelector() as selector:
         selector.register(read_end, selectors.EVENT_READ)
         selector.register(frames, selectors.EVENT_READ)

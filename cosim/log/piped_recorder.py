@@ -62,29 +62,22 @@ F_SETPIPE_SZ = 1031
 
 @dataclass(frozen=True)
 class LogLink:
-    """The child's ends of the two pipes: frames out, answers in."""
+    """One side's ends of the two pipes: the run's write frames and read answers, the
+    server's read frames and write answers."""
 
     frames_fd: int
     answers_fd: int
 
 
-def log_pipes() -> tuple[LogLink, LogServerEnds]:
-    """Two pipes: the child's :class:`LogLink` and the server's ends."""
+def log_pipes() -> tuple[LogLink, LogLink]:
+    """Two pipes: the run's ends and the server's."""
     frames_read, frames_write = os.pipe()
     answers_read, answers_write = os.pipe()
     with contextlib.suppress(OSError, AttributeError):
         import fcntl
 
         fcntl.fcntl(frames_write, F_SETPIPE_SZ, PIPE_BYTES)
-    return LogLink(frames_write, answers_read), LogServerEnds(frames_read, answers_write)
-
-
-@dataclass(frozen=True)
-class LogServerEnds:
-    """The server's ends of the two pipes: frames in, answers out."""
-
-    frames_fd: int
-    answers_fd: int
+    return LogLink(frames_write, answers_read), LogLink(frames_read, answers_write)
 
 
 class PipedRecorder:
@@ -94,9 +87,9 @@ class PipedRecorder:
     keeps = True
 
     def __init__(self, link: LogLink, path: Path, epoch_ns: int = 0) -> None:
-        from cosim.log.recorder import encode_message
+        from cosim.log.recorder import encode_message, seconds_to_ns
 
-        self._encode = encode_message
+        self._encode, self._ns = encode_message, seconds_to_ns  # imported with foxglove-sdk
         self.path = Path(path)
         self.epoch_ns = epoch_ns
         self._link = link
@@ -131,7 +124,7 @@ class PipedRecorder:
         data = self._encode(message)
         buffer = self._buffer
         buffer += HEADER.pack(WRITE, len(data), self._channels[topic],
-                              self.epoch_ns + round(t_s * 1e9))
+                              self.epoch_ns + self._ns(t_s))
         buffer += data
         if len(buffer) >= FLUSH_BYTES:
             self._flush()
@@ -145,7 +138,7 @@ class PipedRecorder:
     def add_attachment(self, name: str, media_type: str, data: bytes, t_s: float = 0.0) -> None:
         described = json.dumps({"name": name, "media_type": media_type}).encode()
         self._frame(ATTACH, described + b"\n" + data,
-                    log_time_ns=self.epoch_ns + round(t_s * 1e9))
+                    log_time_ns=self.epoch_ns + self._ns(t_s))
 
     def publish(self) -> None:
         """The log takes its final name, its header and first messages in a complete chunk
@@ -244,13 +237,11 @@ class LogServer:
     """The other end of a :class:`PipedRecorder`: applies its frames to an
     :class:`McapRecorder` (module docstring)."""
 
-    def __init__(self, ends: LogServerEnds) -> None:
+    def __init__(self, ends: LogLink) -> None:
         from cosim.log.recorder import McapRecorder  # foxglove-sdk, before the run asks
 
         self._open_recorder = McapRecorder
         self._ends = ends
-        self.frames_fd = ends.frames_fd
-        """Where the frames come from (the caller reads it and :meth:`feed` s them)."""
         self._buffer = bytearray()
         self._recorder: McapRecorder | None = None
         self._topics: list[str] = []

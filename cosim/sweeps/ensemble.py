@@ -28,6 +28,7 @@ from estimation.consistency import (
     EnsembleConsistency,
     anees_standard_error,
     ensemble_consistency,
+    window_means,
 )
 
 NIS_PREFIX = "nis_dof_"
@@ -120,12 +121,7 @@ def state_consistency(members: Sequence[EnsembleMember], settle_s: float = SETTL
     figures = []
     for name in shared:
         per_step = np.mean([m.normalized_errors[name][:steps] for m in members], axis=0)
-        windows, start = [], float(settle_s)
-        while start + 0.5 * window_s <= float(t_s[-1]) + 1e-9:
-            inside = (t_s >= start - 1e-9) & (t_s < start + window_s - 1e-9)
-            if inside.any():
-                windows.append((start, float(np.mean(per_step[inside]))))
-            start += window_s
+        windows = window_means(t_s, per_step, float(settle_s), window_s)
         figures.append(StateConsistency(name, float(np.mean(per_step[settled])),
                                         tuple(windows)))
     return figures
