@@ -25,6 +25,7 @@ matplotlib is used through ``Figure`` objects on their own Agg canvas (no pyplot
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -46,13 +47,15 @@ def default_out_dir(paths: Sequence[Path]) -> Path:
 
 
 def plot_logs(paths: Sequence[Path | str], out_dir: Path | str | None = None,
-              labels: Sequence[str] = ()) -> list[Path]:
+              labels: Sequence[str] = (), processes: int | None = None) -> list[Path]:
     """Write every figure of one log, or of several logs overlaid; returns the PNG paths.
     ``labels``, if given, name the logs in the legends, one a log in order (else each is
-    named by what differs in its configuration)."""
+    named by what differs in its configuration). ``processes``: how many processes draw
+    the figures (:func:`cosim.plots.drawing.draw`; None: two where there are two cores)."""
     from cosim.plots.acc import acc_figure, load_acc
     from cosim.plots.commands import commands_figure
     from cosim.plots.data import distinct_labels, load_run
+    from cosim.plots.drawing import FigureJob, draw
     from cosim.plots.estimation import estimation_figure, estimation_internal_figure
     from cosim.plots.solver import solver_figure
     from cosim.plots.top_view import top_view_figure
@@ -86,10 +89,10 @@ def plot_logs(paths: Sequence[Path | str], out_dir: Path | str | None = None,
         "commands": commands_figure, "estimation": estimation_figure,
         "solver": solver_figure,
     }
-    written = [makers[name](runs, out / f"{name}.png") for name in FIGURES]
-    internal = estimation_internal_figure(runs, out / "estimation_internal.png")
-    if internal is not None:
-        written.insert(FIGURES.index("estimation") + 1, internal)
+    jobs: list[FigureJob] = [functools.partial(makers[name], runs, out / f"{name}.png")
+                             for name in FIGURES]
+    jobs.insert(FIGURES.index("estimation") + 1, functools.partial(
+        estimation_internal_figure, runs, out / "estimation_internal.png"))
     # A log whose configuration has no traffic has no ACC topics: not read a second time
     # for them (a log without its configuration, an old one, is).
     acc_logs = [None if run.config and not run.config.get("traffic") else load_acc(run.path)
@@ -97,9 +100,9 @@ def plot_logs(paths: Sequence[Path | str], out_dir: Path | str | None = None,
     if any(log is not None for log in acc_logs):  # runs with traffic
         with_traffic = [(r, log) for r, log in zip(runs, acc_logs, strict=True)
                         if log is not None]
-        written.append(acc_figure([r for r, _ in with_traffic], [log for _, log in with_traffic],
-                                  out / "acc.png"))
-    return written
+        jobs.append(functools.partial(acc_figure, [r for r, _ in with_traffic],
+                                      [log for _, log in with_traffic], out / "acc.png"))
+    return [path for path in draw(jobs, processes) if path is not None]
 
 
 def plot_command(files: Sequence[str], out_dir: str | None, labels: Sequence[str] = ()) -> int:

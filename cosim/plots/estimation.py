@@ -43,6 +43,7 @@ from cosim.plots.style import (
     suptitle,
     time_axis,
 )
+from estimation.consistency import chi_square_quantile
 
 PLOT_UNITS: dict[str, tuple[float, str]] = {
     "m": (100.0, "cm"), "rad": (float(np.degrees(1.0)), "deg"),
@@ -60,10 +61,9 @@ COLUMNS = 2
 
 
 def _nees_band(dof: int, probability: float = 0.95) -> tuple[float, float]:
-    from scipy.stats import chi2
-
+    """The central ``probability`` interval of a chi-square(``dof``) variable."""
     tail = (1.0 - probability) / 2.0
-    return float(chi2.ppf(tail, dof)), float(chi2.ppf(1.0 - tail, dof))
+    return chi_square_quantile(tail, dof), chi_square_quantile(1.0 - tail, dof)
 
 
 def _plot_unit(name: str) -> tuple[float, str]:

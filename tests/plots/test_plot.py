@@ -56,6 +56,11 @@ def test_every_figure_of_one_run(nmpc_run: RunResult, tmp_path: Path) -> None:
     assert [p.name for p in written] == [f"{name}.png" for name in EXPECTED]
     for path in written:
         _assert_real_figure(path)
+    # Drawn by one process alone, every figure is the same file (two drew the above where
+    # there are two cores: cosim.plots.drawing).
+    alone = plot_logs([nmpc_run.log_path], tmp_path / "alone", processes=1)
+    for path, same in zip(written, alone, strict=True):
+        assert path.read_bytes() == same.read_bytes(), path.name
 
 
 @pytest.mark.slow
