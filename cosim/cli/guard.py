@@ -38,6 +38,7 @@ from __future__ import annotations
 import contextlib
 import os
 import selectors
+import shutil
 import signal
 import sys
 import traceback
@@ -45,6 +46,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import astuple, dataclass, field
 from typing import Any
 
+from cosim.core.compiled_cache import private_folder
 from cosim.core.interrupts import INTERRUPTS, interrupts_to
 from cosim.log.piped_recorder import LogLink, LogServer, log_pipes
 
@@ -134,6 +136,9 @@ def guarded(body: Callable[[Reporter], int]) -> int | Death:
                 os.close(descriptor)
     os.close(read_end)
     _, status = _wait(child)
+    # The child ends with os._exit (or a signal): its exit handlers, which remove the
+    # libraries it built for itself where the cache could not take them, never ran.
+    shutil.rmtree(private_folder(child), ignore_errors=True)
     if state.code is not None:
         return state.code
     if os.WIFSIGNALED(status):

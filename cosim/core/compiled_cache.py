@@ -19,6 +19,7 @@ import hashlib
 import json
 import os
 import shutil
+import tempfile
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -41,6 +42,14 @@ def cache_dir() -> Path:
     """``$XDG_CACHE_HOME/cosim`` (``~/.cache/cosim``)."""
     base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
     return Path(base) / "cosim"
+
+
+def private_folder(pid: int | None = None) -> Path:
+    """Where process ``pid`` (this one by default) keeps the libraries the cache could not
+    take (an unwritable cache): a folder of its own in the temporary directory, removed at
+    the process's exit, and by `cosim run`'s guard (:mod:`cosim.cli.guard`) when the run's
+    process ends without Python's exit handlers (``os._exit``, a signal)."""
+    return Path(tempfile.gettempdir()) / f"cosim-compiled-{os.getpid() if pid is None else pid}"
 
 
 def limit_bytes() -> int:

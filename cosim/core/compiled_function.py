@@ -45,6 +45,7 @@ from cosim.core.compiled_cache import (
     entry_damage,
     install,
     mark_used,
+    private_folder,
     prune,
     remove,
 )
@@ -121,10 +122,10 @@ class CompiledCacheWarning(UserWarning):
 
 def _private_entry(entry: Path) -> Path:
     """Where this process keeps ``entry``'s library when the cache cannot take it: a folder
-    of the process's own (named by its id, removed when it exits), so that a second user of
-    the same library in the process loads it instead of building it again."""
+    of the process's own (:func:`private_folder`), so that a second user of the same library
+    in the process loads it instead of building it again."""
     where = hashlib.sha256(os.fsencode(entry)).hexdigest()[:16]  # the cache's folder too
-    return Path(tempfile.gettempdir()) / f"cosim-compiled-{os.getpid()}" / where
+    return private_folder() / where
 
 
 def _private_copy(built: Path, entry: Path) -> Path:

@@ -9,12 +9,14 @@ import os
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
 import pytest
 
 from cosim.cli.guard import Death, Reporter, guarded
+from cosim.core.compiled_cache import private_folder
 from cosim.log.reader import read_summary
 from cosim.log.safe_file import partial_path
 
@@ -47,6 +49,27 @@ def test_guarded_returns_the_childs_code_or_how_it_died() -> None:
 
     assert guarded(crashes) == Death(how="signal SIGSEGV", last_t_s=None, log_path=None,
                                    tracker=None, interrupted=False)
+
+
+@pytest.mark.parametrize("ending", ["finishes", "dies"])
+def test_the_libraries_a_run_built_for_itself_leave_with_it(
+        ending: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """With an unwritable cache a run keeps the libraries it builds in a folder of its own
+    (cosim.core.compiled_cache.private_folder), which its exit handlers remove; the run's
+    process ends with os._exit or a signal, so the guard removes it (before: left behind
+    in the temporary directory by every such run)."""
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))  # tempfile.gettempdir()'s
+
+    def builds(reporter: Reporter) -> int:
+        folder = private_folder() / "0123456789abcdef"
+        folder.mkdir(parents=True)
+        (folder / "library.so").write_bytes(b"built")
+        if ending == "dies":
+            os.kill(os.getpid(), signal.SIGKILL)
+        return 0
+
+    guarded(builds)
+    assert list(tmp_path.iterdir()) == []
 
 
 @pytest.mark.parametrize("fail_at_s", [2.5, 0.3])
