@@ -326,11 +326,19 @@ def compiled_library(name: str, functions: Functions,
                 prune(keep=entry)  # the cache stays within its bound (compiled_cache)
                 return installed
             except OSError as error:
-                warnings.warn(f"cannot write the compiled-code cache {str(entry.parent)!r} "
-                              f"({error.strerror or error}): compiling for this run only "
-                              "(XDG_CACHE_HOME names the cache)", CompiledCacheWarning,
-                              stacklevel=1)  # one place: said once per process
+                _say_unwritable(str(entry.parent), str(error.strerror or error))
                 return _private_copy(built, entry)
+
+
+@functools.cache
+def _say_unwritable(folder: str, reason: str) -> None:
+    """Warn that the cache ``folder`` cannot be written, once per process for each folder
+    and reason: a run builds several libraries, and the warnings filter's own "once per
+    place" forgets what it said whenever a ``warnings.catch_warnings`` block ends (before:
+    a run with an unwritable cache said the same line three times)."""
+    warnings.warn(f"cannot write the compiled-code cache {folder!r} ({reason}): compiling "
+                  "for this run only (XDG_CACHE_HOME names the cache)", CompiledCacheWarning,
+                  stacklevel=1)
 
 
 def _writable(folder: Path) -> bool:

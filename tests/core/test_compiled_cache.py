@@ -151,6 +151,22 @@ def test_an_unwritable_cache_builds_a_library_once_per_process(
     assert first is not None and str(os.getpid()) in str(first)
 
 
+def test_an_unwritable_cache_is_said_once_for_every_library_it_cannot_take(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Before: once per library, three times a run: each warning's place was forgotten
+    when a block that catches warnings (the run's) ended."""
+    blocker = tmp_path / "a-file"
+    blocker.write_text("not a folder")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(blocker))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")  # every warning issued is recorded
+        for name in ("cosim_first_test", "cosim_second_test"):
+            with warnings.catch_warnings():  # as a run's own block does
+                compiled_library(name, [_function(f"{name}_probe")])
+    said = [w for w in caught if issubclass(w.category, CompiledCacheWarning)]
+    assert len(said) == 1, [str(w.message) for w in said]
+
+
 @pytest.mark.slow
 def test_a_truncated_tyre_library_no_longer_kills_every_run(tmp_path: Path) -> None:
     """The SIGBUS of a half-written library mapped into the plant: now a note and a rebuild."""
