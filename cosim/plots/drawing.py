@@ -6,8 +6,9 @@ figure). :func:`draw` hands every other figure to a forked copy of this process,
 has the logs already in memory (nothing is read, pickled or imported again), and draws
 the rest itself: the figures come out as one process would write them, byte for byte
 (``tests/plots/test_plot.py``), in about half the time on a machine with a second core.
-Where there is no second core, or no ``fork`` (Windows; macOS's Python defaults to
-``spawn`` but has ``fork``), every figure is drawn here, one after another.
+Where there is no second core, or not Linux (Windows has no ``fork``; on macOS a forked
+copy of a process that has loaded Apple's frameworks may be stopped by them), every figure
+is drawn here, one after another.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from __future__ import annotations
 import multiprocessing
 import os
 import pickle
+import sys
 import traceback
 from collections.abc import Callable, Sequence
 from multiprocessing.connection import Connection
@@ -41,7 +43,7 @@ def draw(jobs: Sequence[FigureJob], processes: int | None = None) -> list[Path |
     :class:`CosimError` with its traceback); a forked process that dies is a
     :class:`CosimError` naming its exit code."""
     processes = min(2, cores()) if processes is None else processes
-    if processes < 2 or len(jobs) < 2 or "fork" not in multiprocessing.get_all_start_methods():
+    if processes < 2 or len(jobs) < 2 or not sys.platform.startswith("linux"):
         return [job() for job in jobs]
     theirs, ours = list(range(0, len(jobs), 2)), list(range(1, len(jobs), 2))
     context = multiprocessing.get_context("fork")
