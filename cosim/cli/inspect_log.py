@@ -28,13 +28,14 @@ def add_parsers(commands: Any) -> dict[str, Handler]:
 
 def command(args: argparse.Namespace) -> int:
     from cosim.log.export import csv_command, log_warnings
-    from cosim.log.reader import read_summary
+    from cosim.log.reader import log_file_problem, read_summary
     from cosim.simulation.beliefs import mismatch_table, told
     from cosim.simulation.changes import config_changes
 
     path = Path(args.file)
-    if not path.is_file():
-        raise CosimError(f"{args.file!r}: no such file (expected an MCAP log)")
+    problem = log_file_problem(path)
+    if problem is not None:
+        raise CosimError(f"{args.file!r}: {problem} (expected an MCAP log)")
     period_s = _log_period_s(args.require, path)
     summary = read_summary(path)
     if args.require:

@@ -87,6 +87,16 @@ class LogSummary:
         return _json_object(self.metadata.get("run", {}).get("versions"))
 
 
+def log_file_problem(path: Path) -> str | None:
+    """Why ``path`` cannot be a log to read, in a few words for a one-line error (``no such
+    file``, ``is a folder``, ``not a regular file``); None for a file worth trying."""
+    if path.is_file():
+        return None
+    if path.is_dir():
+        return "is a folder"
+    return "not a regular file" if path.exists() else "no such file"
+
+
 def _json_object(text: str | None) -> dict[str, Any]:
     """A JSON object from metadata; {} when absent or not one (another writer's)."""
     try:

@@ -19,7 +19,7 @@ import numpy as np
 
 from cosim.core.exceptions import CosimError, LogReadError
 from cosim.log import topics
-from cosim.log.reader import iter_topics, read_summary
+from cosim.log.reader import iter_topics, log_file_problem, read_summary
 from cosim.simulation.changes import (
     config_changes,
     config_differences,
@@ -331,8 +331,9 @@ def _estimation(truth: Truth, estimate: EstimateLog | None) -> EstimationErrors 
 def load_run(path: Path | str) -> RunLog:
     """Read a log for plotting (a truncated log gives what it holds)."""
     path = Path(path)
-    if not path.is_file():
-        raise CosimError(f"{str(path)!r}: no such file (expected an MCAP log)")
+    problem = log_file_problem(path)
+    if problem is not None:
+        raise CosimError(f"{str(path)!r}: {problem} (expected an MCAP log)")
     summary = read_summary(path)
     messages: dict[str, list[tuple[int, dict[str, Any]]]] = {topic: [] for topic in TOPICS}
     for topic, log_time_ns, message in iter_topics(path, TOPICS):

@@ -73,6 +73,7 @@ from typing import Any
 import numpy as np
 
 from cosim.core.exceptions import CosimError, GlBackendError, RenderError
+from cosim.log.reader import log_file_problem
 from cosim.plots.chase_renderer import ChaseRenderer
 from cosim.plots.gl_backend import GL_BACKENDS, check_gl_backend, default_gl, gl_environment
 from cosim.plots.video_scene import frame_times, read_logged_scene
@@ -235,8 +236,9 @@ def render_log(log_path: Path | str, out_path: Path | str,
     """
     options.validate()
     log_path, out_path = Path(log_path), Path(out_path)
-    if not log_path.is_file():
-        raise RenderError(f"{str(log_path)!r}: no such file (expected an MCAP log)")
+    problem = log_file_problem(log_path)
+    if problem is not None:
+        raise RenderError(f"{str(log_path)!r}: {problem} (expected an MCAP log)")
     check_video_path(out_path)
     gl = options.gl or default_gl()
     check_gl_backend(gl)

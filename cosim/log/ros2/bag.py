@@ -41,7 +41,7 @@ from cosim.core.sensor_names import GNSS, IMU
 from cosim.log import topics
 from cosim.log.foxglove import GeoOrigin
 from cosim.log.output_claim import claim_output
-from cosim.log.reader import LogSummary, iter_topics, read_summary
+from cosim.log.reader import LogSummary, iter_topics, log_file_problem, read_summary
 from cosim.log.ros2 import types as ros
 from cosim.log.ros2.messages import RosMessages, planar_fields_missing
 from cosim.log.safe_file import PendingFile
@@ -135,9 +135,10 @@ def _write_bag(log: Path, out: Path, summary: LogSummary) -> dict[str, int]:
 
 def _run_log(log: Path) -> LogSummary:
     """The summary of ``log``, refused unless it is a run log cosim wrote."""
-    if not log.is_file():
-        what = "is a folder" if log.is_dir() else "no such file"
-        raise CosimError(f"--ros2 {str(log)!r}: {what} (expected the MCAP log of a cosim run)")
+    problem = log_file_problem(log)
+    if problem is not None:
+        raise CosimError(f"--ros2 {str(log)!r}: {problem} (expected the MCAP log of a cosim "
+                         "run)")
     summary = read_summary(log)
     encodings = {c.topic: c.message_encoding for c in summary.channels}
     if not summary.written_by_cosim or encodings.get(topics.VEHICLE_TRUTH) != "json":
