@@ -30,6 +30,7 @@ tracker ``dynamic-nmpc``; the measurements behind each: docs/defaults.md.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -66,6 +67,30 @@ def default_steer_bound_rad(name: str) -> float:
     return REFERENCE_DESIGN_STEER_BOUND_RAD if name == "dynamic-mpc" else STEER_BOUND_RAD
 
 
+STEER_RATE_WEIGHT = 3.0
+"""``tracker.weights.steer_rate`` of the NMPCs but ``dynamic-nmpc`` when it is unset
+[s/rad^2]: ``kinematic-nmpc``'s model lacks the yaw and side-slip dynamics, and a faster
+wheel made it worse (docs/defaults.md)."""
+
+DYNAMIC_NMPC_STEER_RATE_WEIGHT = 0.3
+"""``dynamic-nmpc``'s ``tracker.weights.steer_rate`` when it is unset [s/rad^2]: its model
+carries the yaw, the side slip and the steering actuator, so a faster wheel tracks closer;
+the caution (``tracker.caution_lateral_sigma_m``) calms it while the estimate is unsure
+(docs/defaults.md)."""
+
+
+def default_steer_rate_weight(name: str) -> float:
+    """``tracker.weights.steer_rate`` of the tracker ``name`` when it is unset."""
+    return DYNAMIC_NMPC_STEER_RATE_WEIGHT if name == "dynamic-nmpc" else STEER_RATE_WEIGHT
+
+
+def own_defaults(name: str) -> dict[str, float]:
+    """The keys (dotted, under ``tracker``) whose default follows the tracker ``name``, with
+    its values: a run of another tracker that keeps them has not changed them."""
+    return {"max_steer_rad": default_steer_bound_rad(name),
+            "weights.steer_rate": default_steer_rate_weight(name)}
+
+
 PLUGIN_GROUP = "cosim.trackers"
 """Entry-point group of trackers from other packages (:mod:`tracker.plugins.loading`)."""
 
@@ -92,7 +117,11 @@ class TrackerWeights:
     accel_rate: float = setting(
         0.05, low=0.0, high=1e6, doc="(rate of acceleration)^2 [s^5/m^2]"
     )
-    steer_rate: float = setting(3.0, low=0.0, high=1e6, doc="(steering rate)^2 [s/rad^2]")
+    steer_rate: float | None = setting(
+        None, low=0.0, high=1e6,
+        doc="(steering rate)^2, while the estimate is sure (caution_lateral_sigma_m); "
+        "unset: 0.3 for dynamic-nmpc, 3 for kinematic-nmpc [s/rad^2]",
+    )
     limit_excess: float = setting(
         1e4,
         low=0.0,
@@ -212,6 +241,12 @@ class TrackerConfig:
         doc="convergence tolerance of solvers ipopt and fatrop; sqp-rti from a cold guess "
         "stops once no entry of a step exceeds it"
     )
+    caution_lateral_sigma_m: float = setting(
+        0.06, low=0.0, high=100.0,
+        doc="the NMPCs weigh the steering rate by 1 + sigma^2 / this^2, sigma the estimate's "
+        "standard deviation across the car's heading: a calmer wheel while the estimate is "
+        "unsure (the start, a receiver without RTK); 0: off [m]",
+    )
     latency_compensation: bool = setting(
         True,
         doc="predict the estimate over latency_s with the commands in the delay line",
@@ -244,6 +279,9 @@ class TrackerConfig:
     def __post_init__(self) -> None:
         if self.max_steer_rad is None:  # the tracker's own default (one key, one concept)
             object.__setattr__(self, "max_steer_rad", default_steer_bound_rad(self.name))
+        if self.weights.steer_rate is None:  # likewise
+            object.__setattr__(self, "weights", dataclasses.replace(
+                self.weights, steer_rate=default_steer_rate_weight(self.name)))
         if (self.name not in TRACKER_CHOICES and not is_fmu_name(self.name)
                 and not is_plugin_name(self.name)):
             raise ConfigError(

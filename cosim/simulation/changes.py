@@ -11,8 +11,9 @@ scenario file whose name is not a built-in's, the built-in whose own YAML it agr
 most (key by key); the comparison is between resolved configurations (every default
 filled in), so a change is listed whether it was written as a ``--set``, in a file, or by
 choosing a component. The seed, the name and the description are not changes (the seed is
-shown beside them). Keys that follow another change are left out: the steering bound that
-follows the tracker (``tracker.max_steer_rad``, each tracker's default) and the sensor
+shown beside them). Keys that follow another change are left out: the steering bound and the
+steering-rate weight that follow the tracker (``tracker.max_steer_rad``,
+``tracker.weights.steer_rate``: each tracker's default) and the sensor
 figures and filter beliefs a ``sensors.suite`` preset brings. A belief told the plant's
 value (:mod:`cosim.simulation.beliefs`) shows as that request, ``tracker.latency_s=plant``,
 not as the number it took: two runs that differ in what the controller was told never look
@@ -31,7 +32,7 @@ from cosim.core.exceptions import CosimError
 from cosim.core.yaml_io import loads as yaml_loads
 from cosim.simulation.beliefs import PLANT, TOLD_KEY, counterpart, told
 from cosim.simulation.scenario_config import ConfigMergeNote, builtin_scenarios, load_config
-from tracker.config import default_steer_bound_rad
+from tracker.config import own_defaults
 
 NOT_CHANGES = ("name", "description", "seed")
 """Keys that tell runs apart without being changes to the scenario."""
@@ -55,17 +56,18 @@ def flat_config(config: Any, prefix: str = "") -> dict[str, Any]:
 def config_differences(configs: Sequence[Mapping[str, Any]]) -> list[str]:
     """The dotted keys whose values differ between configurations, in the order of the
     first one (a key only some of them have counts as different); ``description`` is left
-    out."""
+    out. Between configurations of different trackers, a key whose default follows the
+    tracker (:func:`tracker.config.own_defaults`) differs where one of them leaves its own
+    tracker's default, whether or not the numbers are equal."""
     flats = [flat_config(config) for config in configs]
     keys = list(dict.fromkeys(key for flat in flats for key in flat))
     missing = object()
-    differing = [key for key in keys
-                 if key != "description"
-                 and len({repr(flat.get(key, missing)) for flat in flats}) > 1]
-    if ("tracker.name" in differing and "tracker.max_steer_rad" in differing
-            and all(_default_steer_bound(config) for config in configs)):
-        differing.remove("tracker.max_steer_rad")  # each tracker's own default
-    return differing
+    trackers_differ = len({repr(flat.get("tracker.name")) for flat in flats}) > 1
+    own = _own_defaults_left(flats) if trackers_differ else {}
+    return [key for key in keys
+            if key != "description"
+            and (own[key] if key in own
+                 else len({repr(flat.get(key, missing)) for flat in flats}) > 1)]
 
 
 def shown_difference(key: str, flat: Mapping[str, Any]) -> str:
@@ -92,10 +94,13 @@ def mismatch_first(keys: Sequence[str]) -> list[str]:
     return [k for k in keys if is_pair(k)] + [k for k in keys if not is_pair(k)]
 
 
-def _default_steer_bound(config: Mapping[str, Any]) -> bool:
-    """Whether a configuration's tracker kept its own default steering bound."""
-    tracker = config.get("tracker", {})
-    return tracker.get("max_steer_rad") == default_steer_bound_rad(str(tracker.get("name")))
+def _own_defaults_left(flats: Sequence[Mapping[str, Any]]) -> dict[str, bool]:
+    """For each key whose default follows the tracker (:func:`tracker.config.own_defaults`),
+    whether some flat configuration holds another value than its own tracker's default."""
+    defaults = [{f"tracker.{key}": value for key, value in
+                 own_defaults(str(flat.get("tracker.name"))).items()} for flat in flats]
+    return {key: any(flat.get(key) != own[key] for flat, own in zip(flats, defaults, strict=True))
+            for key in defaults[0]}
 
 
 def shown_value(value: Any) -> str:

@@ -17,12 +17,11 @@ and counts as a failure. Measured on the sedan (seed 0, a loaded 2-core machine)
 3888-1 lane change at 60 km/h the MPCs but ``kinematic-nmpc`` pass every gate, while every
 baseline hits at least one (``pid`` and ``lqr`` spin once the steering-rate bound saturates
 them); ``dynamic-mpc`` passes up to 68 km/h and hits gates at 72 km/h
-(``bench/iso_entry_speed.py``). On the ring circuit ``lqr`` edges out the MPCs (seed 0,
-quiet machine: RMS CTE 0.059 m against 0.077 m for ``dynamic-nmpc``, the best MPC): their
-steering-rate weight (``tracker.weights.steer_rate = 3``, tuned for the lane change's
-comfort) makes them lag the circuit's long changes of curvature, which the LQR, without a
-rate penalty, follows. With ``tracker.weights.steer_rate=0.3`` ``dynamic-nmpc`` gives 0.053
-m, with ``tracker.weights.cte=100`` 0.051 m, both ahead of the LQR.
+(``bench/iso_entry_speed.py``). On the ring circuit ``lqr`` edged out the MPCs when both
+NMPCs weighed the steering rate at 3 (seed 0: RMS CTE 0.059 m against 0.077 m for
+``dynamic-nmpc``): they lagged the circuit's long changes of curvature, which the LQR,
+without a rate penalty, follows. ``dynamic-nmpc``'s own weight is 0.3 since, with the
+caution of :mod:`tracker.mpc.caution` (docs/defaults.md).
 
 Outputs in ``--out DIR``: ``league.md`` and ``league.csv`` (the table), ``league.png``
 (``cte_rms_m`` per scenario and tracker), ``rows.json`` (every run's metrics),

@@ -123,6 +123,8 @@ def test_while_the_wheels_turn_fast_the_steering_is_as_sure_as_it_is_right(
     """Closed loop: where the road wheels turn fast (the start's corrective swings), the
     steering's error is what its variance says (e^2 / P near 1; the timing taken twice or
     half as large leaves the band), and without the actuator's timing in its noise the
-    filter is several times surer than it is right."""
+    filter is more than twice as sure as it is right (2.65 on these seeds since the
+    tracker's caution calms the wheel while a gnss start converges, tracker.mpc.caution;
+    above 3 with the faster swings before)."""
     assert 0.5 < _steering_nees_while_turning(0.002, tmp_path) < 1.4
-    assert _steering_nees_while_turning(0.0, tmp_path) > 3.0
+    assert _steering_nees_while_turning(0.0, tmp_path) > 2.0

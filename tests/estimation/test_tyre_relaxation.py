@@ -143,10 +143,12 @@ def test_the_relaxed_model_follows_the_lane_change(lane_change_truth: list[dict]
           f"relaxed {relaxed[0]:.4f} / {relaxed[1]:.4f}, three times the lengths "
           f"{tripled[0]:.4f} / {tripled[1]:.4f}")
     # The tyres' lag is much of what the steady model misses where a_y reverses: the
-    # lateral error falls by a quarter at least, the yaw acceleration's by a third (0.039 ->
-    # 0.026 m/s^2, 0.0090 -> 0.0049 rad/s^2 on this seed).
-    assert relaxed[0] < 0.75 * steady[0]
+    # lateral error falls by a fifth at least, the yaw acceleration's by a third (0.044 ->
+    # 0.033 m/s^2, 0.0128 -> 0.0065 rad/s^2 on this seed; half the lengths: 0.037 m/s^2,
+    # 0.84 of the steady model's, fails the first bar. With the tracker's slower wheel of
+    # before 2026-12-06: 0.039 -> 0.026 m/s^2, 0.0090 -> 0.0049 rad/s^2).
+    assert relaxed[0] < 0.8 * steady[0]
     assert relaxed[1] < 0.67 * steady[1]
     # Not any lag will do: three times the tyre's lengths is worse than the tyre's own
-    # (0.037 m/s^2, 0.016 rad/s^2).
+    # (0.048 m/s^2, 0.024 rad/s^2).
     assert tripled[0] > relaxed[0] and tripled[1] > relaxed[1]

@@ -29,6 +29,12 @@ def test_a_nominal_run_changes_nothing_and_overrides_are_named() -> None:
     assert changes("sim.duration_s=5", "plant.mass_kg=2000") == [
         "sim.duration_s=5", "plant.mass_kg=2000"]
     assert changes("tracker.name=ltv-mpc") == ["tracker.name=ltv-mpc"]
+    # Each tracker's own steering bound and steering-rate weight follow it (kinematic-nmpc's
+    # weight is 3 where dynamic-nmpc's is 0.3); set against its tracker's default, a change.
+    assert changes("tracker.name=kinematic-nmpc") == ["tracker.name=kinematic-nmpc"]
+    assert changes("tracker.name=kinematic-nmpc", "tracker.weights.steer_rate=0.3") == [
+        "tracker.name=kinematic-nmpc", "tracker.weights.steer_rate=0.3"]
+    assert changes("tracker.weights.steer_rate=3") == ["tracker.weights.steer_rate=3"]
     # The seed tells runs apart but is not a change of the scenario.
     assert config_changes(to_dict(load_config("lane-change", seed=7))) == []
 

@@ -43,6 +43,10 @@ apply the first input and keep the rest as the next warm start. A tracker is an
   their way (:class:`tracker.mpc.delay_line.IssuedInputs`), not the last one held: the
   optimisation then decides the input the car applies once the delay has passed. The
   internal states are propagated with the same applied commands.
+* Caution: each solve's steering-rate weight is the configured one times ``1 +
+  sigma_lat^2 / sigma_0^2``, ``sigma_lat`` the estimate's standard deviation across the
+  car (:mod:`tracker.mpc.caution`, ``tracker.caution_lateral_sigma_m``): the wheel is
+  calm while the estimate is unsure.
 * Warm start: the previous solution shifted by the time elapsed; on the first step the
   last applied actuation held over the horizon and rolled out through the model (section
   1, "warm start").
@@ -65,13 +69,15 @@ import numpy as np
 
 from cosim.core.dense_function import DenseFunction, densified
 from cosim.core.exceptions import ConfigError
+from cosim.core.records import Estimate
 from tracker.config import TrackerConfig
 from tracker.mpc.base import Solved, Start
+from tracker.mpc.caution import steer_rate_factor
 from tracker.mpc.fallback import INPUT_NAMES
 from tracker.mpc.grip_speed import CurvatureTable, capped_reference_speed
 from tracker.mpc.horizon_reference import horizon_reference
 from tracker.mpc.nmpc_model import NmpcModel
-from tracker.mpc.nmpc_problem import NmpcProblem
+from tracker.mpc.nmpc_problem import WEIGHT_NAMES, NmpcProblem
 from tracker.mpc.starting_state import EstimatedStartMpc
 from tracker.paths.reference_path import ReferencePath
 
@@ -115,9 +121,21 @@ class Nmpc(EstimatedStartMpc):
                          model.estimated_state_names, model.internal_rest_inputs,
                          model.predict)
         self._curvature: CurvatureTable | None = None
+        self._steer_rate_weight = WEIGHT_NAMES.index("steer_rate")
+        self._weights = self._problem.weight_values.copy()
+        """This step's weights: the configured ones, the steering rate's scaled by the
+        caution (:mod:`tracker.mpc.caution`)."""
         self.reset()
 
     # ------------------------------------------------------------------ the step
+
+    def _start(self, t_s: float, estimate: Estimate, reference: ReferencePath) -> Start:
+        """The estimated start (:class:`EstimatedStartMpc`), and this step's steering-rate
+        weight from the estimate's uncertainty across the car (:mod:`tracker.mpc.caution`)."""
+        index = self._steer_rate_weight
+        self._weights[index] = self._problem.weight_values[index] * steer_rate_factor(
+            estimate, self.config.caution_lateral_sigma_m)
+        return super()._start(t_s, estimate, reference)
 
     def _solve(self, t_s: float, start: Start, reference: ReferencePath) -> Solved:
         state0 = start.state
@@ -127,7 +145,7 @@ class Nmpc(EstimatedStartMpc):
         blocks["state0"] = state0
         blocks["input_prev"] = self._previous_input
         blocks["belief"] = self._problem.belief_values
-        blocks["weights"] = self._problem.weight_values
+        blocks["weights"] = self._weights
         params = self._params.pack(blocks)
         nlp = self._nlp
         w0 = nlp.pack(guess.states, guess.inputs, self._previous_input)

@@ -350,12 +350,16 @@ def test_default_solver_plans_equal_ipopts_along_a_lane_change() -> None:
     # plan (25 stages of states and inputs) is compared:
     # - at a tight tolerance (1e-8) fatrop's and IPOPT's plans are one optimum: every
     #   entry within 1e-5 (measured 2.2e-6);
-    # - at the default tolerance (1e-4), against that optimum: the lateral motion (y, yaw,
-    #   side slip, yaw rate, steering) within 5e-4 (measured 3.0e-4 rad/s for fatrop, 3e-6
-    #   for the iteration); the lightly weighted longitudinal motion (w_accel = 0.1,
-    #   w_speed = 1) within 1 cm, 1 cm/s and 0.03 m/s^2 (measured 2.1 mm, 4.9 mm/s and
-    #   0.016 m/s^2 for fatrop, at the horizon's end). At a tolerance of 1e-2 fatrop's plans
-    #   are 7.5 mm off laterally and 0.27 m/s^2 in acceleration.
+    # - at the default tolerance (1e-4), against that optimum: the path (y within 1 mm, yaw
+    #   within 1 mrad) and the lateral rates (side slip, yaw rate, steering) within 5e-3
+    #   (measured 0.50 mm, 0.49 mrad and 3.5e-3 rad/s of yaw rate for fatrop with the
+    #   default steering-rate weight 0.3, a flatter cost in the steering rate than the 3 of
+    #   before, when all were within 3.0e-4; 4e-6 for the iteration); the lightly weighted
+    #   longitudinal motion (w_accel = 0.1, w_speed = 1) within 1 cm, 1 cm/s and 0.03
+    #   m/s^2 (measured 2.1 mm, 4.9 mm/s and 0.016 m/s^2 for fatrop, at the horizon's
+    #   end). At a tolerance of 1e-2 fatrop's plans are 11.9 mm off laterally (7.5 mm and
+    #   0.27 m/s^2 in acceleration with the weight of before). (The closed loop:
+    #   docs/defaults.md, the tolerance.)
     config = _config("dynamic-nmpc", "ipopt")
     both = _SideBySide(config)
     dynamic_bench.run_closed_loop(both, LANE_CHANGE, dynamic_bench.Car(0.0, 0.0, 0.0, 15.0),
@@ -369,7 +373,8 @@ def test_default_solver_plans_equal_ipopts_along_a_lane_change() -> None:
     for solver in ("fatrop", "sqp-rti"):
         lateral = _largest_differences(both.plans[solver, "default"], optimum)
         longitudinal = {name: lateral.pop(name) for name in ("x_m", "vx_mps", "accel_mps2")}
-        assert max(lateral.values()) < 5e-4, (solver, lateral)
+        assert lateral.pop("y_m") < 1e-3 and lateral.pop("yaw_rad") < 1e-3, (solver, lateral)
+        assert max(lateral.values()) < 5e-3, (solver, lateral)
         assert longitudinal["x_m"] < 0.01 and longitudinal["vx_mps"] < 0.01, solver
         assert longitudinal["accel_mps2"] < 0.03, solver
 
