@@ -68,20 +68,23 @@ def default_steer_bound_rad(name: str) -> float:
 
 
 STEER_RATE_WEIGHT = 3.0
-"""``tracker.weights.steer_rate`` of the NMPCs but ``dynamic-nmpc`` when it is unset
-[s/rad^2]: ``kinematic-nmpc``'s model lacks the yaw and side-slip dynamics, and a faster
-wheel made it worse (docs/defaults.md)."""
+"""``tracker.weights.steer_rate`` when it is unset [s/rad^2], but for the trackers on the
+dynamic bicycle (:data:`DYNAMIC_MODEL_STEER_RATE_WEIGHT`): ``kinematic-nmpc``'s model lacks
+the yaw and side-slip dynamics, and a faster wheel made it worse (docs/defaults.md)."""
 
-DYNAMIC_NMPC_STEER_RATE_WEIGHT = 0.3
-"""``dynamic-nmpc``'s ``tracker.weights.steer_rate`` when it is unset [s/rad^2]: its model
-carries the yaw, the side slip and the steering actuator, so a faster wheel tracks closer;
-the caution (``tracker.caution_lateral_sigma_m``) calms it while the estimate is unsure
+DYNAMIC_MODEL_STEER_RATE_WEIGHT = 0.3
+"""``tracker.weights.steer_rate`` of ``dynamic-nmpc`` and ``ltv-mpc`` (one model, one cost,
+two solvers) when it is unset [s/rad^2]: their model carries the yaw, the side slip and the
+steering actuator, so a faster wheel tracks closer; the caution
+(``tracker.caution_lateral_sigma_m``) calms it while the estimate is unsure
 (docs/defaults.md)."""
 
 
 def default_steer_rate_weight(name: str) -> float:
     """``tracker.weights.steer_rate`` of the tracker ``name`` when it is unset."""
-    return DYNAMIC_NMPC_STEER_RATE_WEIGHT if name == "dynamic-nmpc" else STEER_RATE_WEIGHT
+    if name in ("dynamic-nmpc", "ltv-mpc"):
+        return DYNAMIC_MODEL_STEER_RATE_WEIGHT
+    return STEER_RATE_WEIGHT
 
 
 def own_defaults(name: str) -> dict[str, float]:
@@ -120,7 +123,7 @@ class TrackerWeights:
     steer_rate: float | None = setting(
         None, low=0.0, high=1e6,
         doc="(steering rate)^2, while the estimate is sure (caution_lateral_sigma_m); "
-        "unset: 0.3 for dynamic-nmpc, 3 for kinematic-nmpc [s/rad^2]",
+        "unset: 0.3 for dynamic-nmpc and ltv-mpc, 3 for kinematic-nmpc [s/rad^2]",
     )
     limit_excess: float = setting(
         1e4,
@@ -243,9 +246,9 @@ class TrackerConfig:
     )
     caution_lateral_sigma_m: float = setting(
         0.06, low=0.0, high=100.0,
-        doc="the NMPCs weigh the steering rate by 1 + sigma^2 / this^2, sigma the estimate's "
-        "standard deviation across the car's heading: a calmer wheel while the estimate is "
-        "unsure (the start, a receiver without RTK); 0: off [m]",
+        doc="the NMPCs and the LTV-MPC weigh the steering rate by 1 + sigma^2 / this^2, "
+        "sigma the estimate's standard deviation across the car's heading: a calmer wheel "
+        "while the estimate is unsure (the start, a receiver without RTK); 0: off [m]",
     )
     latency_compensation: bool = setting(
         True,

@@ -5,8 +5,8 @@ against an error the filter is unsure of as against one it knows; a cautious con
 holds back where the uncertainty is large (cautious control: Astrom and Wittenmark,
 "Adaptive Control", 2nd ed., Addison-Wesley 1995, on the stochastic adaptive controllers;
 Bar-Shalom and Tse, "Dual effect, certainty equivalence, and separation in stochastic
-control", IEEE TAC 19(5), 1974). Here the NMPCs scale the steering-rate weight of each solve
-by the estimate's standard deviation across the car's heading::
+control", IEEE TAC 19(5), 1974). Here the NMPCs and the LTV-MPC scale the steering-rate weight
+of each solve by the estimate's standard deviation across the car's heading::
 
     w_steer_rate' = w_steer_rate (1 + sigma_lat^2 / sigma_0^2),
     sigma_lat^2   = n' P_xy n,  n = (-sin psi, cos psi)
@@ -16,7 +16,8 @@ with ``P_xy`` the estimate's position covariance, ``psi`` its yaw and ``sigma_0`
 weight is the configured one to a few per cent; while the filter converges from its
 prior (0.5 m) or with a receiver of metre-class noise (``gnss``: about 0.18 m), it is
 ten to seventy times larger: the wheel does not chase the estimate's convergence. The
-weights are parameters of the NLP, so this costs no build (:mod:`tracker.mpc.nmpc_problem`).
+weights are parameters of the NLP (:mod:`tracker.mpc.nmpc_problem`) and the LTV-MPC's QP
+(:mod:`tracker.mpc.ltv_qp`), so this costs no build.
 Why: docs/defaults.md, the NMPCs' weights.
 """
 

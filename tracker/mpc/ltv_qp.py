@@ -68,6 +68,7 @@ never rebuilds the solver.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from collections.abc import Mapping
@@ -204,6 +205,9 @@ class QpProblem:
     state0: np.ndarray
     input_prev: np.ndarray
     reference: Mapping[str, np.ndarray]
+    steer_rate_weight: float
+    """This step's ``weights.steer_rate`` (the caution's, :mod:`tracker.mpc.caution`): a
+    parameter of the QP, the other weights are its numbers."""
 
 
 @dataclass(frozen=True)
@@ -347,6 +351,7 @@ class LtvQp:
             ("input_prev", n_u),
             ("state0_dev", n_x),
             *((name, n) for name in REFERENCE_NAMES),
+            ("steer_rate_weight", 1),
         ))
         low, high = np.empty(n_u), np.empty(n_u)
         low[INPUT["accel_mps2"]], high[INPUT["accel_mps2"]] = (config.accel_min_mps2,
@@ -381,12 +386,12 @@ class LtvQp:
         """Each stage's deviation variables, (L1) and (L4), the steering rate, the cost at
         absolute values and the soft limits (L5), stage by stage."""
         cfg = self.config
-        w = cfg.weights
         n, n_x, n_u, n_h, dt = self._n, self._n_x, self._n_u, self._lin.n_limits, cfg.dt_s
         index = self._state
         steer = INPUT["steer_rad"]
         p = ca.SX.sym("p", self._params.size)
         par = {name: p[s] for name, s in self._params.slices.items()}
+        w = dataclasses.replace(cfg.weights, steer_rate=par["steer_rate_weight"])
         a_nnz, b_nnz = self._lin.a_sparsity.nnz(), self._lin.b_sparsity.nnz()
         h_nnz = self._lin.limit_sparsity.nnz()
         state_bar = ca.reshape(par["state_bar"], n_x, n + 1)
@@ -490,6 +495,7 @@ class LtvQp:
             "input_prev": problem.input_prev,
             "state0_dev": problem.state0 - problem.state_bar[0],
             **{name: problem.reference[name] for name in REFERENCE_NAMES},
+            "steer_rate_weight": problem.steer_rate_weight,
         })
         lbx = np.full(self._n_variables, -np.inf)
         ubx = np.full(self._n_variables, np.inf)

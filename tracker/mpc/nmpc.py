@@ -69,10 +69,8 @@ import numpy as np
 
 from cosim.core.dense_function import DenseFunction, densified
 from cosim.core.exceptions import ConfigError
-from cosim.core.records import Estimate
 from tracker.config import TrackerConfig
 from tracker.mpc.base import Solved, Start
-from tracker.mpc.caution import steer_rate_factor
 from tracker.mpc.fallback import INPUT_NAMES
 from tracker.mpc.grip_speed import CurvatureTable, capped_reference_speed
 from tracker.mpc.horizon_reference import horizon_reference
@@ -121,21 +119,13 @@ class Nmpc(EstimatedStartMpc):
                          model.estimated_state_names, model.internal_rest_inputs,
                          model.predict)
         self._curvature: CurvatureTable | None = None
-        self._steer_rate_weight = WEIGHT_NAMES.index("steer_rate")
+        self._steer_rate_index = WEIGHT_NAMES.index("steer_rate")
         self._weights = self._problem.weight_values.copy()
-        """This step's weights: the configured ones, the steering rate's scaled by the
-        caution (:mod:`tracker.mpc.caution`)."""
+        """This step's weights: the configured ones, the steering rate's this step's
+        (:attr:`EstimatedStartMpc.steer_rate_weight`, the caution's)."""
         self.reset()
 
     # ------------------------------------------------------------------ the step
-
-    def _start(self, t_s: float, estimate: Estimate, reference: ReferencePath) -> Start:
-        """The estimated start (:class:`EstimatedStartMpc`), and this step's steering-rate
-        weight from the estimate's uncertainty across the car (:mod:`tracker.mpc.caution`)."""
-        index = self._steer_rate_weight
-        self._weights[index] = self._problem.weight_values[index] * steer_rate_factor(
-            estimate, self.config.caution_lateral_sigma_m)
-        return super()._start(t_s, estimate, reference)
 
     def _solve(self, t_s: float, start: Start, reference: ReferencePath) -> Solved:
         state0 = start.state
@@ -145,6 +135,7 @@ class Nmpc(EstimatedStartMpc):
         blocks["state0"] = state0
         blocks["input_prev"] = self._previous_input
         blocks["belief"] = self._problem.belief_values
+        self._weights[self._steer_rate_index] = self.steer_rate_weight
         blocks["weights"] = self._weights
         params = self._params.pack(blocks)
         nlp = self._nlp
