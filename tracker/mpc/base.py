@@ -75,6 +75,9 @@ class Start:
 
     t_s: float
     state: np.ndarray
+    caution: float = 1.0
+    """The factor on the steering-rate weight from the estimate's uncertainty across the car
+    (:mod:`tracker.mpc.caution`); 1 where the tracker takes none."""
 
     @property
     def finite(self) -> bool:

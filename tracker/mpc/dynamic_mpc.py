@@ -371,7 +371,7 @@ class DynamicMpc(MpcTracker):
         world = np.array([estimate[name] for name in ESTIMATED_STATE_NAMES])
         end_t_s = max(t_s, estimate.t_s) + self._issued.delay_s
         if not math.isfinite(end_t_s):
-            return StartingPoint(t_s, np.full(len(path_model.STATE_NAMES), np.nan), math.nan)
+            return StartingPoint(t_s, np.full(len(path_model.STATE_NAMES), np.nan), s_m=math.nan)
         actuator = self._actuator = self._actuator_at(estimate.t_s)
         self._issued.forget_before(actuator.t_s)
         state = np.concatenate((world, [actuator.road_wheel_angle_rad]))
@@ -398,7 +398,7 @@ class DynamicMpc(MpcTracker):
         else:
             values["e1_m"] = values["e2_rad"] = math.nan
         path_state = np.array([values[name] for name in path_model.STATE_NAMES], dtype=float)
-        return StartingPoint(end_t_s, path_state, s_m)
+        return StartingPoint(end_t_s, path_state, s_m=s_m)
 
     def _horizon_references(self, reference: ReferencePath,
                             start: StartingPoint) -> tuple[np.ndarray, np.ndarray]:

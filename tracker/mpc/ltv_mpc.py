@@ -144,7 +144,7 @@ class LtvMpc(EstimatedStartMpc):
             state_bar=bar.states, input_bar=bar.inputs, linearisation=linearisation,
             state0=state0, input_prev=self._previous_input,
             reference={name: ref[name] for name in REFERENCE_NAMES},
-            steer_rate_weight=self.steer_rate_weight,
+            steer_rate_weight=float(self.config.weights.steer_rate) * start.caution,
         ))
         return Solved(result.states, result.inputs, result.cost, result.status,
                       result.iterations, result.success, result.solve_time_s,

@@ -121,8 +121,8 @@ class Nmpc(EstimatedStartMpc):
         self._curvature: CurvatureTable | None = None
         self._steer_rate_index = WEIGHT_NAMES.index("steer_rate")
         self._weights = self._problem.weight_values.copy()
-        """This step's weights: the configured ones, the steering rate's this step's
-        (:attr:`EstimatedStartMpc.steer_rate_weight`, the caution's)."""
+        """This step's weights: the configured ones, the steering rate's times the start's
+        caution (:attr:`Start.caution`)."""
         self.reset()
 
     # ------------------------------------------------------------------ the step
@@ -135,7 +135,8 @@ class Nmpc(EstimatedStartMpc):
         blocks["state0"] = state0
         blocks["input_prev"] = self._previous_input
         blocks["belief"] = self._problem.belief_values
-        self._weights[self._steer_rate_index] = self.steer_rate_weight
+        index = self._steer_rate_index
+        self._weights[index] = self._problem.weight_values[index] * start.caution
         blocks["weights"] = self._weights
         params = self._params.pack(blocks)
         nlp = self._nlp

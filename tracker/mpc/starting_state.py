@@ -121,18 +121,13 @@ class EstimatedStartMpc(MpcTracker):
         self._starting = StartingState(who, state_names, estimated_names,
                                        internal_rest_inputs, predict, self._issued)
 
-    steer_rate_weight: float
-    """This step's steering-rate weight: ``tracker.weights.steer_rate`` times the caution's
-    factor (set by :meth:`_start`)."""
-
     def _forget(self) -> None:
         self._starting.reset()
 
     def _start(self, t_s: float, estimate: Estimate, reference: ReferencePath) -> Start:
-        """The estimated start, and this step's caution: the factor on the steering-rate
-        weight from the estimate's uncertainty across the car (:mod:`tracker.mpc.caution`,
-        ``tracker.caution_lateral_sigma_m``), :attr:`steer_rate_weight`."""
-        self.steer_rate_weight = float(self.config.weights.steer_rate) * steer_rate_factor(
-            estimate, self.config.caution_lateral_sigma_m)
+        """The estimated start, with its caution: the factor on the steering-rate weight
+        from the estimate's uncertainty across the car (:mod:`tracker.mpc.caution`,
+        ``tracker.caution_lateral_sigma_m``)."""
         return Start(max(t_s, estimate.t_s) + self._issued.delay_s,
-                     self._starting.at(t_s, estimate))
+                     self._starting.at(t_s, estimate),
+                     steer_rate_factor(estimate, self.config.caution_lateral_sigma_m))
