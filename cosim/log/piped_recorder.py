@@ -33,6 +33,7 @@ import contextlib
 import errno
 import json
 import os
+import pickle
 import select
 import struct
 from collections.abc import Callable, Mapping
@@ -43,13 +44,17 @@ from typing import TYPE_CHECKING, Any
 from cosim.core.exceptions import ConfigError
 
 if TYPE_CHECKING:
+    from cosim.log.packed_records import PackedReader
     from cosim.log.recorder import McapRecorder
+    from cosim.log.run_messages import MessageContext, RunMessageSink
 
-OPEN, REGISTER, WRITE, METADATA, ATTACH, PUBLISH, CLOSE, ABANDON = range(1, 9)
-"""The frames' operations."""
+OPEN, REGISTER, WRITE, METADATA, ATTACH, PUBLISH, CLOSE, ABANDON, CONTEXT, PACKED = range(1, 11)
+"""The frames' operations (:data:`CONTEXT` and :data:`PACKED`: the run's most frequent
+records as numbers, :mod:`cosim.log.packed_records`, the messages built by the server)."""
 HEADER = struct.Struct("<BIHq")
 """A frame's header: operation, payload bytes, channel number, log time [ns since the
-Unix epoch] (the last two for :data:`WRITE`; :data:`REGISTER` numbers its channel)."""
+Unix epoch] (the last two for :data:`WRITE`; :data:`REGISTER` numbers its channel,
+:data:`PACKED` names the record's kind there)."""
 FLUSH_BYTES = 64 * 1024
 """The child sends its buffer when it holds this much (some 40 messages of a default run;
 about 270 writes to the pipe a run)."""
@@ -131,6 +136,18 @@ class PipedRecorder:
 
     write_finite = write
     """:meth:`write`, named for the messages that may carry NaN or inf (written as null)."""
+
+    def messages(self, context: MessageContext) -> RunMessageSink:
+        """The run's most frequent records sent as numbers (:mod:`cosim.log.packed_records`):
+        the server builds their messages, on its own core, with ``context``."""
+        from cosim.log.packed_records import PackedMessages
+        from cosim.log.run_messages import RunMessages
+
+        self._frame(CONTEXT, pickle.dumps(context, protocol=pickle.HIGHEST_PROTOCOL))
+        return PackedMessages(self._packed, RunMessages(self, context))
+
+    def _packed(self, kind: int, payload: bytes) -> None:
+        self._frame(PACKED, payload, channel=kind)
 
     def add_metadata(self, name: str, values: dict[str, str]) -> None:
         self._frame(METADATA, json.dumps({"name": name, "values": values}).encode())
@@ -238,13 +255,20 @@ class LogServer:
     :class:`McapRecorder` (module docstring)."""
 
     def __init__(self, ends: LogLink) -> None:
-        from cosim.log.recorder import McapRecorder  # foxglove-sdk, before the run asks
+        # Imported now, while the run starts on the other core, not when it waits for the
+        # answer to its first request: foxglove-sdk, and numpy with the messages' code.
+        from cosim.log.packed_records import PackedReader
+        from cosim.log.recorder import McapRecorder
+        from cosim.log.run_messages import RunMessages
 
         self._open_recorder = McapRecorder
+        self._packed_reader, self._run_messages = PackedReader, RunMessages
         self._ends = ends
         self._buffer = bytearray()
         self._recorder: McapRecorder | None = None
         self._topics: list[str] = []
+        self._packed: PackedReader | None = None
+        """Builds the messages of the packed records (from the run's :data:`CONTEXT`)."""
         self._failure: str | None = None
         """The answer line of the first failure (nothing is written after it)."""
         self._done = False
@@ -262,13 +286,21 @@ class LogServer:
                 break
             payload = bytes(buffer[offset + size:end])
             offset = end
-            if operation != WRITE:
+            if operation == WRITE:
+                if self._failure is None and self._recorder is not None:
+                    try:
+                        self._recorder.write_encoded(self._topics[channel], log_time_ns,
+                                                     payload)
+                    except Exception as error:  # noqa: BLE001 - raised in the run
+                        self._fail(_failure_text(error))
+            elif operation == PACKED:
+                if self._failure is None and self._packed is not None and not self._done:
+                    try:
+                        self._packed.apply(channel, payload)
+                    except Exception as error:  # noqa: BLE001 - raised in the run
+                        self._fail(_failure_text(error))
+            else:
                 self._control(operation, channel, log_time_ns, payload)
-            elif self._failure is None and self._recorder is not None:
-                try:
-                    self._recorder.write_encoded(self._topics[channel], log_time_ns, payload)
-                except Exception as error:  # noqa: BLE001 - raised in the run
-                    self._fail(_failure_text(error))
         del buffer[:offset]
 
     def finish(self) -> None:
@@ -298,6 +330,9 @@ class LogServer:
             described = json.loads(payload)
             self._topics[channel:channel + 1] = [described["topic"]]
             self._noted(recorder.register, described["topic"], described["schema"])
+        elif operation == CONTEXT:
+            self._packed = self._packed_reader(self._run_messages(recorder,
+                                                                  pickle.loads(payload)))
         elif operation == METADATA:
             described = json.loads(payload)
             self._noted(recorder.add_metadata, described["name"], described["values"])

@@ -35,7 +35,7 @@ from __future__ import annotations
 import json
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import foxglove
 import orjson
@@ -44,6 +44,9 @@ from foxglove.mcap import MCAPCompression, MCAPWriteOptions
 from cosim.core.exceptions import ConfigError
 from cosim.log.held_chunks import HeldChunks
 from cosim.log.safe_file import PendingFile
+
+if TYPE_CHECKING:
+    from cosim.log.run_messages import MessageContext, RunMessageSink
 
 
 def seconds_to_ns(t_s: float) -> int:
@@ -119,6 +122,9 @@ class Recorder(Protocol):
     def publish(self) -> None:
         """The run starts for real: the log takes its final name."""
 
+    def messages(self, context: MessageContext) -> RunMessageSink:
+        """Where the run's most frequent records go (:mod:`cosim.log.run_messages`)."""
+
 
 CHUNK_SIZE_BYTES = 1024 * 1024
 """Uncompressed bytes per MCAP chunk: about a second of the default lane change."""
@@ -139,6 +145,11 @@ class NoLog:
                        t_s: float = 0.0) -> None: ...
     def publish(self) -> None: ...
     def close(self) -> None: ...
+
+    def messages(self, context: MessageContext) -> RunMessageSink:
+        from cosim.log.run_messages import RunMessages
+
+        return RunMessages(self, context)
 
 
 class McapRecorder:
@@ -248,6 +259,13 @@ class McapRecorder:
         """:meth:`add_attachment` at a log time [ns since the Unix epoch]."""
         self._writer.attach(log_time=log_time_ns, create_time=log_time_ns, name=name,
                             media_type=media_type, data=data)
+
+    def messages(self, context: MessageContext) -> RunMessageSink:
+        """The run's most frequent records, their messages built here at once
+        (:class:`cosim.log.run_messages.RunMessages`)."""
+        from cosim.log.run_messages import RunMessages
+
+        return RunMessages(self, context)
 
     @property
     def published(self) -> bool:

@@ -12,8 +12,12 @@ the static scene) and then, at the points of a step (:mod:`cosim.simulation.obse
   command as it reaches the actuators, each disturbance and each event;
 - at the end, the metrics (``/metrics`` and the ``metrics`` metadata record).
 
-A channel that may carry nothing (``/events``, ``/scene/plan``) is registered with its
-first message. The topics and their schemas are :mod:`cosim.log.topics`.
+The truth, the estimate, the errors, the scenes, the measurements and the plans (most of a
+log) are handed to the recorder's :meth:`~cosim.log.recorder.Recorder.messages` as records,
+and their messages are built there (:mod:`cosim.log.run_messages`): by the run itself, or
+by the process that writes ``cosim run``'s log, on the other core. A channel that may carry
+nothing (``/events``, ``/scene/plan``) is registered with its first message. The topics and
+their schemas are :mod:`cosim.log.topics`.
 """
 
 from __future__ import annotations
@@ -28,9 +32,10 @@ from cosim import __version__
 from cosim.core import yaml_io
 from cosim.core.config_fields import to_dict
 from cosim.core.records import ActuatorCommand, Command, Measurement, Plan
-from cosim.core.sensor_names import GNSS, TRUTH
+from cosim.core.sensor_names import TRUTH
 from cosim.log import foxglove, topics
 from cosim.log.recorder import Recorder
+from cosim.log.run_messages import MessageContext, TrackingErrors
 from cosim.plant.disturbances import YawRateChange
 from cosim.simulation.beliefs import mismatch_table, told
 from cosim.simulation.course import Course
@@ -102,6 +107,11 @@ class RunLog(Observer):
         self._metrics = metrics
         """The run's metrics, read for the tracking errors and the live metrics."""
         self._sensors = sensors
+        self._messages = recorder.messages(MessageContext(
+            config.plant, config.sensors.gnss.sigma_m, config.geo))
+        """The truth, estimate, measurements and plans, their messages built by the
+        recorder's side (:mod:`cosim.log.run_messages`: in another process for
+        ``cosim run``)."""
         self._next_live_metrics_s = LIVE_METRICS_PERIOD_S
         self._registered: set[str] = set()
         """Channels registered with their first message."""
@@ -149,48 +159,26 @@ class RunLog(Observer):
             samples["x_m"], samples["y_m"], course.cones_xy_m, edges, closed=reference.closed))
 
     def logged(self, instant: LogInstant) -> None:
-        recorder, truth, t_s = self._recorder, instant.truth, instant.t_s
-        truth_message = truth.to_message()
-        truth_message.update(self._sensors.true_biases())
-        recorder.write_finite(topics.VEHICLE_TRUTH, t_s, truth_message)
-        recorder.write_finite(topics.VEHICLE_ESTIMATE, t_s, instant.estimate.to_message())
-        recorder.write(topics.TF, t_s, foxglove.frame_transform(truth))
-        if instant.scene:
-            recorder.write(topics.SCENE_CAR, t_s, foxglove.car_scene(truth, self._config.plant))
-            recorder.write(topics.SCENE_ESTIMATE, t_s, foxglove.estimate_scene(instant.estimate))
-        metrics = self._metrics
-        recorder.write_finite(topics.CONTROL_ERRORS, t_s, {
-            "t_s": t_s, "cte_m": metrics.last_cte_m,
-            "heading_err_rad": metrics.last_heading_err_rad,
-            "speed_err_mps": metrics.last_speed_err_mps, "speed_mps": truth.speed_mps,
-            "ref_speed_mps": metrics.last_ref_speed_mps,
-        })
+        t_s, metrics = instant.t_s, self._metrics
+        self._messages.instant(t_s, instant.truth, self._sensors.true_biases(),
+                               instant.estimate, instant.scene, TrackingErrors(
+                                   metrics.last_cte_m, metrics.last_heading_err_rad,
+                                   metrics.last_speed_err_mps, metrics.last_ref_speed_mps))
         if t_s >= self._next_live_metrics_s - 1e-9:
-            recorder.write_finite(topics.METRICS_LIVE, t_s, metrics.live(t_s))
+            self._recorder.write_finite(topics.METRICS_LIVE, t_s, metrics.live(t_s))
             self._next_live_metrics_s += LIVE_METRICS_PERIOD_S
 
     def sensed(self, t_s: float, measurement: Measurement) -> None:
-        recorder = self._recorder
-        recorder.write_finite(topics.sensor_topic(measurement.sensor), t_s,
-                              measurement.to_message())
-        if measurement.sensor == GNSS and np.all(np.isfinite(measurement.values)):
-            recorder.write(topics.GNSS_FIX, t_s, foxglove.location_fix(
-                measurement["x_m"], measurement["y_m"], t_s,
-                self._config.sensors.gnss.sigma_m, self._config.geo))
+        self._messages.measurement(t_s, measurement)
 
     def fused(self, t_s: float, measurement: Measurement, update: UpdateResult) -> None:
         if measurement.sensor == TRUTH:
             return
-        self._recorder.write_finite(topics.ESTIMATOR_UPDATES, t_s, {
-            "t_s": t_s, "sensor": measurement.sensor, "accepted": update.accepted,
-            "nis": update.nis, "dof": update.dim, "reason": update.reason})
+        self._messages.update(t_s, measurement.sensor, update)
 
     def controlled(self, t_s: float, plan: Plan, command: Command, step_time_s: float) -> None:
         del command, step_time_s
-        self._recorder.write_finite(topics.CONTROL_PLAN, t_s, plan.to_message())
-        scene = foxglove.plan_scene(plan)
-        if scene is not None:  # None: no world positions in this tracker's plans
-            self._write_new(topics.SCENE_PLAN, t_s, scene)
+        self._messages.plan(t_s, plan)
 
     def actuated(self, t_s: float, command: Command, actuator: ActuatorCommand) -> None:
         self._recorder.write(topics.CONTROL_COMMAND, t_s, {
