@@ -33,9 +33,17 @@ At every control step
    predicted, added to ``v0`` (``v0`` held on the first step).
 3. **QP** (the reference design's delta-u form). The state is augmented with the previous input, so
    the decision variables are the input increments over the control horizon,
-   ``u_k = u_{k-1} + Delta u_k`` for ``k < Nc`` (``u_{-1}`` the command issued last), the
-   input held from ``Nc`` on; the predicted states are affine in them (a condensed QP of
-   ``2 Nc`` increments and ``3 Np`` slacks: 34 variables by default). Cost
+   ``u_k = u_{k-1} + Delta u_k`` for ``k < Nc`` (``u_{-1}`` the command issued last). From
+   ``Nc`` on the reference design holds the last move; by default here
+   (``steer_after_control_horizon: path``) the acceleration is held and the steering keeps
+   its offset from the path's Ackermann angle, ``delta_k = delta_{Nc-1} + atan(L
+   kappa_k) - atan(L kappa_{Nc-1})`` with ``kappa_k`` the curvature at stage ``k``'s
+   middle, so that two moves can plan into a bend and out of it (held, the steering the
+   QP plans for the second swerve's end is the one it needs in its middle: the lateral
+   error peaks as the swerve ends). The geometric angle, not the model's steady-state
+   steering with its understeer term: that one, tried, made the tuning seeds' worst case
+   worse (docs/defaults.md). The predicted states are affine in the increments (a
+   condensed QP of ``2 Nc`` increments and ``3 Np`` slacks: 34 variables by default). Cost
    (:mod:`tracker.mpc.dynamic_mpc_config`)::
 
        J = sum_{j=1..Np} ||Y_j - Y_ref||_Q^2 + sum_{i<Nc} ||Delta u_i||_R^2 + slack terms
@@ -233,6 +241,7 @@ class DynamicMpc(MpcTracker):
             ("speed_lin_mps", 1),
             ("yaw_rate_ref_radps", n_p),
             ("speed_ref_mps", n_p),
+            ("ackermann_steer_rad", n_p),
         ))
         constraints = VectorLayout(
             (("inputs", n_c * n_u),)
@@ -246,13 +255,21 @@ class DynamicMpc(MpcTracker):
         slacks = ca.reshape(var["slacks"], n_p, len(SOFT_LIMIT_NAMES))  # one per node 1..Np
         slack = {name: slacks[:, i] for i, name in enumerate(SOFT_LIMIT_NAMES)}
 
-        # Rollout: x_{k+1} = F(x_k, u_k; v0, psi_D'_k), u_k = u_{k-1} + Delta u_k (k < Nc).
+        # Rollout: x_{k+1} = F(x_k, u_k; v0, psi_D'_k), u_k = u_{k-1} + Delta u_k (k < Nc);
+        # from Nc on the last move held, or its steering's offset from the path's
+        # Ackermann angle held (steer_after_control_horizon).
         x, u = par["state0"], par["input_prev"]
         states, inputs, moved = [x], [], []
+        ackermann = par["ackermann_steer_rad"]
+        follows_path = cfg.steer_after_control_horizon == "path"
         for k in range(n_p):
             if k < n_c:
                 u = u + increments[:, k]
                 moved.append(u)
+            elif follows_path:
+                turn = ackermann[k] - ackermann[n_c - 1]
+                u = moved[-1] + ca.vertcat(*(turn if name == "steer_rad" else 0.0
+                                             for name in INPUT_NAMES))
             x = self._step_model(x, u, par["speed_lin_mps"], par["yaw_rate_ref_radps"][k])
             states.append(x)
             inputs.append(u)
@@ -319,7 +336,7 @@ class DynamicMpc(MpcTracker):
     def _solve(self, t_s: float, start: StartingPoint,  # type: ignore[override]
                reference: ReferencePath) -> Solved:
         """The condensed QP from the starting point (its own :meth:`_start`)."""
-        yaw_rate_ref, speed_ref = self._horizon_references(reference, start)
+        yaw_rate_ref, speed_ref, ackermann = self._horizon_references(reference, start)
         self._yaw_rate_ref = yaw_rate_ref
         params = self._qp.params.pack({
             "state0": start.state,
@@ -327,6 +344,7 @@ class DynamicMpc(MpcTracker):
             "speed_lin_mps": start.state[path_model.STATE["vx_mps"]],
             "yaw_rate_ref_radps": yaw_rate_ref,
             "speed_ref_mps": speed_ref,
+            "ackermann_steer_rad": ackermann,
         })
         lbx, ubx = self._variable_bounds(t_s)
         began = time.perf_counter()
@@ -401,12 +419,14 @@ class DynamicMpc(MpcTracker):
         return StartingPoint(end_t_s, path_state, s_m=s_m)
 
     def _horizon_references(self, reference: ReferencePath,
-                            start: StartingPoint) -> tuple[np.ndarray, np.ndarray]:
-        """``psi_D' = v kappa(s)`` (P7) at the middle of every stage, and the speed
-        reference at every node 1..Np (preview: the profile where and when the car is
-        expected there, so it brakes on time for a bend ahead); ``s`` the arc length the car
-        is expected to reach at the speeds ``v`` it is expected to drive. Before the first
-        projection the speed reference is the top speed."""
+                            start: StartingPoint
+                            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``psi_D' = v kappa(s)`` (P7) at the middle of every stage, the speed reference at
+        every node 1..Np (preview: the profile where and when the car is expected there, so
+        it brakes on time for a bend ahead) and the path's Ackermann angle ``atan(L
+        kappa(s))`` at the middle of every stage; ``s`` the arc length the car is expected
+        to reach at the speeds ``v`` it is expected to drive. Before the first projection
+        the speed reference is the top speed."""
         n, ts = self._n_p, self._ts
         times = start.t_s + 0.5 * ts * np.arange(2 * n + 1)  # stage boundaries and middles
         speed0 = start.state[path_model.STATE["vx_mps"]]
@@ -426,7 +446,8 @@ class DynamicMpc(MpcTracker):
             speed_ref = reference.speed_ref(s[nodes], times[nodes])
         else:
             speed_ref = np.full(n, reference.speed_mps)
-        return speeds[middle] * curvature, np.asarray(speed_ref, dtype=float)
+        ackermann = np.arctan(self.config.model.wheelbase_m * curvature)
+        return speeds[middle] * curvature, np.asarray(speed_ref, dtype=float), ackermann
 
     # ------------------------------------------------------------------ helpers
 

@@ -31,6 +31,11 @@ QP_SOLVERS: tuple[str, ...] = ("highs", "daqp")
 measurements: :mod:`tracker.mpc.dynamic_mpc`)."""
 
 
+STEER_AFTER_CONTROL_HORIZON: tuple[str, ...] = ("held", "path")
+"""What the steering does after the control horizon (:mod:`tracker.mpc.dynamic_mpc`,
+item 3)."""
+
+
 @dataclass(frozen=True)
 class DynamicMpcConfig:
     """The delta-u MPC on the dynamic bicycle with path-error states
@@ -79,6 +84,12 @@ class DynamicMpcConfig:
     )
     min_speed_mps: float = setting(0.0, low=0.0, high=100.0, doc="soft lower speed limit")
     max_speed_mps: float = setting(30.0, low=0.1, high=100.0, doc="soft upper speed limit")
+    steer_after_control_horizon: str = setting(
+        "path", choices=STEER_AFTER_CONTROL_HORIZON,
+        doc="the steering from stage Nc on: 'held' (the reference design: the last move "
+        "held) or 'path' (the last move's offset from the path's Ackermann angle "
+        "atan(L kappa) held, so the steering follows the curvature ahead)",
+    )
     qp_solver: str = setting("highs", choices=QP_SOLVERS, doc="CasADi QP back-end")
     max_iterations: int = setting(
         1000,
