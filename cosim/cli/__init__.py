@@ -82,6 +82,7 @@ from cosim.cli.common import (
     silence_stdout,
 )
 from cosim.core.exceptions import CosimError
+from cosim.core.interrupts import drop_unraisable_interrupts
 
 __all__ = ["EXIT_BAD_OUTCOME", "EXIT_INTERRUPT", "EXIT_IO", "EXIT_USAGE", "main"]
 
@@ -122,6 +123,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         say("cosim: error: expected a command (first time? `cosim run lane-change`)")
         return EXIT_USAGE
     args.reporter = None
+    if argv is None:  # this process is the command's own
+        drop_unraisable_interrupts()
     if argv is None and args.command == "run":
         from cosim.cli.guard import Death, guarded
 

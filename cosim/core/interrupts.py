@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import contextlib
 import signal
+import sys
 from collections.abc import Callable, Iterator
 from typing import Any
 
@@ -24,3 +25,24 @@ def interrupts_to(handler: Callable[[int, Any], None]) -> Iterator[None]:
     finally:
         for signum, before in previous.items():
             signal.signal(signum, before)
+
+
+def drop_unraisable_interrupts() -> None:
+    """Make an interrupt that lands where Python cannot raise it go unprinted.
+
+    A handler that raises ``KeyboardInterrupt`` (a sweep worker's ``SIGTERM``) raises it in
+    whatever Python code runs when the signal arrives. In a weakref callback or a
+    finaliser (the import system's module locks have one) the exception cannot propagate:
+    Python prints it as "Exception ignored in ..." with a traceback
+    (``sys.unraisablehook``), on a command that was asked to stop and otherwise stops
+    with one line. This process's hook then drops such interrupts and passes every other
+    unraisable exception to the hook it had. For a command's own process only (it
+    replaces a process-wide hook): the console script and the sweep's workers call it."""
+    previous = sys.unraisablehook
+
+    def hook(unraisable: Any) -> None:
+        if isinstance(unraisable.exc_value, KeyboardInterrupt):
+            return
+        previous(unraisable)
+
+    sys.unraisablehook = hook

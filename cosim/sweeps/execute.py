@@ -48,6 +48,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from cosim.core.exceptions import CosimError
+from cosim.core.interrupts import drop_unraisable_interrupts
 from cosim.sweeps.spec import RunTask
 
 if TYPE_CHECKING:
@@ -193,6 +194,7 @@ def _init_worker(parent_pid: int) -> None:
     for name in THREAD_LIMITS:
         os.environ.setdefault(name, "1")
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    drop_unraisable_interrupts()  # a SIGTERM in a weakref callback: no traceback
     die_with_parent(parent_pid)
 
 
