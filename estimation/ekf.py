@@ -1,8 +1,9 @@
 """The extended Kalman filter: dynamic-bicycle process model, asynchronous multi-rate fusion.
 
 The algorithm of filterpy's :class:`~filterpy.kalman.ExtendedKalmanFilter`: the nonlinear
-prediction of the mean, the covariance through ``P = F P' F' + Q``
-(:func:`covariance_prediction`), updates in Joseph form (:func:`joseph_update`), written
+prediction of the mean, the covariance through ``P = F P F' + Q`` (both in one CasADi
+function with the sub-step, :meth:`estimation.process_model.ProcessModel.covariance_step`),
+updates in Joseph form (:func:`joseph_update`), written
 out on the filter's own mean and covariance: filterpy's methods also store copies of
 every intermediate on the filter object at each call, which cost more than the algebra of
 a 17-state filter fed at 300 Hz, and importing filterpy imports ``scipy.stats`` (a third
@@ -26,12 +27,6 @@ from estimation.fusion import KalmanFusion
 from estimation.innovation import CheckedMeasurement, Selection, TrialUpdate, residual_function
 from estimation.joint_update import JointPosterior, JointUpdate
 from estimation.measurement_models import MeasurementModel
-
-
-def covariance_prediction(p: np.ndarray, transition: np.ndarray,
-                          noise: np.ndarray) -> np.ndarray:
-    """``F P F' + Q``: filterpy's ``ExtendedKalmanFilter.predict`` of the covariance."""
-    return transition @ p @ transition.T + noise
 
 
 class Ekf(KalmanFusion):
@@ -121,11 +116,15 @@ class Ekf(KalmanFusion):
         return joint(self._mean, self._covariance,
                      [(c.model, c.selection, c.z) for c in checked], at)
 
-    def _predict_substep(self, dt_s: float, command_rad: float | None) -> None:
-        """One RK4 sub-step of the process model for the mean; ``F P F' + Q``."""
-        mean, transition, noise = self._process.step(self._mean, dt_s, command_rad)
-        self._mean = mean.reshape(-1)
-        self._covariance = covariance_prediction(self._covariance, transition, noise)
+    def _predict_one(self, t0_s: float, t1_s: float, dt_s: float,
+                     command_rad: float | None) -> None:
+        """The sub-step of :meth:`KalmanFusion._predict_one` as one function
+        (:meth:`estimation.process_model.ProcessModel.covariance_step`): the acceleration
+        moved by its commands, the RK4 sub-step of the mean, filterpy's ``P = F P F' + Q``,
+        the angles wrapped and the covariance symmetrised."""
+        self._mean, self._covariance = self._process.covariance_step(
+            self._mean, self._covariance, dt_s, command_rad,
+            self._accel_commands.increment(t0_s, t1_s))
 
     def _trial_update(
         self,

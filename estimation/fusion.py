@@ -15,7 +15,7 @@ filterpy's filters and the models of :mod:`estimation.process_model` and
 - hygiene: yaw wrapped to (-pi, pi], angle innovations wrapped, P kept symmetric, and an
   update that would leave P not positive definite or anything non-finite is undone.
 
-A subclass implements :meth:`KalmanFusion._predict_substep` and
+A subclass implements :meth:`KalmanFusion._predict_one` (one sub-step of the prediction) and
 :meth:`KalmanFusion._trial_update` (the filter's update of a group of channels, computed
 and then undone, so that the gate can look at it first) and keeps its mean and covariance
 in :attr:`KalmanFusion._x` / :attr:`KalmanFusion._p`.
@@ -188,9 +188,13 @@ class KalmanFusion(ABC):
     def _set_covariance(self, covariance: np.ndarray) -> None: ...
 
     @abstractmethod
-    def _predict_substep(self, dt_s: float, command_rad: float | None) -> None:
-        """Propagate mean and covariance over ``dt_s`` (at most ``max_step_s``), the
-        steering driven by ``command_rad`` (None: no command told yet)."""
+    def _predict_one(self, t0_s: float, t1_s: float, dt_s: float,
+                     command_rad: float | None) -> None:
+        """Propagate mean and covariance over one sub-step from ``t0_s`` to ``t1_s``
+        (``dt_s`` long, at most ``max_step_s``), the steering driven by ``command_rad``
+        (None: no command told yet): the acceleration moved by its commands
+        (:meth:`_follow_accel_command`), the process model's sub-step, the angles wrapped
+        and the covariance symmetrised (:meth:`_normalise`)."""
 
     @abstractmethod
     def _trial_update(
@@ -299,9 +303,8 @@ class KalmanFusion(ABC):
             substeps = max(1, math.ceil(piece_s / self._config.max_step_s - 1e-9))
             dt_s = piece_s / substeps
             for k in range(substeps):
-                self._follow_accel_command(start_s + k * dt_s, start_s + (k + 1) * dt_s)
-                self._predict_substep(dt_s, command_rad)
-                self._normalise()
+                self._predict_one(start_s + k * dt_s, start_s + (k + 1) * dt_s, dt_s,
+                                  command_rad)
             start_s += piece_s
         self._t_s = float(t_s)
         if not (np.isfinite(self._x).all() and np.isfinite(self._p).all()):

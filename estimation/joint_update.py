@@ -41,7 +41,6 @@ by CasADi's virtual machine it costs more than the same algebra in numpy.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -54,7 +53,7 @@ from cosim.core.compiled_function import external_function
 from cosim.core.dense_function import DenseFunction
 from estimation.innovation import Selection
 from estimation.measurement_models import MeasurementModel
-from estimation.state import STATE_NAMES
+from estimation.state import STATE_NAMES, wrap_angle_symbolic
 
 JOINT_FUNCTION = "ekf_joint_update"
 """The joint update's name, in the filter's compiled library."""
@@ -77,17 +76,6 @@ class JointPosterior:
     positive_definite: bool = False
     """Whether :attr:`covariance` is known finite and positive definite (this module's
     function factorises it, :func:`_cholesky_pivots_positive`); False: not checked."""
-
-
-def _wrapped(angle: ca.SX) -> ca.SX:
-    """:func:`estimation.state.wrap_angle` symbolically: an angle in (-pi, pi] untouched,
-    otherwise ``pi - mod(pi - angle, 2 pi)`` (numpy's ``mod``, the sign of the divisor),
-    with -pi moved to +pi."""
-    two_pi = 2.0 * math.pi
-    shifted = math.pi - angle
-    wrapped = math.pi - (shifted - two_pi * ca.floor(shifted / two_pi))
-    wrapped = ca.if_else(wrapped <= -math.pi, wrapped + two_pi, wrapped)
-    return ca.if_else(ca.logic_and(angle > -math.pi, angle <= math.pi), angle, wrapped)
 
 
 def _symmetric_product(left: ca.SX, right: ca.SX) -> ca.SX:
@@ -148,7 +136,8 @@ def _joint_function(parts: tuple[tuple[ca.Function, int, tuple[int, ...]], ...],
     stacked = ca.vertcat(*jacobians)
     residual = z - (ca.vertcat(*values) + stacked @ (x - at))
     innovation = ca.vertcat(*[
-        _wrapped(residual[i]) if i in angle_rows else residual[i] for i in range(size)])
+        wrap_angle_symbolic(residual[i]) if i in angle_rows else residual[i]
+        for i in range(size)])
     innovation = mask * innovation
     observed = ca.diag(mask) @ stacked
     variance = mask * r + (1.0 - mask)
@@ -168,7 +157,8 @@ def _joint_function(parts: tuple[tuple[ca.Function, int, tuple[int, ...]], ...],
     posterior = x + gain @ innovation
     after = ca.vertcat(*[function(posterior, numbers)[0] for function, _, _ in parts])
     miss = after - ca.vertcat(*values) - stacked @ (posterior - at)
-    miss = ca.vertcat(*[_wrapped(miss[i]) if i in angle_rows else miss[i] for i in range(size)])
+    miss = ca.vertcat(*[wrap_angle_symbolic(miss[i]) if i in angle_rows else miss[i]
+                        for i in range(size)])
     error = ca.mmax(ca.fabs(mask * miss / ca.sqrt(variance)))
     return ca.Function(JOINT_FUNCTION, [x, at, p, z, r, mask, numbers],
                        [posterior, ca.densify(covariance), ca.vertcat(*nis), error,

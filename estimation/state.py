@@ -97,6 +97,17 @@ def wrap_angle(angle_rad: float | np.ndarray) -> float | np.ndarray:
     return float(wrapped) if np.ndim(wrapped) == 0 else wrapped
 
 
+def wrap_angle_symbolic(angle: ca.SX | ca.MX) -> ca.SX | ca.MX:
+    """:func:`wrap_angle` in CasADi: an angle in (-pi, pi] untouched, otherwise
+    ``pi - mod(pi - angle, 2 pi)`` (numpy's ``mod``, the sign of the divisor), with -pi
+    moved to +pi."""
+    two_pi = 2.0 * math.pi
+    shifted = math.pi - angle
+    wrapped = math.pi - (shifted - two_pi * ca.floor(shifted / two_pi))
+    wrapped = ca.if_else(wrapped <= -math.pi, wrapped + two_pi, wrapped)
+    return ca.if_else(ca.logic_and(angle > -math.pi, angle <= math.pi), angle, wrapped)
+
+
 def state_index(name: str) -> int:
     """Position of the state ``name`` in :data:`STATE_NAMES` (a clear error if unknown)."""
     if name not in STATE_NAMES:

@@ -197,9 +197,15 @@ class Ukf(KalmanFusion):
     def _set_covariance(self, covariance: np.ndarray) -> None:
         self._kf.P = covariance
 
-    def _predict_substep(self, dt_s: float, command_rad: float | None) -> None:
+    def _predict_one(self, t0_s: float, t1_s: float, dt_s: float,
+                     command_rad: float | None) -> None:
+        """filterpy's predict through sigma points (the process noise linearised at the
+        mean), between the acceleration's move and the angles' wrap
+        (:meth:`KalmanFusion._predict_one`)."""
+        self._follow_accel_command(t0_s, t1_s)
         self._kf.Q = self._process.process_noise(self._kf.x, dt_s, command_rad)
         self._kf.predict(dt_s, command_rad=command_rad)
+        self._normalise()
 
     def _trial_update(
         self,

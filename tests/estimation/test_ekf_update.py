@@ -1,15 +1,20 @@
 """The EKF's predict and update are filterpy's algorithm: the same results as
-``ExtendedKalmanFilter.predict`` and ``.update``."""
+``ExtendedKalmanFilter.predict`` (the covariance of the one-call sub-step) and ``.update``."""
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 import pytest
 from filterpy.kalman import ExtendedKalmanFilter
 
-from estimation.ekf import covariance_prediction, joseph_update
+from estimation.bicycle import BicycleParams
+from estimation.ekf import joseph_update
 from estimation.innovation import residual_function
-from estimation.state import wrap_angle
+from estimation.process_model import ProcessModel
+from estimation.state import STATE_NAMES, state_index, wrap_angle
+from tests.estimation.test_models import BELIEF, NOISE, ROLL
 
 
 @pytest.mark.parametrize("dim_z, angle_rows", [(1, ()), (2, ()), (3, (1,))])
@@ -45,18 +50,39 @@ def test_joseph_update_gives_filterpys_posterior(dim_z: int, angle_rows: tuple[i
     assert ours.mean is not x and not np.shares_memory(ours.covariance, p)
 
 
-def test_covariance_prediction_is_filterpys() -> None:
+@pytest.mark.parametrize("accel_move", [(0.0, 0.0), (0.3, 0.02)])
+def test_the_sub_step_predicts_the_covariance_as_filterpy(
+        accel_move: tuple[float, float]) -> None:
+    # The EKF's one-call sub-step against its pieces: the acceleration moved, the model's
+    # own sub-step (x1, F, Q) and filterpy's predict of the covariance, then wrapped and
+    # symmetrised. A yaw just under pi steps across it: the mean comes back wrapped.
+    model = ProcessModel(NOISE, BicycleParams.from_vehicle(BELIEF, "saturating", ROLL), 0.5)
     rng = np.random.default_rng(7)
-    n = 16
+    n = len(STATE_NAMES)
     square = rng.normal(size=(n, n))
-    p = square @ square.T
-    transition = np.eye(n) + 0.01 * rng.normal(size=(n, n))
-    noise = np.diag(rng.uniform(1e-6, 1e-3, size=n))
+    p = 1e-3 * (square @ square.T) + 1e-4 * np.eye(n)
+    x = np.zeros(n)
+    x[state_index("vx_mps")], x[state_index("yaw_rate_radps")] = 15.0, 0.4
+    x[state_index("yaw_rad")] = math.pi - 1e-3
+    ax = state_index("ax_mps2")
+    moved_x, moved_p = x.copy(), p.copy()
+    moved_x[ax] += accel_move[0]
+    moved_p[ax, ax] += accel_move[1]
+    dt_s = 0.01
+    x1, transition, noise = model.step(moved_x, dt_s, 0.02)
     filterpy_ekf = ExtendedKalmanFilter(dim_x=n, dim_z=1)
-    filterpy_ekf.P, filterpy_ekf.F, filterpy_ekf.Q = p.copy(), transition, noise
+    filterpy_ekf.P, filterpy_ekf.F, filterpy_ekf.Q = moved_p.copy(), transition, noise
     filterpy_ekf.predict()
-    np.testing.assert_allclose(covariance_prediction(p, transition, noise), filterpy_ekf.P,
-                               rtol=1e-13, atol=1e-15)
+
+    mean, covariance = model.covariance_step(x, p, dt_s, 0.02, accel_move)
+
+    expected = x1.reshape(-1).copy()
+    expected[state_index("yaw_rad")] = wrap_angle(float(expected[state_index("yaw_rad")]))
+    assert expected[state_index("yaw_rad")] < 0.0  # it did cross pi
+    np.testing.assert_allclose(mean, expected, rtol=1e-14, atol=1e-15)
+    np.testing.assert_allclose(covariance, 0.5 * (filterpy_ekf.P + filterpy_ekf.P.T),
+                               rtol=1e-12, atol=1e-15)
+    assert np.array_equal(covariance, covariance.T)
 
 
 def test_the_joint_noise_matrix_is_scipys_block_diagonal() -> None:
