@@ -114,6 +114,11 @@ class Estimate:
     def sub_covariance(self, names: tuple[str, ...]) -> np.ndarray:
         """The covariance block of the named states, in the order given."""
         idx = [self.names.index(n) for n in names]
+        first = idx[0] if idx else 0
+        if idx == list(range(first, first + len(idx))):
+            # Neighbours: a slice's copy, laid out as the indexing below lays it out (by
+            # columns), so that products with it round alike.
+            return self.covariance[first:first + len(idx), first:first + len(idx)].copy("F")
         return self.covariance[idx][:, idx]  # the rows, then their columns (np.ix_'s block)
 
     def to_message(self) -> dict[str, object]:

@@ -81,7 +81,7 @@ class Start:
 
     @property
     def finite(self) -> bool:
-        return bool(np.all(np.isfinite(self.state)))
+        return bool(np.isfinite(self.state).all())
 
 
 @dataclass(frozen=True)
@@ -196,7 +196,7 @@ class MpcTracker:
             return self._fallback(t_s, start, _error_status(error), 0,
                                   time.perf_counter() - solve_began, began)
         if not (solved.success and math.isfinite(solved.cost)
-                and np.all(np.isfinite(solved.states)) and np.all(np.isfinite(solved.inputs))):
+                and np.isfinite(solved.states).all() and np.isfinite(solved.inputs).all()):
             return self._fallback(t_s, start, solved.status, solved.iterations,
                                   solved.solve_time_s, began, solved.setup_s)
         trajectory = Trajectory(t_s, start.t_s, solved.states,

@@ -12,6 +12,7 @@ Inputs are ``(N, 2)`` arrays with columns :data:`INPUT_NAMES`.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from types import MappingProxyType
 
@@ -113,8 +114,10 @@ def shifted_states(
     for k in range(keep, n + 1):
         source = out[k - 1] if k > 0 else states[-1]
         out[k] = np.asarray(step(source, held[k - 1]), dtype=float).ravel()
-    turns = np.round((state0[yaw_index] - out[0, yaw_index]) / (2.0 * np.pi))
-    out[:, yaw_index] += 2.0 * np.pi * turns
+    turns = (float(state0[yaw_index]) - float(out[0, yaw_index])) / (2.0 * math.pi)
+    if math.isfinite(turns):  # Python's round halves to even, as np.round does
+        turns = float(round(turns))
+    out[:, yaw_index] += 2.0 * math.pi * turns
     out[0] = state0
     return out
 

@@ -23,6 +23,7 @@ car's yaw, so the NLP can difference them without wrapping.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -65,14 +66,19 @@ def _rebased_yaw(yaw_rad: np.ndarray, first_rad: float, car_yaw_rad: float) -> n
 
     Where no step between neighbours reaches pi (a horizon's headings nearly always), the
     unwrap (``np.unwrap``) changes nothing but adds its zero corrections, done here
-    directly: the same numbers, without ``np.unwrap``'s general machinery."""
-    yaw = np.concatenate(([first_rad], yaw_rad))
-    if np.abs(np.diff(yaw)).max(initial=0.0) < np.pi:
-        unwrapped = yaw[1:] + 0.0  # np.unwrap's zero correction (it turns -0.0 into 0.0)
+    directly: the same numbers, without ``np.unwrap``'s general machinery. The turns are
+    counted in plain floats (Python's ``round`` halves to even, as ``np.round`` does)."""
+    first_rad = float(first_rad)
+    first_step = abs(float(yaw_rad[0]) - first_rad) if yaw_rad.size else 0.0
+    steps = float(np.abs(yaw_rad[1:] - yaw_rad[:-1]).max(initial=0.0))  # np.diff's
+    if first_step < math.pi and steps < math.pi:  # False for a NaN: np.unwrap carries it
+        unwrapped = yaw_rad + 0.0  # np.unwrap's zero correction (it turns -0.0 into 0.0)
     else:
-        unwrapped = np.unwrap(yaw)[1:]
-    turns = np.round((car_yaw_rad - first_rad) / (2.0 * np.pi))
-    return unwrapped + 2.0 * np.pi * turns
+        unwrapped = np.unwrap(np.concatenate(([first_rad], yaw_rad)))[1:]
+    turns = (float(car_yaw_rad) - first_rad) / (2.0 * math.pi)
+    if math.isfinite(turns):
+        turns = float(round(turns))
+    return unwrapped + 2.0 * math.pi * turns
 
 
 def spline_reference(path: ReferencePath, s_m: np.ndarray, first_yaw_rad: float,

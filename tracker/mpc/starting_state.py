@@ -104,7 +104,7 @@ class StartingState:
             state[self._index[name]] = value
         self._last = (estimate.t_s, state.copy())
         self._issued.forget_before(estimate.t_s)
-        if np.all(np.isfinite(state)):
+        if np.isfinite(state).all():
             state = self.predict(state, estimate.t_s,
                                  max(t_s, estimate.t_s) + self._issued.delay_s)
         return state

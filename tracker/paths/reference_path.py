@@ -122,7 +122,9 @@ class ReferencePath:
 
     def speed_ref(self, s_m: np.ndarray | float, t_s: np.ndarray | float) -> np.ndarray:
         """The reference speed at arc lengths ``s_m`` and times ``t_s`` [m/s]."""
-        return self.speed_profile.speed_mps(self.wrap(s_m), np.asarray(t_s, dtype=float))
+        profile = self.speed_profile
+        s = self.wrap(s_m) if profile.reads_arc_length else np.asarray(s_m, dtype=float)
+        return profile.speed_mps(s, np.asarray(t_s, dtype=float))
 
     def speed_ref_at(self, s_m: float, t_s: float) -> float:
         """:meth:`speed_ref` at one arc length and one time, as a float: the arc length

@@ -27,6 +27,7 @@ previous lap arrives with.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -37,6 +38,9 @@ class SpeedProfile:
     """The reference speed at arc lengths and times (equal-shaped or broadcastable arrays)."""
 
     top_speed_mps: float
+    reads_arc_length: ClassVar[bool] = True
+    """Whether the speed depends on the arc length (else its arc lengths serve only for
+    the result's shape: a path need not wrap them first)."""
 
     def speed_mps(self, s_m: np.ndarray, t_s: np.ndarray) -> np.ndarray:
         raise NotImplementedError
@@ -52,6 +56,7 @@ class ConstantSpeed(SpeedProfile):
     """One reference speed everywhere, always."""
 
     top_speed_mps: float
+    reads_arc_length: ClassVar[bool] = False
 
     def speed_mps(self, s_m: np.ndarray, t_s: np.ndarray) -> np.ndarray:
         return np.full(np.broadcast(np.asarray(s_m), np.asarray(t_s)).shape,
@@ -122,6 +127,7 @@ class TimedSpeed(_TabulatedSpeed):
     """A speed per time (m/s at ``t_table_s``), linear between breakpoints, held after."""
 
     t_table_s: np.ndarray
+    reads_arc_length: ClassVar[bool] = False
     speed_table_mps: np.ndarray
 
     def __post_init__(self) -> None:
