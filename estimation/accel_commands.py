@@ -111,7 +111,11 @@ class AccelCommands(CommandTimeline):
 
     def _variance_of(self, i: int, t_s: float) -> float:
         """(A2) under command ``i`` at ``t_s``."""
-        progress = self._level_of(i, t_s) - self._start_levels_mps2[i]
+        return self._variance_at_level(i, self._level_of(i, t_s))
+
+    def _variance_at_level(self, i: int, level_mps2: float) -> float:
+        """(A2) under command ``i`` where (A1) is at ``level_mps2``."""
+        progress = level_mps2 - self._start_levels_mps2[i]
         return (self.belief.relative_sigma * progress) ** 2
 
     def increment(self, t0_s: float, t1_s: float) -> tuple[float, float]:
@@ -125,13 +129,14 @@ class AccelCommands(CommandTimeline):
         last = bisect.bisect_right(times, t1_s) - 1
         if i < 0:  # the first command starts inside: the lag is at 0 until then
             i, t0_s = 0, times[0]
-        start_level = self._level_of(i, t0_s)
-        variance = -self._variance_of(i, t0_s)
+        start_level = self._level_of(i, t0_s)  # each level once: the same numbers
+        variance = -self._variance_at_level(i, start_level)
         while i < last:  # each command that ends inside, to its end
             variance += self._variance_of(i, times[i + 1])
             i += 1
-        variance += self._variance_of(last, t1_s)
-        return self._level_of(last, t1_s) - start_level, variance
+        end_level = self._level_of(last, t1_s)
+        variance += self._variance_at_level(last, end_level)
+        return end_level - start_level, variance
 
     def moved(self, mean: np.ndarray, covariance: np.ndarray, index: int, t0_s: float,
               t1_s: float) -> tuple[np.ndarray, np.ndarray] | None:

@@ -358,12 +358,16 @@ class KalmanFusion(ABC):
         model = self._models.get(measurement.sensor)
         if model is None:
             return IGNORED, 0
-        selection = self._selection(model, tuple(measurement.names))
+        names = measurement.names
+        selection = self._selection(model, names if type(names) is tuple else tuple(names))
         dim = len(selection.model_rows)
         if dim == 0:
             return IGNORED, 0
-        values = np.asarray(measurement.values, dtype=float).reshape(-1)
-        covariance = np.asarray(measurement.covariance, dtype=float)
+        values, covariance = measurement.values, measurement.covariance
+        if not (type(values) is np.ndarray and values.dtype == np.float64 and values.ndim == 1):
+            values = np.asarray(values, dtype=float).reshape(-1)
+        if not (type(covariance) is np.ndarray and covariance.dtype == np.float64):
+            covariance = np.asarray(covariance, dtype=float)
         size = len(measurement.names)
         if values.shape != (size,) or covariance.shape != (size, size):
             raise ValueError(

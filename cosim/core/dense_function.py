@@ -100,10 +100,12 @@ class DenseFunction:
         """The inputs' buffers hold ``args`` (CasADi's shapes; a scalar as it is)."""
         for view, row, scalar, value in zip(self._argument_views, self._rows, self._scalar,
                                             args, strict=True):
-            if scalar and type(value) is float:
+            if scalar and isinstance(value, float):  # a float or a numpy double
                 view[...] = value
             elif row is not None and type(value) is np.ndarray and value.ndim == 1:
                 row[...] = value
+            elif type(value) is np.ndarray and value.shape == view.shape:
+                view[...] = value  # a matrix as CasADi shapes it (a covariance): no reshape
             else:
                 view[...] = np.reshape(value, view.shape)
 

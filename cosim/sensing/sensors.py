@@ -144,7 +144,8 @@ def suite_preset(suite: str) -> dict[str, dict[str, float]]:
 
 
 def _quantise(values: np.ndarray, quantum: float) -> np.ndarray:
-    return np.round(values / quantum) * quantum if quantum > 0.0 else values
+    # np.rint: np.round's own rounding (half to even) without its wrappers
+    return np.rint(values / quantum) * quantum if quantum > 0.0 else values
 
 
 class _HorizontalGaussianSensor:
