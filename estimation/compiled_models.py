@@ -37,7 +37,7 @@ def use_compiled(kind: str, functions: tuple[DenseFunction, ...],
                 "(estimator.compiled=false says so quietly)")
     library = load_library(f"cosim_{kind.lower()}",
                            [function.function for function in functions],
-                           note=f"compiling the {kind}'s models to C (5-10 s)",
+                           note=f"compiling the {kind}'s models to C (8-15 s)",
                            fallback=fallback, flags=FILTER_FLAGS, recipe=recipe)
     if library is None:
         if compiler() is None:  # a failed build or load has said why
