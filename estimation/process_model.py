@@ -243,6 +243,9 @@ class _ProcessFunctions:
     psd: ca.Function
     mapped_mean_step: ca.Function | None
     cornering_drag: ca.Function
+    transition_sparsity: ca.Sparsity
+    """The entries of ``step``'s ``F`` that are not structurally zero (``step`` gives it
+    dense)."""
 
     def named(self, name: str) -> ca.Function:
         """The function of CasADi name ``name`` (``bicycle_step`` ...)."""
@@ -319,6 +322,7 @@ def _process_functions(numbers: _Belief, sigma_point_count: int) -> _ProcessFunc
         mapped_mean_step=mapped,
         cornering_drag=ca.Function("bicycle_cornering_drag", [x, belief],
                                    [_cornering_drag(x, twin.bicycle)]),
+        transition_sparsity=transition.sparsity(),
     )
 
 
@@ -340,7 +344,8 @@ def _covariance_step(numbers: _Belief) -> ca.Function:
     EKF's prediction some 15 us a sub-step faster. An MX function that calls the sub-step
     (not a copy of its 50,000 operations: the library builds in the same time). Built only
     when the filter's library is not on disk yet (else taken from it)."""
-    step = _process_functions(numbers, 0).step
+    functions = _process_functions(numbers, 0)
+    step = functions.step
     n = len(STATE_NAMES)
     x = ca.MX.sym("x", n)
     p = ca.MX.sym("p", n, n)
@@ -355,10 +360,7 @@ def _covariance_step(numbers: _Belief) -> ca.Function:
     x1, transition, noise = step(moved_x, u, dt, belief)
     # F is dense as the step gives it, a third of its entries structurally nonzero: the
     # products skip the rest (the same sums: a structural zero adds nothing).
-    symbolic_f = step(*step.sx_in())[1]
-    entries = [(i, j) for i in range(n) for j in range(n) if not symbolic_f[i, j].is_zero()]
-    pattern = ca.Sparsity.triplet(n, n, [i for i, _ in entries], [j for _, j in entries])
-    transition = ca.project(transition, pattern)
+    transition = ca.project(transition, functions.transition_sparsity)
     p1 = ca.mtimes(ca.mtimes(transition, moved_p), transition.T) + noise
     angles = {state_index(name) for name in ANGLE_STATES}
     wrapped = ca.vertcat(*[wrap_angle_symbolic(x1[i]) if i in angles else x1[i]
