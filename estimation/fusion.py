@@ -50,6 +50,7 @@ from estimation.innovation import (
     Innovation,
     Selection,
     TrialUpdate,
+    block_nis,
     normalised_innovation_squared,
     residual_function,
 )
@@ -505,20 +506,8 @@ class KalmanFusion(ABC):
             trial = None
         if trial is None:
             return None
-        s_matrix = 0.5 * (trial.innovation_covariance + trial.innovation_covariance.T)
-        innovation = trial.innovation.reshape(-1)
-        nis: list[float] = []
-        start = 0
-        for c in checked:
-            block = slice(start, start + len(c.selection.model_rows))
-            start = block.stop
-            try:
-                value = float(innovation[block] @ np.linalg.solve(s_matrix[block, block],
-                                                                  innovation[block]))
-            except np.linalg.LinAlgError:
-                value = math.nan
-            nis.append(value)
-        return JointPosterior(trial.mean, trial.covariance, tuple(nis))
+        return JointPosterior(trial.mean, trial.covariance, block_nis(
+            trial, [len(c.selection.model_rows) for c in checked]))
 
     def _joint_trial_update(
         self, blocks: list[tuple[MeasurementModel, Selection, np.ndarray, np.ndarray]],

@@ -120,3 +120,24 @@ def normalised_innovation_squared(trial: TrialUpdate) -> float:
         return math.nan
     whitened = np.linalg.solve(cholesky, innovation)
     return float(whitened @ whitened)
+
+
+def block_nis(trial: TrialUpdate, sizes: list[int]) -> tuple[float, ...]:
+    """Each measurement's NIS in a joint trial update of several (their channels stacked,
+    ``sizes`` of them each, in order): ``y_j' S_jj^-1 y_j`` over its block ``j`` of the
+    innovation and of ``S`` (symmetrised), as the measurement alone against the same prior
+    would give it; NaN for a singular block."""
+    s_matrix = 0.5 * (trial.innovation_covariance + trial.innovation_covariance.T)
+    innovation = trial.innovation.reshape(-1)
+    nis: list[float] = []
+    start = 0
+    for size in sizes:
+        block = slice(start, start + size)
+        start = block.stop
+        try:
+            value = float(innovation[block] @ np.linalg.solve(s_matrix[block, block],
+                                                              innovation[block]))
+        except np.linalg.LinAlgError:
+            value = math.nan
+        nis.append(value)
+    return tuple(nis)
