@@ -191,6 +191,10 @@ ESTIMATION = (
     MetricKey("tested_first_s_<sensor>", "count", "the sensor's updates before the settling "
               "time with a NIS, gated or not: of these a consistent filter's gate refuses a "
               "fraction `1 - estimator.gate_probability` by chance", "", _METRICS),
+    MetricKey("updates_gated_<sensor>", "count", "the sensor's updates over the whole run "
+              "that the gate refused in whole or in part", "0", _METRICS),
+    MetricKey("updates_tested_<sensor>", "count", "the sensor's updates over the whole run "
+              "with a NIS, gated or not", "", _METRICS),
     MetricKey("rejected_measurements", "count", "whole measurements the estimator refused, "
               "all causes", "0", _METRICS),
     MetricKey("rejected_gate", "count", "measurements the innovation gate refused", "0",

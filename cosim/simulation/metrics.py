@@ -180,6 +180,10 @@ class MetricsAccumulator:
     """Per sensor, the updates before :attr:`settle_s` with a NIS (what a gate tested): a
     consistent filter's gate refuses a fraction ``1 - estimator.gate_probability`` of them
     (:func:`estimation.consistency.false_alarms`)."""
+    updates_gated: dict[str, int] = field(default_factory=dict)
+    """Per sensor, the updates of the whole run the gate refused in whole or in part."""
+    updates_tested: dict[str, int] = field(default_factory=dict)
+    """Per sensor, the updates of the whole run with a NIS, gated or not."""
     estimator_counts: dict[str, dict[str, int]] = field(default_factory=dict)
     """Per sensor, the estimator's own counters (set at the end of the run)."""
     last_t_s: float = 0.0
@@ -259,12 +263,14 @@ class MetricsAccumulator:
             self.nis_per_dof.add(nis / dim)
             self.nis_sum[sensor] = self.nis_sum.get(sensor, 0.0) + nis
             self.nis_dof[sensor] = self.nis_dof.get(sensor, 0) + dim
+            gated = update.reason in (GATE, PARTIAL)
+            self.updates_gated[sensor] = self.updates_gated.get(sensor, 0) + gated
+            self.updates_tested[sensor] = self.updates_tested.get(sensor, 0) + 1
             if t_s >= self.settle_s:
                 self.nis_settled_sum[sensor] = self.nis_settled_sum.get(sensor, 0.0) + nis
                 self.nis_settled_dof[sensor] = self.nis_settled_dof.get(sensor, 0) + dim
             else:
-                self.gated_first_s[sensor] = (self.gated_first_s.get(sensor, 0)
-                                              + (update.reason in (GATE, PARTIAL)))
+                self.gated_first_s[sensor] = self.gated_first_s.get(sensor, 0) + gated
                 self.tested_first_s[sensor] = self.tested_first_s.get(sensor, 0) + 1
 
     def add_plan(self, plan: Plan, step_time_s: float = float("nan")) -> None:
@@ -350,6 +356,10 @@ class MetricsAccumulator:
                for sensor in sorted(self.gated_first_s)},
             **{f"tested_first_s_{sensor}": self.tested_first_s[sensor]
                for sensor in sorted(self.tested_first_s)},
+            **{f"updates_gated_{sensor}": self.updates_gated[sensor]
+               for sensor in sorted(self.updates_gated)},
+            **{f"updates_tested_{sensor}": self.updates_tested[sensor]
+               for sensor in sorted(self.updates_tested)},
             **rejection_counts(self.estimator_counts),
             "sim_duration_s": sim_duration_s,
             "wall_time_s": wall_time_s,

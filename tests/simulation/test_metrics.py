@@ -1,4 +1,5 @@
-"""Per-sensor NIS after settling and the gating at start-up (cosim/simulation/metrics.py)."""
+"""Per-sensor NIS after settling and the gating at start-up and over the run
+(cosim/simulation/metrics.py)."""
 
 from __future__ import annotations
 
@@ -42,6 +43,10 @@ def test_settled_nis_leaves_out_the_first_second_and_counts_its_gating() -> None
     assert result["nis_settled_imu"] == pytest.approx(10.0)
     assert result["gated_first_s_imu"] == 0
     assert result["tested_first_s_imu"] == 1
+    # Over the whole run: the start-up's two gated gnss updates of its 12, and the imu's
+    # one update gated after settling, of its 2.
+    assert (result["updates_gated_gnss"], result["updates_tested_gnss"]) == (2, 12)
+    assert (result["updates_gated_imu"], result["updates_tested_imu"]) == (1, 2)
     assert undocumented(result) == []
 
 
