@@ -21,6 +21,7 @@ from cosim.core.symbolic_record import SymbolicRecord, symbolic_twin
 from cosim.core.vehicle_params import VehicleParams
 from estimation.bicycle import (
     BicycleParams,
+    axle_forces,
     axle_lateral_velocity,
     cog_lateral_accel,
     world_velocity,
@@ -204,7 +205,10 @@ def wheel_spin(
     else:
         along = forward
     if loads is not None:
-        along = along * (1.0 + slip_ratio(s, front, left, track * s["wheel_track_scale"], loads))
+        force_front, _ = axle_forces(s, bicycle)
+        drag_n = force_front * ca.sin(s["steer_rad"])  # (S2): the steered tyres' pull
+        along = along * (1.0 + slip_ratio(s, front, left, track * s["wheel_track_scale"], loads,
+                                          drag_n))
     return along / (belief.wheel_radius_m * s["rolling_radius_scale"])
 
 

@@ -15,19 +15,23 @@ A free-rolling wheel slips under the brakes only: the brake torque splits over t
 with a fixed balance, the front share ``b`` (:attr:`CarParams.brake_front_share`), and each
 wheel's tyre force also turns the wheel's own inertia::
 
-    F_total = m_e a_x + 1/2 rho C_d A v|v| + C_rr m g tanh(v / 0.1)      (S2)
+    F_total = m_e a_x + 1/2 rho C_d A v|v| + C_rr m g tanh(v / 0.1) + F_yf sin(delta)   (S2)
     F_x = b_i min(F_total, 0) + d_i max(F_total, 0) + (I_w / R^2) a_x    (S3)
     F_z = m (g l_o / L -+ a_x h / L) / 2 -+ m r v_x h l_o / (L t)        (S4)
 
 with ``m_e = m + 4 I_w / R^2`` (the low-level layer's model of what the tyres must deliver,
-:mod:`cosim.plant.low_level`), ``b_i`` the wheel's brake share (``b / 2`` at the front,
-``(1 - b) / 2`` at the rear), ``d_i`` its drive share (the driven wheels split the drive
-torque equally: an all-wheel drive's wheels, which the filter reads too), ``l_o`` the other
-axle's distance to the CoG and the load moving to the front axle as the car brakes (``-`` at
-the front, ``+`` at the rear) and to the outer wheels as it turns (``-`` on the inner wheel;
-the lateral acceleration ``r v_x`` of a steady turn, shared by the axles as their static
-loads, ``t`` the axle's track): the brakes pull the wheels of an axle alike, so the inner,
-lighter one slips more.
+:mod:`cosim.plant.low_level`) and ``F_yf sin(delta)`` the part of the front tyres' lateral
+force ``F_yf`` that acts along the car when they are steered by ``delta``: a cornering drag
+that slows the car without a brake torque (the longitudinal forces the wheels deliver,
+summed in the vehicle frame, are ``m_e a_x`` plus the road loads plus it), so in a turn the
+brakes slow the car less than ``a_x`` says and the wheels slip less. ``b_i`` is the wheel's
+brake share (``b / 2`` at the front, ``(1 - b) / 2`` at the rear), ``d_i`` its drive share
+(the driven wheels split the drive torque equally: an all-wheel drive's wheels, which the
+filter reads too), ``l_o`` the other axle's distance to the CoG and the load moving to the
+front axle as the car brakes (``-`` at the front, ``+`` at the rear) and to the outer wheels
+as it turns (``-`` on the inner wheel; the lateral acceleration ``r v_x`` of a steady turn,
+shared by the axles as their static loads, ``t`` the axle's track): the brakes pull the
+wheels of an axle alike, so the inner, lighter one slips more.
 
 On the sedan the front wheels slip about 1 % when it brakes at 2 m/s^2: at 20 m/s that is
 0.2 m/s, where the wheel speeds' noise is 0.016 m/s; braking at 1.3 m/s^2 in a turn at
@@ -92,12 +96,14 @@ class WheelLoads:
 
 
 def slip_ratio(s: Mapping[str, ca.SX], front: bool, left: bool, track_m: ca.SX,
-               loads: WheelLoads) -> ca.SX:
+               loads: WheelLoads, cornering_drag_n: ca.SX | float = 0.0) -> ca.SX:
     """``kappa`` of a wheel (front or rear, left or right, on an axle of track ``track_m``),
-    (S1)-(S4), from the state's speed, yaw rate and longitudinal acceleration."""
+    (S1)-(S4), from the state's speed, yaw rate and longitudinal acceleration;
+    ``cornering_drag_n`` is ``F_yf sin(delta)`` of (S2) [N]."""
     vx, ax = s["vx_mps"], s["ax_mps2"]
     total = (loads.effective_mass_kg * ax + loads.drag_coefficient * vx * ca.fabs(vx)
-             + loads.rolling_force_n * ca.tanh(vx / ROLLING_SPEED_SCALE_MPS))
+             + loads.rolling_force_n * ca.tanh(vx / ROLLING_SPEED_SCALE_MPS)
+             + cornering_drag_n)
     if front:
         brake, drive = 0.5 * loads.brake_front_share, loads.front_drive_share
     else:

@@ -4,8 +4,10 @@ wheels on a circuit with braking zones."""
 from __future__ import annotations
 
 import collections
+import math
 from pathlib import Path
 
+import casadi as ca
 import numpy as np
 import pytest
 
@@ -14,8 +16,10 @@ from cosim.core.vehicle_params import VehicleParams
 from cosim.log.reader import iter_messages
 from cosim.simulation.runner import run
 from cosim.simulation.scenario_config import load_config
+from estimation.bicycle import BicycleParams, axle_forces
 from estimation.config import EstimatorConfig
 from estimation.measurement_models import build_measurement_models
+from estimation.state import STATE_NAMES, named_states
 from tests.estimation.test_models import _state
 
 BELIEF = VehicleParams()
@@ -42,6 +46,34 @@ def test_a_braking_cars_front_wheels_slip_by_hand() -> None:
     np.testing.assert_allclose(_spins(BELIEF, SLIP, vx_mps=20.0, ax_mps2=-2.0),
                                free * (1 + kappa), rtol=1e-12)
     assert -0.013 < kappa < -0.008  # about 1 %, as the plant's front wheels slip
+
+
+def test_a_steered_axles_cornering_drag_is_not_braked_by_the_wheels() -> None:
+    """Braking at 1 m/s^2 through a left turn with the wheels steered 3 deg and a side slip:
+    part of the deceleration is the front tyres' lateral force along the car, F_yf sin(delta),
+    which no brake torque makes. The tyres' longitudinal forces are m_e a + the road loads +
+    that drag (S2), so the front wheels slip less than a's braking alone would make them:
+    kappa by hand from the bicycle's own F_yf."""
+    state = {"vx_mps": 20.0, "vy_mps": -0.3, "yaw_rate_radps": 0.2, "ax_mps2": -1.0,
+             "steer_rad": math.radians(3.0)}
+    x = ca.SX.sym("x", len(STATE_NAMES))
+    force_front = float(ca.Function("f", [x], [axle_forces(
+        named_states(x), BicycleParams.from_vehicle(BELIEF))[0]])(_state(**state)))
+    drag_n = force_front * math.sin(state["steer_rad"])
+    assert drag_n > 150.0  # a real part of the braking: m a is some 1,500 N here
+    m, inertia_mass = BELIEF.mass_kg, BELIEF.wheel_inertia_kgm2 / BELIEF.wheel_radius_m**2
+    total = ((m + 4 * inertia_mass) * -1.0 + 0.5 * AIR_DENSITY_KGPM3 * BELIEF.drag_area_m2 * 400
+             + BELIEF.rolling_resistance * m * GRAVITY_MPS2 * np.tanh(200.0) + drag_n)
+    force = 0.5 * BELIEF.brake_front_share * total + inertia_mass * -1.0
+    lever, track = BELIEF.cog_rear_m, BELIEF.axle_tracks_m[0]
+    roll = np.array([-1.0, 1.0]) * state["yaw_rate_radps"] * 20.0 * BELIEF.cog_height_m * lever
+    load = m * (0.5 * (GRAVITY_MPS2 * lever + 1.0 * BELIEF.cog_height_m) + roll / track) \
+        / BELIEF.wheelbase_m
+    kappa = SLIP * force / load  # left (inner), right
+    spins = _spins(BELIEF, SLIP, **state)[:2] / _spins(BELIEF, 0.0, **state)[:2] - 1
+    np.testing.assert_allclose(spins, kappa, rtol=1e-9)
+    braking_alone = SLIP * (force - 0.5 * BELIEF.brake_front_share * drag_n) / load
+    assert np.all(np.abs(spins) < 0.9 * np.abs(braking_alone))  # some 15 % less
 
 
 def test_the_inner_wheel_slips_more_and_a_driven_wheel_forward() -> None:

@@ -21,9 +21,20 @@ from the state ``x_k`` and the planned acceleration ``a_k``::
 
 soft, like the slip limits (:class:`tracker.mpc.nmpc.NmpcModel`, a quadratic exterior penalty
 weighted ``weights.tyre_excess``): a car already beyond its grip never makes the NLP
-infeasible. The drive force is ``fmax(F_x, 0)``, whose square is continuously
-differentiable, so the penalty is too. Lateral load transfer is left out (it lowers an
-axle's grip through the tyres' load sensitivity); ``usage_max`` < 1 covers it.
+infeasible. The split (T3) of ``F_x`` into a drive part ``max(F_x, 0)`` and a brake part
+``min(F_x, 0)`` is blended over a few tens of newtons instead::
+
+    drive = (F_x + sqrt(F_x^2 + e^2)) / 2,   brake = (F_x - sqrt(F_x^2 + e^2)) / 2     (T3')
+
+(``e``: :data:`DRIVE_BLEND_N`; within ``e^2 / (4 |F_x|)`` of the exact split, 0.6 N at
+1,000 N). With the exact split the penalty was continuously differentiable but its second
+derivative jumped where the plan changes from braking to driving (each axle's share of
+``F_x`` is another on either side); an optimum with a stage there, coasting through a
+swerve on a wet road, made fatrop's Newton steps cycle across the jump (the dual
+infeasibility 1e-3, 1e2, 0.7, 1e-3 ... for 33 iterations, then a failed restoration), a
+fallback step for a plan whose cost had converged to eight digits. Lateral load transfer is
+left out (it lowers an axle's grip through the tyres' load sensitivity); ``usage_max`` < 1
+covers it.
 
 Measured, with the cost of the constraint (it is added only when the believed friction is
 below ``grip.tyre_limits_below_friction``): docs/defaults.md, the friction ellipse.
@@ -43,6 +54,10 @@ from tracker.models import dynamic_bicycle as bicycle
 from tracker.models.steered_dynamic_bicycle import INPUT, STATE, STATE_NAMES, SteeredBicycleParams
 
 Symbolic = ca.SX | ca.MX | ca.DM
+
+DRIVE_BLEND_N = 50.0
+"""``e`` of (T3'): the force over which the drive and the brake parts of ``F_x`` blend [N]
+(the sedan's rolling resistance is some 190 N)."""
 
 LIMIT_NAMES: tuple[str, ...] = ("front_friction_usage_sq", "rear_friction_usage_sq")
 """The outputs of :func:`friction_usage_function`: ``u_f`` and ``u_r`` of (T4)."""
@@ -97,8 +112,10 @@ def friction_usage(state: Symbolic, inputs: Symbolic, bicycle_vector: Symbolic |
     force_x = mass * accel + resistance  # (T1)
     load_front = mass * (g * cog_rear - accel * height) / wheelbase  # (T2)
     load_rear = mass * (g * cog_front + accel * height) / wheelbase
-    drive = ca.fmax(force_x, 0.0)
-    brake = ca.fmin(force_x, 0.0)
+    # (T3'): the drive and brake parts of F_x, blended over DRIVE_BLEND_N (module docstring).
+    blend = ca.sqrt(force_x * force_x + DRIVE_BLEND_N**2)
+    drive = 0.5 * (force_x + blend)
+    brake = 0.5 * (force_x - blend)
     weight = mass * g
     force_x_front = v("front_drive_share") * drive + brake * load_front / weight  # (T3)
     force_x_rear = v("rear_drive_share") * drive + brake * load_rear / weight

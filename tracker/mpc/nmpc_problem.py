@@ -76,6 +76,20 @@ WEIGHT_NAMES: tuple[str, ...] = tuple(field.name for field in fields(TrackerWeig
 """``tracker.weights`` as the NLP's ``weights`` parameters take them, in vector order: every
 weight is a parameter, so one NLP (and one compiled library) serves every weighting."""
 
+TYRE_EXCESS_BLEND = 1e-3
+"""``e`` of :func:`smooth_excess` for the friction usage (``u^2``, its bound 0.72 by default:
+:mod:`tracker.models.tyre_limits`)."""
+
+
+def smooth_excess(over: ca.SX, blend: float = TYRE_EXCESS_BLEND) -> ca.SX:
+    """``max(over, 0)`` blended over ``blend``, ``(over + sqrt(over^2 + e^2)) / 2``: ``e / 2`` at
+    the bound, within ``e^2 / (4 |over|)`` of the exact excess away from it. Its square, the
+    penalty, has a continuous second derivative; the exact excess's jumps at the bound, and
+    an optimum with a stage at the bound (a swerve at the grip's limit on a wet road) made
+    fatrop's Newton steps cycle across the jump until its iteration limit."""
+    return 0.5 * (over + ca.sqrt(over * over + blend * blend))
+
+
 COMPILE_FLAGS = ("-O1",)
 """Optimisation of the compiled NLPs: as fast as ``-O2`` here, half the compile time."""
 
@@ -159,7 +173,7 @@ class NmpcProblem:
         stage_limits = self.model.nlp_stage_limits(x_start, u, par["belief"])
         if stage_limits is not None:
             g, g_max = stage_limits
-            excess.append((w.tyre_excess, ca.fmax(ca.fabs(g) - g_max, 0.0)))
+            excess.append((w.tyre_excess, smooth_excess(ca.fabs(g) - g_max)))
         return inputs, tracking, excess
 
     def input_bounds(self) -> tuple[np.ndarray, np.ndarray]:
