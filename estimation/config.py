@@ -291,6 +291,12 @@ class EstimatorConfig:
         "the tyre's slip stiffness per load (p_Kx1 = 21.51 of the plant's default tyre, "
         "Pacejka 2012); 0: the wheels roll without slip (estimation.wheel_slip)",
     )
+    wheel_slip_combined_stiffness_1prad: float = setting(
+        12.35, low=0.0, high=100.0,
+        doc="wheel-speed model: the combined-slip weight's stiffness B, the slip of a force "
+        "growing by sqrt(1 + (B alpha)^2) at the wheel's slip angle alpha (r_Bx1 = 12.35 of "
+        "the plant's default tyre, Pacejka 2012); 0: none (estimation.wheel_slip)",
+    )
     lateral_accel_model_sigma_mps2: float = setting(
         0.0, low=0.0, high=50.0,
         doc="IMU lateral acceleration: vibration, mounting (its bias is a state)",

@@ -133,6 +133,7 @@ class KalmanFusion(ABC):
             steer_model_sigma_rad=config.steer_model_sigma_rad,
             bicycle=bicycle,
             wheel_slip_per_force_ratio=config.wheel_slip_per_force_ratio,
+            wheel_slip_combined_stiffness_1prad=config.wheel_slip_combined_stiffness_1prad,
         )
         if config.compiled:
             use_compiled(self.kind, self._hot_functions(), formula)

@@ -202,13 +202,16 @@ def wheel_spin(
         left_angle, right_angle = ackermann_angles(s["steer_rad"], belief.wheelbase_m, track_front)
         angle = left_angle if left else right_angle
         along = forward * ca.cos(angle) + sideways * ca.sin(angle)
+        across = sideways * ca.cos(angle) - forward * ca.sin(angle)
     else:
-        along = forward
+        along, across = forward, sideways
     if loads is not None:
         force_front, _ = axle_forces(s, bicycle)
         drag_n = force_front * ca.sin(s["steer_rad"])  # (S2): the steered tyres' pull
+        # (S1)'s slip angle, guarded below 1 m/s (a wheel at rest has none to speak of)
+        slip_angle = ca.atan(across / ca.fmax(ca.fabs(along), 1.0))
         along = along * (1.0 + slip_ratio(s, front, left, track * s["wheel_track_scale"], loads,
-                                          drag_n))
+                                          drag_n, slip_angle))
     return along / (belief.wheel_radius_m * s["rolling_radius_scale"])
 
 
@@ -249,6 +252,7 @@ def build_measurement_models(
     steer_model_sigma_rad: float = 0.0,
     bicycle: BicycleParams | None = None,
     wheel_slip_per_force_ratio: float = 0.0,
+    wheel_slip_combined_stiffness_1prad: float = 0.0,
 ) -> dict[str, MeasurementModel]:
     """The measurement models of every sensor the filters fuse, by sensor name.
 
@@ -286,7 +290,8 @@ def build_measurement_models(
     """
     believed = BicycleParams.from_vehicle(belief) if bicycle is None else bicycle
     numbers = symbolic_twin(_Belief(believed, WheelGeometry.from_vehicle(belief),
-                                    WheelLoads.from_vehicle(belief, wheel_slip_per_force_ratio)))
+                                    WheelLoads.from_vehicle(belief, wheel_slip_per_force_ratio,
+                                                            wheel_slip_combined_stiffness_1prad)))
     bicycle, geometry = numbers.twin.bicycle, numbers.twin.geometry
     loads = numbers.twin.loads if wheel_slip_per_force_ratio > 0.0 else None
     common = {"belief": numbers}

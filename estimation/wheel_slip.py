@@ -8,9 +8,17 @@ v_w``); below the tyre's force peak the slip is proportional to the longitudinal
 ``F_z`` (the Magic Formula's ``K_xk = p_Kx1 F_z`` at nominal load; Pacejka, "Tyre and
 Vehicle Dynamics", 3rd ed., 2012, eq. 4.E15). So::
 
-    kappa = c F_x / F_z,   c = 1 / p_Kx1                                 (S1)
+    kappa = c F_x sqrt(1 + (B alpha)^2) / F_z,   c = 1 / p_Kx1                     (S1)
 
 ``c`` is the estimator's belief ``wheel_slip_per_force_ratio`` (0: the wheels roll freely).
+A tyre that slips sideways as well gives less longitudinal force for a slip: the Magic
+Formula's combined-slip weight ``G_xa = cos(C_xa atan(B_xa alpha))`` (Pacejka 2012, eq.
+4.E54-4.E56; with ``C_xa = r_Cx1 = 1`` and ``B_xa = r_Bx1`` at small ``kappa``, ``G_xa =
+1 / sqrt(1 + (B alpha)^2)``), so the slip of a given force grows by ``1 / G_xa`` with the
+wheel's slip angle ``alpha``; ``B`` is ``wheel_slip_combined_stiffness_1prad`` (12.35, the
+sedan's tyre's ``r_Bx1``). On the ring's plant tyres the front wheels' slip over ``c F_x /
+F_z`` was 1.05, 1.22 and 1.51 at slip angles 0.02-0.04, 0.04-0.07 and 0.07-0.2 rad, where
+``1 / G_xa`` is 1.06, 1.25 and 1.34.
 A free-rolling wheel slips under the brakes only: the brake torque splits over the axles
 with a fixed balance, the front share ``b`` (:attr:`CarParams.brake_front_share`), and each
 wheel's tyre force also turns the wheel's own inertia::
@@ -73,9 +81,12 @@ class WheelLoads:
     cog_height_m: float
     slip_per_force_ratio: float
     """``c`` of (S1): slip ratio per unit of ``F_x / F_z``."""
+    combined_stiffness: float = 0.0
+    """``B`` of (S1): the combined-slip weight's stiffness (0: none) [1/rad]."""
 
     @classmethod
-    def from_vehicle(cls, belief: VehicleParams, slip_per_force_ratio: float) -> WheelLoads:
+    def from_vehicle(cls, belief: VehicleParams, slip_per_force_ratio: float,
+                     combined_stiffness: float = 0.0) -> WheelLoads:
         inertia_mass = belief.wheel_inertia_kgm2 / belief.wheel_radius_m**2
         front_drive = {"rwd": 0.0, "fwd": 0.5, "awd": 0.25}[belief.drive]
         rear_drive = {"rwd": 0.5, "fwd": 0.0, "awd": 0.25}[belief.drive]
@@ -92,14 +103,17 @@ class WheelLoads:
             cog_rear_m=belief.cog_rear_m,
             cog_height_m=belief.cog_height_m,
             slip_per_force_ratio=slip_per_force_ratio,
+            combined_stiffness=combined_stiffness,
         )
 
 
 def slip_ratio(s: Mapping[str, ca.SX], front: bool, left: bool, track_m: ca.SX,
-               loads: WheelLoads, cornering_drag_n: ca.SX | float = 0.0) -> ca.SX:
+               loads: WheelLoads, cornering_drag_n: ca.SX | float = 0.0,
+               slip_angle_rad: ca.SX | float = 0.0) -> ca.SX:
     """``kappa`` of a wheel (front or rear, left or right, on an axle of track ``track_m``),
     (S1)-(S4), from the state's speed, yaw rate and longitudinal acceleration;
-    ``cornering_drag_n`` is ``F_yf sin(delta)`` of (S2) [N]."""
+    ``cornering_drag_n`` is ``F_yf sin(delta)`` of (S2) [N], ``slip_angle_rad`` the wheel's
+    ``alpha`` of (S1)."""
     vx, ax = s["vx_mps"], s["ax_mps2"]
     total = (loads.effective_mass_kg * ax + loads.drag_coefficient * vx * ca.fabs(vx)
              + loads.rolling_force_n * ca.tanh(vx / ROLLING_SPEED_SCALE_MPS)
@@ -115,4 +129,5 @@ def slip_ratio(s: Mapping[str, ca.SX], front: bool, left: bool, track_m: ca.SX,
     pitch = (-1.0 if front else 1.0) * ax * loads.cog_height_m
     roll = (1.0 if left else -1.0) * -s["yaw_rate_radps"] * vx * loads.cog_height_m * lever
     load = loads.mass_kg * (0.5 * (GRAVITY_MPS2 * lever + pitch) + roll / track_m) / wheelbase
-    return loads.slip_per_force_ratio * force / load
+    combined = ca.sqrt(1.0 + (loads.combined_stiffness * slip_angle_rad) ** 2)
+    return loads.slip_per_force_ratio * force * combined / load

@@ -26,9 +26,25 @@ BELIEF = VehicleParams()
 SLIP = EstimatorConfig().wheel_slip_per_force_ratio
 
 
-def _spins(belief: VehicleParams, slip: float, **state: float) -> np.ndarray:
-    model = build_measurement_models(belief, 0.05, 0.5, wheel_slip_per_force_ratio=slip)
+def _spins(belief: VehicleParams, slip: float, combined: float = 0.0,
+           **state: float) -> np.ndarray:
+    model = build_measurement_models(belief, 0.05, 0.5, wheel_slip_per_force_ratio=slip,
+                                     wheel_slip_combined_stiffness_1prad=combined)
     return model["wheel_speed"].evaluate(_state(**state))[0]
+
+
+def test_a_wheel_slipping_sideways_slips_more_for_the_same_force() -> None:
+    """Braking at 2 m/s^2, unsteered, the car sliding sideways at 0.5 m/s: each front wheel's
+    slip angle is atan(-0.5 / 20), and its slip is the straight wheel's times
+    sqrt(1 + (B alpha)^2), the Magic Formula's combined-slip weight inverted (S1)."""
+    state = {"vx_mps": 20.0, "vy_mps": -0.5, "ax_mps2": -2.0}
+    combined = EstimatorConfig().wheel_slip_combined_stiffness_1prad
+    free = _spins(BELIEF, 0.0, **state)[:2]
+    plain = _spins(BELIEF, SLIP, **state)[:2] / free - 1
+    sliding = _spins(BELIEF, SLIP, combined, **state)[:2] / free - 1
+    factor = math.sqrt(1.0 + (combined * math.atan(-0.5 / 20.0)) ** 2)
+    np.testing.assert_allclose(sliding, plain * factor, rtol=1e-9)
+    assert factor > 1.04  # some 5 % more slip at 1.4 degrees
 
 
 def test_a_braking_cars_front_wheels_slip_by_hand() -> None:
