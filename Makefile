@@ -32,8 +32,11 @@ demo: bytecode
 # on 2 cores, one tree, back to back). And each worker's share starts with the modules
 # that hold slow tests (tests/conftest.py, balanced_order): in collection order a 20-s test
 # could start last while the other core had nothing left (the suite 283 -> 277 s).
+# One OpenBLAS thread per process (cosim.cli.common.single_threaded_blas: the threads it
+# starts with numpy only busy-wait, on the core the other worker needs).
 TEST_WORKERS ?= auto
-PYTEST := $(BIN)/python -m pytest -n $(TEST_WORKERS) --dist worksteal
+PYTEST := OPENBLAS_NUM_THREADS=$${OPENBLAS_NUM_THREADS:-1} $(BIN)/python -m pytest \
+	-n $(TEST_WORKERS) --dist worksteal
 
 test: bytecode
 	MUJOCO_GL=$${MUJOCO_GL:-disable} $(PYTEST)

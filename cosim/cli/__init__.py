@@ -80,6 +80,7 @@ from cosim.cli.common import (
     one_line_warning,
     say,
     silence_stdout,
+    single_threaded_blas,
 )
 from cosim.core.exceptions import CosimError
 from cosim.core.interrupts import drop_unraisable_interrupts
@@ -116,6 +117,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     simulation in a child process it watches (:mod:`cosim.cli.guard`: foreign native code
     that ends its process leaves a line saying so and the log); a list runs every command in
     this process (tests, embedding)."""
+    if argv is None:  # before anything imports numpy
+        single_threaded_blas()
     parser, handlers = build_parser()
     args = parser.parse_args(argv)
     if args.command is None:  # `cosim` alone: what it can do, not just "required"

@@ -24,6 +24,25 @@ Handler = Callable[[argparse.Namespace], int]
 """A command: its parsed arguments in, its exit code out."""
 
 
+BLAS_THREADS_VARIABLE = "OPENBLAS_NUM_THREADS"
+"""The environment variable that sets how many threads numpy's OpenBLAS starts."""
+
+
+def single_threaded_blas() -> None:
+    """One OpenBLAS thread for this command's process and every process it starts (the
+    guarded run's child, a sweep's workers), unless the user set
+    :data:`BLAS_THREADS_VARIABLE` already; call it before numpy is imported.
+
+    OpenBLAS starts a thread per core when numpy is imported, and each busy-waits for work
+    for a while before it sleeps: on two cores, 0.05-0.1 s of the other core's time at
+    every process start, taken from whatever else runs there (a sweep's other worker, the
+    other half of ``make test``: the suite 305 -> 301 s and 323 -> 312 s in two interleaved
+    pairs, 7 and 22 s less CPU). None of that work is ever handed to them: a run's matrices
+    are a few dozen rows at most, below OpenBLAS's threshold for threads, and the run
+    limits BLAS to one thread anyway (:func:`cosim.simulation.runner.run`)."""
+    os.environ.setdefault(BLAS_THREADS_VARIABLE, "1")
+
+
 class Parser(argparse.ArgumentParser):
     """argparse, but a usage error is one line (not usage + error) and exit code 2."""
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import signal
 import subprocess
 import sys
@@ -153,3 +154,24 @@ def test_a_killed_run_leaves_a_log_that_inspect_reads(tmp_path: Path) -> None:
     assert counts["/vehicle/truth"] > 100
     assert counts.get("/metrics", 0) == 0  # a channel is written with its first message
     assert document["metrics"] == {}
+
+
+def test_the_command_starts_one_blas_thread_unless_told_otherwise(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """``cosim``'s own process (``main()`` reading the command line) sets one OpenBLAS
+    thread for itself and the processes it starts, before numpy is imported; a user's own
+    setting stands, and a caller that passes ``argv`` (an embedding process) keeps its
+    environment."""
+    from cosim.cli import main
+    from cosim.cli.common import BLAS_THREADS_VARIABLE
+
+    monkeypatch.setattr(sys, "unraisablehook", sys.unraisablehook)  # main() replaces it
+    monkeypatch.setattr(sys, "argv", ["cosim", "scenarios"])
+    monkeypatch.delenv(BLAS_THREADS_VARIABLE, raising=False)
+    assert main(["scenarios"]) == 0
+    assert BLAS_THREADS_VARIABLE not in os.environ
+    assert main() == 0
+    assert os.environ[BLAS_THREADS_VARIABLE] == "1"
+    monkeypatch.setenv(BLAS_THREADS_VARIABLE, "4")
+    assert main() == 0
+    assert os.environ[BLAS_THREADS_VARIABLE] == "4"
