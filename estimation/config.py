@@ -297,6 +297,23 @@ class EstimatorConfig:
         "growing by sqrt(1 + (B alpha)^2) at the wheel's slip angle alpha (r_Bx1 = 12.35 of "
         "the plant's default tyre, Pacejka 2012); 0: none (estimation.wheel_slip)",
     )
+    wheel_slip_peak_force_ratio: float = setting(
+        1.0, low=0.05, high=1e3,
+        doc="wheel-speed model: the tyre's peak longitudinal force per load, mu (1.0: the "
+        "plant's default tyre on its default road); near it a force takes a growing slip, "
+        "the Magic Formula's curve inverted (estimation.wheel_slip, (S1')); 1000: the slip "
+        "proportional to the force",
+    )
+    wheel_slip_shape: float = setting(
+        1.685, low=1.0, high=2.0,
+        doc="wheel-speed model: the tyre's longitudinal shape factor C (p_Cx1 = 1.685 of the "
+        "plant's default tyre, Pacejka 2012; estimation.wheel_slip, (S1'))",
+    )
+    wheel_slip_curvature: float = setting(
+        0.344, low=-10.0, high=0.95,
+        doc="wheel-speed model: the tyre's longitudinal curvature factor E (p_Ex1 = 0.344 of "
+        "the plant's default tyre, Pacejka 2012; estimation.wheel_slip, (S1'))",
+    )
     lateral_accel_model_sigma_mps2: float = setting(
         0.0, low=0.0, high=50.0,
         doc="IMU lateral acceleration: vibration, mounting (its bias is a state)",

@@ -134,6 +134,8 @@ class KalmanFusion(ABC):
             bicycle=bicycle,
             wheel_slip_per_force_ratio=config.wheel_slip_per_force_ratio,
             wheel_slip_combined_stiffness_1prad=config.wheel_slip_combined_stiffness_1prad,
+            wheel_slip_saturation=(config.wheel_slip_peak_force_ratio, config.wheel_slip_shape,
+                                   config.wheel_slip_curvature),
         )
         if config.compiled:
             use_compiled(self.kind, self._hot_functions(), formula)

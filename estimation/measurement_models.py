@@ -176,10 +176,11 @@ def wheel_spin(
     belief: WheelGeometry,
     bicycle: BicycleParams,
     loads: WheelLoads | None = None,
+    saturating: bool = False,
 ) -> ca.SX:
     """Spin rate of ``wheel`` (one of ``WHEEL_NAMES``) [rad/s]: rolling without longitudinal
     slip, or with the slip the brakes and the drive cause (``loads``,
-    :mod:`estimation.wheel_slip`).
+    :mod:`estimation.wheel_slip`; ``saturating``: growing towards the tyre's peak, (S1')).
 
     The wheel centre moves with the rigid body, ``(vx - r y_w, vy_a + r x_w)`` in the
     vehicle frame at the wheel's position ``(x_w, y_w)`` (``vy_a``: the roll axis's lateral
@@ -211,7 +212,7 @@ def wheel_spin(
         # (S1)'s slip angle, guarded below 1 m/s (a wheel at rest has none to speak of)
         slip_angle = ca.atan(across / ca.fmax(ca.fabs(along), 1.0))
         along = along * (1.0 + slip_ratio(s, front, left, track * s["wheel_track_scale"], loads,
-                                          drag_n, slip_angle))
+                                          drag_n, slip_angle, saturating))
     return along / (belief.wheel_radius_m * s["rolling_radius_scale"])
 
 
@@ -253,6 +254,7 @@ def build_measurement_models(
     bicycle: BicycleParams | None = None,
     wheel_slip_per_force_ratio: float = 0.0,
     wheel_slip_combined_stiffness_1prad: float = 0.0,
+    wheel_slip_saturation: tuple[float, float, float] | None = None,
 ) -> dict[str, MeasurementModel]:
     """The measurement models of every sensor the filters fuse, by sensor name.
 
@@ -275,7 +277,9 @@ def build_measurement_models(
       ``wheel_track_scale`` (the track over the believed one): the left-right difference
       in turns estimates it, the common mode the rolling radius.
       With ``wheel_slip_per_force_ratio`` above 0 each wheel's spin has the longitudinal
-      slip the brakes (and an all-wheel drive's drive) cause (:mod:`estimation.wheel_slip`).
+      slip the brakes (and an all-wheel drive's drive) cause (:mod:`estimation.wheel_slip`),
+      growing towards the tyre's peak by ``wheel_slip_saturation`` (``(mu, C, E)`` of (S1');
+      None: in proportion to the force).
     - ``steering``: the front road-wheel angle ``steer_rad``.
     - ``heading`` (optional, e.g. a dual-antenna GNSS): ``yaw_rad`` directly.
 
@@ -291,7 +295,8 @@ def build_measurement_models(
     believed = BicycleParams.from_vehicle(belief) if bicycle is None else bicycle
     numbers = symbolic_twin(_Belief(believed, WheelGeometry.from_vehicle(belief),
                                     WheelLoads.from_vehicle(belief, wheel_slip_per_force_ratio,
-                                                            wheel_slip_combined_stiffness_1prad)))
+                                                            wheel_slip_combined_stiffness_1prad,
+                                                            wheel_slip_saturation)))
     bicycle, geometry = numbers.twin.bicycle, numbers.twin.geometry
     loads = numbers.twin.loads if wheel_slip_per_force_ratio > 0.0 else None
     common = {"belief": numbers}
@@ -320,7 +325,8 @@ def build_measurement_models(
         _model(
             "wheel_speed",
             tuple(f"{w}_radps" for w in fused),
-            [lambda s, w=w: wheel_spin(s, w, geometry, bicycle, loads) for w in fused],
+            [lambda s, w=w: wheel_spin(s, w, geometry, bicycle, loads,
+                                       wheel_slip_saturation is not None) for w in fused],
             **common,
             model_sigma=(wheel_sigma_radps,) * len(fused),
             ignored_channels=ignored,

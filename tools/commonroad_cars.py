@@ -91,8 +91,9 @@ def _add_data_sheet(belief: Path, plant: dict[str, object]) -> None:
     data.setdefault("estimator", {}).update(tyre_beliefs(plant))
     data["estimator"].update(steering_belief(plant))
     belief.write_text(header + f"{DATA_SHEET_LINE} {', '.join(sheet)}; from its "
-                      "tyre's: the estimator's tyre_load_sensitivity_* and "
-                      "tyre_relaxation_length_*; from its steering's: "
+                      "tyre's: the estimator's tyre_load_sensitivity_*, "
+                      "tyre_relaxation_length_* and wheel_slip_peak_force_ratio; from its "
+                      "steering's: "
                       "steering_compliance_radpnm.\n"
                       + yaml.safe_dump(data, sort_keys=False))
 
@@ -119,9 +120,14 @@ def tyre_beliefs(plant: dict[str, object]) -> dict[str, float]:
     ``estimator.tyre_relaxation_length_front_m``, ``_rear_m`` of the car whose changed
     ``plant:`` keys are ``plant``: its tyre's cornering-stiffness elasticity in the load, and
     its relaxation length ``K_ya / c_y`` (with the axle's cornering-stiffness scale), at the
-    static front and rear wheel loads."""
+    static front and rear wheel loads; and ``estimator.wheel_slip_peak_force_ratio``, its
+    longitudinal peak force per load on the plant's road at the static front load."""
     from cosim.core.vehicle_params import PlantConfig
-    from cosim.plant.tyre_model import cornering_stiffness_load_elasticity, relaxation_lengths_m
+    from cosim.plant.tyre_model import (
+        cornering_stiffness_load_elasticity,
+        peak_forces_n,
+        relaxation_lengths_m,
+    )
 
     base = PlantConfig()
     tyre = dataclasses.replace(base.tyre, **plant.get("tyre", {}))  # type: ignore[arg-type]
@@ -135,6 +141,9 @@ def tyre_beliefs(plant: dict[str, object]) -> dict[str, float]:
     beliefs.update({f"tyre_relaxation_length_{axle}_m":
                     round(relaxation_lengths_m(tyre, load)[1] * scale, 3)
                     for axle, load, scale in axles})
+    front_load = car.static_wheel_loads_n[0]
+    beliefs["wheel_slip_peak_force_ratio"] = round(
+        peak_forces_n(tyre, front_load, car.tyre_friction)[0] / front_load, 3)
     return beliefs
 
 

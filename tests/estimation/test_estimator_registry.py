@@ -82,7 +82,8 @@ def test_config_fields_carry_units_or_are_flags() -> None:
     dimensionless = ("gate_probability", "roll_damping_ratio", "ukf_alpha", "ukf_beta",
                      "ukf_kappa", "lateral_residual_relative", "wheel_slip_per_force_ratio",
                      "ekf_linearisation_tolerance", "accel_command_relative_sigma",
-                     "tyre_load_sensitivity_front", "tyre_load_sensitivity_rear")
+                     "tyre_load_sensitivity_front", "tyre_load_sensitivity_rear",
+                     "wheel_slip_peak_force_ratio", "wheel_slip_shape", "wheel_slip_curvature")
     hints = typing.get_type_hints(EstimatorConfig)
     for f in dataclasses.fields(EstimatorConfig):
         if hints[f.name] is float and f.name not in dimensionless:

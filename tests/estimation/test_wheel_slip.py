@@ -12,14 +12,16 @@ import numpy as np
 import pytest
 
 from cosim.core.physical_constants import AIR_DENSITY_KGPM3, GRAVITY_MPS2
-from cosim.core.vehicle_params import VehicleParams
+from cosim.core.vehicle_params import PlantConfig, VehicleParams
 from cosim.log.reader import iter_messages
+from cosim.plant.tyre_model import pure_longitudinal_force_n
 from cosim.simulation.runner import run
 from cosim.simulation.scenario_config import load_config
 from estimation.bicycle import BicycleParams, axle_forces
 from estimation.config import EstimatorConfig
 from estimation.measurement_models import build_measurement_models
 from estimation.state import STATE_NAMES, named_states
+from estimation.wheel_slip import WheelLoads, slip_of_force_ratio
 from tests.estimation.test_models import _state
 
 BELIEF = VehicleParams()
@@ -31,6 +33,48 @@ def _spins(belief: VehicleParams, slip: float, combined: float = 0.0,
     model = build_measurement_models(belief, 0.05, 0.5, wheel_slip_per_force_ratio=slip,
                                      wheel_slip_combined_stiffness_1prad=combined)
     return model["wheel_speed"].evaluate(_state(**state))[0]
+
+
+def _saturation(config: EstimatorConfig) -> tuple[float, float, float]:
+    return (config.wheel_slip_peak_force_ratio, config.wheel_slip_shape,
+            config.wheel_slip_curvature)
+
+
+@pytest.mark.parametrize("kappa", [0.002, 0.02, 0.05, 0.07, -0.03, -0.06])
+def test_near_the_peak_the_slip_is_the_plant_tyres_own(kappa: float) -> None:
+    """(S1') inverts the Magic Formula's longitudinal curve: the force the plant's default
+    tyre gives at its nominal load for a slip ``kappa`` (up to 96 % of its peak) gives that
+    slip back, with the estimator's default belief; the linear law (S1) misses it by up to
+    a third."""
+    tyre = PlantConfig().tyre
+    config = EstimatorConfig()
+    loads = WheelLoads.from_vehicle(BELIEF, config.wheel_slip_per_force_ratio, 0.0,
+                                    _saturation(config))
+    ratio = pure_longitudinal_force_n(tyre, kappa, tyre.nominal_load_n, 1.0) \
+        / tyre.nominal_load_n
+    assert abs(ratio) < 0.96
+    r = ca.SX.sym("r")
+    slip = float(ca.Function("slip", [r], [slip_of_force_ratio(r, loads)])(ratio))
+    assert slip == pytest.approx(kappa, rel=1e-9)
+    linear = config.wheel_slip_per_force_ratio * ratio
+    assert abs(linear / kappa - 1) < (0.02 if abs(kappa) < 0.01 else 1.0)
+
+
+def test_the_filter_reads_a_hard_braking_wheel_with_the_tyres_curve() -> None:
+    """Braking at 6 m/s^2 (the front wheels near 60 % of their peak): with the estimator's
+    default belief the front wheels' slip is (S1')'s, more than (S1)'s for the same force."""
+    config = EstimatorConfig()
+    state = {"vx_mps": 20.0, "ax_mps2": -6.0}
+    free = _spins(BELIEF, 0.0, **state)[:2]
+    linear = _spins(BELIEF, SLIP, **state)[:2] / free - 1
+    models = build_measurement_models(BELIEF, 0.05, 0.5, wheel_slip_per_force_ratio=SLIP,
+                                      wheel_slip_saturation=_saturation(config))
+    curved = models["wheel_speed"].evaluate(_state(**state))[0][:2] / free - 1
+    loads = WheelLoads.from_vehicle(BELIEF, SLIP, 0.0, _saturation(config))
+    r = ca.SX.sym("r")
+    inverse = ca.Function("slip", [r], [slip_of_force_ratio(r, loads)])
+    np.testing.assert_allclose(curved, [float(inverse(k / SLIP)) for k in linear], rtol=1e-9)
+    assert np.all(curved < linear * 1.05)  # more slip (both negative): 5 % and more
 
 
 def test_a_wheel_slipping_sideways_slips_more_for_the_same_force() -> None:
