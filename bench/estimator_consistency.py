@@ -65,6 +65,7 @@ from cosim.simulation.scenario_config import ScenarioConfig, load_config
 from cosim.sweeps.ensemble import (
     TESTED_PREFIX,
     EnsembleMember,
+    IncompleteRun,
     anees_error,
     judge,
     run_member,
@@ -85,10 +86,15 @@ def _config(scenario: str, suite: str, estimator: str, duration_s: float | None,
 
 
 def _one_run(task: tuple[str, str, str, float | None, tuple[str, ...], int, str]
-             ) -> EnsembleMember:
+             ) -> EnsembleMember | str:
+    """One seed's member, or why its run did not complete (a car that spun has no NEES
+    over the manoeuvre: it is counted and named, not judged)."""
     scenario, suite, estimator, duration_s, overrides, seed, out_dir = task
     config = _config(scenario, suite, estimator, duration_s, overrides)
-    return run_member(config, seed, Path(out_dir))
+    try:
+        return run_member(config, seed, Path(out_dir))
+    except IncompleteRun as incomplete:
+        return str(incomplete)
 
 
 def _logged_measurements(path: Path, sensors: list[str]) -> list[Measurement]:
@@ -356,10 +362,17 @@ def main() -> None:
                 tasks = [(args.scenario, suite, estimator, args.duration, overrides, seed, tmp)
                          for seed in seeds]
                 start = time.perf_counter()
-                members = list(pool.map(_one_run, tasks))
+                done = list(pool.map(_one_run, tasks))
                 wall_s = time.perf_counter() - start
+                members = [m for m in done if isinstance(m, EnsembleMember)]
+                incomplete = [m for m in done if isinstance(m, str)]
                 print(f"\n{suite} / {estimator}: {len(members)} runs "
-                      f"({wall_s / len(members):.1f} s of wall time per run)")
+                      f"({wall_s / len(done):.1f} s of wall time per run)")
+                if incomplete:
+                    print(f"  every run completed: NOT met ({len(incomplete)} of {len(done)} "
+                          "left out of what follows): " + "; ".join(incomplete))
+                if not members:
+                    continue
                 if args.verbose:
                     for m in members:
                         print(f"  seed {m.seed:4d} " + "  ".join(

@@ -68,6 +68,16 @@ def _sums(metrics: Mapping[str, object], dof_prefix: str, nis_prefix: str
     return sums, dofs
 
 
+class IncompleteRun(RuntimeError):
+    """An ensemble's run that ended before its end (the car spun, left the road ...): it
+    has no NEES over the whole manoeuvre to judge."""
+
+    def __init__(self, seed: int, reason: str) -> None:
+        super().__init__(f"seed {seed}: the run did not complete ({reason})")
+        self.seed = seed
+        self.reason = reason
+
+
 def run_member(config: ScenarioConfig, seed: int, out_dir: Path, keep_log: bool = False,
                workshop: Workshop | None = None) -> EnsembleMember:
     """Run ``config`` with ``seed`` into ``out_dir`` and read back its NEES and NIS;
@@ -75,7 +85,7 @@ def run_member(config: ScenarioConfig, seed: int, out_dir: Path, keep_log: bool 
     path = Path(out_dir) / f"{config.name}-{config.estimator.name}-{seed}.mcap"
     result = run(dataclasses.replace(config, seed=seed), path, workshop=workshop)
     if not result.completed:
-        raise RuntimeError(f"seed {seed}: the run did not complete ({result.abort_reason})")
+        raise IncompleteRun(seed, result.abort_reason)
     errors = load_estimation(path)
     if not keep_log:
         path.unlink()
