@@ -37,6 +37,13 @@ speaks the newer one)."""
 MESSAGE_DATA = 0x01
 """Opcode of a binary message-data frame: u32 subscription id, u64 log time, payload."""
 
+CLOSE_TIMEOUT_S = 0.5
+"""How long a client that hangs up waits for the server's closing frame before it drops the
+connection. The server sends that frame after the messages queued for the client (up to
+``cosim.log.live.MESSAGE_BACKLOG``), which a client that has stopped reading never takes:
+with websockets' default, 10 s, each test that hangs up early waited those 10 s after it
+had what it came for."""
+
 
 def free_port() -> int:
     with socket.socket() as sock:
@@ -61,7 +68,8 @@ async def _connect(port: int, deadline_s: float,
     while True:
         try:
             return await websockets.connect(f"ws://127.0.0.1:{port}",
-                                            subprotocols=SUBPROTOCOLS, max_size=None)
+                                            subprotocols=SUBPROTOCOLS, max_size=None,
+                                            close_timeout=CLOSE_TIMEOUT_S)
         except OSError:
             if process is not None and process.poll() is not None:
                 _, err = process.communicate()
@@ -82,6 +90,7 @@ async def listen(port: int, topics: tuple[str, ...], enough: int,
     received = Received()
     deadline_s = time.monotonic() + timeout_s
     subscriptions: dict[int, str] = {}
+    validators: dict[str, Any] = {}
     async with await _connect(port, deadline_s, process) as client:
         assert client.subprotocol in SUBPROTOCOLS
         while time.monotonic() < deadline_s:
@@ -109,7 +118,12 @@ async def listen(port: int, topics: tuple[str, ...], enough: int,
             topic = subscriptions[sub_id]
             channel = received.channels[topic]
             message = json.loads(frame[13:])
-            jsonschema.validate(message, json.loads(channel["schema"]))
+            if topic not in validators:  # one validator per channel, its schema checked once
+                schema = json.loads(channel["schema"])
+                validator_class = jsonschema.validators.validator_for(schema)
+                validator_class.check_schema(schema)
+                validators[topic] = validator_class(schema)
+            validators[topic].validate(message)
             received.messages.setdefault(topic, []).append((log_time_ns, message))
             if process is not None and process.poll() is None:
                 received.while_running[topic] = received.while_running.get(topic, 0) + 1
