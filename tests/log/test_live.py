@@ -304,9 +304,11 @@ def test_clients_that_come_twice_or_leave_do_not_disturb_the_run(tmp_path: Path)
     port = free_port()
     log = tmp_path / "run.mcap"
     process = subprocess.Popen(
-        # 15 s of wall clock: time for two clients on a loaded machine (a shorter run could
-        # end before the second one connects, and the test would say nothing about it)
-        cosim("run", "lane-change", "--duration", "30", "--live", "--port", str(port),
+        # 5 s of wall clock, for two clients that need about 1 s from the command's start (the
+        # second reads from 0.2 s of simulated time on with both cores busy elsewhere): a
+        # run that ended before the second connects would leave the test saying nothing.
+        # (It ran 15 s while each client waited 10 s to hang up: CLOSE_TIMEOUT_S.)
+        cosim("run", "lane-change", "--duration", "10", "--live", "--port", str(port),
               "--pace", "2", "--out", str(log)),
         env={**os.environ, "MUJOCO_GL": "disable"}, stdout=subprocess.PIPE,
         stderr=subprocess.PIPE)
