@@ -90,11 +90,12 @@ def _add_data_sheet(belief: Path, plant: dict[str, object]) -> None:
     model.update(sheet)
     data.setdefault("estimator", {}).update(tyre_beliefs(plant))
     data["estimator"].update(steering_belief(plant))
+    data["estimator"].update(roll_belief(plant))
     belief.write_text(header + f"{DATA_SHEET_LINE} {', '.join(sheet)}; from its "
                       "tyre's: the estimator's tyre_load_sensitivity_*, "
                       "tyre_relaxation_length_* and wheel_slip_peak_force_ratio; from its "
-                      "steering's: "
-                      "steering_compliance_radpnm.\n"
+                      "steering's: steering_compliance_radpnm; from its suspension's: "
+                      "roll_gradient_radpmps2, roll_frequency_hz, roll_damping_ratio.\n"
                       + yaml.safe_dump(data, sort_keys=False))
 
 
@@ -113,6 +114,22 @@ def steering_belief(plant: dict[str, object]) -> dict[str, float]:
     car = dataclasses.replace(base, **{k: v for k, v in plant.items() if k != "tyre"})
     return {"steering_compliance_radpnm":
             float(f"{1.0 / sedan_layout(car).steer_servo_kp_nmprad:.4g}")}
+
+
+def roll_belief(plant: dict[str, object]) -> dict[str, float]:
+    """``estimator.roll_gradient_radpmps2``, ``roll_frequency_hz`` and ``roll_damping_ratio``
+    of the car whose changed ``plant:`` keys are ``plant``: the roll mode of its body on its
+    suspension (:func:`cosim.plant.roll_mode.roll_mode`), in place of the sedan's."""
+    from cosim.core.vehicle_params import PlantConfig
+    from cosim.plant.roll_mode import roll_mode
+    from cosim.plant.sedan_model import sedan_layout
+
+    base = PlantConfig()
+    car = dataclasses.replace(base, **{k: v for k, v in plant.items() if k != "tyre"})
+    mode = roll_mode(sedan_layout(car, car.suspension), car.suspension)
+    return {"roll_gradient_radpmps2": float(f"{mode.gradient_radpmps2:.3g}"),
+            "roll_frequency_hz": float(f"{mode.frequency_hz:.3g}"),
+            "roll_damping_ratio": float(f"{mode.damping_ratio:.2g}")}
 
 
 def tyre_beliefs(plant: dict[str, object]) -> dict[str, float]:
