@@ -435,9 +435,12 @@ def _run_with(
         state = _Run(config, recorder, workshop=workshop)
         if isinstance(state.tracker, Closable):  # released however the run ends
             release.callback(state.tracker.close)
-        recorder.publish()  # the run starts for real: the log takes its final name
         clock = WallClock(wall_start, time.perf_counter())  # set-up (and any build) ends
         try:
+            # The run starts for real: the log takes its final name. Inside the try, so an
+            # interrupt in the instant before the loop takes Ctrl-C over still finishes the
+            # published log (completed: false) instead of leaving it without its metrics.
+            recorder.publish()
             with stop_on_signals() as stop:
                 state.loop(stop, progress)
             completed = state.stopped_by is None

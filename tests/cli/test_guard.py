@@ -146,3 +146,26 @@ def test_a_log_name_that_is_not_utf8_is_run(tmp_path: Path) -> None:
     done = _run("--duration", "0.5", "--out", str(out))
     assert done.returncode == 0, done.stderr
     assert read_summary(out).metrics is not None
+
+
+def test_an_interrupt_just_after_the_log_is_published_finishes_it(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The interrupt in the instant between the log taking its final name and the loop
+    taking Ctrl-C over (what the test above hit once in a fresh clone: a published log
+    without /metrics): the log is finished, ``completed: false``, the run says why."""
+    from cosim.log.recorder import McapRecorder
+    from cosim.simulation.runner import run
+    from cosim.simulation.scenario_config import load_config
+
+    publish = McapRecorder.publish
+
+    def publish_then_interrupt(self: McapRecorder) -> None:
+        publish(self)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(McapRecorder, "publish", publish_then_interrupt)
+    out = tmp_path / "early.mcap"
+    result = run(load_config("lane-change", duration_s=1.0), out)
+    assert result.abort_reason == "interrupted" and not result.completed
+    summary = read_summary(out)
+    assert summary.metrics is not None and summary.metrics["completed"] is False
