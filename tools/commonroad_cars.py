@@ -21,8 +21,12 @@ import dataclasses
 import subprocess
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import yaml
+
+if TYPE_CHECKING:
+    from cosim.core.vehicle_params import PlantConfig
 
 CARS = {"ford-escort": ("parameters_vehicle1", "Ford Escort"),
         "bmw-320i": ("parameters_vehicle2", "BMW 320i"),
@@ -103,15 +107,21 @@ DATA_SHEET_LINE = "# From the car's data sheet:"
 """How the belief file's line naming the data sheet's figures begins (rewritten each time)."""
 
 
+def _car(plant: dict[str, object]) -> PlantConfig:
+    """The default plant with the car's changed ``plant:`` keys but its tyre's."""
+    from cosim.core.vehicle_params import PlantConfig
+
+    return dataclasses.replace(PlantConfig(),
+                               **{k: v for k, v in plant.items() if k != "tyre"})
+
+
 def steering_belief(plant: dict[str, object]) -> dict[str, float]:
     """``estimator.steering_compliance_radpnm`` of the car whose changed ``plant:`` keys are
     ``plant``: one over the gain of its steering servo (its front wheels' stiffness about
     the steering axis, :func:`cosim.plant.sedan_model.sedan_layout`)."""
-    from cosim.core.vehicle_params import PlantConfig
     from cosim.plant.sedan_model import sedan_layout
 
-    base = PlantConfig()
-    car = dataclasses.replace(base, **{k: v for k, v in plant.items() if k != "tyre"})
+    car = _car(plant)
     return {"steering_compliance_radpnm":
             float(f"{1.0 / sedan_layout(car).steer_servo_kp_nmprad:.4g}")}
 
@@ -120,12 +130,10 @@ def roll_belief(plant: dict[str, object]) -> dict[str, float]:
     """``estimator.roll_gradient_radpmps2``, ``roll_frequency_hz`` and ``roll_damping_ratio``
     of the car whose changed ``plant:`` keys are ``plant``: the roll mode of its body on its
     suspension (:func:`cosim.plant.roll_mode.roll_mode`), in place of the sedan's."""
-    from cosim.core.vehicle_params import PlantConfig
     from cosim.plant.roll_mode import roll_mode
     from cosim.plant.sedan_model import sedan_layout
 
-    base = PlantConfig()
-    car = dataclasses.replace(base, **{k: v for k, v in plant.items() if k != "tyre"})
+    car = _car(plant)
     mode = roll_mode(sedan_layout(car, car.suspension), car.suspension)
     return {"roll_gradient_radpmps2": float(f"{mode.gradient_radpmps2:.3g}"),
             "roll_frequency_hz": float(f"{mode.frequency_hz:.3g}"),
@@ -139,16 +147,14 @@ def tyre_beliefs(plant: dict[str, object]) -> dict[str, float]:
     its relaxation length ``K_ya / c_y`` (with the axle's cornering-stiffness scale), at the
     static front and rear wheel loads; and ``estimator.wheel_slip_peak_force_ratio``, its
     longitudinal peak force per load on the plant's road at the static front load."""
-    from cosim.core.vehicle_params import PlantConfig
     from cosim.plant.tyre_model import (
         cornering_stiffness_load_elasticity,
         peak_forces_n,
         relaxation_lengths_m,
     )
 
-    base = PlantConfig()
-    tyre = dataclasses.replace(base.tyre, **plant.get("tyre", {}))  # type: ignore[arg-type]
-    car = dataclasses.replace(base, **{k: v for k, v in plant.items() if k != "tyre"})
+    car = _car(plant)
+    tyre = dataclasses.replace(car.tyre, **plant.get("tyre", {}))  # type: ignore[arg-type]
     axles = tuple(zip(("front", "rear"), car.static_wheel_loads_n,
                       (car.front_cornering_stiffness_scale, car.rear_cornering_stiffness_scale),
                       strict=True))
