@@ -6,9 +6,15 @@ import argparse
 import json
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from cosim.cli.common import Handler, format_value, json_ready
+
+if TYPE_CHECKING:
+    from cosim.identification.data_sheet import DataSheetBelief
+
+DATA_SHEET_LINE = "# From the car's data sheet:"
+"""How a belief file's line naming what came from the car's data sheet begins."""
 
 IDENTIFY_SCENARIO = "lane-change"
 """`cosim identify` identifies the plant of this scenario's config (with the overrides)."""
@@ -24,9 +30,12 @@ def add_parsers(commands: Any) -> dict[str, Handler]:
                           dest="overrides", help="override a config key, e.g. plant.mass_kg=2000")
     identify.add_argument("--json", action="store_true", help="print one JSON object")
     identify.add_argument("--belief-out", metavar="FILE.yaml",
-                          help="also write the identified tracker.model.* keys to this YAML "
-                               "file: `cosim run ... --config car.yaml --config FILE.yaml` "
-                               "drives the car with a controller that knows it")
+                          help="also write the car's belief to this YAML file: the identified "
+                               "tracker.model.* keys, the car's other figures, and the "
+                               "filter's tyre, steering and roll beliefs (estimator.*) from "
+                               "its data sheet; `cosim run ... --config car.yaml --config "
+                               "FILE.yaml` drives the car with a controller and a filter "
+                               "that know it")
     identify.add_argument("--force", action="store_true",
                           help="replace an existing --belief-out file")
     return {"identify": command}
@@ -37,14 +46,19 @@ def command(args: argparse.Namespace) -> int:
     from cosim.simulation.scenario_config import load_config
 
     config = load_config(IDENTIFY_SCENARIO, args.config, args.overrides)
+    sheet = None
     if args.belief_out is not None:  # refused before the identification, not after it
+        from cosim.identification.data_sheet import data_sheet_belief
+        from cosim.identification.model import BELIEF_FIELDS
         from cosim.log.safe_file import check_output_path
 
         check_output_path(Path(args.belief_out), "--belief-out", args.force,
                           args.config or ())
+        sheet = data_sheet_belief(config.plant, config.tracker.model, BELIEF_FIELDS)
     model = identify(config.plant, config.tracker.model, config.sim.physics_dt_s)
     if args.belief_out is not None:
-        _write_belief(Path(args.belief_out), model.belief(), args)
+        assert sheet is not None
+        _write_belief(Path(args.belief_out), model.belief(), sheet, args)
         print(f"cosim: the identified belief is in {args.belief_out}: run with "
               f"--config {args.belief_out} after the car's own config", file=sys.stderr)
     if args.json:
@@ -73,9 +87,11 @@ def command(args: argparse.Namespace) -> int:
     return 0
 
 
-def _write_belief(path: Path, belief: dict[str, float], args: argparse.Namespace) -> None:
-    """``tracker: {model: ...}`` as YAML, with a header saying where it came from; written
-    beside and renamed into place (a crash leaves no half file)."""
+def _write_belief(path: Path, fitted: dict[str, float], sheet: DataSheetBelief,
+                  args: argparse.Namespace) -> None:
+    """``tracker: {model: ...}`` (the fitted keys, then the data sheet's) and ``estimator:``
+    as YAML, with a header saying where each came from; written beside and renamed into
+    place (a crash leaves no half file)."""
     import datetime
 
     import yaml
@@ -84,12 +100,20 @@ def _write_belief(path: Path, belief: dict[str, float], args: argparse.Namespace
 
     source = " ".join([*(f"--config {c}" for c in args.config or ()),
                        *(f"--set {o}" for o in args.overrides)]) or "the default sedan"
+    figures = f"{', '.join(sheet.model)}; from its tyre's: " if sheet.model else \
+        "its tyre's: "
     header = (f"# The controller's belief about the plant of {source},\n"
               f"# identified by cosim identify on {datetime.date.today().isoformat()}.\n"
               "# Merge it after the car's own config: cosim run SCENARIO --config car.yaml "
-              f"--config {path.name}\n")
-    text = header + yaml.safe_dump({"tracker": {"model": {
-        name: float(f"{value:.6g}") for name, value in belief.items()}}}, sort_keys=False)
+              f"--config {path.name}\n"
+              f"{DATA_SHEET_LINE} {figures}the estimator's tyre_load_sensitivity_*, "
+              "tyre_relaxation_length_* and wheel_slip_peak_force_ratio; from its "
+              "steering's: steering_compliance_radpnm; from its suspension's: "
+              "roll_gradient_radpmps2, roll_frequency_hz, roll_damping_ratio.\n")
+    model: dict[str, float | str] = {name: float(f"{value:.6g}")
+                                     for name, value in fitted.items()}
+    text = header + yaml.safe_dump({"tracker": {"model": {**model, **sheet.model}},
+                                    "estimator": sheet.estimator}, sort_keys=False)
     pending = PendingFile(path)
     try:
         pending.file.write(text.encode("utf-8"))

@@ -345,6 +345,10 @@ def test_identify_json_prints_the_documented_keys(tmp_path: Path) -> None:
         (("identify", "--set", "plant.tyre_friction=-1"), "plant.tyre_friction = -1"),
         (("identify", "--set", "nonsense"), "expected key.path=value"),
         (("identify", "--config", "missing.yaml"), "'missing.yaml': cannot read"),
+        (("identify", "--set", "plant.cog_height_m=1.2", "--set",
+          "plant.suspension.ride_frequency_front_hz=0.3", "--set",
+          "plant.suspension.ride_frequency_rear_hz=0.3", "--belief-out", "belief.yaml"),
+         "plant.suspension: the body's roll stiffness less its weight's lean"),
     ],
 )
 def test_identify_bad_input_is_one_line_and_exit_code_2(
@@ -365,13 +369,17 @@ def test_identify_bad_input_is_one_line_and_exit_code_2(
 @pytest.mark.slow
 def test_your_car_in_one_command(tmp_path: Path) -> None:
     """A car file, identified into a belief file that merges after it: the controller then
-    knows the car (its mass and CoG, the stiffnesses identified), and tracks better than
-    with the nominal belief; an existing belief file is kept unless --force."""
+    knows the car (its mass and CoG, the stiffnesses identified, its CoG height from the
+    data sheet) and the filter its roll (cosim/identification/data_sheet.py), and it tracks
+    better than with the nominal belief; an existing belief file is kept unless --force."""
+    from cosim.plant.roll_mode import roll_mode
+    from cosim.plant.sedan_model import sedan_layout
     from cosim.simulation.scenario_config import load_config
+    from estimation.config import EstimatorConfig
 
     car, belief = tmp_path / "car.yaml", tmp_path / "belief.yaml"
     car.write_text("plant:\n  mass_kg: 1900\n  cog_front_m: 1.35\n  cog_rear_m: 1.55\n"
-                   "  yaw_inertia_kgm2: 3400\n")
+                   "  yaw_inertia_kgm2: 3400\n  cog_height_m: 0.65\n")
     done = subprocess.run([COSIM, "identify", "--config", str(car), "--belief-out",
                            str(belief)], capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr
@@ -379,6 +387,12 @@ def test_your_car_in_one_command(tmp_path: Path) -> None:
     model = config.tracker.model
     assert (model.mass_kg, model.cog_front_m, model.yaw_inertia_kgm2) == (1900.0, 1.35, 3400.0)
     assert model.cornering_stiffness_front_npr != VehicleParams().cornering_stiffness_front_npr
+    assert model.cog_height_m == 0.65
+    assert "# From the car's data sheet: cog_height_m;" in belief.read_text()
+    roll = roll_mode(sedan_layout(config.plant, config.plant.suspension),
+                     config.plant.suspension).gradient_radpmps2
+    assert config.estimator.roll_gradient_radpmps2 == pytest.approx(roll, rel=5e-3)
+    assert config.estimator.roll_gradient_radpmps2 > 1.15 * EstimatorConfig().roll_gradient_radpmps2
     again = subprocess.run([COSIM, "identify", "--config", str(car), "--belief-out",
                             str(belief)], capture_output=True, text=True, timeout=600)
     assert again.returncode == 2 and "exists" in again.stderr
