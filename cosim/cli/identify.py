@@ -107,7 +107,7 @@ def _write_belief(path: Path, fitted: dict[str, float], sheet: DataSheetBelief,
               "# Merge it after the car's own config: cosim run SCENARIO --config car.yaml "
               f"--config {path.name}\n"
               f"{DATA_SHEET_LINE} {figures}the estimator's tyre_load_sensitivity_*, "
-              "tyre_relaxation_length_* and wheel_slip_peak_force_ratio; from its "
+              "tyre_relaxation_length_* and wheel_slip_*; from its "
               "steering's: steering_compliance_radpnm; from its suspension's: "
               "roll_gradient_radpmps2, roll_frequency_hz, roll_damping_ratio.\n")
     model: dict[str, float | str] = {name: float(f"{value:.6g}")

@@ -12,8 +12,10 @@ off the car's data sheet, as an engineer would read it off the manufacturer's:
   - the tyre's: each axle's load sensitivity of its cornering stiffness,
     ``d ln K_ya / d ln F_z`` at the static wheel load (Pacejka, *Tyre and Vehicle
     Dynamics*, 3rd ed. 2012, (4.E25)), its relaxation length ``K_ya / c_y`` (times the
-    axle's cornering-stiffness scale) and the longitudinal peak force per load on the road
-    the controller believes in (:mod:`cosim.plant.tyre_model`);
+    axle's cornering-stiffness scale), the longitudinal peak force per load on the road
+    the controller believes in (:mod:`cosim.plant.tyre_model`), and the coefficients of its
+    longitudinal slip curve that the wheel-speed model inverts (``p_Kx1``, ``r_Bx1``,
+    ``p_Cx1``, ``p_Ex1``; :mod:`estimation.wheel_slip`);
   - the steering's compliance: one over the stiffness of the front wheels about the
     steering axis (the steering servo's gain, :func:`cosim.plant.sedan_model.sedan_layout`);
   - the suspension's roll mode: gradient, natural frequency and damping ratio of the body
@@ -70,8 +72,10 @@ def shared_figures() -> tuple[str, ...]:
 def tyre_beliefs(plant: PlantConfig, friction: float) -> dict[str, float]:
     """``estimator.tyre_load_sensitivity_front``, ``_rear``,
     ``tyre_relaxation_length_front_m``, ``_rear_m`` (at the static front and rear wheel
-    loads) and ``wheel_slip_peak_force_ratio`` (at the static front load, on a road of the
-    believed ``friction``: the road is not on the car's data sheet)."""
+    loads), ``wheel_slip_peak_force_ratio`` (at the static front load, on a road of the
+    believed ``friction``: the road is not on the car's data sheet) and the slip curve's
+    ``wheel_slip_per_force_ratio``, ``_combined_stiffness_1prad``, ``_shape``,
+    ``_curvature``."""
     from cosim.plant.tyre_model import (
         cornering_stiffness_load_elasticity,
         peak_forces_n,
@@ -91,6 +95,12 @@ def tyre_beliefs(plant: PlantConfig, friction: float) -> dict[str, float]:
     front_load = plant.static_wheel_loads_n[0]
     beliefs["wheel_slip_peak_force_ratio"] = round(
         peak_forces_n(tyre, front_load, friction)[0] / front_load, 3)
+    # The wheel-speed model's slip curve is the tyre's longitudinal Magic Formula
+    # (estimation.wheel_slip): its coefficients as they are.
+    beliefs.update({"wheel_slip_per_force_ratio": 1.0 / tyre.slip_stiffness_per_load,
+                    "wheel_slip_combined_stiffness_1prad": tyre.combined_x_stiffness,
+                    "wheel_slip_shape": tyre.longitudinal_shape,
+                    "wheel_slip_curvature": tyre.longitudinal_curvature})
     return beliefs
 
 
