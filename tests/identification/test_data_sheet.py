@@ -35,10 +35,10 @@ def test_the_sedans_data_sheet_is_the_filters_default_belief() -> None:
 
 def test_a_taller_heavier_car_has_its_own_figures_and_beliefs() -> None:
     """A van-like car (1,900 kg, CoG 0.75 m high, wider front track, softer springs: ride
-    1.2 and 1.3 Hz, stiffer tyres in slip): its
-    figures the fit does not hold are in the controller's belief, the fitted ones are left to
-    the fit, the road's friction is not the car's; the filter's roll gradient is its body's, its tyres work nearer their peak
-    stiffness under the heavier load (less load sensitivity)."""
+    1.2 and 1.3 Hz, tyres stiffer in slip): its figures the fit does not hold are in the
+    controller's belief, the fitted ones are left to the fit, the road's friction is not the
+    car's; the filter's roll gradient is its body's, its tyres work nearer their peak
+    stiffness under the heavier load (less load sensitivity), its slip curve is its tyre's."""
     sedan = PlantConfig()
     van = dataclasses.replace(
         sedan, mass_kg=1900.0, cog_height_m=0.75, track_front_m=1.62, tyre_friction=0.6,
