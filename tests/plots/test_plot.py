@@ -281,3 +281,29 @@ def test_a_circuit_is_drawn_whole_and_its_deviation_along_the_lap(tmp_path: Path
     assert any(label.startswith("distance along the path s [m]") for label in labels)
     assert not any(ax.get_title().startswith("the manoeuvre, lateral axis stretched")
                    for ax in figure.axes)
+
+
+def test_a_figure_is_laid_out_once_and_saved_as_savefig_saves_it(
+        nmpc_run: RunResult, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """cosim.plots.style.save draws a figure once (savefig draws a laid-out figure twice)
+    and writes the bytes savefig writes."""
+    from matplotlib.figure import Figure
+
+    from cosim.plots.style import save
+    from cosim.plots.top_view import top_view
+
+    runs = [load_run(nmpc_run.log_path)]
+    ours, reference = top_view(runs), top_view(runs)
+    draws: list[int] = []
+    draw = Figure.draw
+
+    def counted(figure: Figure, renderer: object) -> None:
+        draws.append(1)
+        draw(figure, renderer)
+
+    monkeypatch.setattr(Figure, "draw", counted)
+    written = save(ours, tmp_path / "ours.png")
+    assert len(draws) == 1
+    reference.savefig(tmp_path / "savefig.png", dpi=reference.dpi)
+    assert len(draws) == 3
+    assert written.read_bytes() == (tmp_path / "savefig.png").read_bytes()
