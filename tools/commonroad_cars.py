@@ -13,7 +13,7 @@ the static axle loads and its friction ellipse ``p_dx1 / p_dy1``, as
 ``tests/conformance/test_commonroad_cross_check.py`` maps the BMW. The road (``plant.
 tyre_friction``), drag and rolling resistance stay the scenario's: the sets have none, a
 car on a road has them. The belief beside each is what ``cosim identify --belief-out``
-writes for it: the fitted model and the car's data sheet (:mod:`cosim.identification.data_sheet`).
+writes for it: the fitted model and the car's data sheet (:mod:`cosim.plant.data_sheet`).
 """
 
 from __future__ import annotations

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 from cosim.cli.common import Handler, format_value, json_ready
 
 if TYPE_CHECKING:
-    from cosim.identification.data_sheet import DataSheetBelief
+    from cosim.plant.data_sheet import DataSheetBelief
 
 DATA_SHEET_LINE = "# From the car's data sheet:"
 """How a belief file's line naming what came from the car's data sheet begins."""
@@ -48,9 +48,9 @@ def command(args: argparse.Namespace) -> int:
     config = load_config(IDENTIFY_SCENARIO, args.config, args.overrides)
     sheet = None
     if args.belief_out is not None:  # refused before the identification, not after it
-        from cosim.identification.data_sheet import data_sheet_belief
         from cosim.identification.model import BELIEF_FIELDS
         from cosim.log.safe_file import check_output_path
+        from cosim.plant.data_sheet import data_sheet_belief
 
         check_output_path(Path(args.belief_out), "--belief-out", args.force,
                           args.config or ())

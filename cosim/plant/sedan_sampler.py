@@ -31,7 +31,10 @@ cornering stiffness at each tyre's static load (``K = p_Ky1 F_z0 sin(2 atan(F_z 
 F_z0)))``, Pacejka 2012, 4.E25), times two tyres and the plant's effective-stiffness scale
 of each axle, times the ratio ``cosim identify`` finds between that estimate and the fit on
 the nominal sedan (:data:`IDENTIFIED_OVER_STATIC`), so a sampled car's belief is as good as
-the nominal car's.
+the nominal car's. Its filter is told the car as well: the beliefs its data sheet gives
+(:mod:`cosim.plant.data_sheet`: each axle's tyre load sensitivity and relaxation length, the
+peak force per load on its road, its body's roll gradient, frequency and damping), not the
+nominal sedan's.
 """
 
 from __future__ import annotations
@@ -43,7 +46,8 @@ from typing import Any
 import numpy as np
 
 from cosim.core.tyre_params import TyreParams
-from cosim.core.vehicle_params import PlantConfig
+from cosim.core.vehicle_params import PlantConfig, VehicleParams
+from cosim.plant.data_sheet import data_sheet_belief
 
 GRAVITY_MPS2 = 9.81
 
@@ -80,7 +84,7 @@ def axle_cornering_stiffness_npr(plant: PlantConfig, tyre: TyreParams) -> tuple[
 
 def sampled_sedan(index: int) -> dict[str, Any]:
     """The ``index``-th sampled sedan as config overrides ``{"plant": ..., "tracker":
-    {"model": ...}}`` (module docstring); deterministic."""
+    {"model": ...}, "estimator": ...}`` (module docstring); deterministic."""
     rng = np.random.default_rng([index, zlib.crc32(b"sedan_sampler")])
     draw = {name: float(rng.uniform(low, high)) for name, (low, high) in RANGES.items()}
     wheelbase, mass = draw["wheelbase_m"], draw["mass_kg"]
@@ -96,10 +100,13 @@ def sampled_sedan(index: int) -> dict[str, Any]:
     }
     tyre = TyreParams(cornering_stiffness_max_prad=round(
         TyreParams().cornering_stiffness_max_prad * draw["cornering_stiffness_scale"], 4))
-    front, rear = axle_cornering_stiffness_npr(PlantConfig(**car, tyre=tyre), tyre)
+    plant = PlantConfig(**car, tyre=tyre)
+    front, rear = axle_cornering_stiffness_npr(plant, tyre)
+    told = VehicleParams(**car)  # the controller is told the car, its road's friction too
     return {
         "plant": {**car, "tyre": {"cornering_stiffness_max_prad":
                                   tyre.cornering_stiffness_max_prad}},
         "tracker": {"model": {**car, "cornering_stiffness_front_npr": round(front, 0),
                               "cornering_stiffness_rear_npr": round(rear, 0)}},
+        "estimator": data_sheet_belief(plant, told, fitted=tuple(car)).estimator,
     }

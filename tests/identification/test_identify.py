@@ -370,7 +370,7 @@ def test_identify_bad_input_is_one_line_and_exit_code_2(
 def test_your_car_in_one_command(tmp_path: Path) -> None:
     """A car file, identified into a belief file that merges after it: the controller then
     knows the car (its mass and CoG, the stiffnesses identified, its CoG height from the
-    data sheet) and the filter its roll (cosim/identification/data_sheet.py), and it tracks
+    data sheet) and the filter its roll (cosim/plant/data_sheet.py), and it tracks
     better than with the nominal belief; an existing belief file is kept unless --force."""
     from cosim.plant.roll_mode import roll_mode
     from cosim.plant.sedan_model import sedan_layout

@@ -41,3 +41,25 @@ def test_the_config_takes_the_sample_and_explicit_keys_win() -> None:
     assert config.tracker.model.mass_kg == car["tracker"]["model"]["mass_kg"]
     assert config.plant.cog_height_m == car["plant"]["cog_height_m"]
     assert sampled_sedan(3) == car and sampled_sedan(4) != car
+
+
+def test_a_sampled_sedans_filter_is_told_its_tyres_and_roll() -> None:
+    """The filter of a sampled sedan believes the car's data sheet (cosim/plant/data_sheet.py),
+    not the nominal sedan's: its roll mode, its tyres' load sensitivity and relaxation at
+    its axle loads, their peak on its road; an explicit key wins."""
+    from cosim.plant.data_sheet import roll_belief, tyre_beliefs
+    from estimation.config import EstimatorConfig
+
+    config = load_config("lane-change", overrides=["vehicle_sample=3"])
+    believed = config.estimator
+    expected = {**roll_belief(config.plant),
+                **tyre_beliefs(config.plant, config.plant.tyre_friction)}
+    for name, value in expected.items():
+        assert getattr(believed, name) == value, name
+    nominal = EstimatorConfig()
+    differs = [name for name in expected if getattr(nominal, name) != getattr(believed, name)]
+    assert {"roll_gradient_radpmps2", "tyre_load_sensitivity_front",
+            "tyre_relaxation_length_front_m", "wheel_slip_peak_force_ratio"} <= set(differs)
+    told = load_config("lane-change", overrides=["vehicle_sample=3",
+                                                 "estimator.roll_gradient_radpmps2=0.012"])
+    assert told.estimator.roll_gradient_radpmps2 == 0.012

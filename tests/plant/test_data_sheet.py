@@ -1,4 +1,4 @@
-"""The belief a car's data sheet gives (cosim/identification/data_sheet.py): the sedan's is
+"""The belief a car's data sheet gives (cosim/plant/data_sheet.py): the sedan's is
 the filter's default belief; another car's carries its own figures, tyres, steering and roll."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import pytest
 
 from cosim.core.suspension_params import SuspensionParams
 from cosim.core.vehicle_params import PlantConfig, VehicleParams
-from cosim.identification.data_sheet import data_sheet_belief
+from cosim.plant.data_sheet import data_sheet_belief
 from cosim.plant.roll_mode import roll_mode
 from cosim.plant.sedan_model import sedan_layout
 from estimation.config import EstimatorConfig

@@ -23,7 +23,8 @@ off the car's data sheet, as an engineer would read it off the manufacturer's:
 
 ``cosim identify --belief-out`` writes both beside the fitted model, so that a user's own
 car, like the published ones (``cosim/cars/``), runs with a filter that knows its tyres,
-steering and roll rather than the default sedan's.
+steering and roll rather than the default sedan's; a sampled sedan
+(:mod:`cosim.plant.sedan_sampler`, ``vehicle_sample``) gives its filter its own the same way.
 """
 
 from __future__ import annotations
