@@ -100,13 +100,13 @@ def _write_belief(path: Path, fitted: dict[str, float], sheet: DataSheetBelief,
 
     source = " ".join([*(f"--config {c}" for c in args.config or ()),
                        *(f"--set {o}" for o in args.overrides)]) or "the default sedan"
-    figures = f"{', '.join(sheet.model)}; from its tyre's: " if sheet.model else \
-        "its tyre's: "
+    figures = ", ".join(sheet.model) or "no figure other than the controller's"
     header = (f"# The controller's belief about the plant of {source},\n"
               f"# identified by cosim identify on {datetime.date.today().isoformat()}.\n"
               "# Merge it after the car's own config: cosim run SCENARIO --config car.yaml "
               f"--config {path.name}\n"
-              f"{DATA_SHEET_LINE} {figures}the estimator's tyre_load_sensitivity_*, "
+              f"{DATA_SHEET_LINE} {figures}; from its tyre's: the estimator's "
+              "tyre_load_sensitivity_*, "
               "tyre_relaxation_length_* and wheel_slip_*; from its "
               "steering's: steering_compliance_radpnm; from its suspension's: "
               "roll_gradient_radpmps2, roll_frequency_hz, roll_damping_ratio.\n")
