@@ -361,10 +361,17 @@ def _with_car(data: dict[str, Any]) -> dict[str, Any]:
 
 
 def _with_sampled_vehicle(data: dict[str, Any]) -> dict[str, Any]:
-    """``vehicle_sample: n >= 0``: the sampled sedan's figures under what was set."""
+    """``vehicle_sample: n >= 0``: the sampled sedan's figures under what was set. With a
+    published ``car:`` too it is refused: the two would make a car neither is (the sample's
+    mass and CoG on the published car's tracks and tyres, its filter's beliefs of neither)."""
     index = data.get("vehicle_sample", -1)
     if isinstance(index, bool) or not isinstance(index, int) or index < 0:
         return data  # -1, or a bad value that from_dict names
+    car = data.get("car", "sedan")
+    if car != "sedan":
+        raise ConfigError(f"vehicle_sample = {index} with car = {car!r}: a sampled car is a "
+                          "sedan of its own; expected one of them (vehicle_sample -1, or "
+                          "car sedan)")
     return _merge(sampled_sedan(index), data)
 
 

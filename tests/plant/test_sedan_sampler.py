@@ -63,3 +63,14 @@ def test_a_sampled_sedans_filter_is_told_its_tyres_and_roll() -> None:
     told = load_config("lane-change", overrides=["vehicle_sample=3",
                                                  "estimator.roll_gradient_radpmps2=0.012"])
     assert told.estimator.roll_gradient_radpmps2 == 0.012
+
+
+def test_a_sample_of_a_published_car_is_refused() -> None:
+    """vehicle_sample draws sedans: with car: bmw-320i it would put the sample's mass and CoG
+    on the BMW's tracks and tyres, a car neither is; one line naming both."""
+    from cosim.core.exceptions import ConfigError
+
+    with pytest.raises(ConfigError, match=r"vehicle_sample = 3 with car = 'bmw-320i'"):
+        load_config("lane-change", overrides=["car=bmw-320i", "vehicle_sample=3"])
+    assert load_config("lane-change", overrides=["car=sedan", "vehicle_sample=3"]).plant \
+        .mass_kg == sampled_sedan(3)["plant"]["mass_kg"]
