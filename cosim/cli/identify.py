@@ -56,8 +56,7 @@ def command(args: argparse.Namespace) -> int:
                           args.config or ())
         sheet = data_sheet_belief(config.plant, config.tracker.model, BELIEF_FIELDS)
     model = identify(config.plant, config.tracker.model, config.sim.physics_dt_s)
-    if args.belief_out is not None:
-        assert sheet is not None
+    if sheet is not None:
         _write_belief(Path(args.belief_out), model.belief(), sheet, args)
         print(f"cosim: the identified belief is in {args.belief_out}: run with "
               f"--config {args.belief_out} after the car's own config", file=sys.stderr)
@@ -97,6 +96,7 @@ def _write_belief(path: Path, fitted: dict[str, float], sheet: DataSheetBelief,
     import yaml
 
     from cosim.log.safe_file import PendingFile
+    from cosim.plant.data_sheet import ESTIMATOR_SOURCES
 
     source = " ".join([*(f"--config {c}" for c in args.config or ()),
                        *(f"--set {o}" for o in args.overrides)]) or "the default sedan"
@@ -105,11 +105,7 @@ def _write_belief(path: Path, fitted: dict[str, float], sheet: DataSheetBelief,
               f"# identified by cosim identify on {datetime.date.today().isoformat()}.\n"
               "# Merge it after the car's own config: cosim run SCENARIO --config car.yaml "
               f"--config {path.name}\n"
-              f"{DATA_SHEET_LINE} {figures}; from its tyre's: the estimator's "
-              "tyre_load_sensitivity_*, "
-              "tyre_relaxation_length_* and wheel_slip_*; from its "
-              "steering's: steering_compliance_radpnm; from its suspension's: "
-              "roll_gradient_radpmps2, roll_frequency_hz, roll_damping_ratio.\n")
+              f"{DATA_SHEET_LINE} {figures}; {ESTIMATOR_SOURCES}.\n")
     model: dict[str, float | str] = {name: float(f"{value:.6g}")
                                      for name, value in fitted.items()}
     text = header + yaml.safe_dump({"tracker": {"model": {**model, **sheet.model}},

@@ -36,6 +36,18 @@ from dataclasses import dataclass
 from cosim.core.exceptions import ConfigError
 from cosim.core.vehicle_params import PlantConfig, VehicleParams
 
+NOT_ON_THE_DATA_SHEET = ("tyre_friction",)
+"""Shared fields that are not the car's: the road's friction (a belief of its own,
+``tracker.model.tyre_friction``, which a car identified on a wet road must not take)."""
+
+
+ESTIMATOR_SOURCES = ("from its tyre's: the estimator's tyre_load_sensitivity_*, "
+                     "tyre_relaxation_length_* and wheel_slip_*; from its steering's: "
+                     "steering_compliance_radpnm; from its suspension's: "
+                     "roll_gradient_radpmps2, roll_frequency_hz, roll_damping_ratio")
+"""Where each of :attr:`DataSheetBelief.estimator`'s keys comes from, as a belief file's
+header says it."""
+
 
 @dataclass(frozen=True)
 class DataSheetBelief:
@@ -57,11 +69,6 @@ def data_sheet_belief(plant: PlantConfig, believed: VehicleParams,
              and getattr(plant, name) != getattr(believed, name)}
     return DataSheetBelief(model, {**tyre_beliefs(plant, believed.tyre_friction),
                                    **steering_belief(plant), **roll_belief(plant)})
-
-
-NOT_ON_THE_DATA_SHEET = ("tyre_friction",)
-"""Shared fields that are not the car's: the road's friction (a belief of its own,
-``tracker.model.tyre_friction``, which a car identified on a wet road must not take)."""
 
 
 def shared_figures() -> tuple[str, ...]:
