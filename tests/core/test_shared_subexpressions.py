@@ -1,0 +1,89 @@
+"""The C of every library computes each repeated subexpression once, with the numbers of
+the graph as built (:func:`cosim.core.compiled_function.subexpressions_shared`)."""
+
+from __future__ import annotations
+
+import ctypes
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+import pytest
+
+import cosim.core.compiled_function as compiled
+from cosim.core.compiled_function import CompiledFunction, compiled_library
+
+
+@pytest.fixture()
+def cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    return tmp_path / "cache" / "cosim"
+
+
+def _stage_cost_and_dynamics() -> ca.Function:
+    """A stage as the NMPC writes one: the heading's cosine and sine formed once for the
+    dynamics and again for the cost, and the Lagrangian's Hessian of both (where the
+    derivatives repeat the products of every term)."""
+    x = ca.SX.sym("x", 3)  # position, heading
+    u = ca.SX.sym("u", 2)  # speed, yaw rate
+    lam = ca.SX.sym("lam", 3)
+    dt = 0.05
+    moved = x + dt * ca.vertcat(u[0] * ca.cos(x[2]), u[0] * ca.sin(x[2]), u[1])
+    lateral_error = -ca.sin(x[2]) * x[0] + ca.cos(x[2]) * x[1]
+    lagrangian = 10.0 * lateral_error ** 2 + ca.dot(lam, moved) + ca.exp(-u[0]) * u[1] ** 2
+    z = ca.vertcat(x, u)
+    hessian = ca.densify(ca.hessian(lagrangian, z)[0])
+    return ca.Function("stage_probe", [z, lam], [moved, hessian], ["z", "lam"],
+                       ["moved", "hessian"])
+
+
+def _evaluate(library: Path, function: ca.Function, points: np.ndarray) -> np.ndarray:
+    z, lam, moved, hessian = np.zeros(5), np.zeros(3), np.zeros(3), np.zeros(25)
+    call = CompiledFunction(ctypes.CDLL(str(library)), function, [z, lam], [moved, hessian])
+    rows = []
+    for point in points:
+        z[:], lam[:] = point[:5], point[5:]
+        call()
+        rows.append(np.concatenate([moved, hessian]))
+    return np.array(rows)
+
+
+def test_shared_subexpressions_are_fewer_operations_with_the_same_numbers() -> None:
+    function = _stage_cost_and_dynamics()
+    shared = compiled.subexpressions_shared(function)
+    assert shared.n_instructions() < function.n_instructions()
+    assert (shared.name(), shared.name_in(), shared.name_out()) == \
+        (function.name(), function.name_in(), function.name_out())
+    points = np.random.default_rng(3).normal(size=(100, 8)) * 2.0
+    for point in points:
+        args = [point[:5], point[5:]]
+        for ours, built in zip(shared.call(args), function.call(args), strict=True):
+            assert np.array_equal(np.asarray(ours), np.asarray(built))
+
+
+def test_the_library_computes_the_numbers_of_one_without_sharing(
+        cache: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    function = _stage_cost_and_dynamics()
+    generated: dict[str, int] = {}
+
+    def measured(name: str) -> Path:
+        library = compiled_library(name, [function])
+        assert library is not None
+        source = ca.CodeGenerator(f"{name}.c")
+        source.add(compiled.subexpressions_shared(function))
+        generated[name] = len(source.dump())
+        return library
+
+    shared = measured("shared_probe")
+    monkeypatch.setattr(compiled, "subexpressions_shared", lambda f: f)
+    as_built = measured("as_built_probe")
+    assert generated["shared_probe"] < generated["as_built_probe"]
+    points = np.random.default_rng(5).normal(size=(200, 8)) * 2.0
+    assert np.array_equal(_evaluate(shared, function, points),
+                          _evaluate(as_built, function, points))
+
+
+def test_a_function_that_is_no_flat_graph_is_generated_as_it_is() -> None:
+    x = ca.MX.sym("x", 2)
+    function = ca.Function("mx_probe", [x], [ca.sin(x) * ca.sin(x)])
+    assert compiled.subexpressions_shared(function) is function
