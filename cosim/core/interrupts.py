@@ -7,6 +7,7 @@ from __future__ import annotations
 import contextlib
 import signal
 import sys
+import threading
 from collections.abc import Callable, Iterator
 from typing import Any
 
@@ -25,6 +26,34 @@ def interrupts_to(handler: Callable[[int, Any], None]) -> Iterator[None]:
     finally:
         for signum, before in previous.items():
             signal.signal(signum, before)
+
+
+@contextlib.contextmanager
+def interrupts_held() -> Iterator[None]:
+    """The block runs whole: an interrupt (:data:`INTERRUPTS`) that arrives during it is held,
+    and delivered to the handler before the block as soon as the block ends, however it ends.
+
+    For an exchange that must not be cut in half: a request to the process writing the log
+    and the read of its answer (:class:`cosim.log.piped_recorder.PipedRecorder`). A Ctrl-C
+    that raised ``KeyboardInterrupt`` between two bytes of the answer left the rest of the
+    line in the pipe, and the next request read it as its own answer. Setting the handlers
+    costs a few microseconds: for rare exchanges, not for every message. In a thread other
+    than the main one (where handlers cannot be set) the block simply runs."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held: list[int] = []
+
+    def hold(signum: int, frame: Any) -> None:
+        del frame
+        held.append(signum)
+
+    try:
+        with interrupts_to(hold):
+            yield
+    finally:
+        for signum in held:  # the handlers before are back: each takes its signal now
+            signal.raise_signal(signum)
 
 
 def drop_unraisable_interrupts() -> None:

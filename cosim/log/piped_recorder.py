@@ -42,6 +42,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from cosim.core.exceptions import ConfigError
+from cosim.core.interrupts import interrupts_held
 
 if TYPE_CHECKING:
     from cosim.log.packed_records import PackedReader
@@ -203,16 +204,19 @@ class PipedRecorder:
 
     def _request(self, operation: int, payload: bytes = b"", log_time_ns: int = 0) -> None:
         """A frame whose answer the run waits for: raise a failure the server reported
-        before it (a write's), else the request's own."""
-        self._frame(operation, payload, log_time_ns=log_time_ns)
-        self._flush(check=False)
-        failure = None
-        while True:
-            tag, _, text = _read_line(self._link.answers_fd).partition(" ")
-            if tag == FAILED:
-                failure = failure if failure is not None else text
-                continue
-            break
+        before it (a write's), else the request's own. An interrupt during the exchange is
+        raised when its answer is in (:func:`cosim.core.interrupts.interrupts_held`), so the
+        next request reads its own answer, not the rest of this one's."""
+        with interrupts_held():
+            self._frame(operation, payload, log_time_ns=log_time_ns)
+            self._flush(check=False)
+            failure = None
+            while True:
+                tag, _, text = _read_line(self._link.answers_fd).partition(" ")
+                if tag == FAILED:
+                    failure = failure if failure is not None else text
+                    continue
+                break
         if failure is not None:
             raise _error(failure)
         if tag != ANSWER:

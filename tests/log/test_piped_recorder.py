@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import os
+import signal
 import threading
 from collections.abc import Iterator
 from pathlib import Path
@@ -131,3 +132,39 @@ def test_a_run_that_dies_leaves_a_finished_log_with_all_it_sent(tmp_path: Path) 
     with _served() as (link, _):
         PipedRecorder(link, unpublished)
     assert not unpublished.exists() and not partial_path(unpublished).exists()
+
+
+def test_a_ctrl_c_during_a_request_is_raised_after_its_answer(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A Ctrl-C that lands while the run reads the server's answer (here after its first
+    byte, as one did under load in `cosim run`'s set-up) is raised once the answer is in:
+    closing then reads its own answer and the log is finished. Before, the interrupt cut the
+    line, closing read its rest as its answer and failed: "the process writing the log has
+    ended"."""
+    out = tmp_path / "interrupted.mcap"
+    real_read = os.read
+    interrupted: list[int] = []
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with _served() as (link, _):
+            recorder = PipedRecorder(link, out, epoch_ns=EPOCH_NS)
+
+            def read_then_interrupt(descriptor: int, size: int) -> bytes:
+                data = real_read(descriptor, size)
+                if descriptor == link.answers_fd and not interrupted:
+                    interrupted.append(descriptor)
+                    os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C, mid-answer
+                return data
+
+            recorder.register("/a", {"title": "test.a", "type": "object"})
+            monkeypatch.setattr(piped_recorder.os, "read", read_then_interrupt)
+            with pytest.raises(KeyboardInterrupt):
+                recorder.publish()
+            monkeypatch.undo()
+            recorder.write("/a", 0.0, {"i": 1})
+            recorder.close()
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert interrupted
+    summary = read_summary(out)
+    assert not summary.truncated and summary.message_count == 1
