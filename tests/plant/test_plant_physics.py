@@ -8,6 +8,7 @@ longitudinal motion m + 4 I_w / R^2 = 1575 + 4 / 0.0961 = 1616.6 kg.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -304,7 +305,9 @@ def test_two_plants_from_one_config_are_bit_identical(tyre_model: str) -> None:
     assert first.t_s == pytest.approx(2.0)
 
 
-def test_absurd_time_step_raises_instead_of_returning_nan() -> None:
+def test_absurd_time_step_raises_instead_of_returning_nan(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)  # MuJoCo appends its warning to MUJOCO_LOG.TXT here
     with pytest.raises(PhysicsDivergenceError, match=r"physics diverged at t = \d"):
         plant = MujocoPlant(NOMINAL, 0.5, InitialState(speed_mps=12.0))
         for _ in range(100):
@@ -312,7 +315,9 @@ def test_absurd_time_step_raises_instead_of_returning_nan() -> None:
             plant.state()
 
 
-def test_non_finite_state_raises_with_mujoco_warning(nominal_plant: MujocoPlant) -> None:
+def test_non_finite_state_raises_with_mujoco_warning(
+        nominal_plant: MujocoPlant, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)  # MuJoCo appends its warning to MUJOCO_LOG.TXT here
     nominal_plant.reset()
     spin = nominal_plant.model.joint("rear_left_spin").dofadr[0]
     nominal_plant.data.qvel[spin] = float("nan")
