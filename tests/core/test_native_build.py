@@ -3,7 +3,6 @@ of a plain build, keyed by that processor, and built plainly by a compiler witho
 
 from __future__ import annotations
 
-import ctypes
 import os
 import stat
 import warnings
@@ -14,7 +13,8 @@ import numpy as np
 import pytest
 
 import cosim.core.compiled_function as compiled
-from cosim.core.compiled_function import CompiledFunction, compiled_library
+from cosim.core.compiled_function import compiled_library
+from tests.core.compiled_probe import evaluated_at
 
 
 @pytest.fixture()
@@ -42,16 +42,6 @@ def _rk4_function() -> ca.Function:
     return ca.Function("native_probe", [x, p], [s, ca.densify(ca.jacobian(s, x))])
 
 
-def _evaluate(library: Path, function: ca.Function, points: np.ndarray) -> np.ndarray:
-    """Both outputs at every row of ``points`` (x then p), through the compiled C."""
-    x, p, out, jac = np.zeros(2), np.zeros(3), np.zeros(2), np.zeros(4)
-    call = CompiledFunction(ctypes.CDLL(str(library)), function, [x, p], [out, jac])
-    rows = []
-    for point in points:
-        x[:], p[:] = point[:2], point[2:]
-        call()
-        rows.append(np.concatenate([out, jac]))
-    return np.array(rows)
 
 
 def _compiler_refusing_native(tmp_path: Path) -> str:
@@ -78,8 +68,8 @@ def test_a_native_build_gives_the_numbers_of_a_plain_one(
     finally:
         compiled.native_flags.cache_clear()
     assert plain is not None and plain != native
-    assert np.array_equal(_evaluate(native, function, points),
-                          _evaluate(plain, function, points))
+    assert np.array_equal(evaluated_at(native, function, points),
+                          evaluated_at(plain, function, points))
 
 
 def test_a_compiler_without_the_flag_builds_plainly_and_says_nothing(

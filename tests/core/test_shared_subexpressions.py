@@ -3,7 +3,6 @@ the graph as built (:func:`cosim.core.compiled_function.subexpressions_shared`).
 
 from __future__ import annotations
 
-import ctypes
 from pathlib import Path
 
 import casadi as ca
@@ -11,7 +10,8 @@ import numpy as np
 import pytest
 
 import cosim.core.compiled_function as compiled
-from cosim.core.compiled_function import CompiledFunction, compiled_library
+from cosim.core.compiled_function import compiled_library
+from tests.core.compiled_probe import evaluated_at
 
 
 @pytest.fixture()
@@ -37,15 +37,6 @@ def _stage_cost_and_dynamics() -> ca.Function:
                        ["moved", "hessian"])
 
 
-def _evaluate(library: Path, function: ca.Function, points: np.ndarray) -> np.ndarray:
-    z, lam, moved, hessian = np.zeros(5), np.zeros(3), np.zeros(3), np.zeros(25)
-    call = CompiledFunction(ctypes.CDLL(str(library)), function, [z, lam], [moved, hessian])
-    rows = []
-    for point in points:
-        z[:], lam[:] = point[:5], point[5:]
-        call()
-        rows.append(np.concatenate([moved, hessian]))
-    return np.array(rows)
 
 
 def test_shared_subexpressions_are_fewer_operations_with_the_same_numbers() -> None:
@@ -79,8 +70,8 @@ def test_the_library_computes_the_numbers_of_one_without_sharing(
     as_built = measured("as_built_probe")
     assert generated["shared_probe"] < generated["as_built_probe"]
     points = np.random.default_rng(5).normal(size=(200, 8)) * 2.0
-    assert np.array_equal(_evaluate(shared, function, points),
-                          _evaluate(as_built, function, points))
+    assert np.array_equal(evaluated_at(shared, function, points),
+                          evaluated_at(as_built, function, points))
 
 
 def test_a_function_that_is_no_flat_graph_is_generated_as_it_is() -> None:
