@@ -314,8 +314,11 @@ def _process_functions(numbers: _Belief, sigma_point_count: int) -> _ProcessFunc
         belief_values=record.values,
         derivative=ca.Function("bicycle_derivative", [x, u, belief],
                                [derivative(x), ca.densify(a)]),
+        # Its repeated subexpressions shared where it is built: the covariance step
+        # (_covariance_step) calls this very function, so the library's C holds it once
+        # (cosim.core.compiled_function.subexpressions_shared), shared, for both.
         step=ca.Function("bicycle_step", [x, u, dt, belief],
-                         [x_next, ca.densify(transition), ca.densify(q)]),
+                         [x_next, ca.densify(transition), ca.densify(q)], {"cse": True}),
         mean_step=mean_step,
         noise=ca.Function("bicycle_noise", [x, u, dt, belief], [ca.densify(q)]),
         psd=ca.Function("bicycle_psd", [x, belief], [ca.densify(psd)]),

@@ -408,12 +408,18 @@ def subexpressions_shared(function: ca.Function) -> ca.Function:
     operands, so each output is the same number, bit for bit; there are fewer of them
     (a fifth fewer in the NMPC's Hessian of the Lagrangian), and less code to fetch on
     every call. The function keeps its name, inputs and outputs, so a solver that loads
-    it by name (fatrop) finds it."""
+    it by name (fatrop) finds it.
+
+    A function whose graph shares them already (built with ``{"cse": True}``) is returned
+    itself, not a copy: a function that another one calls (the filter's sub-step, which
+    its covariance step calls) is then generated once, where the copy and the original
+    were two functions to CasADi's generator, each with its own C."""
     if not function.is_a("SXFunction"):
         return function
     inputs = function.sx_in()
-    return ca.Function(function.name(), inputs, function.call(inputs), function.name_in(),
-                       function.name_out(), {"cse": True})
+    shared = ca.Function(function.name(), inputs, function.call(inputs), function.name_in(),
+                         function.name_out(), {"cse": True})
+    return shared if shared.n_instructions() < function.n_instructions() else function
 
 
 GENERATION = "cse"

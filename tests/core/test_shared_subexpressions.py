@@ -78,3 +78,27 @@ def test_a_function_that_is_no_flat_graph_is_generated_as_it_is() -> None:
     x = ca.MX.sym("x", 2)
     function = ca.Function("mx_probe", [x], [ca.sin(x) * ca.sin(x)])
     assert compiled.subexpressions_shared(function) is function
+
+
+def test_a_function_shared_where_it_is_built_is_generated_once_for_its_callers() -> None:
+    # A flat graph built with its subexpressions shared is returned itself, so that a
+    # function calling it (an MX graph, generated as it is) and the library's own export
+    # name one function, and the C holds its body once (a copy was a second function).
+    inner = _stage_cost_and_dynamics()
+    z, lam = inner.sx_in()
+    shared = ca.Function(inner.name(), [z, lam], inner.call([z, lam]), inner.name_in(),
+                         inner.name_out(), {"cse": True})
+    assert compiled.subexpressions_shared(shared) is shared
+    assert compiled.subexpressions_shared(inner) is not inner
+
+    def bodies(called: ca.Function) -> int:
+        zz, ll = ca.MX.sym("z", 5), ca.MX.sym("lam", 3)
+        moved, hessian = called(zz, ll)
+        caller = ca.Function("caller_probe", [zz, ll], [moved, ca.trace(hessian)])
+        source = ca.CodeGenerator("probe.c")
+        for function in (called, caller):
+            source.add(compiled.subexpressions_shared(function))
+        return source.dump().count(f"/* {called.name()}:(")
+
+    assert bodies(shared) == 1
+    assert bodies(inner) == 2  # the graph as built: its shared copy and itself
