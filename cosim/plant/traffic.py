@@ -186,6 +186,7 @@ class TrafficCar:
         self.config = config
         self._lane = lane
         self._longitudinal = _Longitudinal(config)
+        self._lane_direction = (math.cos(lane.yaw_rad), math.sin(lane.yaw_rad))
         self.length_m = length_m
         self.width_m = width_m
 
@@ -201,20 +202,29 @@ class TrafficCar:
         return (c.lateral_offset_m + span * 0.5 * (1.0 - math.cos(math.pi * u)),
                 span * 0.5 * math.pi / c.lane_change_s * math.sin(math.pi * u))
 
-    def pose(self, t_s: float) -> CarPose:
+    def _placed(self, t_s: float) -> tuple[float, float, float, float, float, float]:
+        """``(x_m, y_m, yaw_rad, speed along the lane, lateral rate, accel)`` at ``t_s``."""
         distance, speed, accel = self._longitudinal.at(t_s)
         offset, offset_rate = self.lateral_offset(t_s)
         lane = self._lane
         along = self.config.gap_m + distance
-        cos_yaw, sin_yaw = math.cos(lane.yaw_rad), math.sin(lane.yaw_rad)
+        cos_yaw, sin_yaw = self._lane_direction
         drift = math.atan2(offset_rate, speed) if speed > 0.0 else 0.0
-        return CarPose(
-            name=self.name, t_s=t_s,
-            x_m=lane.x0_m + along * cos_yaw - offset * sin_yaw,
-            y_m=lane.y0_m + along * sin_yaw + offset * cos_yaw,
-            yaw_rad=lane.yaw_rad + drift,
-            speed_mps=math.hypot(speed, offset_rate), accel_mps2=accel,
-            length_m=self.length_m, width_m=self.width_m)
+        return (lane.x0_m + along * cos_yaw - offset * sin_yaw,
+                lane.y0_m + along * sin_yaw + offset * cos_yaw,
+                lane.yaw_rad + drift, speed, offset_rate, accel)
+
+    def pose(self, t_s: float) -> CarPose:
+        x_m, y_m, yaw_rad, speed, offset_rate, accel = self._placed(t_s)
+        return CarPose(name=self.name, t_s=t_s, x_m=x_m, y_m=y_m, yaw_rad=yaw_rad,
+                       speed_mps=math.hypot(speed, offset_rate), accel_mps2=accel,
+                       length_m=self.length_m, width_m=self.width_m)
+
+    def mocap_row(self, t_s: float) -> tuple[float, ...]:
+        """The car's mocap position and quaternion at ``t_s`` as :meth:`pose` places it,
+        without building the pose (the physics sets it after every step)."""
+        x_m, y_m, yaw_rad, *_ = self._placed(t_s)
+        return _mocap_row(x_m, y_m, yaw_rad)
 
 
 class Traffic:
@@ -272,7 +282,7 @@ class Traffic:
     def place(self, data: mujoco.MjData, t_s: float) -> None:
         """Set every car's mocap pose for time ``t_s``."""
         for car, slot in zip(self.cars, self._mocap, strict=True):
-            row = _mocap_row(car.pose(t_s))
+            row = car.mocap_row(t_s)
             data.mocap_pos[slot] = row[:3]
             data.mocap_quat[slot] = row[3:]
 
@@ -285,12 +295,11 @@ class Traffic:
         """``(n, cars, 7)``: each car's mocap position and quaternion after each of ``n``
         physics steps from time ``t_s`` (the times MuJoCo's clock reaches, ``t += dt``
         each step), as :meth:`place` sets them."""
-        rows = np.empty((n, len(self.cars), 7))
-        for k in range(n):
+        rows: list[tuple[float, ...]] = []
+        for _ in range(n):
             t_s = t_s + dt_s
-            for j, car in enumerate(self.cars):
-                rows[k, j] = _mocap_row(car.pose(t_s))
-        return rows
+            rows.extend(car.mocap_row(t_s) for car in self.cars)
+        return np.array(rows, dtype=float).reshape(n, len(self.cars), 7)
 
     def collision(self, data: mujoco.MjData) -> str:
         """The name of a car the ego's body touches in the last step's contacts, else ''."""
@@ -305,10 +314,10 @@ class Traffic:
         return ""
 
 
-def _mocap_row(pose: CarPose) -> tuple[float, ...]:
-    """A car's mocap position (on the ground) and quaternion (a yaw) for ``pose``."""
-    half_yaw = 0.5 * pose.yaw_rad
-    return (pose.x_m, pose.y_m, 0.0, math.cos(half_yaw), 0.0, 0.0, math.sin(half_yaw))
+def _mocap_row(x_m: float, y_m: float, yaw_rad: float) -> tuple[float, ...]:
+    """The mocap position (on the ground) and quaternion (a yaw) of a car at a pose."""
+    half_yaw = 0.5 * yaw_rad
+    return (x_m, y_m, 0.0, math.cos(half_yaw), 0.0, 0.0, math.sin(half_yaw))
 
 
 def attach_traffic(root: mjcf.RootElement, names: tuple[str, ...],

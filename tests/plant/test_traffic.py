@@ -142,3 +142,29 @@ def test_the_plant_without_traffic_has_no_traffic_bodies() -> None:
 
 def test_traffic_car_config_defaults_are_valid() -> None:
     assert TrafficCarConfig().speed_profile == "constant"
+
+
+def test_the_poses_after_steps_are_each_cars_pose_at_those_times() -> None:
+    # The rows the compiled physics step places the cars with, built without a pose each:
+    # the position and the yaw's quaternion of pose(t) at every step's time, to the bit,
+    # while a car changes lanes (a drift in the yaw) on a harmonic speed.
+    initial = InitialState(x_m=10.0, y_m=-2.0, yaw_rad=0.5)
+    traffic = Traffic(traffic_cars({
+        "weaving": {"gap_m": 20.0, "speed_profile": "harmonic", "speed_mps": 15.0,
+                    "amplitude_mps": 3.0, "period_s": 4.0, "lateral_offset_m": 3.5,
+                    "lane_change_t_s": 0.2, "lane_change_s": 1.0, "lane_change_to_m": 0.0},
+        "ahead": {"gap_m": 60.0, "speed_mps": 10.0}}), initial)
+    traffic.cars = tuple(TrafficCar(name, config, traffic._lane, 4.8, 1.8)
+                         for name, config in traffic.configs)
+    rows = traffic.poses_after_steps(0.1, 0.002, 1000)
+    assert rows.shape == (1000, 2, 7)
+    t_s = 0.1
+    for k in range(1000):
+        t_s = t_s + 0.002
+        for j, c in enumerate(traffic.cars):
+            pose = c.pose(t_s)
+            half = 0.5 * pose.yaw_rad
+            assert rows[k, j].tolist() == [pose.x_m, pose.y_m, 0.0, math.cos(half), 0.0, 0.0,
+                                           math.sin(half)]
+    weaving = [c.name for c in traffic.cars].index("weaving")
+    assert len({row[weaving, 3] for row in rows}) > 100  # its yaw moved
