@@ -133,7 +133,9 @@ def _measurement_functions(
     return (
         DenseFunction(ca.Function(f"h_{sensor}", inputs, [h, ca.densify(ca.jacobian(h, x))]),
                       parameters=belief.values),
-        DenseFunction(ca.Function(f"h_{sensor}_value", inputs, [h]),
+        # Shared where it is built: the UKF's library calls it through a map, which its
+        # generation leaves as it is (cosim.core.compiled_function.subexpressions_shared).
+        DenseFunction(ca.Function(f"h_{sensor}_value", inputs, [h], {"cse": True}),
                       parameters=belief.values),
     )
 

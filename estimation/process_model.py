@@ -303,7 +303,9 @@ def _process_functions(numbers: _Belief, sigma_point_count: int) -> _ProcessFunc
         factor = factor * dt / (k + 2)
     q = 0.5 * (q + q.T)
 
-    mean_step = ca.Function("bicycle_mean_step", [x, u, dt, belief], [x_next])
+    # Shared where it is built, as the sub-step: the UKF's library calls it through a
+    # map, which its generation leaves as it is (cosim.core.compiled_function).
+    mean_step = ca.Function("bicycle_mean_step", [x, u, dt, belief], [x_next], {"cse": True})
     mapped = None
     if sigma_point_count:
         # The command and the belief are inputs shared by every point (not repeated).

@@ -3,6 +3,7 @@ as filterpy's MerweScaledSigmaPoints and UnscentedKalmanFilter.update, to the bi
 
 from __future__ import annotations
 
+import casadi as ca
 import numpy as np
 import pytest
 from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
@@ -98,3 +99,35 @@ def test_a_model_at_every_sigma_point_is_each_point_alone() -> None:
         together = np.asarray(mapped(points.T, values.parameters)).T
         alone = np.array([model.value(p) for p in points])
         assert np.array_equal(together, alone)
+
+
+def test_the_models_mapped_over_the_sigma_points_share_their_subexpressions(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    # The UKF's library calls the sub-step and the measurement models through maps, which
+    # code generation leaves as they are: built with their repeated subexpressions shared,
+    # the C computes each once (the wheel speeds' model 511 -> 325 operations).
+    from cosim.core.compiled_function import subexpressions_shared
+    from cosim.core.vehicle_params import VehicleParams
+    from cosim.simulation.runner import run_unlogged
+    from estimation import measurement_models, process_model
+
+    models = measurement_models.build_measurement_models.__wrapped__(  # not the cached
+        VehicleParams(), 0.1, 0.1)
+    assert {"imu", "wheel_speed"} <= set(models)
+    for sensor, model in models.items():
+        function = model.value_function.function
+        assert subexpressions_shared(function) is function, sensor
+    built: list[ca.Function] = []
+    uncached = process_model._process_functions.__wrapped__
+
+    def spied(*args: object) -> object:
+        functions = uncached(*args)
+        built.append(functions.mean_step)
+        return functions
+
+    monkeypatch.setattr(process_model, "_process_functions", spied)
+    run_unlogged(load_config("lane-change", overrides=[
+        "estimator.name=ukf", "estimator.compiled=false"], duration_s=0.1))
+    assert {function.name() for function in built} == {"bicycle_mean_step"}
+    for function in built:
+        assert subexpressions_shared(function) is function
