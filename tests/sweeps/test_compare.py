@@ -123,7 +123,10 @@ def test_a_signal_to_compare_alone_stops_its_runs_and_writes_the_league(
         f"cosim: compare interrupted; the league of the {len(rows)} finished run(s) is in "
         f"{out / 'league.md'}; finish with: cosim compare --resume --out {out}")
     assert "Traceback" not in stderr
-    assert all(row["metrics"].get("completed") for row in rows), rows
+    # Each row's run, error and end in full when one did not complete (a row's repr is cut).
+    assert all(row["metrics"].get("completed") for row in rows), [
+        (row["params"], row["error"], row["interrupted"], row["metrics"].get("outcome"),
+         row["metrics"].get("abort_reason")) for row in rows]
     assert rows[0]["params"]["tracker"] in (out / "league.md").read_text()
     again = cosim("compare", "--resume", "--out", str(out))  # as the hint says, no more
     assert again.returncode == 0, again.stderr

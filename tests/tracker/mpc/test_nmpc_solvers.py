@@ -24,6 +24,7 @@ from cosim.core.compiled_function import CompiledCacheWarning
 from cosim.core.config_fields import from_dict
 from cosim.core.exceptions import ConfigError
 from cosim.core.records import Command, Estimate
+from tests.machine_library import fresh_cache_with, libraries_built
 from tests.tracker import closed_loop as kinematic_bench
 from tests.tracker import dynamic_closed_loop as dynamic_bench
 from tests.tracker.contract import (
@@ -32,6 +33,7 @@ from tests.tracker.contract import (
 )
 from tracker.config import TrackerConfig
 from tracker.models.dynamic_bicycle import DynamicBicycleParams
+from tracker.mpc import nmpc_problem
 from tracker.mpc.dynamic_nmpc import DynamicNmpc
 from tracker.mpc.kinematic_nmpc import KinematicNmpc
 from tracker.mpc.nmpc import Nmpc
@@ -445,11 +447,12 @@ def test_one_compiled_nlp_serves_every_belief_and_weighting(
         option: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
         capfd: pytest.CaptureFixture[str]) -> None:
     # Every number of the model and every weight is a parameter of the compiled NLP, and the
-    # solver's tolerance and iteration limit are read when it solves: built once (in a fresh
-    # cache, with one note), it serves a car 30 % heavier with half the rear cornering
-    # stiffness, three times the lateral-error weight and another tolerance and limit, and
-    # solves that NLP as CasADi's virtual machine does, not the default one.
-    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    # solver's tolerance and iteration limit are read when it solves: the default's library
+    # (built in the machine's cache, with one note where no test has built it yet), alone in
+    # a fresh cache, serves a car 30 % heavier with half the rear cornering stiffness, three
+    # times the lateral-error weight and another tolerance and limit without a build or a
+    # note, and solves that NLP as CasADi's virtual machine does, not the default one
+    # (tests/machine_library.py).
     default = _config("dynamic-nmpc", option)
     model = default.model
     other = dataclasses.replace(
@@ -459,11 +462,15 @@ def test_one_compiled_nlp_serves_every_belief_and_weighting(
             cornering_stiffness_rear_npr=0.5 * model.cornering_stiffness_rear_npr),
         weights=dataclasses.replace(default.weights, cte=3.0 * default.weights.cte),
         tolerance=1e-4, max_iterations=default.max_iterations + 7)
+    with libraries_built(nmpc_problem) as built:
+        _tracker(default)
+    assert capfd.readouterr().err.count("cosim: note: compiling") <= 1
+    (library,) = [p for p in built if p.parent.name.startswith(("nmpc_", "rti_"))]
+    folder = fresh_cache_with(library, monkeypatch, tmp_path)
     _tracker(default)
-    assert capfd.readouterr().err.count("cosim: note: compiling") == 1
     compiled = _tracker(other)
     assert capfd.readouterr().err == ""
-    assert len(list((tmp_path / "cosim").iterdir())) == 1
+    assert [entry.name for entry in folder.iterdir()] == [library.parent.name]
     estimate = _estimate("dynamic-nmpc", 0.0, 0.3, 0.02, 15.0)
     plan = compiled.step(0.0, estimate, LANE_CHANGE)[1]
 
