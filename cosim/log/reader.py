@@ -116,6 +116,18 @@ def _epoch_ns(run_metadata: dict[str, str]) -> int:
         return 0
 
 
+DAMAGE_ERRORS: tuple[type[BaseException], ...] = (
+    McapError, EOFError, ValueError, OSError, struct.error, ZstdError,
+    RuntimeError,  # lz4's
+    MemoryError)
+"""What reading a log's records raises at a truncation or at damaged bytes: a scan stops
+there quietly (:func:`_records`, :func:`_read_chunks`)."""
+SUMMARY_ERRORS: tuple[type[BaseException], ...] = (
+    McapError, EOFError, ValueError, OSError, struct.error, KeyError, ZstdError)
+"""What reading a summary section that is missing or damaged raises: the caller then scans
+the file record by record."""
+
+
 def _records(path: Path, messages_of: Container[int] | None = None) -> Iterator[Any]:
     """Every record of the file, the chunks' records in their place; stops quietly at a
     truncation or at corrupted bytes (a chunk that does not decompress, a bad CRC, a record
@@ -139,8 +151,7 @@ def _records(path: Path, messages_of: Container[int] | None = None) -> Iterator[
                 if isinstance(record, Footer):
                     saw_footer = True
                 yield record
-        except (McapError, EOFError, ValueError, OSError, struct.error,
-                ZstdError, RuntimeError, MemoryError) as error:  # lz4 raises RuntimeError
+        except DAMAGE_ERRORS as error:
             if not saw_footer and stream.tell() <= 8:
                 raise LogReadError(
                     f"{str(path)!r}: not an MCAP file ({error})"
@@ -166,11 +177,10 @@ def _chunk_records(chunk: Chunk, messages_of: Container[int] | None) -> Iterator
     """The records of one chunk, in order: its Schema and Channel records decoded by the
     ``mcap`` package, its Message records built here from their fixed header, and only
     those of ``messages_of``'s channels (every one when it is None). ``mcap``'s own
-    ``breakup_chunk`` decodes every record through a byte stream, about 1.5 us a field:
-    most of the time of reading a log back for a few of its 20 topics (0.15 -> 0.04 s for
-    a 15-s lane change's estimation errors). A chunk whose bytes do not match its CRC is a
-    ``ValueError`` (``mcap``'s CRCValidationError), a record that runs past the chunk's end
-    a :class:`McapError`."""
+    ``breakup_chunk`` decodes every record through a byte stream, a Python call a field:
+    most of the time of reading a log back for a few of its 20 topics. A chunk whose bytes
+    do not match its CRC is a ``ValueError`` (``mcap``'s CRCValidationError), a record that
+    runs past the chunk's end a :class:`McapError`."""
     stream, size = get_chunk_data_stream(chunk, validate_crc=True)
     data = stream.read(size)
     offset = 0
@@ -262,7 +272,7 @@ def _indexed_summary(path: Path) -> LogSummary | None:
             for _, _, message in reader.iter_messages(topics=[topics.METRICS]):
                 summary.metrics = _metrics(message.data)
             return summary
-    except (McapError, EOFError, ValueError, OSError, struct.error, KeyError, ZstdError):
+    except SUMMARY_ERRORS:
         return None
 
 
@@ -319,11 +329,6 @@ def _scan_summary(path: Path) -> LogSummary:
     return summary
 
 
-def _has_summary(stream: Any) -> bool:
-    try:
-        return make_reader(stream).get_summary() is not None
-    except (McapError, EOFError, ValueError, OSError, struct.error, ZstdError):
-        return False
 def _metrics(data: bytes) -> dict[str, Any] | None:
     try:
         metrics = json.loads(data)
@@ -394,7 +399,7 @@ def _indexed_messages(path: Path, topics: set[str] | None
         summary = reader.get_summary()
         epoch = 0 if summary is None else next(
             (_epoch_ns(dict(m.metadata)) for m in reader.iter_metadata() if m.name == "run"), 0)
-    except (McapError, EOFError, ValueError, OSError, struct.error, KeyError, ZstdError):
+    except SUMMARY_ERRORS:
         summary = None
     if summary is None:
         stream.close()
@@ -416,8 +421,7 @@ def _read_chunks(stream: Any, chunk_indexes: Sequence[Any], names: dict[int, str
             try:
                 stream.seek(index.chunk_start_offset + RECORD_HEADER.size)
                 records = list(_chunk_records(Chunk.read(ReadDataStream(stream)), names))
-            except (McapError, EOFError, ValueError, OSError, struct.error, ZstdError,
-                    RuntimeError, MemoryError):
+            except DAMAGE_ERRORS:
                 return
             for record in records:
                 if isinstance(record, Message):
