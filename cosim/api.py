@@ -133,8 +133,9 @@ def sweep(
     :class:`cosim.core.exceptions.CosimError` before any run; an interrupt re-raises
     ``KeyboardInterrupt`` with the finished rows kept.
 
-    The ``process`` backend starts its workers fresh (multiprocessing's ``spawn``): they
-    import the caller's main module, so a script that calls this keeps its work under
+    The ``process`` backend starts its workers from a fresh process (multiprocessing's
+    ``forkserver``, or ``spawn`` where there is none): they import the caller's main module,
+    so a script that calls this keeps its work under
     ``if __name__ == "__main__":``, as every script with a process pool must.
     """
     spec_path = Path(spec)

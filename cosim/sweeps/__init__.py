@@ -9,7 +9,7 @@ The modules, in the order a sweep uses them:
 
 * :mod:`cosim.sweeps.spec`: the spec as frozen dataclasses, validated; the list of runs.
 * :mod:`cosim.sweeps.execute`: one run as a task (plain dict in, plain dict out) and the
-  backends that run many (a spawn process pool, or Ray).
+  backends that run many (a process pool forked from a forkserver, or Ray).
 * :mod:`cosim.sweeps.results`: the append-only ``results.jsonl``, resume, CSV/JSON and the
   Markdown summary.
 * :mod:`cosim.sweeps.plots`: the heat map and metric-vs-parameter PNGs (matplotlib, Agg).
