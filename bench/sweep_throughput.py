@@ -5,8 +5,10 @@
 Runs a grid of ``--runs`` lane changes of ``--duration`` simulated seconds each (plant mass
 varied, one seed) through ``cosim sweep``'s process backend, once with one worker and once
 with ``--workers``, and prints runs per second of each and their ratio. Each sweep includes
-starting its worker processes (a spawned worker imports MuJoCo and CasADi, about a second),
-as a user's sweep does. On an idle machine with 2 cores the target ratio is >= 1.7; figures
+starting its worker processes, as a user's sweep does: forked from the process's forkserver,
+which the first sweep starts (it imports MuJoCo, CasADi and the runner once, about half a
+second; :func:`cosim.sweeps.execute.pool_context`). On an idle machine with 2 cores the
+target ratio is >= 1.7; figures
 taken while other jobs load the machine say nothing about the sweep.
 """
 
