@@ -44,7 +44,7 @@ from cosim.simulation.observers import LogInstant, Observer
 from cosim.simulation.outcome import Event
 from cosim.simulation.scenario_config import ScenarioConfig
 from cosim.simulation.sensor_suite import SensorSuite
-from cosim.simulation.traffic_loop import TrafficLoop
+from cosim.simulation.traffic_log import TrafficLog
 from estimation.update_result import UpdateResult
 
 LIVE_METRICS_PERIOD_S = 1.0
@@ -116,7 +116,7 @@ class RunLog(Observer):
         self._registered: set[str] = set()
         """Channels registered with their first message."""
 
-    def header(self, course: Course, mjcf_xml: str, traffic: TrafficLoop | None) -> None:
+    def header(self, course: Course, mjcf_xml: str, traffic: TrafficLog | None) -> None:
         """Channels (traffic's after every run's and the sensors'), the run's metadata, the
         simulated MJCF, the path and the static scene."""
         recorder, config = self._recorder, self._config
@@ -127,7 +127,7 @@ class RunLog(Observer):
         for name in self._sensors.names:
             recorder.register(topics.sensor_topic(name))
         if traffic is not None:
-            traffic.register()
+            traffic.register()  # the traffic's log (cosim.simulation.traffic_log)
         config_dict = to_dict(config)
         found = versions()
         recorder.add_metadata("run", {

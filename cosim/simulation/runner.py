@@ -53,6 +53,7 @@ from cosim.simulation.run_log import RunLog
 from cosim.simulation.scenario_config import ScenarioConfig, steps_per_period
 from cosim.simulation.seeding import component_rng
 from cosim.simulation.sensor_suite import SensorSuite
+from cosim.simulation.traffic_log import TrafficLog
 from cosim.simulation.traffic_loop import CollisionError, TrafficLoop, build_traffic
 from cosim.simulation.watch import RunWatch
 from cosim.simulation.workshop import Workshop
@@ -167,16 +168,22 @@ class _Run:
             config.disturbances, self.clock.dt_s, component_rng(config.seed, "disturbances")))
         self._truth: VehicleState | None = None
         self.traffic = None if traffic is None else \
-            TrafficLoop(config, self.plant, traffic, recorder, self.tracker,
+            TrafficLoop(config, self.plant, traffic, self.tracker,
                         component_rng(config.seed, f"sensors.{RADAR}"))
-        """Traffic, range sensor and ACC topics (:mod:`cosim.simulation.traffic_loop`)."""
+        """Traffic, range sensor, collisions, gap and ACC metrics
+        (:mod:`cosim.simulation.traffic_loop`)."""
         self.watch = RunWatch(config, self.course, self.emit)
         """Metrics, outcome and course monitors; the terminal event the run stops at."""
         self.observers: tuple[RunObserver, ...] = (self.watch,)
         """Called at the points of each step, in this order (:mod:`.observers`)."""
         if recorder.keeps:
             log = RunLog(recorder, config, self.watch.metrics, self.sensors)
-            log.header(self.course, self.plant.mjcf_xml, self.traffic)
+            traffic_log = None
+            if self.traffic is not None:  # its messages: none built without a log
+                traffic_log = TrafficLog(recorder, self.traffic.radar is not None,
+                                         self.traffic.acc is not None)
+                self.traffic.observers = (traffic_log,)
+            log.header(self.course, self.plant.mjcf_xml, traffic_log)
             self.observers = (self.watch, log)
 
     @property

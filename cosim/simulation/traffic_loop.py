@@ -1,19 +1,18 @@
-"""Traffic in a run: the range sensor, the ACC's topics, collisions and the ACC metrics.
+"""Traffic in a run: the range sensor, collisions and the gap and ACC metrics.
 
 The runner builds a :class:`TrafficLoop` when the scenario has traffic (``traffic:``) and
-calls it from its phases:
+calls it from its phases; what only looks (the log: :class:`cosim.simulation.traffic_log.
+TrafficLog`) is one of its ``observers``, called at each point below; a run without a log
+has none and builds no message:
 
-- at each log step (:meth:`TrafficLoop.log`): the cars' true poses on ``/traffic/cars`` and
-  as boxes on ``/scene/traffic`` (at ``sim.scene_period_s``, like the other scenes); the
-  true gap to the nearest car ahead in the ego's lane, its time gap, time to collision and
-  the minimum safe gap on ``/traffic/gap`` (and into the metrics); a contact between the
-  ego's body and a car's ends the run (:class:`CollisionError`: outcome ``collision``,
-  ``completed: false``);
-- when the range sensor is due (:meth:`TrafficLoop.sense`): a reading on ``/sensors/radar``,
+- at each log step (:meth:`TrafficLoop.log`): the cars' true poses (``cars``); the true gap
+  to the nearest car ahead in the ego's lane, its time gap, time to collision and the
+  minimum safe gap (``gap``, and into the metrics); a contact between the ego's body and a
+  car's ends the run (:class:`CollisionError`: outcome ``collision``, ``completed: false``);
+- when the range sensor is due (:meth:`TrafficLoop.sense`): a reading (``ranged``),
   delivered to the tracker if it takes readings (the ACC: ``observe_range``);
-- after each control step (:meth:`TrafficLoop.after_control`): the ACC's gains, objective
-  and mode on ``/acc/gains``, ``/acc/objective``, ``/acc/mode`` (Foxglove plots their
-  convergence).
+- after each control step (:meth:`TrafficLoop.after_control`): the ACC's decision
+  (``decided``: its gains, objective and mode, which Foxglove plots converge).
 
 Metrics (:meth:`TrafficLoop.result`, from the truth unless named otherwise):
 ``gap_min_m`` (smallest true gap to the car ahead in the lane, :meth:`TrafficLoop.car_ahead`;
@@ -50,15 +49,13 @@ from collections import deque
 import numpy as np
 
 from cosim.core.records import VehicleState
-from cosim.core.sensor_names import RADAR
 from cosim.core.traffic_records import CarPose
-from cosim.log import foxglove, topics
-from cosim.log.recorder import Recorder
 from cosim.plant.car import MujocoPlant
 from cosim.plant.traffic import Traffic, traffic_cars
 from cosim.sensing.range_sensor import RangeSensor
 from cosim.simulation.running_stats import RunningStats
 from cosim.simulation.scenario_config import ScenarioConfig, steps_per_period
+from cosim.simulation.traffic_log import TrafficObserver
 from tracker.cruise.config import GAIN_NAMES
 from tracker.protocol import RangeObserver
 
@@ -129,11 +126,13 @@ class TrafficLoop:
     """The run's traffic phases (module docstring)."""
 
     def __init__(self, config: ScenarioConfig, plant: MujocoPlant, traffic: Traffic,
-                 recorder: Recorder, tracker: object, rng: np.random.Generator) -> None:
+                 tracker: object, rng: np.random.Generator) -> None:
         self.config = config
         self.plant = plant
         self.traffic = traffic
-        self.recorder = recorder
+        self.observers: tuple[TrafficObserver, ...] = ()
+        """Called at the points of the traffic's part of a step (the log, when the run has
+        one: :class:`cosim.simulation.traffic_log.TrafficLog`)."""
         from tracker.cruise.law import AccTracker  # only runs with traffic need the ACC's code
 
         self.acc = tracker if isinstance(tracker, AccTracker) else None
@@ -168,27 +167,13 @@ class TrafficLoop:
         self.target_changes = 0
         self.last_target = ""
 
-    def register(self) -> None:
-        recorder = self.recorder
-        recorder.register(topics.TRAFFIC_CARS)
-        recorder.register(topics.TRAFFIC_GAP)
-        recorder.register(topics.SCENE_TRAFFIC)
-        if self.radar is not None:
-            recorder.register(topics.sensor_topic(RADAR))
-        if self.acc is not None:
-            recorder.register(topics.ACC_GAINS)
-            recorder.register(topics.ACC_OBJECTIVE)
-            recorder.register(topics.ACC_MODE)
-
     def log(self, t_s: float, truth: VehicleState, scene: bool = True) -> None:
         """Log step: poses, the scene (when ``scene``: at ``sim.scene_period_s``), the true
         gap and its metrics; raise on a collision."""
         poses = self.traffic.poses(t_s)
-        cars = [pose.to_message() for pose in poses]
-        self.recorder.write(topics.TRAFFIC_CARS, t_s, {"t_s": t_s, "cars": cars})
-        if scene:
-            self.recorder.write(topics.SCENE_TRAFFIC, t_s,
-                                foxglove.traffic_scene(t_s, cars, self.last_target))
+        observers = self.observers
+        for observer in observers:
+            observer.cars(t_s, poses, scene, self.last_target)
         car, gap, range_rate = self.car_ahead(truth, poses)
         speed = truth.vx_mps
         safe_gap = self.safe_standstill_gap_m + self.safe_time_gap_s * max(speed, 0.0)
@@ -203,11 +188,8 @@ class TrafficLoop:
             if -range_rate > MIN_CLOSING_SPEED_MPS:
                 ttc = touching_gap / -range_rate
                 self.ttc_s.add(ttc)
-        self.recorder.write_finite(topics.TRAFFIC_GAP, t_s, {
-            "t_s": t_s, "target": car.name if car is not None else "", "gap_m": gap,
-            "range_rate_mps": range_rate, "time_gap_s": time_gap, "ttc_s": ttc,
-            "safe_gap_m": safe_gap,
-            "target_speed_mps": car.speed_mps if car is not None else math.nan})
+        for observer in observers:
+            observer.gap(t_s, car, gap, range_rate, time_gap, ttc, safe_gap)
         if self.acc is not None and t_s > 0.0:
             if self.mode == "speed":
                 self.speed_err_mps.add(truth.speed_mps - self.set_speed_mps)
@@ -258,7 +240,8 @@ class TrafficLoop:
         reading = self.radar.sample(truth, self.traffic.poses(t_s), self.rng)
         if reading is None:  # a dropout: nothing is delivered
             return
-        self.recorder.write_finite(topics.sensor_topic(RADAR), t_s, reading.to_message())
+        for observer in self.observers:
+            observer.ranged(t_s, reading)
         if reading.target and reading.target != self.last_target:
             if self.last_target:
                 self.target_changes += 1
@@ -269,19 +252,12 @@ class TrafficLoop:
             self.deliver(reading)
 
     def after_control(self, t_s: float) -> None:
-        """Log the ACC's decision of this control step."""
+        """The ACC's decision of this control step: to the observers, into the metrics."""
         status = self.acc.status if self.acc is not None else None
         if status is None:
             return
-        recorder = self.recorder
-        recorder.write(topics.ACC_GAINS, t_s, status.gains_message())
-        recorder.write_finite(topics.ACC_OBJECTIVE, t_s,
-                              {"t_s": t_s, "objective": status.objective})
-        recorder.write_finite(topics.ACC_MODE, t_s, {
-            "t_s": t_s, "mode": status.mode, "gap_mode": status.mode == "gap",
-            "target": status.target, "gap_m": status.gap_m,
-            "desired_gap_m": status.desired_gap_m, "range_rate_mps": status.range_rate_mps,
-            "speed_mps": status.speed_mps, "accel_mps2": status.accel_mps2})
+        for observer in self.observers:
+            observer.decided(t_s, status)
         self.mode = status.mode
         self.settling.add(t_s, status.gain_estimates, status.objective)
         if math.isfinite(status.objective):

@@ -52,6 +52,29 @@ def test_a_traffic_run_logs_cars_radar_and_the_acc(cut_in_start: RunResult) -> N
     assert 40.0 < metrics["gap_min_m"] < 46.0  # started at 45.45 m, the desired 41 m
 
 
+def test_a_run_without_a_log_builds_no_traffic_message(
+        cut_in_start: RunResult, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The traffic's messages come from the log's observer alone
+    (:mod:`cosim.simulation.traffic_log`): the same 2 s without a log build none (each would
+    raise here), and give the logged run's metrics."""
+    from cosim.core.traffic_records import CarPose, RangeReading
+    from cosim.simulation.metric_keys import WALL_CLOCK_KEYS
+    from tracker.cruise.law import AccStatus
+
+    def refused(*args: object) -> dict[str, object]:
+        raise AssertionError("a traffic message was built in a run without a log")
+
+    for record, builder in ((CarPose, "to_message"), (RangeReading, "to_message"),
+                            (AccStatus, "gains_message")):
+        monkeypatch.setattr(record, builder, refused)
+    unlogged = run_acc(Path("unused"), "acc-cut-in", duration_s=2.0, logged=False)
+    assert unlogged.completed
+    logged = cut_in_start.metrics
+    assert logged["acc_target_changes"] == 0 and math.isfinite(logged["gap_min_m"])
+    assert {k: v for k, v in unlogged.metrics.items() if k not in WALL_CLOCK_KEYS} == \
+        {k: v for k, v in logged.items() if k not in WALL_CLOCK_KEYS}
+
+
 def test_one_seed_one_log(cut_in_start: RunResult, tmp_path: Path) -> None:
     again = run_acc(tmp_path, "acc-cut-in", duration_s=2.0)
     for topic in ("/sensors/radar", "/acc/gains", "/traffic/gap"):
