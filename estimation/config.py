@@ -314,6 +314,12 @@ class EstimatorConfig:
         doc="wheel-speed model: the tyre's longitudinal curvature factor E (p_Ex1 = 0.344 of "
         "the plant's default tyre, Pacejka 2012; estimation.wheel_slip, (S1'))",
     )
+    tyre_vertical_compliance_mpn: float = setting(
+        0.0, low=0.0, high=1e-4,
+        doc="wheel-speed model: the tyre's loaded radius drop per newton of vertical load, "
+        "1 / k_z; the rolling radius is R s - F_z / k_z with F_z the wheel's load of the "
+        "slip model (estimation.wheel_slip.wheel_load); 0: the radius does not move with load",
+    )
     lateral_accel_model_sigma_mps2: float = setting(
         0.0, low=0.0, high=50.0,
         doc="IMU lateral acceleration: vibration, mounting (its bias is a state)",

@@ -136,6 +136,7 @@ class KalmanFusion(ABC):
             wheel_slip_combined_stiffness_1prad=config.wheel_slip_combined_stiffness_1prad,
             wheel_slip_saturation=(config.wheel_slip_peak_force_ratio, config.wheel_slip_shape,
                                    config.wheel_slip_curvature),
+            tyre_vertical_compliance_mpn=config.tyre_vertical_compliance_mpn,
         )
         if config.compiled:
             use_compiled(self.kind, self._hot_functions(), formula)

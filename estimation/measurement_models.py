@@ -27,7 +27,7 @@ from estimation.bicycle import (
     world_velocity,
 )
 from estimation.state import STATE_NAMES, named_states
-from estimation.wheel_slip import WheelLoads, slip_ratio
+from estimation.wheel_slip import WheelLoads, slip_ratio, wheel_load
 
 Params = ParamSpec("Params")
 
@@ -215,7 +215,11 @@ def wheel_spin(
         slip_angle = ca.atan(across / ca.fmax(ca.fabs(along), 1.0))
         along = along * (1.0 + slip_ratio(s, front, left, track * s["wheel_track_scale"], loads,
                                           drag_n, slip_angle, saturating))
-    return along / (belief.wheel_radius_m * s["rolling_radius_scale"])
+    radius = belief.wheel_radius_m * s["rolling_radius_scale"]
+    if loads is not None:  # the tyre's loaded radius (0 compliance: the same numbers)
+        radius = radius - loads.vertical_compliance_mpn * wheel_load(
+            s, front, left, track * s["wheel_track_scale"], loads)
+    return along / radius
 
 
 def free_rolling_wheels(belief: VehicleParams) -> tuple[str, ...]:
@@ -257,6 +261,7 @@ def build_measurement_models(
     wheel_slip_per_force_ratio: float = 0.0,
     wheel_slip_combined_stiffness_1prad: float = 0.0,
     wheel_slip_saturation: tuple[float, float, float] | None = None,
+    tyre_vertical_compliance_mpn: float = 0.0,
 ) -> dict[str, MeasurementModel]:
     """The measurement models of every sensor the filters fuse, by sensor name.
 
@@ -298,7 +303,8 @@ def build_measurement_models(
     numbers = symbolic_twin(_Belief(believed, WheelGeometry.from_vehicle(belief),
                                     WheelLoads.from_vehicle(belief, wheel_slip_per_force_ratio,
                                                             wheel_slip_combined_stiffness_1prad,
-                                                            wheel_slip_saturation)))
+                                                            wheel_slip_saturation,
+                                                            tyre_vertical_compliance_mpn)))
     bicycle, geometry = numbers.twin.bicycle, numbers.twin.geometry
     loads = numbers.twin.loads if wheel_slip_per_force_ratio > 0.0 else None
     common = {"belief": numbers}

@@ -117,11 +117,15 @@ class WheelLoads:
     """``C`` of (S1')."""
     curvature: float = 0.0
     """``E`` of (S1')."""
+    vertical_compliance_mpn: float = 0.0
+    """The tyre's loaded radius drop per newton of its vertical load, ``1 / k_z`` [m/N]:
+    the rolling radius ``R s - F_z / k_z`` (0: the rolling radius does not move with load)."""
 
     @classmethod
     def from_vehicle(cls, belief: VehicleParams, slip_per_force_ratio: float,
                      combined_stiffness: float = 0.0,
-                     saturation: tuple[float, float, float] | None = None) -> WheelLoads:
+                     saturation: tuple[float, float, float] | None = None,
+                 vertical_compliance_mpn: float = 0.0) -> WheelLoads:
         """The numbers of ``belief``; ``saturation`` is (S1')'s ``(mu, C, E)`` (None: the
         linear law (S1))."""
         peak, shape, curvature = (LINEAR_PEAK_FORCE_RATIO, 1.0, 0.0) if saturation is None \
@@ -146,6 +150,7 @@ class WheelLoads:
             peak_force_ratio=peak,
             shape=shape,
             curvature=curvature,
+            vertical_compliance_mpn=vertical_compliance_mpn,
         )
 
 
@@ -166,15 +171,24 @@ def slip_ratio(s: Mapping[str, ca.SX], front: bool, left: bool, track_m: ca.SX,
         brake, drive = 0.5 * (1.0 - loads.brake_front_share), loads.rear_drive_share
     force = (brake * ca.fmin(total, 0.0) + drive * ca.fmax(total, 0.0)
              + loads.wheel_inertia_mass_kg * ax)
-    wheelbase = loads.cog_front_m + loads.cog_rear_m
-    lever = loads.cog_rear_m if front else loads.cog_front_m
-    pitch = (-1.0 if front else 1.0) * ax * loads.cog_height_m
-    roll = (1.0 if left else -1.0) * -s["yaw_rate_radps"] * vx * loads.cog_height_m * lever
-    load = loads.mass_kg * (0.5 * (GRAVITY_MPS2 * lever + pitch) + roll / track_m) / wheelbase
+    load = wheel_load(s, front, left, track_m, loads)
     combined = ca.sqrt(1.0 + (loads.combined_stiffness * slip_angle_rad) ** 2)
     ratio = force * combined / load
     return slip_of_force_ratio(ratio, loads) if saturating else \
         loads.slip_per_force_ratio * ratio
+
+
+def wheel_load(s: Mapping[str, ca.SX], front: bool, left: bool, track_m: ca.SX,
+               loads: WheelLoads) -> ca.SX:
+    """The wheel's vertical load [N]: its axle's static share with the longitudinal load
+    transfer of ``a_x`` and the lateral one of ``r v_x`` on an axle of track ``track_m``,
+    (S4)."""
+    vx, ax = s["vx_mps"], s["ax_mps2"]
+    wheelbase = loads.cog_front_m + loads.cog_rear_m
+    lever = loads.cog_rear_m if front else loads.cog_front_m
+    pitch = (-1.0 if front else 1.0) * ax * loads.cog_height_m
+    roll = (1.0 if left else -1.0) * -s["yaw_rate_radps"] * vx * loads.cog_height_m * lever
+    return loads.mass_kg * (0.5 * (GRAVITY_MPS2 * lever + pitch) + roll / track_m) / wheelbase
 
 
 def slip_of_force_ratio(ratio: ca.SX, loads: WheelLoads) -> ca.SX:

@@ -77,6 +77,7 @@ def test_config_fields_carry_units_or_are_flags() -> None:
         "_radpmps2",
         "_hz",
         "_radpnm",
+        "_mpn",
         "_1prad",
     )
     dimensionless = ("gate_probability", "roll_damping_ratio", "ukf_alpha", "ukf_beta",
