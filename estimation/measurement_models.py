@@ -190,7 +190,10 @@ def wheel_spin(
     track of that axle times ``wheel_track_scale``, left positive); the wheel spins at the
     component along its own plane (steered by its Ackermann angle at the front), over the
     believed radius times ``rolling_radius_scale``, times ``1 + kappa`` with the wheel's
-    slip ratio ``kappa`` (:func:`estimation.wheel_slip.slip_ratio`) where ``loads`` is given.
+    slip ratio ``kappa`` (:func:`estimation.wheel_slip.slip_ratio`) where ``loads`` is given;
+    the radius then shortened by the tyre's deflection under the wheel's load ``F_z``
+    (:func:`estimation.wheel_slip.wheel_load`), ``F_z / k_z`` with
+    ``loads.vertical_compliance_mpn`` as ``1 / k_z``.
     """
     front = wheel.startswith("front")
     left = wheel.endswith("left")
@@ -208,17 +211,17 @@ def wheel_spin(
         across = sideways * ca.cos(angle) - forward * ca.sin(angle)
     else:
         along, across = forward, sideways
+    radius = belief.wheel_radius_m * s["rolling_radius_scale"]
     if loads is not None:
+        load_n = wheel_load(s, front, left, track * s["wheel_track_scale"], loads)
         force_front, _ = axle_forces(s, bicycle)
         drag_n = force_front * ca.sin(s["steer_rad"])  # (S2): the steered tyres' pull
         # (S1)'s slip angle, guarded below 1 m/s (a wheel at rest has none to speak of)
         slip_angle = ca.atan(across / ca.fmax(ca.fabs(along), 1.0))
-        along = along * (1.0 + slip_ratio(s, front, left, track * s["wheel_track_scale"], loads,
-                                          drag_n, slip_angle, saturating))
-    radius = belief.wheel_radius_m * s["rolling_radius_scale"]
-    if loads is not None:  # the tyre's loaded radius (0 compliance: the same numbers)
-        radius = radius - loads.vertical_compliance_mpn * wheel_load(
-            s, front, left, track * s["wheel_track_scale"], loads)
+        along = along * (1.0 + slip_ratio(s, front, load_n, loads, drag_n, slip_angle,
+                                          saturating))
+        # The tyre's loaded radius (0 compliance: the same numbers).
+        radius = radius - loads.vertical_compliance_mpn * load_n
     return along / radius
 
 

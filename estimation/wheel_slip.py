@@ -125,7 +125,7 @@ class WheelLoads:
     def from_vehicle(cls, belief: VehicleParams, slip_per_force_ratio: float,
                      combined_stiffness: float = 0.0,
                      saturation: tuple[float, float, float] | None = None,
-                 vertical_compliance_mpn: float = 0.0) -> WheelLoads:
+                     vertical_compliance_mpn: float = 0.0) -> WheelLoads:
         """The numbers of ``belief``; ``saturation`` is (S1')'s ``(mu, C, E)`` (None: the
         linear law (S1))."""
         peak, shape, curvature = (LINEAR_PEAK_FORCE_RATIO, 1.0, 0.0) if saturation is None \
@@ -154,11 +154,11 @@ class WheelLoads:
         )
 
 
-def slip_ratio(s: Mapping[str, ca.SX], front: bool, left: bool, track_m: ca.SX,
-               loads: WheelLoads, cornering_drag_n: ca.SX | float = 0.0,
-               slip_angle_rad: ca.SX | float = 0.0, saturating: bool = False) -> ca.SX:
-    """``kappa`` of a wheel (front or rear, left or right, on an axle of track ``track_m``),
-    (S1)-(S4), from the state's speed, yaw rate and longitudinal acceleration;
+def slip_ratio(s: Mapping[str, ca.SX], front: bool, load_n: ca.SX, loads: WheelLoads,
+               cornering_drag_n: ca.SX | float = 0.0, slip_angle_rad: ca.SX | float = 0.0,
+               saturating: bool = False) -> ca.SX:
+    """``kappa`` of a wheel (front or rear) carrying ``load_n`` (:func:`wheel_load`, (S4)),
+    (S1)-(S3), from the state's speed and longitudinal acceleration;
     ``cornering_drag_n`` is ``F_yf sin(delta)`` of (S2) [N], ``slip_angle_rad`` the wheel's
     ``alpha`` of (S1); ``saturating``: (S1') instead of (S1)."""
     vx, ax = s["vx_mps"], s["ax_mps2"]
@@ -171,9 +171,8 @@ def slip_ratio(s: Mapping[str, ca.SX], front: bool, left: bool, track_m: ca.SX,
         brake, drive = 0.5 * (1.0 - loads.brake_front_share), loads.rear_drive_share
     force = (brake * ca.fmin(total, 0.0) + drive * ca.fmax(total, 0.0)
              + loads.wheel_inertia_mass_kg * ax)
-    load = wheel_load(s, front, left, track_m, loads)
     combined = ca.sqrt(1.0 + (loads.combined_stiffness * slip_angle_rad) ** 2)
-    ratio = force * combined / load
+    ratio = force * combined / load_n
     return slip_of_force_ratio(ratio, loads) if saturating else \
         loads.slip_per_force_ratio * ratio
 
