@@ -53,7 +53,7 @@ from tracker.mpc.fallback import (
     first_command,
     safe_stop_inputs,
     shifted_inputs,
-    shifted_states,
+    shifted_plan,
 )
 from tracker.paths.reference_path import ReferencePath
 
@@ -252,9 +252,9 @@ class MpcTracker:
             inputs = np.tile(self._previous_input, (self._n, 1))
             return Trajectory(t_s, t_s, self._rollout(Start(t_s, state0), inputs), inputs)
         warm, dt_s = self._warm, self._stage_dt_s
-        states = shifted_states(warm.states, warm.inputs, warm.t_s, t_s, dt_s,
-                                step, state0, yaw_index)  # type: ignore[arg-type]
-        return Trajectory(t_s, t_s, states, shifted_inputs(warm.inputs, warm.t_s, t_s, dt_s))
+        states, inputs = shifted_plan(warm.states, warm.inputs, warm.t_s, t_s, dt_s,
+                                      step, state0, yaw_index)  # type: ignore[arg-type]
+        return Trajectory(t_s, t_s, states, inputs)
 
     def _first_period_s(self, t_s: float) -> float:
         """Time since the last command; on the first step the shorter of the control

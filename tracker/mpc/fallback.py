@@ -89,7 +89,7 @@ def safe_stop_inputs(
     return inputs
 
 
-def shifted_states(
+def shifted_plan(
     states: np.ndarray,
     inputs: np.ndarray,
     plan_t_s: float,
@@ -98,12 +98,13 @@ def shifted_states(
     step: Callable[[np.ndarray, np.ndarray], np.ndarray],
     state0: np.ndarray,
     yaw_index: int,
-) -> np.ndarray:
-    """The states of a plan made at ``plan_t_s``, from ``t_s`` on (the warm start).
+) -> tuple[np.ndarray, np.ndarray]:
+    """The states and inputs of a plan made at ``plan_t_s``, from ``t_s`` on (the warm
+    start): the inputs of :func:`shifted_inputs`, and the states shifted alike.
 
     Nodes past the plan's end are rolled out with ``step`` (one stage of the model) and the
-    held inputs of :func:`shifted_inputs`; the yaw is moved by whole turns onto
-    ``state0``'s and node 0 pinned to ``state0``, the state the new plan starts from.
+    held inputs; the yaw is moved by whole turns onto ``state0``'s and node 0 pinned to
+    ``state0``, the state the new plan starts from.
     """
     n = inputs.shape[0]
     shift = max(0, int(round((t_s - plan_t_s) / dt_s)))
@@ -119,7 +120,7 @@ def shifted_states(
         turns = float(round(turns))
     out[:, yaw_index] += 2.0 * math.pi * turns
     out[0] = state0
-    return out
+    return out, held
 
 
 def first_command(t_s: float, inputs: np.ndarray) -> Command:
