@@ -36,8 +36,9 @@ NOMINAL_MASS_KG = 1575.0
 
 
 def lane_change(tmp_path: Path, *overrides: str) -> RunResult:
-    """The full lane change, seed 0, with ``overrides`` on top of the defaults."""
-    return run_scenario(tmp_path, "lane-change", *overrides)
+    """The full lane change, seed 0, with ``overrides`` on top of the defaults (no log: the
+    tests here read the metrics)."""
+    return run_scenario(tmp_path, "lane-change", *overrides, logged=False)
 
 
 def assert_tracks(result: RunResult, cte_bound_m: float) -> None:

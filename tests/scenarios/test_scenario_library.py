@@ -71,15 +71,17 @@ def test_course_is_in_the_foxglove_scene(tmp_path: Path) -> None:
     assert len(bounds["lines"]) == 2
 
 
-def _full(tmp_path: Path, scenario: str, tracker: str, *overrides: str) -> RunResult:
-    result = run_scenario(tmp_path, scenario, f"tracker.name={tracker}", *overrides)
+def _full(tmp_path: Path, scenario: str, tracker: str, *overrides: str,
+          logged: bool = True) -> RunResult:
+    result = run_scenario(tmp_path, scenario, f"tracker.name={tracker}", *overrides,
+                          logged=logged)
     assert result.completed, result.abort_reason
     return result
 
 
 @pytest.mark.slow
 def test_iso_lane_change_passes_every_gate_at_60_kmh(tmp_path: Path) -> None:
-    result = _full(tmp_path, "iso-lane-change", "dynamic-mpc")
+    result = _full(tmp_path, "iso-lane-change", "dynamic-mpc", logged=False)
     assert result.metrics["gates_hit"] == 0
     assert all(result.metrics[f"gate_{g}_passed"] for g in (1, 3, 5, 6))
 
@@ -89,7 +91,8 @@ def test_iso_lane_change_too_fast_hits_gates(tmp_path: Path) -> None:
     # 76 km/h on the lanes' centre line needs more grip than the tyres have in the offset
     # lane (bench/iso_entry_speed.py: the best tracker passes up to about 68 km/h).
     result = _full(tmp_path, "iso-lane-change", "dynamic-mpc", "path.speed_mps=21.11",
-                   "initial.speed_mps=21.11", "outcome.keep_going=true")  # it spins after
+                   "initial.speed_mps=21.11", "outcome.keep_going=true",
+                   logged=False)  # it spins after
     assert result.metrics["gates_hit"] >= 1
 
 
@@ -108,6 +111,6 @@ def test_stop_and_go_comes_to_full_stops_and_goes_again(tmp_path: Path, tracker:
 
 @pytest.mark.slow
 def test_track_lap_stays_within_the_track(tmp_path: Path) -> None:
-    result = _full(tmp_path, "track", "ltv-mpc")
+    result = _full(tmp_path, "track", "ltv-mpc", logged=False)
     assert result.metrics["track_limit_exceedances"] == 0
     assert result.metrics["cte_max_m"] < 1.0
