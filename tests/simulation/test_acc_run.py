@@ -159,7 +159,8 @@ def test_braking_lead_within_and_beyond_the_acc_authority(tmp_path: Path, decel_
                                                           outcome: str) -> None:
     """The ACC brakes at most 3.5 m/s^2: a lead braking at 3 is followed to a stop with a
     safe gap; one braking at 9 is hit (the documented limit, docs/acc.md)."""
-    result = run_acc(tmp_path, "acc-braking", f"traffic.lead.brake_decel_mps2={decel_mps2}")
+    result = run_acc(tmp_path, "acc-braking", f"traffic.lead.brake_decel_mps2={decel_mps2}",
+                     logged=False)
     assert result.outcome == outcome
     if outcome == "ok":
         assert result.metrics["safe_gap_ok"] is True

@@ -19,7 +19,8 @@ def test_an_oval_that_starts_in_its_tightest_bend_is_driven(tmp_path: Path) -> N
     theta = np.linspace(0.0, 2.0 * np.pi, 200, endpoint=False)
     oval.write_text("x,y\n" + "".join(f"{60 * np.cos(t):.3f},{30 * np.sin(t):.3f}\n"
                                       for t in theta))
-    result = run_scenario(tmp_path, "track", f"path.file={oval}", duration_s=8.0)
+    result = run_scenario(tmp_path, "track", f"path.file={oval}", duration_s=8.0,
+                          logged=False)
     assert result.outcome == "ok"
     assert result.metrics["track_limit_exceedances"] == 0
     assert result.metrics["lat_accel_max_mps2"] <= 1.2 * result.metrics[
@@ -30,7 +31,7 @@ def test_an_oval_that_starts_in_its_tightest_bend_is_driven(tmp_path: Path) -> N
 def test_a_generated_circuit_with_a_sampled_sedan_is_driven(tmp_path: Path) -> None:
     # Circuit 500 and sedan 500: outside the held-out bench's tuning and judging sets.
     result = run_scenario(tmp_path, "generated-circuit", "path.seed=500",
-                          "vehicle_sample=500", duration_s=12.0)
+                          "vehicle_sample=500", duration_s=12.0, logged=False)
     assert result.outcome == "ok"
     assert result.metrics["track_limit_exceedances"] == 0
     assert result.metrics["lat_accel_max_mps2"] <= 1.1 * result.metrics[
