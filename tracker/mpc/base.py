@@ -54,6 +54,7 @@ from tracker.mpc.fallback import (
     safe_stop_inputs,
     shifted_inputs,
     shifted_plan,
+    stages_elapsed,
 )
 from tracker.paths.reference_path import ReferencePath
 
@@ -270,7 +271,7 @@ class MpcTracker:
             return speed
         last = self._last_good
         if last is not None:
-            node = min(max(0, int(round((t_s - last.t_s) / self._stage_dt_s))), self._n)
+            node = min(stages_elapsed(last.t_s, t_s, self._stage_dt_s), self._n)
             speed = float(last.states[node, self._speed_index])
             if math.isfinite(speed):
                 return speed

@@ -55,8 +55,13 @@ def shifted_inputs(inputs: np.ndarray, plan_t_s: float, t_s: float, dt_s: float)
     """The rows of a plan made at ``plan_t_s`` from ``t_s`` on, the last row held past its
     end; the same number of rows as ``inputs``."""
     n = inputs.shape[0]
-    shift = max(0, int(round((t_s - plan_t_s) / dt_s)))
+    shift = stages_elapsed(plan_t_s, t_s, dt_s)
     return inputs[np.minimum(np.arange(n) + shift, n - 1)].copy()
+
+
+def stages_elapsed(plan_t_s: float, t_s: float, dt_s: float) -> int:
+    """Whole stages of ``dt_s`` from a plan made at ``plan_t_s`` to ``t_s`` (none before it)."""
+    return max(0, int(round((t_s - plan_t_s) / dt_s)))
 
 
 def safe_stop_inputs(
@@ -107,7 +112,7 @@ def shifted_plan(
     ``state0``, the state the new plan starts from.
     """
     n = inputs.shape[0]
-    shift = max(0, int(round((t_s - plan_t_s) / dt_s)))
+    shift = stages_elapsed(plan_t_s, t_s, dt_s)
     held = shifted_inputs(inputs, plan_t_s, t_s, dt_s)
     out = np.empty_like(states)
     keep = max(0, n + 1 - shift)
