@@ -85,4 +85,5 @@ def bicycle_params(config: EstimatorConfig, belief: VehicleParams) -> BicyclePar
         belief, config.tyre_model, roll_params(config, belief),
         load_sensitivity=config.tyre_load_sensitivities,
         relaxation_lengths_m=config.tyre_relaxation_lengths_m,
+        lateral_transfer=config.lateral_load_transfer,
     )

@@ -30,6 +30,25 @@ cornering stiffness and differs from (D3) only where the tyres saturate: on the 
 sedan in a 0.8 g lane change the linear law's lateral acceleration is off by 1.7 m/s^2 RMS
 where ``|a_y| > 4 m/s^2``, (D3') by 0.24 m/s^2.
 
+In a turn the roll moment ``m h a_y`` moves load from the inner wheels to the outer ones, and
+the outer tyres carry more of their axle's force. The front pair is steered, so their forces
+then point unequally along the car: a yaw moment against the turn that the bicycle's axles do
+not have (the front wheels at ``+-t_f / 2`` across the car)::
+
+    dF_zf = m h a_y (l_r / L) / t_f,   a_y = r vx within +-mu g
+    F_yfl - F_yfr = F_w(alpha_f, F_zf / 2 - dF_zf) - F_w(alpha_f, F_zf / 2 + dF_zf)   (D3'''')
+    M_z = l_f F_yf - l_r F_yr + t_f / 2 sin(delta) (F_yfl - F_yfr)                     (D5')
+
+with ``F_w`` the front axle's law (D3')-(D3'') for one wheel (half the stiffness, at the
+wheel's load), the load moment shared by the axles as their static loads (as the wheel-speed
+model shares it, :mod:`estimation.wheel_slip` (S4)) and ``a_y`` the steady turn's, held
+within the grip. The axles' own forces stay their laws at the axle loads: along the sedan's
+true motion on the circuit (``estimator.lateral_load_transfer``: false leaves (D5') the
+axles' moment alone), the bicycle's yaw acceleration without (D5') was 0.0042 rad/s^2 per
+m/s^2 of ``a_y`` faster than the car's, 0.02 rad/s^2 in the circuit's 4-6 m/s^2 turns (of
+the 66 N m it lacked there, the plant's front tyres' forces gave 59); with it, 0.0002 (each
+wheel's law at its load in the axles' sums as well over-corrects it: -0.0026).
+
 A tyre does not build its force at once: its carcass deflects first, and the force follows
 the slip angle with a first-order lag over the *relaxation length* ``sigma`` of road it rolls
 (Pacejka 2012, section 7.2, ``sigma alpha'' + |V_x| alpha' = |V_x| alpha``, with ``alpha'``
@@ -142,6 +161,12 @@ class BicycleParams:
     their slip angle (0: at once)."""
     relaxation_length_rear_m: float = 0.0
     """``sigma_r`` of (D3'''), the rear tyres'."""
+    lateral_transfer_front_kg: float = 0.0
+    """``m h (l_r / L) / t_f`` of (D3''''): the load each front wheel gains (the outer) or
+    loses (the inner) per unit of lateral acceleration [N per m/s^2] (0: none)."""
+    front_half_track_m: float = 0.0
+    """``t_f / 2``: the arm of the front wheels' lateral forces' longitudinal components
+    about the CoG, (D5') (0: none)."""
 
     def __post_init__(self) -> None:
         for name, value in vars(self).items():
@@ -149,7 +174,8 @@ class BicycleParams:
                 continue
             if name in ("load_sensitivity_front", "load_sensitivity_rear",
                         "load_transfer_height_m", "relaxation_length_front_m",
-                        "relaxation_length_rear_m"):
+                        "relaxation_length_rear_m", "lateral_transfer_front_kg",
+                        "front_half_track_m"):
                 if not (math.isfinite(value) and value >= 0.0):
                     raise ValueError(f"{name} = {value!r}: expected a finite number >= 0")
                 continue
@@ -172,6 +198,7 @@ class BicycleParams:
         cls, belief: VehicleParams, tyre_model: str = "saturating", roll: RollParams | None = None,
         load_sensitivity: tuple[float, float] = (0.0, 0.0),
         relaxation_lengths_m: tuple[float, float] = (0.0, 0.0),
+        lateral_transfer: bool = False,
     ) -> BicycleParams:
         """Mass, yaw inertia, CoG position, axle cornering stiffnesses and tyre friction of
         ``belief``; ``roll`` the body roll mode (none by default); ``load_sensitivity`` the
@@ -202,7 +229,21 @@ class BicycleParams:
             load_transfer_height_m=belief.cog_height_m if any(load_sensitivity) else 0.0,
             relaxation_length_front_m=float(relaxation_lengths_m[0]),
             relaxation_length_rear_m=float(relaxation_lengths_m[1]),
+            **(lateral_transfer_numbers(belief) if lateral_transfer else {}),
         )
+
+
+def lateral_transfer_numbers(belief: VehicleParams) -> dict[str, float]:
+    """The numbers of (D3'''') and (D5') for ``belief``: the roll moment ``m h a_y`` of the
+    belief's CoG height over the ground, shared by the axles as their static loads (the
+    front ``l_r / L``, as the wheel-speed model shares it: :func:`estimation.wheel_slip.
+    wheel_load`), the front axle's share over its track."""
+    track_front = belief.axle_tracks_m[0]
+    wheelbase_m = belief.cog_front_m + belief.cog_rear_m
+    moment_kgm = belief.mass_kg * belief.cog_height_m
+    return {"lateral_transfer_front_kg": moment_kgm * belief.cog_rear_m / wheelbase_m
+            / track_front,
+            "front_half_track_m": 0.5 * track_front}
 
 
 def slip_speed(vx_mps: ca.SX | float) -> ca.SX:
@@ -213,21 +254,33 @@ def slip_speed(vx_mps: ca.SX | float) -> ca.SX:
     return ca.if_else(vx_mps >= v0, vx_mps, 0.5 * v0 + vx_mps**2 / (2.0 * v0))
 
 
-def axle_forces(s: Mapping[str, ca.SX], bicycle: BicycleParams) -> tuple[ca.SX, ca.SX]:
+def yaw_moment(front: ca.SX, rear: ca.SX, split: ca.SX, s: Mapping[str, ca.SX],
+               bicycle: BicycleParams) -> ca.SX:
+    """The yaw moment of the tyres' lateral forces about the CoG, (D5'): the axles',
+    ``l_f F_yf - l_r F_yr``, and that of the front wheels' forces' longitudinal components,
+    ``t_f / 2 sin(delta) (F_yfl - F_yfr)`` (``split``: left minus right) [N m]."""
+    return (bicycle.cog_front_m * front - bicycle.cog_rear_m * rear
+            + bicycle.front_half_track_m * ca.sin(s["steer_rad"]) * split)
+
+
+def axle_forces(s: Mapping[str, ca.SX],
+                bicycle: BicycleParams) -> tuple[ca.SX, ca.SX, ca.SX]:
     """Lateral forces of the front and rear axle, (D1)-(D3) or (D1), (D2), (D3'), with the
-    load transfer (D3'') and the tyres' relaxation (D3''') [N]."""
+    load transfer (D3'') and the tyres' relaxation (D3''') [N], and the front wheels' left
+    minus right force, (D3'''')."""
     speed = slip_speed(s["vx_mps"])
     r = s["yaw_rate_radps"]
     axle_vy = axle_lateral_velocity(s, bicycle)
     alpha_front, alpha_rear = axle_slip_angles(  # (D1), (D2)
         axle_vy, r, s["steer_rad"], speed, bicycle.cog_front_m, bicycle.cog_rear_m)
-    steady_front, steady_rear = _tyre_laws(alpha_front, alpha_rear, s, bicycle)
+    steady_front, steady_rear, steady_split = _tyre_laws(alpha_front, alpha_rear, s,
+                                                         bicycle)
     # (D3'''): the laws at the slip angles a relaxation time ago, to first order, the
     # angles' rates from the steady forces.
     tyre_accel = ((steady_front + steady_rear) / bicycle.mass_kg
                   + s["lateral_accel_residual_mps2"])
-    yaw_accel = (bicycle.cog_front_m * steady_front
-                 - bicycle.cog_rear_m * steady_rear) / bicycle.yaw_inertia_kgm2
+    yaw_accel = yaw_moment(steady_front, steady_rear, steady_split, s,
+                           bicycle) / bicycle.yaw_inertia_kgm2
     axle_vy_rate = tyre_accel - r * s["vx_mps"]
     speed_rate = (ca.if_else(s["vx_mps"] >= LOW_SPEED_MPS, 1.0, s["vx_mps"] / LOW_SPEED_MPS)
                   * (s["ax_mps2"] + r * s["vy_mps"]))
@@ -251,9 +304,23 @@ def _faded_lag(lag_s: ca.SX, mode_rate_1ps: ca.SX) -> ca.SX:
     return lag_s / (1.0 + 4.0 * q * q)
 
 
+def _axle_law(stiffness: ca.SX, alpha: ca.SX, ratio: ca.SX, sensitivity: ca.SX,
+              static_n: ca.SX, bicycle: BicycleParams) -> ca.SX:
+    """An axle's (or, with half its stiffness and load, a wheel's) force at slip angle
+    ``alpha`` and load ratio ``ratio``, (D3) or (D3') with (D3'') [N]."""
+    linear = stiffness * alpha * ratio**sensitivity  # (D3)
+    if bicycle.tyre_model == "linear":
+        return linear
+    # (D3'): F = mu F_z tanh(C alpha / (mu F_z)), the linear tyre up to a smooth limit at
+    # the friction force of the load.
+    limit = bicycle.tyre_friction * static_n * ratio
+    return limit * ca.tanh(linear / limit)
+
+
 def _tyre_laws(alpha_front: ca.SX, alpha_rear: ca.SX, s: Mapping[str, ca.SX],
-               bicycle: BicycleParams) -> tuple[ca.SX, ca.SX]:
-    """Each axle's force at the slip angle it follows, (D3) or (D3'), with (D3'') [N]."""
+               bicycle: BicycleParams) -> tuple[ca.SX, ca.SX, ca.SX]:
+    """Each axle's force at the slip angle it follows, (D3) or (D3'), with (D3''), and the
+    front wheels' left minus right force, (D3'''') [N]."""
     # (D3''): the pitch moment m a_x h moves the load m a_x h / L from the front axle to
     # the rear; each axle's stiffness (and friction force) follows its load ratio.
     static_front, static_rear = bicycle.axle_loads_n
@@ -261,20 +328,23 @@ def _tyre_laws(alpha_front: ca.SX, alpha_rear: ca.SX, s: Mapping[str, ca.SX],
                 / (bicycle.cog_front_m + bicycle.cog_rear_m))
     ratio_front = ca.fmax(1.0 - transfer / static_front, MIN_LOAD_RATIO)
     ratio_rear = ca.fmax(1.0 + transfer / static_rear, MIN_LOAD_RATIO)
-    linear_front = (bicycle.cornering_stiffness_front_npr * alpha_front  # (D3)
-                    * ratio_front**bicycle.load_sensitivity_front)
-    linear_rear = (bicycle.cornering_stiffness_rear_npr * alpha_rear
-                   * ratio_rear**bicycle.load_sensitivity_rear)
-    if bicycle.tyre_model == "linear":
-        return linear_front, linear_rear
-    # (D3'): F = mu F_z tanh(C alpha / (mu F_z)), the linear tyre up to a smooth limit at
-    # the friction force of the axle load.
-    limit_front = bicycle.tyre_friction * static_front * ratio_front
-    limit_rear = bicycle.tyre_friction * static_rear * ratio_rear
-    return (
-        limit_front * ca.tanh(linear_front / limit_front),
-        limit_rear * ca.tanh(linear_rear / limit_rear),
-    )
+    front = _axle_law(bicycle.cornering_stiffness_front_npr, alpha_front, ratio_front,
+                      bicycle.load_sensitivity_front, static_front, bicycle)
+    rear = _axle_law(bicycle.cornering_stiffness_rear_npr, alpha_rear, ratio_rear,
+                     bicycle.load_sensitivity_rear, static_rear, bicycle)
+    # (D3''''): the roll moment moves load from the inner front wheel to the outer one,
+    # each with half the axle's law at its own load; the lateral acceleration taken as the
+    # turn's, r vx, held within what the road gives, mu g (a sigma point or a prior far off,
+    # a yaw rate no tyre gives, moves no more load than the grip can).
+    grip = bicycle.tyre_friction * GRAVITY_MPS2
+    lateral = ca.fmin(ca.fmax(s["yaw_rate_radps"] * s["vx_mps"], -grip), grip)
+    shift = 2.0 * bicycle.lateral_transfer_front_kg * lateral / static_front
+    left, right = (
+        _axle_law(0.5 * bicycle.cornering_stiffness_front_npr, alpha_front,
+                  ca.fmax(ratio_front + side * shift, MIN_LOAD_RATIO),
+                  bicycle.load_sensitivity_front, 0.5 * static_front, bicycle)
+        for side in (-1.0, 1.0))
+    return front, rear, left - right
 
 
 def axle_lateral_velocity(s: Mapping[str, ca.SX], bicycle: BicycleParams) -> ca.SX:
@@ -282,15 +352,16 @@ def axle_lateral_velocity(s: Mapping[str, ca.SX], bicycle: BicycleParams) -> ca.
     return s["vy_mps"] + bicycle.roll.sway_arm_m * s["roll_rate_radps"]
 
 
-Forces = tuple[ca.SX, ca.SX]
-"""The front and the rear axle's lateral force of :func:`axle_forces` [N]."""
+Forces = tuple[ca.SX, ca.SX, ca.SX]
+"""The front and the rear axle's lateral force of :func:`axle_forces` and the front wheels'
+left minus right force [N]."""
 
 
 def lateral_tyre_accel(s: Mapping[str, ca.SX], bicycle: BicycleParams,
                        forces: Forces | None = None) -> ca.SX:
     """Lateral acceleration the tyres give the car, ``a_t``: their force per unit mass plus
     the residual state [m/s^2] (``forces``: the axles' forces at ``s``, if already built)."""
-    force_front, force_rear = axle_forces(s, bicycle) if forces is None else forces
+    force_front, force_rear, _ = axle_forces(s, bicycle) if forces is None else forces
     return (force_front + force_rear) / bicycle.mass_kg + s["lateral_accel_residual_mps2"]
 
 

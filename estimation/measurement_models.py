@@ -214,7 +214,7 @@ def wheel_spin(
     radius = belief.wheel_radius_m * s["rolling_radius_scale"]
     if loads is not None:
         load_n = wheel_load(s, front, left, track * s["wheel_track_scale"], loads)
-        force_front, _ = axle_forces(s, bicycle)
+        force_front, _, _ = axle_forces(s, bicycle)
         drag_n = force_front * ca.sin(s["steer_rad"])  # (S2): the steered tyres' pull
         # (S1)'s slip angle, guarded below 1 m/s (a wheel at rest has none to speak of)
         slip_angle = ca.atan(across / ca.fmax(ca.fabs(along), 1.0))

@@ -105,6 +105,7 @@ from estimation.bicycle import (
     cog_lateral_accel,
     roll_accel,
     world_velocity,
+    yaw_moment,
 )
 from estimation.state import (
     ANGLE_STATES,
@@ -247,6 +248,13 @@ class _ProcessFunctions:
     """The entries of ``step``'s ``F`` that are not structurally zero (``step`` gives it
     dense)."""
 
+    @functools.cached_property
+    def covariance_step(self) -> ca.Function:
+        """:func:`_covariance_step` of these functions, built on first use (kept with them:
+        a covariance step kept apart could outlive the sub-step it calls, and a library
+        generated with a newer one would then hold the sub-step twice)."""
+        return _covariance_step(self)
+
     def named(self, name: str) -> ca.Function:
         """The function of CasADi name ``name`` (``bicycle_step`` ...)."""
         for function in (self.derivative, self.step, self.mean_step, self.noise, self.psd,
@@ -331,8 +339,7 @@ def _process_functions(numbers: _Belief, sigma_point_count: int) -> _ProcessFunc
     )
 
 
-@built_once
-def _covariance_step(numbers: _Belief) -> ca.Function:
+def _covariance_step(functions: _ProcessFunctions) -> ca.Function:
     """The EKF's whole sub-step as one function, ``(x, P, u, dt_s, accel_move, belief) ->
     (x', P')``, for its compiled prediction (:meth:`ProcessModel.covariance_step`):
 
@@ -348,8 +355,9 @@ def _covariance_step(numbers: _Belief) -> ca.Function:
     One call where the three steps in numpy took three, and their products in C: the
     EKF's prediction some 15 us a sub-step faster. An MX function that calls the sub-step
     (not a copy of its 50,000 operations: the library builds in the same time). Built only
-    when the filter's library is not on disk yet (else taken from it)."""
-    functions = _process_functions(numbers, 0)
+    when the filter's library is not on disk yet (else taken from it), once per
+    ``functions`` (:attr:`_ProcessFunctions.covariance_step`): it calls their very ``step``,
+    so a library generated from both holds the sub-step once."""
     step = functions.step
     n = len(STATE_NAMES)
     x = ca.MX.sym("x", n)
@@ -453,7 +461,7 @@ class ProcessModel:
             if self._library is not None and name in compiled:
                 function = external_function(name, self._library)
             elif name == COVARIANCE_STEP:
-                function = _covariance_step(self._numbers)
+                function = _process_functions(self._numbers, 0).covariance_step
             else:
                 function = self._functions.named(name)
             evaluator = DenseFunction(function, parameters=self.belief_values)
@@ -593,7 +601,7 @@ def _cornering_drag(x: ca.SX, bicycle: BicycleParams) -> ca.SX:
     holds no cornering drag): on the MuJoCo sedan ``a_x - a`` is 0.94 times it, RMS 0.014
     m/s^2 left, where it was 0.16 on the circuit and 0.04 in the lane change."""
     s = named_states(x)
-    force_front, _ = axle_forces(s, bicycle)
+    force_front, _, _ = axle_forces(s, bicycle)
     return -force_front * ca.sin(s["steer_rad"]) / bicycle.mass_kg
 
 
@@ -604,7 +612,7 @@ def _force_noise(x: ca.SX, noise: ProcessNoise, bicycle: BicycleParams) -> ca.SX
     heading's, the yaw and roll accelerations' with the forces that drive them, the jerk's
     with the longitudinal acceleration (:class:`ProcessNoise`)."""
     s = named_states(x)
-    force_front, force_rear = axle_forces(s, bicycle)
+    force_front, force_rear, _ = axle_forces(s, bicycle)
     tyre_accel = (force_front + force_rear) / bicycle.mass_kg
     yaw_accel = (
         bicycle.cog_front_m * force_front - bicycle.cog_rear_m * force_rear
@@ -637,7 +645,7 @@ def _derivative(x: ca.SX, command: ca.SX, bicycle: BicycleParams,
     velocity_east, velocity_north = world_velocity(s)
     r = s["yaw_rate_radps"]
     forces = axle_forces(s, bicycle)
-    force_front, force_rear = forces
+    force_front, force_rear, front_split = forces
     vx_change = s["ax_mps2"] + r * s["vy_mps"]
     roll_change = roll_accel(s, bicycle, forces)  # (R2)
     deflection_rate = gyro_deflection_rate(s["vx_mps"], vx_change, s["roll_rate_radps"],
@@ -652,9 +660,8 @@ def _derivative(x: ca.SX, command: ca.SX, bicycle: BicycleParams,
             "yaw_rad": r,
             "vx_mps": vx_change,
             "vy_mps": cog_lateral_accel(s, bicycle, forces) - r * s["vx_mps"],  # (D4)
-            "yaw_rate_radps": (
-                bicycle.cog_front_m * force_front - bicycle.cog_rear_m * force_rear
-            ) / bicycle.yaw_inertia_kgm2,  # (D5)
+            "yaw_rate_radps": yaw_moment(force_front, force_rear, front_split, s,
+                                         bicycle) / bicycle.yaw_inertia_kgm2,  # (D5')
             "ax_mps2": 0.0,
             "steer_rad": steer_change,
             "steer_rate_radps": steer_rate_change,

@@ -399,9 +399,11 @@ def run_filter(
     setup = SensorSetup() if setup is None else setup
     config = EstimatorConfig(name=estimator) if config is None else config
     # The filter believes the synthetic sensors' datasheet (no quantisation here), and the
-    # synthetic tyres, whose forces follow their slip angles at once (no relaxation).
+    # synthetic tyres, whose forces follow their slip angles at once (no relaxation), each
+    # axle's at the axle's load (a bicycle: no lateral load transfer).
     config = dataclasses.replace(config, tyre_relaxation_length_front_m=0.0,
-                                 tyre_relaxation_length_rear_m=0.0, noise=dataclasses.replace(
+                                 tyre_relaxation_length_rear_m=0.0,
+                                 lateral_load_transfer=False, noise=dataclasses.replace(
         config.noise, gnss_sigma_m=setup.gnss_sigma_m, gyro_sigma_radps=IMU_YAW_RATE_SIGMA_RADPS,
         accel_sigma_mps2=IMU_ACCEL_SIGMA_MPS2, wheel_sigma_radps=WHEEL_SIGMA_RADPS,
         wheel_quantum_radps=0.0, steer_sigma_rad=STEERING_SIGMA_RAD, steer_quantum_rad=0.0))

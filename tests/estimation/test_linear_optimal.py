@@ -37,11 +37,14 @@ DURATION_S = 60.0
 CONFIG = EstimatorConfig(roll_gradient_radpmps2=0.0, noise=NoiseBelief(gnss_sigma_m=0.5),
                          yaw_psd_rad2ps=1e-8, lateral_accel_psd_m2ps3=5e-4, jerk_psd_m2ps5=5.0,
                          jerk_relative_psd_1ps=0.0, steer_rate_psd_rad2ps3=1e-4,
-                         tyre_relaxation_length_front_m=0.0, tyre_relaxation_length_rear_m=0.0)
+                         tyre_relaxation_length_front_m=0.0, tyre_relaxation_length_rear_m=0.0,
+                         lateral_load_transfer=False)
 """Without the body roll mode, whose equations have no independent implementation to
 compare with (tests/estimation/test_models.py checks it by hand), without the tyres'
 relaxation (its first-order form is not the textbook bicycle's state space, whose forces
-follow the slip angles at once; tests/estimation/test_tyre_relaxation.py), and without the jerk's
+follow the slip angles at once; tests/estimation/test_tyre_relaxation.py), without the wheels'
+lateral load transfer (the textbook bicycle's axles carry their loads as a whole:
+tests/estimation/test_lateral_transfer.py), and without the jerk's
 PSD growing with ``a_x^2`` (a state-dependent noise: no linear filter has it). The process
 noise is the smaller one of an earlier tuning (yaw, lateral, steering rate) with a larger
 jerk: these tests check the filters' algebra against the linear optimum, so the sigma points

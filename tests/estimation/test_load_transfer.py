@@ -40,15 +40,17 @@ def ring_truth(tmp_path_factory: pytest.TempPathFactory) -> list[dict]:
     return [message for _, message in iter_messages(path, VEHICLE_TRUTH)]
 
 
-def _yaw_accel_error_slope(truth: list[dict], load_sensitivity: tuple[float, float]) -> float:
-    """Least-squares slope of (true yaw acceleration - model's) on ``a_x a_y``
-    [rad/s^2 per (m/s^2)^2], the model evaluated at each true state."""
+def _yaw_accel_error_slope(truth: list[dict], load_sensitivity: tuple[float, float],
+                           lateral_transfer: bool = False, on: str = "ax_ay") -> float:
+    """Least-squares slope of (true yaw acceleration - model's) on ``a_x a_y`` (``on``:
+    ``"ay"``, on ``a_y``) [rad/s^2 per (m/s^2)^2, per m/s^2], the model evaluated at each
+    true state; ``lateral_transfer``: with (D3'''') and (D5')."""
     config = load_config("track")
     belief, estimator = config.tracker.model, config.estimator
     model = ProcessModel(
         process_noise(estimator),
         BicycleParams.from_vehicle(belief, estimator.tyre_model, roll_params(estimator, belief),
-                                   load_sensitivity),
+                                   load_sensitivity, lateral_transfer=lateral_transfer),
         estimator.lateral_residual_time_constant_s)
     time_s = np.array([m["t_s"] for m in truth])
     roll_rate = np.gradient(np.array([m["roll_rad"] for m in truth]), time_s)
@@ -65,7 +67,8 @@ def _yaw_accel_error_slope(truth: list[dict], load_sensitivity: tuple[float, flo
         x[state_index("wheel_track_scale")] = 1.0
         derivative, _ = model.derivative(x)
         errors.append(yaw_accel[i] - derivative[state_index("yaw_rate_radps")])
-        products.append(message["ax_mps2"] * message["ay_mps2"])
+        products.append(message["ay_mps2"] if on == "ay"
+                        else message["ax_mps2"] * message["ay_mps2"])
     products_arr, errors_arr = np.array(products), np.array(errors)
     design = np.column_stack([products_arr, np.ones_like(products_arr)])
     return float(np.linalg.lstsq(design, errors_arr, rcond=None)[0][0])
@@ -96,3 +99,25 @@ def test_the_default_exponents_are_the_sedans_tyres() -> None:
     expected = tuple(cornering_stiffness_load_elasticity(plant.tyre, load)
                      for load in plant.static_wheel_loads_n)
     np.testing.assert_allclose(EstimatorConfig().tyre_load_sensitivities, expected, atol=0.005)
+
+
+@pytest.mark.slow
+def test_the_front_wheels_turn_the_car_less_as_the_load_moves_out(
+        ring_truth: list[dict]) -> None:
+    """In a turn the roll moment ``m h a_y`` moves load to the outer wheels, whose tyres then
+    carry more of the axle's force; steered, the front pair's forces point unequally along
+    the car, a yaw moment ``t_f / 2 sin(delta) (F_yl - F_yr)`` against the turn that the
+    bicycle's axles do not have ((D3'''') and (D5') of :mod:`estimation.bicycle`). Along the
+    sedan's true motion on the circuit, the model's yaw acceleration without them is off in
+    proportion to ``a_y``; with them, far less."""
+    sensitivity = load_config("track").estimator.tyre_load_sensitivities
+    axles = _yaw_accel_error_slope(ring_truth, sensitivity, on="ay")
+    wheels = _yaw_accel_error_slope(ring_truth, sensitivity, lateral_transfer=True, on="ay")
+    print(f"yaw acceleration error per a_y: the axles' loads {axles:.5f}, "
+          f"the wheels' {wheels:.5f} rad/s^2 per m/s^2")
+    # The axles alone: the model turns the car faster than it turns, by some 0.004 rad/s^2
+    # per m/s^2 (0.02 rad/s^2 in the circuit's turns); with the front wheels' moment, a twentieth
+    # of that (the moment's sign reversed doubles it; each wheel's law at its load in the
+    # axles' forces as well turns it over to 0.6 of it the other way).
+    assert axles < -0.002
+    assert abs(wheels) < 0.2 * abs(axles)
