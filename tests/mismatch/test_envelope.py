@@ -93,9 +93,11 @@ def test_friction_0_6_known_to_the_tracker(tmp_path: Path) -> None:
     planned force within 0.85 of ``mu F_z`` (:mod:`tracker.models.tyre_limits`): it accelerates from
     15 to 20 m/s at about 2.2 m/s^2 instead of the 3 m/s^2 that spun the rear wheels and
     turned the car round (max CTE 11.3 m before). The lane change's 0.5 g fits within 0.85
-    of 0.6 g, so the speed is not reduced. Measured 0.209 / 0.131 / 0.165 / 0.223 / 0.149 m
-    (seeds 0-4), no fallback; the bound is the issue's requirement, 0.30 m (1.5 x 0.223 =
-    0.33 would let more through).
+    of 0.6 g, so the speed is not reduced. Measured 0.294 / 0.223 / 0.219 / 0.300 / 0.248 m
+    (seeds 0-4, 2026-12-08; 0.209 / 0.131 / 0.165 / 0.223 / 0.149 when this test was
+    written), no fallback; the bound is the issue's requirement, 0.30 m, which seeds 0 and 3
+    now barely keep (with the filter's front-wheel moment, ``estimator.lateral_load_transfer``,
+    seed 0 reaches 0.327 m: docs/defaults.md, "The wheels' lateral load transfer").
     """
     result = lane_change(tmp_path, "plant.tyre_friction=0.6", "tracker.model.tyre_friction=0.6")
     assert_tracks(result, cte_bound_m=0.30)
