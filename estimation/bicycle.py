@@ -46,7 +46,7 @@ within the grip. The axles' own forces stay their laws at the axle loads: along 
 true motion on the circuit (``estimator.lateral_load_transfer``: false leaves (D5') the
 axles' moment alone), the bicycle's yaw acceleration without (D5') was 0.0042 rad/s^2 per
 m/s^2 of ``a_y`` faster than the car's, 0.02 rad/s^2 in the circuit's 4-6 m/s^2 turns (of
-the 66 N m it lacked there, the plant's front tyres' forces gave 59); with it, 0.0002 (each
+the 66 N m it lacked there, the plant's front tyres' forces gave 59); with it, 0.0001 (each
 wheel's law at its load in the axles' sums as well over-corrects it: -0.0026).
 
 A tyre does not build its force at once: its carcass deflects first, and the force follows
