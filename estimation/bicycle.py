@@ -46,7 +46,7 @@ within the grip. The axles' own forces stay their laws at the axle loads: along 
 true motion on the circuit (``estimator.lateral_load_transfer``: false leaves (D5') the
 axles' moment alone), the bicycle's yaw acceleration without (D5') was 0.0042 rad/s^2 per
 m/s^2 of ``a_y`` faster than the car's, 0.02 rad/s^2 in the circuit's 4-6 m/s^2 turns (of
-the 66 N m it lacked there, the plant's front tyres' forces gave 59); with it, 0.0001 (each
+the 66 N m it lacked there, the plant's front tyres' forces gave 59); with it, 0.0006 (each
 wheel's law at its load in the axles' sums as well over-corrects it: -0.0026).
 
 A tyre does not build its force at once: its carcass deflects first, and the force follows
@@ -167,10 +167,13 @@ class BicycleParams:
     front_half_track_m: float = 0.0
     """``t_f / 2``: the arm of the front wheels' lateral forces' longitudinal components
     about the CoG, (D5') (0: none)."""
+    lateral_transfer: bool = False
+    """Whether the model has (D3'''') and (D5') at all: a model without them builds none of
+    their operations (the filter's compiled step is then what it was without them)."""
 
     def __post_init__(self) -> None:
         for name, value in vars(self).items():
-            if name in ("tyre_model", "roll"):
+            if name in ("tyre_model", "roll", "lateral_transfer"):
                 continue
             if name in ("load_sensitivity_front", "load_sensitivity_rear",
                         "load_transfer_height_m", "relaxation_length_front_m",
@@ -229,6 +232,7 @@ class BicycleParams:
             load_transfer_height_m=belief.cog_height_m if any(load_sensitivity) else 0.0,
             relaxation_length_front_m=float(relaxation_lengths_m[0]),
             relaxation_length_rear_m=float(relaxation_lengths_m[1]),
+            lateral_transfer=lateral_transfer,
             **(lateral_transfer_numbers(belief) if lateral_transfer else {}),
         )
 
@@ -254,17 +258,19 @@ def slip_speed(vx_mps: ca.SX | float) -> ca.SX:
     return ca.if_else(vx_mps >= v0, vx_mps, 0.5 * v0 + vx_mps**2 / (2.0 * v0))
 
 
-def yaw_moment(front: ca.SX, rear: ca.SX, split: ca.SX, s: Mapping[str, ca.SX],
+def yaw_moment(front: ca.SX, rear: ca.SX, split: ca.SX | float, s: Mapping[str, ca.SX],
                bicycle: BicycleParams) -> ca.SX:
     """The yaw moment of the tyres' lateral forces about the CoG, (D5'): the axles',
     ``l_f F_yf - l_r F_yr``, and that of the front wheels' forces' longitudinal components,
     ``t_f / 2 sin(delta) (F_yfl - F_yfr)`` (``split``: left minus right) [N m]."""
-    return (bicycle.cog_front_m * front - bicycle.cog_rear_m * rear
-            + bicycle.front_half_track_m * ca.sin(s["steer_rad"]) * split)
+    axles = bicycle.cog_front_m * front - bicycle.cog_rear_m * rear
+    if not bicycle.lateral_transfer:
+        return axles
+    return axles + bicycle.front_half_track_m * ca.sin(s["steer_rad"]) * split
 
 
 def axle_forces(s: Mapping[str, ca.SX],
-                bicycle: BicycleParams) -> tuple[ca.SX, ca.SX, ca.SX]:
+                bicycle: BicycleParams) -> tuple[ca.SX, ca.SX, ca.SX | float]:
     """Lateral forces of the front and rear axle, (D1)-(D3) or (D1), (D2), (D3'), with the
     load transfer (D3'') and the tyres' relaxation (D3''') [N], and the front wheels' left
     minus right force, (D3'''')."""
@@ -318,7 +324,7 @@ def _axle_law(stiffness: ca.SX, alpha: ca.SX, ratio: ca.SX, sensitivity: ca.SX,
 
 
 def _tyre_laws(alpha_front: ca.SX, alpha_rear: ca.SX, s: Mapping[str, ca.SX],
-               bicycle: BicycleParams) -> tuple[ca.SX, ca.SX, ca.SX]:
+               bicycle: BicycleParams) -> tuple[ca.SX, ca.SX, ca.SX | float]:
     """Each axle's force at the slip angle it follows, (D3) or (D3'), with (D3''), and the
     front wheels' left minus right force, (D3'''') [N]."""
     # (D3''): the pitch moment m a_x h moves the load m a_x h / L from the front axle to
@@ -332,6 +338,8 @@ def _tyre_laws(alpha_front: ca.SX, alpha_rear: ca.SX, s: Mapping[str, ca.SX],
                       bicycle.load_sensitivity_front, static_front, bicycle)
     rear = _axle_law(bicycle.cornering_stiffness_rear_npr, alpha_rear, ratio_rear,
                      bicycle.load_sensitivity_rear, static_rear, bicycle)
+    if not bicycle.lateral_transfer:
+        return front, rear, 0.0
     # (D3''''): the roll moment moves load from the inner front wheel to the outer one,
     # each with half the axle's law at its own load; the lateral acceleration taken as the
     # turn's, r vx, held within what the road gives, mu g (a sigma point or a prior far off,
@@ -352,7 +360,7 @@ def axle_lateral_velocity(s: Mapping[str, ca.SX], bicycle: BicycleParams) -> ca.
     return s["vy_mps"] + bicycle.roll.sway_arm_m * s["roll_rate_radps"]
 
 
-Forces = tuple[ca.SX, ca.SX, ca.SX]
+Forces = tuple[ca.SX, ca.SX, ca.SX | float]
 """The front and the rear axle's lateral force of :func:`axle_forces` and the front wheels'
 left minus right force [N]."""
 

@@ -22,7 +22,7 @@ def test_the_front_wheels_moment_and_doubting_the_balance_bring_the_rings_nees_d
         nees[transfer, relative_s] = run_unlogged(config).metrics["nees_mean"]
     print(nees)
     # Sure of a wrong side slip, so of a wrong heading: 25.7 with the axles' moment alone,
-    # 20.0 with the front wheels' (the moment's sign reversed: 34.8), 17.6 doubting the
+    # 19.5 with the front wheels' (the moment's sign reversed: 36.0), 17.6 doubting the
     # axles' (2026-12-08).
     assert nees[False, 0.0] > 20.0
     assert nees[True, 0.0] < 0.85 * nees[False, 0.0]

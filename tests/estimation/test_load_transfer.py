@@ -116,8 +116,8 @@ def test_the_front_wheels_turn_the_car_less_as_the_load_moves_out(
     print(f"yaw acceleration error per a_y: the axles' loads {axles:.5f}, "
           f"the wheels' {wheels:.5f} rad/s^2 per m/s^2")
     # The axles alone: the model turns the car faster than it turns, by some 0.004 rad/s^2
-    # per m/s^2 (0.02 rad/s^2 in the circuit's turns); with the front wheels' moment, a twentieth
-    # of that (the moment's sign reversed doubles it; each wheel's law at its load in the
+    # per m/s^2 (0.02 rad/s^2 in the circuit's turns); with the front wheels' moment, a seventh
+    # of that (the moment's sign reversed doubles it, -0.009; each wheel's law at its load in the
     # axles' forces as well turns it over to 0.6 of it the other way).
     assert axles < -0.002
     assert abs(wheels) < 0.2 * abs(axles)
