@@ -84,7 +84,7 @@ from dataclasses import dataclass
 import casadi as ca
 
 from cosim.core.physical_constants import GRAVITY_MPS2
-from cosim.core.vehicle_equations import axle_slip_angles
+from cosim.core.vehicle_equations import axle_slip_angles, saturating_axle_force
 from cosim.core.vehicle_params import VehicleParams
 
 MIN_LOAD_RATIO = 0.1
@@ -317,10 +317,8 @@ def _axle_law(stiffness: ca.SX, alpha: ca.SX, ratio: ca.SX, sensitivity: ca.SX,
     linear = stiffness * alpha * ratio**sensitivity  # (D3)
     if bicycle.tyre_model == "linear":
         return linear
-    # (D3'): F = mu F_z tanh(C alpha / (mu F_z)), the linear tyre up to a smooth limit at
-    # the friction force of the load.
-    limit = bicycle.tyre_friction * static_n * ratio
-    return limit * ca.tanh(linear / limit)
+    # (D3'): the linear tyre up to a smooth limit at the friction force of the load.
+    return saturating_axle_force(linear, bicycle.tyre_friction * static_n * ratio)
 
 
 def _tyre_laws(alpha_front: ca.SX, alpha_rear: ca.SX, s: Mapping[str, ca.SX],

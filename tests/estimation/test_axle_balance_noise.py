@@ -21,9 +21,10 @@ def test_the_front_wheels_moment_and_doubting_the_balance_bring_the_rings_nees_d
             f"estimator.yaw_moment_relative_psd_s={relative_s}"])
         nees[transfer, relative_s] = run_unlogged(config).metrics["nees_mean"]
     print(nees)
-    # Sure of a wrong side slip, so of a wrong heading: 25.7 with the axles' moment alone,
-    # 19.5 with the front wheels' (the moment's sign reversed: 36.0), 17.6 doubting the
-    # axles' (2026-12-08).
-    assert nees[False, 0.0] > 20.0
+    # Sure of a wrong side slip, so of a wrong heading: 18.5 with the axles' moment alone,
+    # 14.4 with the front wheels', 9.7 doubting the axles' (2026-12-08, the controller's
+    # tyres saturating; 25.7, 19.5 and 17.6 with its linear tyres, which drove the bends
+    # with a steady offset).
+    assert nees[False, 0.0] > 15.0
     assert nees[True, 0.0] < 0.85 * nees[False, 0.0]
     assert nees[False, 0.3] < 0.75 * nees[False, 0.0]

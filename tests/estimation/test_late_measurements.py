@@ -149,7 +149,9 @@ def test_the_controller_engages_once_the_first_late_fix_has_arrived(tmp_path: Pa
     # Until the first fix, 150 ms late, the filter's position is its prior (about a metre
     # off): the tracker waits (no plan), the car holds straight ahead, and the lane change
     # tracks as one with the fix on time; engaged at once, the controller steered toward a
-    # path the car was not off and the max CTE was 0.184 m against 0.051 m.
+    # path the car was not off and the max CTE was 0.184 m against 0.051 m. Later in the
+    # manoeuvre a position 150 ms old costs a few millimetres: max CTE late - on time
+    # +3.1 / +5.0 / +5.3 / +1.6 / +4.3 mm (seeds 0-4, 2026-12-08; 14 % of seed 0's 21.8 mm).
     late = [f"sensors.gnss.latency_s={LATENCY_S}", f"estimator.history_s={2 * LATENCY_S}"]
     path = tmp_path / "late.mcap"
     runner.run(load_config("lane-change", overrides=[*late, "sim.duration_s=1"]), path)
@@ -159,4 +161,4 @@ def test_the_controller_engages_once_the_first_late_fix_has_arrived(tmp_path: Pa
     assert all(m["steer_rad"] == 0.0 and m["accel_mps2"] == 0.0 for _, _, m in commands[:3])
     late_cte = runner.run_unlogged(load_config("lane-change", overrides=late))
     on_time = runner.run_unlogged(load_config("lane-change"))
-    assert late_cte.metrics["cte_max_m"] <= 1.1 * on_time.metrics["cte_max_m"]
+    assert late_cte.metrics["cte_max_m"] <= on_time.metrics["cte_max_m"] + 0.01

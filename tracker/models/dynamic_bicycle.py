@@ -1,4 +1,5 @@
-"""The linear-tyre dynamic bicycle as CasADi expressions (Rajamani 2012, sec. 2.3).
+"""The dynamic bicycle as CasADi expressions (Rajamani 2012, sec. 2.3), with linear tyres or
+tyres that saturate at the friction force.
 
 Lateral state ``[vy_mps, yaw_rate_radps]``: lateral velocity of the centre of gravity (CoG)
 and yaw rate, both in the vehicle frame (ISO 8855: x forward, y left, z up; yaw
@@ -25,6 +26,17 @@ the bicycle model of lateral vehicle dynamics), small angles::
     x' = vx cos(yaw) - vy sin(yaw),  y' = vx sin(yaw) + vy cos(yaw),
     yaw' = r,  vx' = a                                                    (D6)
 
+With a friction ``mu`` given (a controller that knows the road is wet, ``tracker.grip``) each
+axle's force saturates smoothly at the friction force of its static load, (D3') of
+:mod:`cosim.core.vehicle_equations` (the filter's law, :mod:`estimation.bicycle`)::
+
+    F_zf = m g l_r / L,  F_zr = m g l_f / L
+    F_yi = mu F_zi tanh(C_i alpha_i / (mu F_zi))                          (D3')
+
+the same stiffness at small slip, at most ``mu F_zi``. The linear tyres (D3) promise any
+force: near the limit they promise more than the road gives (at 70 % of ``mu F_z`` by (D3),
+(D3') gives 60 %), and a controller that believes them steers too little, too late.
+
 (D4)-(D5) are the state-space form ``vy' = a11 vy + a12 r + b11 delta``, ``r' = a21 vy + a22 r +
 b21 delta`` (:meth:`DynamicBicycleParams.lateral_state_space`).
 
@@ -43,6 +55,15 @@ axle's share of the centripetal force, ``F_yr = m vx r l_f / L``, and (D2):
 
     vy = r (l_r - m l_f vx^2 / (L C_r))                                   (S3)
 
+With the saturating tyres (D3') both axles use the same share ``u = a_y / (mu g)`` of their
+grip in a steady turn (each carries its static load's share of ``m a_y``), so each slip angle
+is ``(mu F_zi / C_i) atanh(u)`` and the steering of the steady turn is
+
+    delta = L / R + K mu g atanh(a_y / (mu g))                            (S4)
+
+which is (S1)'s ``L / R + K a_y`` where the tyres barely slip and grows without bound as
+``a_y`` nears ``mu g`` (held at :data:`MAX_STEADY_USAGE` of it).
+
 (D1)-(D6) and (S1)-(S3) are written with plain arithmetic and CasADi's ``sin``/``cos``, so
 they accept CasADi symbols as well as floats.
 """
@@ -58,7 +79,7 @@ import numpy as np
 
 from cosim.core.exceptions import ConfigError
 from cosim.core.physical_constants import GRAVITY_MPS2
-from cosim.core.vehicle_equations import axle_slip_angles, rk4_step
+from cosim.core.vehicle_equations import axle_slip_angles, rk4_step, saturating_axle_force
 from cosim.core.vehicle_params import VehicleParams
 
 LATERAL_STATE_NAMES: tuple[str, ...] = ("vy_mps", "yaw_rate_radps")
@@ -177,6 +198,24 @@ class DynamicBicycleParams:
         return a, b
 
 
+MAX_STEADY_USAGE = 0.95
+"""The largest share of the grip (S4) is evaluated at: no steady turn exists at ``mu g``
+(``atanh(1)`` is infinite), and a reference asking more gets the steering of 95 %."""
+
+
+def steady_understeer_rad(gradient_radpmps2: float, speed_mps: np.ndarray,
+                          curvature_1pm: np.ndarray,
+                          grip_mps2: float | None = None) -> np.ndarray:
+    """The steering a steady turn of ``a_y = v^2 kappa`` needs beyond the kinematic ``L / R``
+    [rad]: ``K a_y`` of (S1) with linear tyres (``grip_mps2`` None), ``K mu g atanh(a_y /
+    (mu g))`` of (S4) with tyres that saturate at ``grip_mps2 = mu g``."""
+    if grip_mps2 is None:
+        return gradient_radpmps2 * speed_mps**2 * curvature_1pm
+    usage = np.clip(speed_mps**2 * curvature_1pm / grip_mps2, -MAX_STEADY_USAGE,
+                    MAX_STEADY_USAGE)
+    return gradient_radpmps2 * grip_mps2 * np.arctanh(usage)
+
+
 def radpmps2_to_degpg(gradient_radpmps2: float) -> float:
     """A gradient in rad per m/s^2 expressed in degrees per g."""
     return math.degrees(gradient_radpmps2) * GRAVITY_MPS2
@@ -226,15 +265,28 @@ def slip_angles(lateral_state: Symbolic, steer_rad: Symbolic, vx_mps: Symbolic,
     return axle_slip_angles(vy, r, steer_rad, vx_mps, l_f, l_r)
 
 
+def static_axle_loads_n(params: Symbolic | np.ndarray) -> tuple[Symbolic, Symbolic]:
+    """``F_zf = m g l_r / L`` and ``F_zr = m g l_f / L``, the axles' static loads [N]."""
+    weight = _param(params, "mass_kg") * GRAVITY_MPS2
+    l_f, l_r = _param(params, "cog_front_m"), _param(params, "cog_rear_m")
+    return weight * l_r / (l_f + l_r), weight * l_f / (l_f + l_r)
+
+
 def lateral_dynamics(lateral_state: Symbolic, steer_rad: Symbolic, vx_mps: Symbolic,
-                     params: Symbolic, min_slip_speed_mps: float = 0.0) -> Symbolic:
+                     params: Symbolic, min_slip_speed_mps: float = 0.0,
+                     friction: Symbolic | float | None = None) -> Symbolic:
     """``[vy', r']`` of (D1)-(D5) as a 2x1 expression (``vx_mps`` must be positive unless
-    ``min_slip_speed_mps > 0`` guards the slip angles, see :func:`slip_angles`)."""
+    ``min_slip_speed_mps > 0`` guards the slip angles, see :func:`slip_angles`); with a
+    ``friction`` the tyres saturate, (D3'), else they are linear, (D3)."""
     r = lateral_state[LATERAL_STATE["yaw_rate_radps"]]
     alpha_f, alpha_r = slip_angles(lateral_state, steer_rad, vx_mps, params,
                                    min_slip_speed_mps)
     force_front = _param(params, "cornering_stiffness_front_npr") * alpha_f  # (D3)
     force_rear = _param(params, "cornering_stiffness_rear_npr") * alpha_r
+    if friction is not None:  # (D3')
+        load_front, load_rear = static_axle_loads_n(params)
+        force_front = saturating_axle_force(force_front, friction * load_front)
+        force_rear = saturating_axle_force(force_rear, friction * load_rear)
     derivative = {
         "vy_mps": (force_front + force_rear) / _param(params, "mass_kg") - vx_mps * r,
         "yaw_rate_radps": (_param(params, "cog_front_m") * force_front
@@ -245,15 +297,16 @@ def lateral_dynamics(lateral_state: Symbolic, steer_rad: Symbolic, vx_mps: Symbo
 
 
 def continuous_dynamics(state: Symbolic, inputs: Symbolic, params: Symbolic,
-                        min_slip_speed_mps: float = 0.0) -> Symbolic:
+                        min_slip_speed_mps: float = 0.0,
+                        friction: Symbolic | float | None = None) -> Symbolic:
     """Time derivative of the full state, (D1)-(D6), as a 6x1 expression
-    (``min_slip_speed_mps``: see :func:`slip_angles`)."""
+    (``min_slip_speed_mps``: see :func:`slip_angles`; ``friction``: :func:`lateral_dynamics`)."""
     yaw = state[STATE["yaw_rad"]]
     vx = state[STATE["vx_mps"]]
     vy = state[STATE["vy_mps"]]
     r = state[STATE["yaw_rate_radps"]]
     lateral = lateral_dynamics(ca.vertcat(vy, r), inputs[INPUT["steer_rad"]], vx, params,
-                               min_slip_speed_mps)
+                               min_slip_speed_mps, friction)
     derivative = {
         "x_m": vx * ca.cos(yaw) - vy * ca.sin(yaw),
         "y_m": vx * ca.sin(yaw) + vy * ca.cos(yaw),

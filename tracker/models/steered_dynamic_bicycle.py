@@ -43,6 +43,10 @@ tracker:
   ``vy`` and ``r`` themselves always follow (D4)-(D5). Above ``v_high`` the model is
   exactly (D1)-(D6); below ``v_low`` it is the kinematic bicycle.
 
+* **Tyres that saturate** (``saturating``): the axle forces (D3') of
+  :mod:`tracker.models.dynamic_bicycle`, held within the friction force of the axle's
+  static load at the belief's friction; the tyres of (D3) otherwise.
+
 Discretisation: classical RK4 on the six vehicle states with the steering angle of (A2)
 at the RK4 stage times (so the actuator is integrated exactly), ``substeps`` per stage,
 chosen by :func:`rk4_substeps` from the lateral eigenvalues so that ``h |lambda| <= 1.5``
@@ -97,6 +101,12 @@ class SteeredBicycleParams:
     """v_low of (B1): below it the pose moves kinematically; the slip-angle guard [m/s]."""
     high_speed_mps: float = 6.0
     """v_high of (B1): above it the model is the dynamic bicycle alone [m/s]."""
+    tyre_friction: float = 1.0
+    """The road's friction ``mu`` the tyres saturate at, (D3') (read only when
+    ``saturating``)."""
+    saturating: bool = False
+    """The tyres saturate at the friction force of their axle's load, (D3') of
+    :mod:`tracker.models.dynamic_bicycle`; linear, (D3), when False. The model's shape."""
 
     def __post_init__(self) -> None:
         tau = self.steer_time_constant_s
@@ -108,11 +118,16 @@ class SteeredBicycleParams:
         if not (math.isfinite(self.high_speed_mps) and self.high_speed_mps > self.low_speed_mps):
             raise ConfigError(f"high_speed_mps = {self.high_speed_mps!r}: expected more than "
                               f"low_speed_mps = {self.low_speed_mps}")
+        if not (math.isfinite(self.tyre_friction) and self.tyre_friction > 0.0):
+            raise ConfigError(f"tyre_friction = {self.tyre_friction!r}: expected a positive "
+                              "number")
 
     @classmethod
-    def from_vehicle(cls, vehicle: VehicleParams) -> SteeredBicycleParams:
+    def from_vehicle(cls, vehicle: VehicleParams,
+                     saturating: bool = False) -> SteeredBicycleParams:
         """The belief ``vehicle``: mass, yaw inertia, CoG position, axle cornering
-        stiffnesses and the steering time constant."""
+        stiffnesses, the steering time constant and the friction (the tyres saturate there
+        when ``saturating``)."""
         return cls(
             bicycle=bicycle.DynamicBicycleParams.from_vehicle(
                 vehicle,
@@ -120,10 +135,12 @@ class SteeredBicycleParams:
                 vehicle.cornering_stiffness_rear_npr,
             ),
             steer_time_constant_s=vehicle.steer_time_constant_s,
+            tyre_friction=vehicle.tyre_friction,
+            saturating=saturating,
         )
 
 
-BELIEF_NAMES: tuple[str, ...] = bicycle.PARAM_NAMES + ("steer_time_constant_s",)
+BELIEF_NAMES: tuple[str, ...] = bicycle.PARAM_NAMES + ("steer_time_constant_s", "tyre_friction")
 """The belief's numbers as the belief-parametric functions take them, in vector order
 (:func:`belief_vector`, :func:`belief_discrete_function`)."""
 
@@ -133,7 +150,8 @@ BELIEF = MappingProxyType({name: i for i, name in enumerate(BELIEF_NAMES)})
 
 def belief_vector(params: SteeredBicycleParams) -> np.ndarray:
     """The numbers of ``params`` in :data:`BELIEF_NAMES` order."""
-    return np.append(params.bicycle.as_vector(), float(params.steer_time_constant_s))
+    return np.append(params.bicycle.as_vector(),
+                     [float(params.steer_time_constant_s), float(params.tyre_friction)])
 
 
 @dataclass(frozen=True)
@@ -143,8 +161,8 @@ class ModelNumbers:
     compiled library, serves every belief of the same *shape*).
 
     The shape is what changes the equations themselves rather than their numbers: whether
-    the actuator lags (``tau > 0``) and the low-speed blend's speeds, which are the
-    model's design, not the car's."""
+    the actuator lags (``tau > 0``), whether the tyres saturate, and the low-speed blend's
+    speeds, which are the model's design, not the car's."""
 
     bicycle_vector: Symbolic | np.ndarray
     """The dynamic bicycle's parameters, :data:`tracker.models.dynamic_bicycle.PARAM_NAMES`."""
@@ -155,6 +173,8 @@ class ModelNumbers:
     """``tau > 0``: the actuator is the lag (A1)-(A2); otherwise the command itself."""
     low_speed_mps: float
     high_speed_mps: float
+    friction: Symbolic | float | None = None
+    """The friction the tyres saturate at, (D3'); None: linear tyres, (D3)."""
 
     @classmethod
     def of(cls, params: SteeredBicycleParams) -> ModelNumbers:
@@ -162,7 +182,8 @@ class ModelNumbers:
         return cls(params.bicycle.as_vector(), params.bicycle.wheelbase_m,
                    params.bicycle.cog_rear_m, params.steer_time_constant_s,
                    params.steer_time_constant_s > 0.0, params.low_speed_mps,
-                   params.high_speed_mps)
+                   params.high_speed_mps,
+                   params.tyre_friction if params.saturating else None)
 
     @classmethod
     def symbolic(cls, belief: Symbolic, params: SteeredBicycleParams) -> ModelNumbers:
@@ -173,7 +194,8 @@ class ModelNumbers:
         rear = belief[BELIEF["cog_rear_m"]]
         return cls(vector, front + rear, rear, belief[BELIEF["steer_time_constant_s"]],
                    params.steer_time_constant_s > 0.0, params.low_speed_mps,
-                   params.high_speed_mps)
+                   params.high_speed_mps,
+                   belief[BELIEF["tyre_friction"]] if params.saturating else None)
 
 
 def road_wheel_angle(angle0_rad: Symbolic, command_rad: Symbolic, t_s: Symbolic | float,
@@ -193,12 +215,13 @@ def road_wheel_angle(angle0_rad: Symbolic, command_rad: Symbolic, t_s: Symbolic 
 def vehicle_dynamics(vehicle_state: Symbolic, accel_mps2: Symbolic, steer_rad: Symbolic,
                      params: SteeredBicycleParams | ModelNumbers) -> Symbolic:
     """Time derivative of the six vehicle states at road-wheel angle ``steer_rad``:
-    (D1)-(D6) with the guarded slip angles, the pose moved by (B1)-(B4)."""
+    (D1)-(D6) with the guarded slip angles (and (D3') when the numbers hold a friction), the
+    pose moved by (B1)-(B4)."""
     numbers = params if isinstance(params, ModelNumbers) else ModelNumbers.of(params)
     by_name = {"accel_mps2": accel_mps2, "steer_rad": steer_rad}
     inputs = ca.vertcat(*(by_name[name] for name in bicycle.INPUT_NAMES))
     dynamic = bicycle.continuous_dynamics(vehicle_state, inputs, numbers.bicycle_vector,
-                                          numbers.low_speed_mps)
+                                          numbers.low_speed_mps, numbers.friction)
     yaw = vehicle_state[bicycle.STATE["yaw_rad"]]
     vx = vehicle_state[bicycle.STATE["vx_mps"]]
     vy = vehicle_state[bicycle.STATE["vy_mps"]]
@@ -243,10 +266,11 @@ def _vehicle_part(state: Symbolic) -> Symbolic:
 
 @functools.lru_cache(maxsize=8)
 def _dynamics_function(parameter_count: int, low_speed_mps: float,
-                       high_speed_mps: float) -> ca.Function:
+                       high_speed_mps: float, saturating: bool) -> ca.Function:
     """:func:`vehicle_dynamics` as a CasADi function of the vehicle state, the inputs and
     the numbers that may be symbols (the bicycle's vector, the wheelbase, the CoG to rear
-    axle), for the low-speed blend's speeds (the model's design, constants): an RK4 step
+    axle and, for ``saturating`` tyres, the friction), for the low-speed blend's speeds
+    (the model's design, constants): an RK4 step
     calls it at each of its stages, which CasADi expands into the same operations as
     writing the equations out there, and the equations are written in Python once instead
     of at each of the 24 stages of a model's functions (some 25 ms of a process's set-up)."""
@@ -254,10 +278,11 @@ def _dynamics_function(parameter_count: int, low_speed_mps: float,
     accel, steer = ca.SX.sym("accel_mps2"), ca.SX.sym("steer_rad")
     vector = ca.SX.sym("bicycle", parameter_count)
     wheelbase, cog_rear = ca.SX.sym("wheelbase_m"), ca.SX.sym("cog_rear_m")
+    friction = [ca.SX.sym("tyre_friction")] if saturating else []
     numbers = ModelNumbers(vector, wheelbase, cog_rear, 0.0, False, low_speed_mps,
-                           high_speed_mps)
+                           high_speed_mps, friction[0] if saturating else None)
     return ca.Function("vehicle_dynamics",
-                       [vehicle_state, accel, steer, vector, wheelbase, cog_rear],
+                       [vehicle_state, accel, steer, vector, wheelbase, cog_rear, *friction],
                        [vehicle_dynamics(vehicle_state, accel, steer, numbers)])
 
 
@@ -270,9 +295,11 @@ def _advance(state: Symbolic, inputs: Symbolic, duration_s: Symbolic | float, su
     tau, lagged = numbers.steer_time_constant_s, numbers.lagged
     h = duration_s / substeps
 
+    saturating = numbers.friction is not None
     dynamics = _dynamics_function(numbers.bicycle_vector.shape[0], numbers.low_speed_mps,
-                                  numbers.high_speed_mps)
-    fixed = (numbers.bicycle_vector, numbers.wheelbase_m, numbers.cog_rear_m)
+                                  numbers.high_speed_mps, saturating)
+    fixed = (numbers.bicycle_vector, numbers.wheelbase_m, numbers.cog_rear_m,
+             *((numbers.friction,) if saturating else ()))
 
     def f(vehicle_state: Symbolic, t_s: Symbolic | float) -> Symbolic:
         steer = road_wheel_angle(angle0, command, t_s, tau, lagged)

@@ -73,27 +73,25 @@ def _drive_shares(drive: str) -> tuple[float, float]:
 
 USAGE_BELIEF_NAMES: tuple[str, ...] = (
     "cog_height_m", "drag_area_m2", "rolling_resistance", "front_drive_share",
-    "rear_drive_share", "tyre_friction")
-"""The numbers (T1)-(T4) read besides the bicycle's, in vector order
+    "rear_drive_share")
+"""The numbers (T1)-(T4) read besides the bicycle's and the friction, in vector order
 (:func:`usage_belief_vector`, :func:`friction_usage`)."""
 
 
-def usage_belief_vector(vehicle: VehicleParams, friction: float) -> np.ndarray:
-    """The numbers of :data:`USAGE_BELIEF_NAMES` for the belief ``vehicle`` and the friction
-    ``friction``."""
-    if not (math.isfinite(friction) and friction > 0.0):
-        raise ConfigError(f"friction = {friction!r}: expected a positive number")
+def usage_belief_vector(vehicle: VehicleParams) -> np.ndarray:
+    """The numbers of :data:`USAGE_BELIEF_NAMES` for the belief ``vehicle``."""
     front_share, rear_share = _drive_shares(vehicle.drive)
     return np.array([vehicle.cog_height_m, vehicle.drag_area_m2, vehicle.rolling_resistance,
-                     front_share, rear_share, friction], dtype=float)
+                     front_share, rear_share], dtype=float)
 
 
 def friction_usage(state: Symbolic, inputs: Symbolic, bicycle_vector: Symbolic | np.ndarray,
-                   usage_belief: Symbolic | np.ndarray, low_speed_mps: float) -> Symbolic:
+                   usage_belief: Symbolic | np.ndarray, friction: Symbolic | float,
+                   low_speed_mps: float) -> Symbolic:
     """``[u_f, u_r]`` of (T1)-(T4) at ``state`` with ``inputs``: the bicycle's numbers
-    (:data:`tracker.models.dynamic_bicycle.PARAM_NAMES`) and the others
-    (:data:`USAGE_BELIEF_NAMES`) as floats or symbols; the slip angles guarded below
-    ``low_speed_mps`` as the model's."""
+    (:data:`tracker.models.dynamic_bicycle.PARAM_NAMES`), the others
+    (:data:`USAGE_BELIEF_NAMES`) and the friction as floats or symbols; the slip angles
+    guarded below ``low_speed_mps`` as the model's."""
     def b(name: str) -> Symbolic:
         return bicycle_vector[bicycle.PARAM[name]]
 
@@ -127,7 +125,6 @@ def friction_usage(state: Symbolic, inputs: Symbolic, bicycle_vector: Symbolic |
     force_y_rear = b("cornering_stiffness_rear_npr") * alpha_r
     # A load cannot fall below a tenth of the static one in the formula (a plan braking
     # or accelerating beyond any road's grip must not divide by zero).
-    friction = v("tyre_friction")
     grip_front = friction * ca.fmax(load_front, 0.1 * weight * cog_rear / wheelbase)
     grip_rear = friction * ca.fmax(load_rear, 0.1 * weight * cog_front / wheelbase)
     return ca.vertcat((force_x_front**2 + force_y_front**2) / grip_front**2,  # (T4)
@@ -141,11 +138,13 @@ def friction_usage_function(vehicle: VehicleParams, params: SteeredBicycleParams
     CoG height, drag, rolling resistance, driven axles) with the axle stiffnesses of
     ``params`` and the friction ``friction``; the slip angles guarded at low speed as the
     model's (default: ``params.low_speed_mps``)."""
+    if not (math.isfinite(friction) and friction > 0.0):
+        raise ConfigError(f"friction = {friction!r}: expected a positive number")
     guard = params.low_speed_mps if low_speed_mps is None else low_speed_mps
-    usage_belief = usage_belief_vector(vehicle, friction)
     state = ca.SX.sym("state", len(STATE_NAMES))
     inputs = ca.SX.sym("inputs", len(INPUT))
-    usage = friction_usage(state, inputs, params.bicycle.as_vector(), usage_belief, guard)
+    usage = friction_usage(state, inputs, params.bicycle.as_vector(),
+                           usage_belief_vector(vehicle), friction, guard)
     return ca.Function("tyre_friction_usage", [state, inputs], [usage],
                        ["state", "inputs"], ["usage_sq"])
 

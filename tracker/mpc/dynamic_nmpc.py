@@ -62,26 +62,27 @@ TRACKER_NAME = "dynamic-nmpc"
 
 NLP_BELIEF_NAMES: tuple[str, ...] = BELIEF_NAMES + USAGE_BELIEF_NAMES + ("usage_max",)
 """The belief as the NLP takes it, one parameter each: the steered bicycle's numbers
-(:data:`tracker.models.steered_dynamic_bicycle.BELIEF_NAMES`), those of the friction
-ellipse (:data:`tracker.models.tyre_limits.USAGE_BELIEF_NAMES`, the friction among them,
-which also bounds the slip angles) and ``grip.usage_max``."""
+(:data:`tracker.models.steered_dynamic_bicycle.BELIEF_NAMES`, the friction among them, which
+also bounds the slip angles and the friction ellipse), the ellipse's others
+(:data:`tracker.models.tyre_limits.USAGE_BELIEF_NAMES`) and ``grip.usage_max``."""
 
 
 def _belief_functions(model: VehicleParams, dt_s: float, grip: GripConfig,
                       params: SteeredBicycleParams, tyre_limits: bool) -> dict[str, object]:
     """The model's NLP functions with the belief :data:`NLP_BELIEF_NAMES` as an input, and
     its numbers for ``config``: one NLP for every belief of the same shape (whether the
-    actuator lags, whether the friction ellipse is on, the RK4 substeps)."""
+    actuator lags, whether the tyres saturate, whether the friction ellipse is on, the RK4
+    substeps)."""
     n_steered, n_bicycle = len(BELIEF_NAMES), len(bicycle.PARAM_NAMES)
     n_usage = len(USAGE_BELIEF_NAMES)
     numbers = np.concatenate((belief_vector(params),
-                              usage_belief_vector(model, model.tyre_friction),
+                              usage_belief_vector(model),
                               [grip.usage_max]))
     state = ca.SX.sym("state", len(STATE_NAMES))
     inputs = ca.SX.sym("inputs", len(INPUT_NAMES))
     belief = ca.SX.sym("belief", len(NLP_BELIEF_NAMES))
     steered, usage = belief[:n_steered], belief[n_steered:n_steered + n_usage]
-    friction = usage[USAGE_BELIEF_NAMES.index("tyre_friction")]
+    friction = steered[BELIEF_NAMES.index("tyre_friction")]
     usage_max = belief[NLP_BELIEF_NAMES.index("usage_max")]
     step = belief_discrete_function(params, dt_s)
     slip = slip_angles_of(state, ModelNumbers.symbolic(steered, params))
@@ -94,7 +95,8 @@ def _belief_functions(model: VehicleParams, dt_s: float, grip: GripConfig,
                                      [slip, slip_bounds]),
     }
     if tyre_limits:
-        g = friction_usage(state, inputs, steered[:n_bicycle], usage, params.low_speed_mps)
+        g = friction_usage(state, inputs, steered[:n_bicycle], usage, friction,
+                           params.low_speed_mps)
         functions["belief_stage_limits"] = ca.Function(
             "dynamic_nmpc_usage", [state, inputs, belief],
             [g, ca.vertcat(usage_max**2, usage_max**2)])
@@ -106,11 +108,13 @@ def dynamic_model(config: TrackerConfig) -> NmpcModel:
 
     The six vehicle states are read from the estimate by name; the road-wheel angle is
     internal (no estimator needs to report it): the tracker propagates it with the
-    commands it applied, through the belief's actuator lag. Soft limits keep both axles'
-    slip angles within the linear tyres' range at the belief's friction
-    (``model.tyre_friction``) and, with ``grip.tyre_limits``, each axle's combined force
-    within its friction ellipse (:mod:`tracker.models.tyre_limits`). The model's functions
-    are built once per process for the same belief, stage and grip settings.
+    commands it applied, through the belief's actuator lag. With ``grip.saturating_tyres``
+    the axle forces saturate at the belief's friction (``model.tyre_friction``), (D3') of
+    :mod:`tracker.models.dynamic_bicycle`. Soft limits keep both axles' slip angles within
+    the linear tyres' range at that friction and, with ``grip.tyre_limits``, each axle's
+    combined force within its friction ellipse (:mod:`tracker.models.tyre_limits`). The
+    model's functions are built once per process for the same belief, stage and grip
+    settings.
     """
     return _dynamic_model(config.model, float(config.dt_s), config.grip)
 
@@ -118,7 +122,7 @@ def dynamic_model(config: TrackerConfig) -> NmpcModel:
 @built_once
 def _dynamic_model(belief: VehicleParams, dt_s: float, grip: GripConfig) -> NmpcModel:
     """:func:`dynamic_model` of ``tracker.model``, ``tracker.dt_s`` and ``tracker.grip``."""
-    params = SteeredBicycleParams.from_vehicle(belief)
+    params = SteeredBicycleParams.from_vehicle(belief, saturating=grip.saturating_tyres)
     tyre_limits = {}
     if grip.tyre_limits and belief.tyre_friction < grip.tyre_limits_below_friction:
         tyre_limits = {
@@ -137,6 +141,8 @@ def _dynamic_model(belief: VehicleParams, dt_s: float, grip: GripConfig) -> Nmpc
         dt_s=dt_s,
         unmodelled_lag_s=0.0,
         understeer_gradient_radpmps2=params.bicycle.understeer_gradient_radpmps2,
+        steady_grip_mps2=(belief.tyre_friction * bicycle.GRAVITY_MPS2
+                          if params.saturating else None),
         internal_rest_inputs={"road_wheel_angle_rad": "steer_rad"},
         limits=slip_angle_function(params),
         limit_names=("front_slip_rad", "rear_slip_rad"),

@@ -44,6 +44,12 @@ class GripConfig:
         "below this: on a dry road they do not bind on the lane change and cost about 15 % "
         "solve time; 2.5: at any friction [-]",
     )
+    saturating_tyres: bool = setting(
+        True,
+        doc="dynamic-nmpc: the model's axle forces saturate at the believed friction, "
+        "mu F_z tanh(C alpha / (mu F_z)), instead of growing without bound with the slip "
+        "angle (linear tyres promise more than the road gives near the limit)",
+    )
     speed_planning: bool = setting(
         True,
         doc="NMPCs: cap the reference speed over the horizon by the friction-limited speed "

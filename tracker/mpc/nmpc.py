@@ -70,6 +70,7 @@ import numpy as np
 from cosim.core.dense_function import DenseFunction, densified
 from cosim.core.exceptions import ConfigError
 from tracker.config import TrackerConfig
+from tracker.models.dynamic_bicycle import steady_understeer_rad
 from tracker.mpc.base import Solved, Start
 from tracker.mpc.fallback import INPUT_NAMES
 from tracker.mpc.grip_speed import CurvatureTable, capped_reference_speed
@@ -172,8 +173,9 @@ class Nmpc(EstimatedStartMpc):
         steer = np.zeros(self._n)
         if cfg.curvature_feedforward:
             kappa = points.curvature_1pm
-            steer = (np.arctan(cfg.model.wheelbase_m * kappa)
-                     + self.model.understeer_gradient_radpmps2 * speed[1:] ** 2 * kappa)
+            steer = np.arctan(cfg.model.wheelbase_m * kappa) + steady_understeer_rad(
+                self.model.understeer_gradient_radpmps2, speed[1:], kappa,
+                self.model.steady_grip_mps2)
         ref_speed = points.speed_mps(reference, t_s, cfg.dt_s)
         speed_reduced = False
         if cfg.grip.speed_planning:

@@ -44,6 +44,10 @@ class NmpcModel:
     unmodelled_lag_s: float = 0.0
     understeer_gradient_radpmps2: float = 0.0
     """K of the model's steady turn, ``delta = atan(L kappa) + K v^2 kappa`` (0: neutral)."""
+    steady_grip_mps2: float | None = None
+    """``mu g`` of a model whose tyres saturate: its steady turn needs
+    ``atan(L kappa) + K mu g atanh(v^2 kappa / (mu g))``, (S4) of
+    :mod:`tracker.models.dynamic_bicycle`; None: linear tyres, the line above."""
     internal_rest_inputs: Mapping[str, str] = field(default_factory=dict)
     input_names: tuple[str, ...] = INPUT_NAMES
     limits: ca.Function | None = None

@@ -96,6 +96,11 @@ def _first_command(tracker: str, option: str, **settings: Any) -> np.ndarray:
     return np.array([command.accel_mps2, command.steer_rad])
 
 
+def _bench_friction(config: TrackerConfig) -> float | None:
+    """The friction the bench car's tyres saturate at: the model's, when its tyres do."""
+    return config.model.tyre_friction if config.grip.saturating_tyres else None
+
+
 def _drive(config: TrackerConfig, reference: ReferencePath, y_m: float, speed_mps: float,
            duration_s: float) -> tuple[np.ndarray, list]:
     """Closed loop on the tracker's own model from ``y_m`` left of the origin, heading
@@ -107,7 +112,7 @@ def _drive(config: TrackerConfig, reference: ReferencePath, y_m: float, speed_mp
     else:
         result = dynamic_bench.run_closed_loop(
             _tracker(config), reference, dynamic_bench.Car(0.0, y_m, 0.0, speed_mps),
-            duration_s, DYNAMIC_CAR)
+            duration_s, DYNAMIC_CAR, tyre_friction=_bench_friction(config))
     assert_commands_within_bounds(result.commands, config)
     return result.cte_m, result.plans
 
@@ -365,7 +370,7 @@ def test_default_solver_plans_equal_ipopts_along_a_lane_change() -> None:
     config = _config("dynamic-nmpc", "ipopt")
     both = _SideBySide(config)
     dynamic_bench.run_closed_loop(both, LANE_CHANGE, dynamic_bench.Car(0.0, 0.0, 0.0, 15.0),
-                                  9.0, DYNAMIC_CAR)
+                                  9.0, DYNAMIC_CAR, tyre_friction=_bench_friction(config))
     optimum = both.plans["ipopt", "tight"]
     assert len(optimum) == 180
     steer_swing = max(abs(p.column("steer_rad")[0]) for p in optimum)
@@ -413,11 +418,12 @@ def test_the_compiled_nlp_gives_the_virtual_machines_plans(option: str) -> None:
     # failed the first two QPs here.)
     with warnings.catch_warnings():  # a build or load that fell back would warn
         warnings.simplefilter("error", CompiledCacheWarning)
-        both = _CompiledBeside(_config("dynamic-nmpc", option))
+        config = _config("dynamic-nmpc", option)
+        both = _CompiledBeside(config)
     if option.startswith("sqp-rti"):
         assert both.compiled._nlp.solver.compiled is not None  # the compiled step
     dynamic_bench.run_closed_loop(both, LANE_CHANGE, dynamic_bench.Car(0.0, 0.0, 0.0, 15.0),
-                                  4.0, DYNAMIC_CAR)
+                                  4.0, DYNAMIC_CAR, tyre_friction=_bench_friction(config))
     assert len(both.plans["vm"]) == 80
     assert max(abs(p.column("steer_rad")[0]) for p in both.plans["vm"]) > 0.02
     assert max(_largest_differences(both.plans["compiled"], both.plans["vm"]).values()) < 1e-9
