@@ -235,10 +235,10 @@ class EstimatorConfig:
     )
     # docs/defaults.md, "The wheels' lateral load transfer".
     lateral_load_transfer: bool = setting(
-        False, doc="the front wheels' yaw moment t_f / 2 sin(delta) (F_yl - F_yr), their forces "
+        True, doc="the front wheels' yaw moment t_f / 2 sin(delta) (F_yl - F_yr), their forces "
         "split by their loads as the roll moment m h a_y moves load outwards (estimation."
-        "bicycle, (D3''''), (D5')); false: the axles' yaw moment alone. Not yet the default: "
-        "docs/defaults.md, \"The wheels' lateral load transfer\"",
+        "bicycle, (D3''''), (D5')); false: the axles' yaw moment alone (docs/defaults.md, "
+        "\"The wheels' lateral load transfer\")",
     )
     # The sedan's steering servo gain (cosim.plant.sedan_model: k = I_d omega_s^2, the
     # wheel's diametral inertia 0.570 kg m^2 at 100 rad/s): docs/defaults.md, "The road

@@ -5,10 +5,11 @@ x0.01, x100) shown to fail.
 The ensemble's ANEES band is derived as the full check derives it (Bar-Shalom, Li,
 Kirubarajan 2001, section 5.4.2): chi-square with N runs x 4 dof at every time step after
 the first second; the pass criteria are the same as the full check's (>= 90 % of the steps
-inside, every sensor's NIS per dof after the first second in [0.85, 1.15]). With 20 runs the
-band is [2.86, 5.33], narrow enough that all of ``Q`` x0.3 puts a good part of the steps
-above it; ``Q`` x3 hardly moves the ANEES (the sensors pin the errors down) but shows in
-the IMU's innovations. Twenty closed-loop runs are logged once; each mistuned filter is the
+inside, every sensor's NIS per dof after the first second in [0.9, 1.1]). With 20 runs the
+band is [2.86, 5.33]; ``Q`` x0.3 moves the mean ANEES from 3.9 to 4.4, still within it (since
+the filter's model has the front wheels' moment, 97 % of its steps stay inside), and ``Q`` x3
+hardly moves it (the sensors pin the errors down): both show in the IMU's innovations, NIS
+per dof 1.15 and 0.88 against the nominal filter's 1.01. Twenty closed-loop runs are logged once; each mistuned filter is the
 run's filter replayed over the same sensor stream with its process noise scaled
 (:mod:`cosim.sweeps.replay`), so the whole sweep costs twenty runs.
 """
@@ -237,7 +238,7 @@ def logged_ensemble(request: pytest.FixtureRequest, tmp_path_factory: pytest.Tem
 def test_closed_loop_ensemble_is_consistent(
         logged_ensemble: tuple[ScenarioConfig, list[EnsembleMember], list[LoggedRun]]) -> None:
     """Twenty runs of the lane change: ANEES inside its band at >= 90 % of the steps after
-    1 s, every sensor's NIS per dof after 1 s in [0.85, 1.15] (both judged once the prior has
+    1 s, every sensor's NIS per dof after 1 s in [0.9, 1.1] (both judged once the prior has
     converged; the start-up has its own figure, ``gated_first_s_<sensor>``).
     bench/estimator_consistency.py judges 100 held-out runs in groups of 20."""
     _, members, _ = logged_ensemble
