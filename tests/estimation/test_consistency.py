@@ -9,9 +9,9 @@ inside, every sensor's NIS per dof after the first second in [0.9, 1.1]). With 2
 band is [2.86, 5.33]; ``Q`` x0.3 moves the mean ANEES from 3.9 to 4.4, still within it (since
 the filter's model has the front wheels' moment, 97 % of its steps stay inside), and ``Q`` x3
 hardly moves it (the sensors pin the errors down): both show in the IMU's innovations, NIS
-per dof 1.15 and 0.88 against the nominal filter's 1.01. Twenty closed-loop runs are logged once; each mistuned filter is the
-run's filter replayed over the same sensor stream with its process noise scaled
-(:mod:`cosim.sweeps.replay`), so the whole sweep costs twenty runs.
+per dof 1.15 and 0.88 against the nominal filter's 1.01. Twenty closed-loop runs are logged
+once; each mistuned filter is the run's filter replayed over the same sensor stream with its
+process noise scaled (:mod:`cosim.sweeps.replay`), so the whole sweep costs twenty runs.
 """
 
 from __future__ import annotations
