@@ -5,6 +5,7 @@ more lateral acceleration than ``mu g`` however hard it is steered."""
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 import pytest
@@ -13,6 +14,7 @@ from cosim.core.exceptions import ConfigError
 from cosim.core.physical_constants import GRAVITY_MPS2
 from cosim.core.vehicle_params import VehicleParams
 from tests.named_vectors import named_vector
+from tracker.models.dynamic_bicycle import steady_understeer_rad
 from tracker.models.steered_dynamic_bicycle import (
     BELIEF_NAMES,
     INPUT,
@@ -94,3 +96,23 @@ def test_the_friction_is_a_number_of_the_belief_not_of_the_code() -> None:
 def test_a_friction_that_is_no_number_is_refused() -> None:
     with pytest.raises(ConfigError, match="tyre_friction = 0.0"):
         dataclasses.replace(SATURATING, tyre_friction=0.0)
+
+
+@pytest.mark.parametrize(("params", "grip_mps2"), [
+    (LINEAR, None), (SATURATING, WET.tyre_friction * GRAVITY_MPS2)])
+def test_the_steady_turns_steering_is_what_the_model_needs(
+        params: SteeredBicycleParams, grip_mps2: float | None) -> None:
+    """(S4) (and (S1) for the linear tyres), the steering the curvature feed-forward asks for
+    beyond the kinematic ``atan(L kappa)``: the model held at 0.04 rad settles into a turn
+    (3.5 m/s^2, 0.59 of the wet road's grip, with saturating tyres) whose curvature
+    ``r / vx`` and speed give back the understeer part of the 0.04 rad to 0.5 %. For the
+    saturating model the linear tyres' (S1) gives 13 % too little of it."""
+    state = _steady_turn(params, 0.04)
+    speed = np.array([state[STATE["vx_mps"]]])
+    curvature = np.array([state[STATE["yaw_rate_radps"]]]) / speed
+    needed = 0.04 - math.atan(params.bicycle.wheelbase_m * float(curvature[0]))
+    gradient = params.bicycle.understeer_gradient_radpmps2
+    steady = float(steady_understeer_rad(gradient, speed, curvature, grip_mps2)[0])
+    assert steady == pytest.approx(needed, rel=5e-3)
+    if grip_mps2 is not None:
+        assert float(steady_understeer_rad(gradient, speed, curvature)[0]) < 0.9 * needed
