@@ -7,7 +7,9 @@ key the chosen tracker does not read is accepted; :func:`readers` says who does,
 ``tracker.dynamic_mpc.prediction_horizon``).
 
 A key is named by its first component, or by its first two under ``baseline`` (each
-baseline reads ``baseline.speed`` and its own law's section). ``acc`` is read by whichever
+baseline reads ``baseline.speed`` and its own law's section) and ``grip`` (both NMPCs plan
+their speed by the grip; only ``dynamic-nmpc`` has the friction ellipse and the saturating
+tyres). ``acc`` is read by whichever
 tracker ``tracker.acc.enabled`` wraps; ``params`` and ``step_budget_s`` by plug-ins; a
 plug-in may read any key, so none is reported for one.
 """
@@ -20,14 +22,17 @@ _EVERY_TRACKER = frozenset({"name", "model", "acc", "latency_compensation", "lat
 _BOUNDS = frozenset({"max_steer_rad", "max_steer_rate_radps", "accel_min_mps2",
                      "accel_max_mps2", "safe_stop_accel_mps2", "dt_s"})
 _MPC = _EVERY_TRACKER | _BOUNDS | {"fallback_time_s"}
-_NMPC = _MPC | {"horizon", "weights", "reference", "curvature_feedforward", "solver",
-                "rti_qp_solver", "rti_iterations", "compiled", "max_iterations", "tolerance",
-                "grip"}
+_SPEED_PLANNING = frozenset({"grip.speed_planning", "grip.usage_max", "grip.brake_usage",
+                             "grip.lookahead_s"})
+_NMPC = _MPC | _SPEED_PLANNING | {
+    "horizon", "weights", "reference", "curvature_feedforward", "solver", "rti_qp_solver",
+    "rti_iterations", "compiled", "max_iterations", "tolerance"}
 _BASELINE = _EVERY_TRACKER | _BOUNDS | {"baseline.speed"}
 
 KEYS_READ: MappingProxyType[str, frozenset[str]] = MappingProxyType({
     "kinematic-nmpc": _NMPC | {"kinematic_understeer"},
-    "dynamic-nmpc": _NMPC,
+    "dynamic-nmpc": _NMPC | {"grip.tyre_limits", "grip.tyre_limits_below_friction",
+                             "grip.saturating_tyres"},
     "ltv-mpc": _MPC | {"horizon", "weights", "reference", "ltv_mpc"},
     "dynamic-mpc": _MPC | {"dynamic_mpc"},
     "pid": _BASELINE | {"baseline.pid"},
@@ -44,9 +49,11 @@ PLUGIN_KEYS = frozenset({"params", "step_budget_s"})
 
 def reader_key(dotted: str) -> str:
     """The key of :data:`KEYS_READ` a dotted key under ``tracker.`` belongs to
-    (``weights.cte`` -> ``weights``, ``baseline.lqr.q_cte`` -> ``baseline.lqr``)."""
+    (``weights.cte`` -> ``weights``, ``baseline.lqr.q_cte`` -> ``baseline.lqr``,
+    ``grip.usage_max`` -> ``grip.usage_max``)."""
     parts = dotted.split(".")
-    return ".".join(parts[:2]) if parts[0] == "baseline" and len(parts) > 1 else parts[0]
+    two_level = parts[0] in ("baseline", "grip") and len(parts) > 1
+    return ".".join(parts[:2]) if two_level else parts[0]
 
 
 def readers(dotted: str) -> tuple[str, ...]:

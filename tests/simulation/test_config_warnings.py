@@ -36,6 +36,20 @@ def test_a_key_the_tracker_does_not_read_names_who_does() -> None:
         "tracker lqr"]
 
 
+def test_a_grip_setting_only_the_dynamic_nmpc_reads_names_it() -> None:
+    """The friction ellipse and the saturating tyres are the dynamic NMPC's alone; the
+    kinematic NMPC plans its speed by the grip too, and reads those keys."""
+    data = {"tracker": {"grip": {"saturating_tyres": False, "tyre_limits": False,
+                                 "usage_max": 0.7}}}
+    assert unread_key_warnings(data, "dynamic-nmpc", "pacejka") == []
+    assert unread_key_warnings(data, "kinematic-nmpc", "pacejka") == [
+        "tracker.grip.saturating_tyres = False is not read by tracker kinematic-nmpc: it is "
+        "read by tracker dynamic-nmpc",
+        "tracker.grip.tyre_limits = False is not read by tracker kinematic-nmpc: it is read "
+        "by tracker dynamic-nmpc"]
+    assert len(unread_key_warnings(data, "ltv-mpc", "pacejka")) == 3
+
+
 def test_a_path_key_the_path_does_not_read_names_who_does() -> None:
     """path.seed on a track (a file's circuit) was ignored without a word."""
     with pytest.warns(UnreadKeyWarning, match=r"path.seed = 7 is not read by path.kind "
