@@ -278,11 +278,11 @@ def _dynamics_function(parameter_count: int, low_speed_mps: float,
     accel, steer = ca.SX.sym("accel_mps2"), ca.SX.sym("steer_rad")
     vector = ca.SX.sym("bicycle", parameter_count)
     wheelbase, cog_rear = ca.SX.sym("wheelbase_m"), ca.SX.sym("cog_rear_m")
-    friction = [ca.SX.sym("tyre_friction")] if saturating else []
+    friction = ca.SX.sym("tyre_friction") if saturating else None
     numbers = ModelNumbers(vector, wheelbase, cog_rear, 0.0, False, low_speed_mps,
-                           high_speed_mps, friction[0] if saturating else None)
-    return ca.Function("vehicle_dynamics",
-                       [vehicle_state, accel, steer, vector, wheelbase, cog_rear, *friction],
+                           high_speed_mps, friction)
+    inputs = [vehicle_state, accel, steer, vector, wheelbase, cog_rear]
+    return ca.Function("vehicle_dynamics", inputs + ([friction] if saturating else []),
                        [vehicle_dynamics(vehicle_state, accel, steer, numbers)])
 
 
