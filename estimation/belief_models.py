@@ -40,6 +40,7 @@ def process_noise(config: EstimatorConfig) -> ProcessNoise:
         yaw_transient_psd_s3=config.yaw_transient_psd_s3,
         roll_accel_relative_psd_s=config.roll_accel_relative_psd_s,
         yaw_moment_relative_psd_s=config.yaw_moment_relative_psd_s,
+        yaw_moment_load_transfer_psd_s5pm2=config.yaw_moment_load_transfer_psd_s5pm2,
         jerk_relative_psd_1ps=config.jerk_relative_psd_1ps,
     )
 

@@ -177,6 +177,12 @@ class EstimatorConfig:
         "axles' balance, and with it a turn's side slip, known to a fraction (0.3 on a "
         "circuit with rtk: docs/guide.md) [s]",
     )
+    yaw_moment_load_transfer_psd_s5pm2: float = setting(
+        0.0, low=0.0, high=100.0,
+        doc="yaw acceleration PSD per squared product of the longitudinal acceleration and "
+        "each axle's yaw acceleration: braking or driving in a turn shifts the axles' "
+        "balance, and with it the side slip, by an amount known to a fraction [s^5/m^2]",
+    )
     steer_psd_rad2ps: float = setting(
         5e-6,
         low=0.0,

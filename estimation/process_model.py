@@ -169,6 +169,14 @@ class ProcessNoise:
     grows with the axles' forces, does not show in the total lateral force the IMU
     measures, and becomes a heading error once the positions pin the course. The yaw
     moment's two large opposing parts are each known to a fraction only."""
+    yaw_moment_load_transfer_psd_s5pm2: float = 0.0
+    """The yaw acceleration's PSD per squared product of the longitudinal acceleration and
+    each axle's yaw acceleration: ``yaw_moment_load_transfer_psd_s5pm2 a_x^2 ((l_f F_f)^2 +
+    (l_r F_r)^2) / I_z^2``, beside :attr:`yaw_moment_relative_psd_s`'s term. Braking or
+    driving moves load between the axles ((D3'') of :mod:`estimation.bicycle`) and takes
+    part of the braked or driven tyres' grip: the axles' balance shifts by an amount the
+    model knows to a fraction, an error that grows with ``a_x`` and with the forces it
+    shifts, nil on a straight and in a turn at constant speed."""
     roll_accel_relative_psd_s: float = 0.0
     """The roll acceleration's PSD per squared roll acceleration the tyres' force commands,
     ``roll_accel_psd_rad2ps3 + roll_accel_relative_psd_s * (omega^2 G a_y)^2`` (the roll
@@ -622,9 +630,11 @@ def _force_noise(x: ca.SX, noise: ProcessNoise, bicycle: BicycleParams) -> ca.SX
         noise.lateral_residual_relative_psd_1ps * tyre_accel**2
     )
     extra[state_index("yaw_rad")] = noise.yaw_transient_psd_s3 * yaw_accel**2
-    extra[state_index("yaw_rate_radps")] = noise.yaw_moment_relative_psd_s * (
-        (bicycle.cog_front_m * force_front) ** 2 + (bicycle.cog_rear_m * force_rear) ** 2
-    ) / bicycle.yaw_inertia_kgm2**2
+    extra[state_index("yaw_rate_radps")] = (
+        noise.yaw_moment_relative_psd_s
+        + noise.yaw_moment_load_transfer_psd_s5pm2 * s["ax_mps2"] ** 2
+    ) * ((bicycle.cog_front_m * force_front) ** 2 + (bicycle.cog_rear_m * force_rear) ** 2
+         ) / bicycle.yaw_inertia_kgm2**2
     roll = bicycle.roll
     commanded_roll_accel = roll.angular_frequency_radps**2 * roll.gradient_radpmps2 * tyre_accel
     extra[state_index("roll_rate_radps")] = (

@@ -67,6 +67,7 @@ def test_config_fields_carry_units_or_are_flags() -> None:
         "_mps2",
         "_s",
         "_s3",
+        "_s5pm2",
         "m2ps5",
         "rad2ps3",
         "m2ps3",
