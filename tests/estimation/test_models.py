@@ -215,16 +215,7 @@ def test_the_yaw_moment_noise_grows_with_each_axles_moment() -> None:
     straight = _state(vx_mps=20.0)
     np.testing.assert_array_equal(process.noise_psd(straight), noise.diagonal())
     turning = _state(vx_mps=20.0, vy_mps=-0.2, yaw_rate_radps=0.25, steer_rad=0.03)
-    derivative, _ = process.derivative(turning)
-    roll = bicycle.roll
-    lateral = derivative[state_index("roll_rate_radps")] / (
-        roll.angular_frequency_radps**2 * roll.gradient_radpmps2)
-    yaw_accel = derivative[state_index("yaw_rate_radps")]
-    # F_f + F_r = m a_y and l_f F_f - l_r F_r = I_z r'.
-    forces = np.linalg.solve(
-        [[1.0, 1.0], [bicycle.cog_front_m, -bicycle.cog_rear_m]],
-        [bicycle.mass_kg * lateral, bicycle.yaw_inertia_kgm2 * yaw_accel])
-    moments = forces * [bicycle.cog_front_m, bicycle.cog_rear_m] / bicycle.yaw_inertia_kgm2
+    moments = _axle_moments(process, turning)
     w = np.diag(process.noise_psd(turning))
     without = np.diag(ProcessModel(NOISE, bicycle, CONFIG.lateral_residual_time_constant_s)
                       .noise_psd(turning))
@@ -239,8 +230,8 @@ def test_the_yaw_moment_noise_grows_with_each_axles_moment() -> None:
 def test_the_load_transfer_noise_grows_with_braking_in_a_turn_only() -> None:
     """With ``yaw_moment_load_transfer_psd_s5pm2`` the yaw acceleration's PSD grows by it
     times ``a_x^2 ((l_f F_f)^2 + (l_r F_r)^2) / I_z^2``: nothing in a turn at constant speed
-    or braking straight ahead, the same braking or driving at the same ``|a_x|``, four times
-    as much at twice the deceleration."""
+    or braking straight ahead, something driving in the turn too, and at twice the
+    deceleration about four times as much (the moments change a little with the load)."""
     coefficient = 3.0
     noise = dataclasses.replace(NOISE, yaw_moment_load_transfer_psd_s5pm2=coefficient)
     bicycle = BicycleParams.from_vehicle(BELIEF, roll=ROLL)
@@ -258,25 +249,28 @@ def test_the_load_transfer_noise_grows_with_braking_in_a_turn_only() -> None:
         np.testing.assert_array_equal(w[others], w0[others])
         added[ax_mps2] = w[yaw_rate] - w0[yaw_rate]
     # The axles' moments of the braking turn (the load moved forward changes them).
-    state = _state(**turn, ax_mps2=-2.0)
-    forces = np.linalg.solve(
-        [[1.0, 1.0], [bicycle.cog_front_m, -bicycle.cog_rear_m]],
-        [bicycle.mass_kg * _tyre_accel(process, state),
-         bicycle.yaw_inertia_kgm2 * process.derivative(state)[0][yaw_rate]])
-    moments = forces * [bicycle.cog_front_m, bicycle.cog_rear_m] / bicycle.yaw_inertia_kgm2
+    moments = _axle_moments(process, _state(**turn, ax_mps2=-2.0))
     assert np.abs(moments).min() > 0.5
     assert added[-2.0] == pytest.approx(coefficient * 4.0 * float(moments @ moments),
                                         rel=1e-9)
     assert added[2.0] > 0.0 and added[-4.0] > 3.0 * added[-2.0]
 
 
-def _tyre_accel(process: ProcessModel, state: np.ndarray) -> float:
-    """The tyres' lateral acceleration of ``state``, as the roll mode's drive shows it
-    (R2: ``p' = -omega^2 (phi - G a_t) - 2 zeta omega p``, at zero roll and roll rate)."""
-    roll = process.bicycle.roll
+def _axle_moments(process: ProcessModel, state: np.ndarray) -> np.ndarray:
+    """``(l_f F_f, l_r F_r) / I_z`` of ``state``, the axles' forces found from the bicycle's
+    own derivative: ``F_f + F_r = m a_t`` and ``l_f F_f - l_r F_r = I_z r'``, with the tyres'
+    lateral acceleration ``a_t`` as the roll mode's drive shows it (R2: ``p' = omega^2 G a_t``
+    at zero roll and roll rate)."""
+    bicycle = process.bicycle
+    roll = bicycle.roll
     derivative, _ = process.derivative(state)
-    return float(derivative[state_index("roll_rate_radps")]
-                 / (roll.angular_frequency_radps**2 * roll.gradient_radpmps2))
+    lateral = derivative[state_index("roll_rate_radps")] / (
+        roll.angular_frequency_radps**2 * roll.gradient_radpmps2)
+    yaw_accel = derivative[state_index("yaw_rate_radps")]
+    forces = np.linalg.solve(
+        [[1.0, 1.0], [bicycle.cog_front_m, -bicycle.cog_rear_m]],
+        [bicycle.mass_kg * lateral, bicycle.yaw_inertia_kgm2 * yaw_accel])
+    return forces * [bicycle.cog_front_m, bicycle.cog_rear_m] / bicycle.yaw_inertia_kgm2
 
 
 def test_the_jerk_noise_grows_with_the_longitudinal_acceleration(process: ProcessModel) -> None:
